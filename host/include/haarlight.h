@@ -1,0 +1,256 @@
+/* haarlight.h - public API of the haarlight relighting engine.
+ *
+ * Purpose: precomputed radiance transfer with nonlinear Haar wavelet
+ * approximation. This header is the catalogue: context, meshes, transport
+ * parameters, precomputation and transport files.
+ *
+ * Conventions:
+ *   - Every fallible function returns hl_result and hands objects back
+ *     through out-parameters. The message for the last failure is kept on
+ *     the context (hl_context_last_error).
+ *   - create/destroy for objects, load/save for files, query for facts.
+ *     destroy(NULL) does nothing.
+ *   - Descriptor structs: zero means "use the default"; each field's
+ *     default is listed above the struct.
+ *   - A context is not thread safe; use one per thread.
+ */
+#ifndef HAARLIGHT_H
+#define HAARLIGHT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "hl_shared.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---------------------------------------------------------------- results */
+
+typedef enum hl_result {
+    HL_OK = 0,
+    HL_ERR_INVALID_ARGUMENT, /* impossible option or parameter */
+    HL_ERR_OUT_OF_MEMORY,    /* host or device allocation failed */
+    HL_ERR_IO,               /* file could not be opened, read or written */
+    HL_ERR_FORMAT,           /* file is malformed, truncated or corrupt */
+    HL_ERR_MESH,             /* mesh has invalid geometry */
+    HL_ERR_OPENCL,           /* an OpenCL call or kernel build failed */
+    HL_ERR_EMBREE,           /* Embree reported an error */
+    HL_ERR_UNSUPPORTED,      /* valid request this build or device cannot do */
+    HL_ERR_INTERRUPTED,      /* the user interrupted a long operation */
+    HL_RESULT_COUNT
+} hl_result;
+
+/* Short fixed description of a result code; never NULL. */
+const char *hl_result_string(hl_result r);
+
+/* ---------------------------------------------------------------- context */
+
+typedef enum hl_backend {
+    HL_BACKEND_DEFAULT = 0, /* OpenCL */
+    HL_BACKEND_OPENCL,
+    HL_BACKEND_REFERENCE    /* plain-C twins of every kernel */
+} hl_backend;
+
+/* hl_context_desc fields and defaults:
+ *   backend        HL_BACKEND_DEFAULT (OpenCL)
+ *   cl_platform    -1: first platform with a device (index otherwise)
+ *   cl_device      -1: first device of that platform (index otherwise)
+ *   threads        0: one per online core (host ray casting and reference)
+ *   kernel_dir     NULL: kernels embedded in the binary; else a folder that
+ *                  holds the .cl files (the HL_KERNEL_DIR environment
+ *                  variable has the same effect)
+ *   quiet          0: progress on stderr when it is a terminal
+ */
+typedef struct hl_context_desc {
+    hl_backend backend;
+    int cl_platform;
+    int cl_device;
+    int threads;
+    const char *kernel_dir;
+    int quiet;
+} hl_context_desc;
+
+typedef struct hl_context hl_context;
+
+/* Creates a context. With the OpenCL backend the device is opened and the
+ * kernels are built here; on failure *out is NULL and, when err/err_size
+ * are given, the message is copied there. */
+hl_result hl_context_create(const hl_context_desc *desc, hl_context **out,
+                            char *err, size_t err_size);
+void hl_context_destroy(hl_context *ctx);
+/* Message of the last failure on this context ("" when none). */
+const char *hl_context_last_error(const hl_context *ctx);
+/* Human-readable name of the compute device ("reference (plain C)" or the
+ * OpenCL platform and device names). */
+const char *hl_context_device_name(const hl_context *ctx);
+hl_backend hl_context_backend(const hl_context *ctx);
+int hl_context_threads(const hl_context *ctx);
+
+/* Prints the OpenCL platforms and devices to the given FILE* (void* to keep
+ * stdio out of this header). Works without a context. */
+hl_result hl_list_devices(void *file, char *err, size_t err_size);
+
+/* ---------------------------------------------------------------- meshes */
+
+/* A triangle mesh as the engine uses it: welded, with one smooth normal and
+ * one albedo per vertex. Arrays are owned by the mesh. Vertices in
+ * [object_vertex_count, vertex_count) belong to the added ground plane. */
+typedef struct hl_mesh {
+    uint32_t vertex_count;
+    uint32_t triangle_count;
+    uint32_t object_vertex_count;
+    float *positions; /* 3 * vertex_count */
+    float *normals;   /* 3 * vertex_count, unit length */
+    float *albedo;    /* 3 * vertex_count, linear RGB */
+    uint32_t *indices;/* 3 * triangle_count */
+} hl_mesh;
+
+/* hl_mesh_load_desc fields and defaults:
+ *   albedo        {0,0,0}: 0.8 grey; used when the file has no vertex colours
+ *   up_axis       0 or 'y': file is +Y up; 'z': file is +Z up (rotated so
+ *                 that +Z becomes +Y)
+ *   keep_winding  0: a closed mesh whose winding points inward is flipped;
+ *                 1: never flip
+ */
+typedef struct hl_mesh_load_desc {
+    float albedo[3];
+    int up_axis;
+    int keep_winding;
+} hl_mesh_load_desc;
+
+/* What loading did to the file's mesh. */
+typedef struct hl_mesh_stats {
+    uint32_t file_vertices;       /* vertices as the importer gave them */
+    uint32_t file_triangles;
+    uint32_t merged_vertices;     /* removed by welding equal positions */
+    uint32_t unreferenced_vertices;
+    uint32_t degenerate_triangles;/* dropped: repeated index or zero area */
+    int had_normals;              /* 1 if the file's normals were used */
+    int had_colors;               /* 1 if albedo came from vertex colours */
+    int flipped;                  /* 1 if the winding was reversed */
+} hl_mesh_stats;
+
+/* Loads OBJ, PLY, glTF and anything else the importer reads. Errors name
+ * the file and the problem (HL_ERR_IO, HL_ERR_FORMAT, HL_ERR_MESH). */
+hl_result hl_mesh_load(hl_context *ctx, const char *path,
+                       const hl_mesh_load_desc *desc, hl_mesh **out,
+                       hl_mesh_stats *stats);
+
+/* Builds a mesh from arrays (copied). normals may be NULL (computed),
+ * albedo may be NULL (constant). Validates like hl_mesh_load. */
+hl_result hl_mesh_create(hl_context *ctx, uint32_t vertex_count,
+                         const float *positions, const float *normals,
+                         const float *albedo, uint32_t triangle_count,
+                         const uint32_t *indices, hl_mesh **out);
+
+/* hl_ground_desc fields and defaults:
+ *   resolution    0: 96 quads along the longer side
+ *   margin        0: the plane extends 0.75 x the footprint's larger
+ *                 extent beyond the footprint on every side
+ *   albedo        {0,0,0}: same as the object's mean albedo
+ */
+typedef struct hl_ground_desc {
+    uint32_t resolution;
+    float margin;
+    float albedo[3];
+} hl_ground_desc;
+
+/* Appends a finely tessellated ground plane, +Y normal, at the mesh's lowest
+ * point, sized to its footprint. */
+hl_result hl_mesh_add_ground(hl_context *ctx, hl_mesh *mesh,
+                             const hl_ground_desc *desc);
+
+/* Length of the bounding-box diagonal (scale for ray offsets). */
+float hl_mesh_query_diagonal(const hl_mesh *mesh);
+
+void hl_mesh_destroy(hl_mesh *mesh);
+
+/* ---------------------------------------------------------------- transport */
+
+/* hl_precompute_desc fields and defaults:
+ *   N             0: 64 (paraboloid map side, power of two, 8..256)
+ *   C             0: 64 (cubemap face side, 4..512)
+ *   supersample   0: 1 ray per cube texel (S gives S x S rays, S <= 15)
+ *   rule          HL_TRUNC_DEFAULT: energy rule
+ *   K             0: no cap (top-K rule: required, >= 1 unless keep none)
+ *   eps           0: 1e-3 of the row's energy may be dropped (energy rule)
+ *   quant         HL_QUANT_DEFAULT: the scheme the bench measured best
+ *   ray_offset    0: 1e-4 of the bounding-box diagonal
+ *   chunk         0: 1024 vertices per chunk
+ */
+typedef struct hl_precompute_desc {
+    uint32_t N;
+    uint32_t C;
+    uint32_t supersample;
+    uint32_t rule;
+    uint32_t K;
+    float eps;
+    uint32_t quant;
+    float ray_offset;
+    uint32_t chunk;
+} hl_precompute_desc;
+
+/* Counters and timings of one precompute. */
+typedef struct hl_precompute_stats {
+    uint64_t rays_cast;       /* occlusion rays traced */
+    uint64_t rays_culled;     /* directions skipped: below the horizon */
+    uint64_t coefficients_kept;
+    double seconds_rays;      /* wall time inside ray casting */
+    double seconds_kernels;   /* wall time waiting for the kernel stages */
+    double seconds_total;
+} hl_precompute_stats;
+
+/* Header of a transport file: every parameter and count. See
+ * docs in host/FORMAT.md. */
+typedef struct hl_transport_info {
+    uint32_t version;
+    uint32_t N, C, supersample;
+    uint32_t rule, K;
+    float eps;
+    uint32_t quant;
+    float ray_offset;             /* relative to the diagonal */
+    uint32_t vertex_count;
+    uint32_t object_vertex_count;
+    uint32_t triangle_count;
+    uint32_t block_count;         /* per vertex: ceil(2 N^2 / 256) */
+    uint64_t coefficients_kept;   /* total non-zeros stored */
+    uint64_t rays_cast;
+    uint64_t rays_culled;
+} hl_transport_info;
+
+/* A transport file in memory. Vertex v's entries are
+ * entries[2*row_offset[v] .. 2*row_offset[v+1]), in pairs (index in block,
+ * quantised value), ordered by block then index; block_counts[v*block_count
+ * + b] says how many belong to block b. */
+typedef struct hl_transport {
+    hl_transport_info info;
+    hl_mesh *mesh;
+    hl_row_quant *row_quant;   /* vertex_count */
+    uint16_t *block_counts;    /* vertex_count * block_count */
+    uint64_t *row_offset;      /* vertex_count + 1, derived on load */
+    uint8_t *entries;          /* 2 * coefficients_kept */
+} hl_transport;
+
+/* Runs the whole precomputation on the context's device and writes the
+ * transport file atomically (temporary name, then rename). The mesh must
+ * already carry any ground plane. stats may be NULL. */
+hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh,
+                        const hl_precompute_desc *desc, const char *out_path,
+                        hl_precompute_stats *stats);
+
+/* Reads a transport file; every size is bounded before allocation and
+ * every section's checksum is verified. */
+hl_result hl_transport_load(hl_context *ctx, const char *path,
+                            hl_transport **out);
+void hl_transport_destroy(hl_transport *t);
+
+/* Dequantises vertex v's kept coefficients into a dense row of 2 N^2
+ * floats (zero elsewhere). */
+void hl_transport_query_row(const hl_transport *t, uint32_t v, float *dense);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

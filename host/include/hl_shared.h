@@ -1,0 +1,159 @@
+/* hl_shared.h - data layouts and scalar formulas shared by host and kernels.
+ *
+ * Compiles as C11 and as OpenCL C 1.2: the build prepends this file to every
+ * kernel program. Anything both sides must agree on to the bit lives here
+ * (struct layouts, quantisation formulas), so that the OpenCL stages and
+ * their plain-C twins produce identical integers from identical floats.
+ * The host pins the layouts with _Static_assert in host/src/layout_check.c.
+ */
+#ifndef HL_SHARED_H
+#define HL_SHARED_H
+
+#ifdef __OPENCL_C_VERSION__
+#define HL_U32 uint
+#define HL_U64 ulong
+#define HL_INLINE inline
+#define HL_AS_U32(f) as_uint(f)
+#define HL_AS_F32(u) as_float(u)
+#else
+#include <stdint.h>
+#include <string.h>
+#define HL_U32 uint32_t
+#define HL_U64 uint64_t
+#define HL_INLINE static inline
+static inline uint32_t hl_as_u32_(float f) { uint32_t u; memcpy(&u, &f, 4); return u; }
+static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return f; }
+#define HL_AS_U32(f) hl_as_u32_(f)
+#define HL_AS_F32(u) hl_as_f32_(u)
+#endif
+
+/* Coefficient slots per sparse block: an in-block index fits in 8 bits. */
+#define HL_BLOCK 256
+
+/* Truncation rules. */
+#define HL_TRUNC_DEFAULT 0u
+#define HL_TRUNC_ALL 1u    /* keep every non-zero coefficient */
+#define HL_TRUNC_TOPK 2u   /* keep the K largest |T_i| */
+#define HL_TRUNC_ENERGY 3u /* keep the fewest holding (1 - eps) of the energy,
+                              at most K when K > 0 */
+
+/* Quantisation schemes for the 8-bit stored value. */
+#define HL_QUANT_DEFAULT 0u
+#define HL_QUANT_LINEAR8 1u /* q = round(255 (v - lo) / (hi - lo)); lo, hi =
+                               min and max kept value (the seed scheme) */
+#define HL_QUANT_LOG8 2u    /* sign bit + 7-bit magnitude, uniform in the
+                               float bit pattern (a piecewise-linear log2)
+                               between the min and max kept |v| */
+
+/* One entry of the cubemap-to-paraboloid table: the part of a paraboloid
+ * texel's footprint that falls in one cube texel. m is the first moment of
+ * that part, the integral of w dw over it, so n.m is its cosine-weighted
+ * solid angle exactly wherever the part lies above the horizon. */
+typedef struct hl_c2p_entry {
+    float mx, my, mz;
+    HL_U32 cube; /* cube texel index: face * C * C + row * C + col */
+} hl_c2p_entry;
+
+/* Per-vertex dequantisation parameters (meaning depends on the scheme):
+ * LINEAR8: a = lo, b = hi.  LOG8: a = min |v|, b = max |v|. */
+typedef struct hl_row_quant {
+    float a;
+    float b;
+} hl_row_quant;
+
+/* Per-vertex result of the truncation stage. Coefficient i is kept when
+ * key_i > thresh, or key_i == thresh and fewer than ties earlier
+ * coefficients (in slot order) with key == thresh were kept. key is the bit
+ * pattern of |T_i|, which orders non-negative floats. Zeros are never kept. */
+typedef struct hl_trunc_result {
+    HL_U32 thresh;
+    HL_U32 ties;
+    HL_U32 count;
+    HL_U32 pad_;
+} hl_trunc_result;
+
+/* Truncation parameters passed to the stage. */
+typedef struct hl_trunc_params {
+    HL_U32 rule;
+    HL_U32 K;       /* top-K count, or cap for the energy rule (0: none) */
+    HL_U32 eps_q20; /* eps in units of 2^-20 */
+    HL_U32 pad_;
+} hl_trunc_params;
+
+/* Key of a coefficient: |v| as ordered bits. */
+HL_INLINE HL_U32 hl_key(float v) { return HL_AS_U32(v) & 0x7fffffffu; }
+
+/* Fixed-point energy of a coefficient for the energy rule, with a per-row
+ * scale 2^s chosen from the row's largest key so that sums are exact
+ * integers (no float summation-order effects). */
+HL_INLINE float hl_energy_scale(HL_U32 max_key)
+{
+    float m = HL_AS_F32(max_key);
+    HL_U32 sq = HL_AS_U32(m * m);
+    int e = (int)(sq >> 23) - 127;
+    int s = 39 - e;
+    if (s > 127) s = 127;
+    if (s < -126) s = -126;
+    return HL_AS_F32((HL_U32)(s + 127) << 23);
+}
+
+HL_INLINE HL_U64 hl_energy(float v, float scale)
+{
+    float e = (v * v) * scale;
+    return (HL_U64)e;
+}
+
+/* Energy that the rule may drop: floor(total / 2^20) * eps_q20. */
+HL_INLINE HL_U64 hl_energy_drop(HL_U64 total, HL_U32 eps_q20)
+{
+    return (total >> 20) * (HL_U64)eps_q20;
+}
+
+/* ---- quantisation formulas (identical in both compilers) ---- */
+
+HL_INLINE HL_U32 hl_quant_linear8(float v, float lo, float hi)
+{
+    float range = hi - lo;
+    if (!(range > 0.0f)) return 0u;
+    float x = (v - lo) / range * 255.0f;
+    if (x < 0.0f) x = 0.0f;
+    if (x > 255.0f) x = 255.0f;
+    return (HL_U32)(x + 0.5f);
+}
+
+HL_INLINE float hl_dequant_linear8(HL_U32 q, float lo, float hi)
+{
+    float range = hi - lo;
+    return lo + ((float)q / 255.0f) * range;
+}
+
+HL_INLINE HL_U32 hl_quant_log8(float v, float mn, float mx)
+{
+    HL_U32 sign = (HL_AS_U32(v) >> 31) << 7;
+    HL_U32 k = hl_key(v);
+    HL_U32 kmn = HL_AS_U32(mn), kmx = HL_AS_U32(mx);
+    if (kmx <= kmn) return sign;
+    if (k < kmn) k = kmn;
+    if (k > kmx) k = kmx;
+    HL_U64 span = (HL_U64)(kmx - kmn);
+    HL_U64 q = ((HL_U64)(k - kmn) * 127u + span / 2u) / span;
+    return sign | (HL_U32)q;
+}
+
+HL_INLINE float hl_dequant_log8(HL_U32 code, float mn, float mx)
+{
+    HL_U32 kmn = HL_AS_U32(mn), kmx = HL_AS_U32(mx);
+    HL_U32 q = code & 127u;
+    HL_U32 k = kmn;
+    if (kmx > kmn) k = kmn + (HL_U32)(((HL_U64)q * (HL_U64)(kmx - kmn) + 63u) / 127u);
+    float m = HL_AS_F32(k);
+    return (code & 128u) ? -m : m;
+}
+
+HL_INLINE float hl_dequant(HL_U32 scheme, HL_U32 code, float a, float b)
+{
+    return scheme == HL_QUANT_LOG8 ? hl_dequant_log8(code, a, b)
+                                   : hl_dequant_linear8(code, a, b);
+}
+
+#endif

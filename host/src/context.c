@@ -1,0 +1,134 @@
+/* context.c - the context object, result strings and small host helpers.
+ *
+ * The context owns the compute device (through cl_backend.c) and the last
+ * error message. Nothing here is global except the interrupt flag that
+ * the CLI's signal handler sets.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "cl_backend.h"
+#include "hl_internal.h"
+
+volatile int hl_interrupt_requested = 0;
+
+static const char *const result_strings[HL_RESULT_COUNT] = {
+    [HL_OK] = "success",
+    [HL_ERR_INVALID_ARGUMENT] = "invalid argument",
+    [HL_ERR_OUT_OF_MEMORY] = "out of memory",
+    [HL_ERR_IO] = "input/output error",
+    [HL_ERR_FORMAT] = "malformed file",
+    [HL_ERR_MESH] = "invalid mesh",
+    [HL_ERR_OPENCL] = "OpenCL error",
+    [HL_ERR_EMBREE] = "Embree error",
+    [HL_ERR_UNSUPPORTED] = "unsupported",
+    [HL_ERR_INTERRUPTED] = "interrupted",
+};
+
+const char *hl_result_string(hl_result r)
+{
+    if ((int)r < 0 || r >= HL_RESULT_COUNT) return "unknown result code";
+    return result_strings[r];
+}
+
+hl_result hl_fail(hl_context *ctx, hl_result code, const char *fmt, ...)
+{
+    if (ctx) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(ctx->err, sizeof ctx->err, fmt, ap);
+        va_end(ap);
+    }
+    return code;
+}
+
+void *hl_malloc(hl_context *ctx, size_t bytes, const char *what)
+{
+    void *p = malloc(bytes ? bytes : 1);
+    if (!p) hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory allocating %zu bytes for %s", bytes, what);
+    return p;
+}
+
+void *hl_calloc(hl_context *ctx, size_t count, size_t size, const char *what)
+{
+    void *p = calloc(count ? count : 1, size ? size : 1);
+    if (!p) hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory allocating %zu x %zu bytes for %s", count, size, what);
+    return p;
+}
+
+void *hl_alloc_big(hl_context *ctx, size_t bytes, const char *what)
+{
+    void *p = NULL;
+    size_t rounded = (bytes + 63) & ~(size_t)63;
+    if (posix_memalign(&p, 64, rounded ? rounded : 64) != 0) {
+        hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory allocating %zu bytes for %s", bytes, what);
+        return NULL;
+    }
+#ifdef MADV_HUGEPAGE
+    if (rounded >= (size_t)4 << 20) madvise(p, rounded, MADV_HUGEPAGE);
+#endif
+    return p;
+}
+
+void hl_free_big(void *p) { free(p); }
+
+double hl_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+hl_result hl_context_create(const hl_context_desc *desc, hl_context **out,
+                            char *err, size_t err_size)
+{
+    hl_context_desc d = {0};
+    if (desc) d = *desc;
+    if (out) *out = NULL;
+    if (err && err_size) err[0] = 0;
+    if (!out) return HL_ERR_INVALID_ARGUMENT;
+    hl_context *ctx = calloc(1, sizeof *ctx);
+    if (!ctx) {
+        if (err && err_size) snprintf(err, err_size, "out of memory creating the context");
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    ctx->backend = d.backend == HL_BACKEND_DEFAULT ? HL_BACKEND_OPENCL : d.backend;
+    ctx->quiet = d.quiet;
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    ctx->threads = d.threads > 0 ? d.threads : (cores > 0 ? (int)cores : 1);
+    const char *kd = d.kernel_dir ? d.kernel_dir : getenv("HL_KERNEL_DIR");
+    if (kd && *kd) snprintf(ctx->kernel_dir, sizeof ctx->kernel_dir, "%s", kd);
+
+    hl_result r = HL_OK;
+    if (ctx->backend == HL_BACKEND_OPENCL) {
+        r = hl_cl_create(ctx, d.cl_platform, d.cl_device);
+    } else if (ctx->backend == HL_BACKEND_REFERENCE) {
+        snprintf(ctx->device_name, sizeof ctx->device_name, "reference (plain C, %d threads)", ctx->threads);
+    } else {
+        r = hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "unknown backend %d", (int)d.backend);
+    }
+    if (r != HL_OK) {
+        if (err && err_size) snprintf(err, err_size, "%s", ctx->err);
+        hl_context_destroy(ctx);
+        return r;
+    }
+    *out = ctx;
+    return HL_OK;
+}
+
+void hl_context_destroy(hl_context *ctx)
+{
+    if (!ctx) return;
+    hl_cl_destroy(ctx->cl);
+    free(ctx);
+}
+
+const char *hl_context_last_error(const hl_context *ctx) { return ctx ? ctx->err : ""; }
+const char *hl_context_device_name(const hl_context *ctx) { return ctx ? ctx->device_name : ""; }
+hl_backend hl_context_backend(const hl_context *ctx) { return ctx ? ctx->backend : HL_BACKEND_DEFAULT; }
+int hl_context_threads(const hl_context *ctx) { return ctx ? ctx->threads : 1; }

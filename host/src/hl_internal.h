@@ -1,0 +1,49 @@
+/* hl_internal.h - private declarations shared by the library's modules.
+ *
+ * Not installed. Holds the context layout, the error helper and the
+ * internal interfaces between modules (geometry tables, stage runners,
+ * third-party wrappers). Each third-party header is included by exactly one
+ * .c file; the rest of the library sees only the opaque types below.
+ */
+#ifndef HL_INTERNAL_H
+#define HL_INTERNAL_H
+
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "haarlight.h"
+
+struct hl_cl; /* cl_backend.c */
+
+struct hl_context {
+    hl_backend backend;
+    int threads;
+    int quiet;
+    char kernel_dir[1024];
+    char device_name[256];
+    char err[4096];
+    struct hl_cl *cl; /* NULL for the reference backend */
+};
+
+/* Records a formatted message on ctx (may be NULL) and returns code. */
+hl_result hl_fail(hl_context *ctx, hl_result code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
+/* malloc/calloc that record HL_ERR_OUT_OF_MEMORY naming what was wanted. */
+void *hl_malloc(hl_context *ctx, size_t bytes, const char *what);
+void *hl_calloc(hl_context *ctx, size_t count, size_t size, const char *what);
+/* Large arrays: 64-byte aligned, huge pages advised. Free with hl_free_big. */
+void *hl_alloc_big(hl_context *ctx, size_t bytes, const char *what);
+void hl_free_big(void *p);
+
+/* Monotonic wall clock in seconds. */
+double hl_now(void);
+
+/* Set by SIGINT handlers of the CLI; long loops poll it. */
+extern volatile int hl_interrupt_requested;
+
+#endif

@@ -1,0 +1,68 @@
+/* hl_test.h - tiny assertion helpers for the ctest suites.
+ *
+ * A test executable takes the case name as argv[1] and dispatches to one
+ * function. Every numeric check prints its tolerance and the worst error
+ * it saw, so a passing log still tells how close it came.
+ */
+#ifndef HL_TEST_H
+#define HL_TEST_H
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int hl_test_failures = 0;
+
+#define HL_CHECK(cond, ...)                                                   \
+    do {                                                                      \
+        if (!(cond)) {                                                        \
+            fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__);              \
+            fprintf(stderr, __VA_ARGS__);                                     \
+            fputc('\n', stderr);                                              \
+            hl_test_failures++;                                               \
+        }                                                                     \
+    } while (0)
+
+/* Prints "what: worst error E, tolerance T" and fails when E > T or E is
+ * not a number. */
+static inline void hl_check_error(const char *what, double worst, double tol)
+{
+    int ok = worst <= tol;
+    printf("%s: worst error %.4g, tolerance %.4g: %s\n", what, worst, tol, ok ? "ok" : "FAIL");
+    if (!ok) hl_test_failures++;
+}
+
+typedef struct hl_test_case {
+    const char *name;
+    void (*fn)(void);
+} hl_test_case;
+
+/* Runs the case named argv[1]; returns the process exit code. */
+static inline int hl_test_main(int argc, char **argv, const hl_test_case *cases)
+{
+    if (argc < 2) {
+        fprintf(stderr, "usage: %s CASE\ncases:", argv[0]);
+        for (const hl_test_case *c = cases; c->name; c++) fprintf(stderr, " %s", c->name);
+        fputc('\n', stderr);
+        return 2;
+    }
+    for (const hl_test_case *c = cases; c->name; c++) {
+        if (strcmp(c->name, argv[1]) == 0) {
+            c->fn();
+            printf("%s: %s\n", c->name, hl_test_failures ? "FAILED" : "passed");
+            return hl_test_failures ? 1 : 0;
+        }
+    }
+    fprintf(stderr, "unknown case %s\n", argv[1]);
+    return 2;
+}
+
+/* Environment helpers: shared data folder, scratch folder, CLI binary. */
+static inline const char *hl_test_env(const char *name, const char *fallback)
+{
+    const char *v = getenv(name);
+    return v && *v ? v : fallback;
+}
+
+#endif
