@@ -175,9 +175,9 @@ void hl_mesh_destroy(hl_mesh *mesh);
  *   supersample   0: 1 ray per cube texel (S gives S x S rays, S <= 15)
  *   rule          HL_TRUNC_DEFAULT: energy rule
  *   K             0: no cap (top-K rule: required, >= 1 unless keep none)
- *   eps           0: 1e-3 of the row's energy may be dropped (energy rule)
+ *   eps           0: 1e-4 of the row's energy may be dropped (energy rule)
  *   quant         HL_QUANT_DEFAULT: the scheme the bench measured best
- *   ray_offset    0: 1e-4 of the bounding-box diagonal
+ *   ray_offset    0: 1e-3 of the bounding-box diagonal
  *   chunk         0: 1024 vertices per chunk
  */
 typedef struct hl_precompute_desc {

@@ -15,4 +15,45 @@ struct hl_geom;
 hl_result hl_cl_create(hl_context *ctx, int platform, int device);
 void hl_cl_destroy(struct hl_cl *cl);
 
+
+
+/* Device buffers for running the precompute stages on up to max_rows rows
+ * at a time. Two input/output slots let the host fill one while the device
+ * works on the other. */
+typedef struct hl_cl_pipe hl_cl_pipe;
+
+/* Host side of one chunk. Arrays hold max_rows rows: vis ncube bytes,
+ * normals4 4 floats, tr 1, rq 1, bc nblocks, entries 2 ncoef bytes, nnz 1
+ * per row. They must stay valid from submit until wait returns. */
+typedef struct hl_chunk_buf {
+    uint8_t *vis;
+    float *normals4;
+    hl_trunc_result *tr;
+    hl_row_quant *rq;
+    uint16_t *bc;
+    uint8_t *entries;
+    uint32_t *nnz;
+} hl_chunk_buf;
+
+hl_result hl_cl_pipe_create(hl_context *ctx, const struct hl_geom *g, uint32_t max_rows,
+                            hl_cl_pipe **out);
+void hl_cl_pipe_destroy(hl_cl_pipe *p);
+
+/* Enqueues upload, the four stages and the read-back for `rows` rows of
+ * io, and returns without waiting. */
+hl_result hl_cl_pipe_submit(hl_cl_pipe *p, int slot, uint32_t rows, float vis_scale,
+                            hl_trunc_params tp, uint32_t scheme, const hl_chunk_buf *io);
+/* Waits until the outputs of slot's last submit are in host memory. */
+hl_result hl_cl_pipe_wait(hl_cl_pipe *p, int slot);
+
+/* Single stages, blocking, on host arrays (tests and `haarlight check`). */
+hl_result hl_cl_pipe_cube2para(hl_cl_pipe *p, uint32_t rows, const uint8_t *vis,
+                               float scale, const float *normals4, float *T);
+hl_result hl_cl_pipe_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef);
+hl_result hl_cl_pipe_truncate(hl_cl_pipe *p, uint32_t rows, const float *coef,
+                              hl_trunc_params tp, hl_trunc_result *tr);
+hl_result hl_cl_pipe_quantize(hl_cl_pipe *p, uint32_t rows, const float *coef,
+                              const hl_trunc_result *tr, uint32_t scheme,
+                              hl_row_quant *rq, uint16_t *bc, uint8_t *entries,
+                              uint32_t *nnz);
 #endif

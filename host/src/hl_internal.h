@@ -40,6 +40,8 @@ void *hl_calloc(hl_context *ctx, size_t count, size_t size, const char *what);
 void *hl_alloc_big(hl_context *ctx, size_t bytes, const char *what);
 void hl_free_big(void *p);
 
+#define HL_PI 3.14159265358979323846
+
 /* Monotonic wall clock in seconds. */
 double hl_now(void);
 

@@ -1,0 +1,409 @@
+/* main.c - the `haarlight` command line.
+ *
+ * Subcommands: precompute, info, devices, bench-precompute. Usage errors
+ * exit 2, failures exit 1 with a message naming the file and the problem.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "haarlight.h"
+#include "precompute.h"
+#include "rays.h"
+#include "transport_file.h"
+
+static const char *const usage_main =
+    "usage: haarlight COMMAND [options]\n"
+    "\n"
+    "commands:\n"
+    "  precompute MESH -o SCENE.hlt   mesh to compressed wavelet transport\n"
+    "  info SCENE.hlt                 what a transport file holds\n"
+    "  devices                        list OpenCL platforms and devices\n"
+    "  bench-precompute MESH          time the precompute against Embree's raw rate\n"
+    "\n"
+    "`haarlight COMMAND --help` lists a command's options.\n";
+
+static const char *const usage_precompute =
+    "usage: haarlight precompute MESH -o SCENE.hlt [options]\n"
+    "\n"
+    "Reads MESH (OBJ, PLY, glTF, ... through assimp), casts visibility rays with\n"
+    "Embree, and writes per-vertex sparse quantised Haar transport.\n"
+    "\n"
+    "mesh:\n"
+    "  --ground             add a finely tessellated ground plane under the object\n"
+    "  --ground-res R       ground quads along the longer side (default 96)\n"
+    "  --albedo R[,G,B]     albedo when the file has no vertex colours (default 0.8)\n"
+    "  --up y|z             the file's up axis (default y)\n"
+    "  --keep-winding       never flip an inward-facing closed mesh\n"
+    "sampling:\n"
+    "  -C, --cube C         cubemap face resolution (default 64)\n"
+    "  -N, --para N         paraboloid map resolution, power of two 8..256 (default 64)\n"
+    "  --supersample S      S x S rays per cube texel, 1..15 (default 1)\n"
+    "  --ray-offset F       ray origin offset, fraction of the bbox diagonal (default 1e-3)\n"
+    "truncation (per vertex):\n"
+    "  --energy EPS         keep the fewest coefficients holding 1-EPS of the energy\n"
+    "                       (the default rule, EPS = 1e-4)\n"
+    "  --terms K            keep the K largest; with --energy, cap the count at K\n"
+    "  --terms all          keep every non-zero coefficient\n"
+    "quantisation:\n"
+    "  --quant log8|linear8 8-bit scheme (default log8: sign + log magnitude;\n"
+    "                       linear8: linear between the row's min and max kept value)\n"
+    "running:\n"
+    "  --device cl|ref|cl:P:D   OpenCL device (default: first), or the plain-C reference\n"
+    "  --threads T          host threads for rays and the reference (default: all cores)\n"
+    "  --chunk V            vertices per chunk; bounds memory (default 1024)\n"
+    "  -q, --quiet          no progress line\n";
+
+static void on_sigint(int sig)
+{
+    (void)sig;
+    hl_interrupt_requested = 1;
+}
+
+static int usage_error(const char *usage, const char *fmt, const char *arg)
+{
+    fprintf(stderr, "haarlight: ");
+    fprintf(stderr, fmt, arg);
+    fprintf(stderr, "\n\n%s", usage);
+    return 2;
+}
+
+static int parse_u32(const char *s, uint32_t *out)
+{
+    char *end;
+    errno = 0;
+    long long v = strtoll(s, &end, 10);
+    if (errno || end == s || *end || v < 0 || v > 0xffffffffLL) return 0;
+    *out = (uint32_t)v;
+    return 1;
+}
+
+static int parse_float(const char *s, float *out)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (errno || end == s || *end || !isfinite(v)) return 0;
+    *out = (float)v;
+    return 1;
+}
+
+static int parse_device(const char *s, hl_context_desc *cd)
+{
+    if (strcmp(s, "ref") == 0) { cd->backend = HL_BACKEND_REFERENCE; return 1; }
+    if (strcmp(s, "cl") == 0) { cd->backend = HL_BACKEND_OPENCL; return 1; }
+    int p, d;
+    char tail;
+    if (sscanf(s, "cl:%d:%d%c", &p, &d, &tail) == 2 && p >= 0 && d >= 0) {
+        cd->backend = HL_BACKEND_OPENCL;
+        cd->cl_platform = p;
+        cd->cl_device = d;
+        return 1;
+    }
+    return 0;
+}
+
+/* Options shared by precompute and bench-precompute. */
+typedef struct pre_opts {
+    const char *mesh, *out;
+    int ground;
+    hl_ground_desc gd;
+    hl_mesh_load_desc ld;
+    hl_precompute_desc pd;
+    hl_context_desc cd;
+    int terms_set, energy_set, terms_all;
+} pre_opts;
+
+#define NEED_ARG()                                                                   \
+    do {                                                                             \
+        if (i + 1 >= argc) return usage_error(usage, "option %s needs a value", a);  \
+        v = argv[++i];                                                               \
+    } while (0)
+
+static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    o->cd.cl_platform = -1;
+    o->cd.cl_device = -1;
+    for (int i = 0; i < argc; i++) {
+        const char *a = argv[i], *v = NULL;
+        if (!strcmp(a, "-h") || !strcmp(a, "--help")) { fputs(usage, stdout); exit(0); }
+        else if (!strcmp(a, "-o") || !strcmp(a, "--output")) { NEED_ARG(); o->out = v; }
+        else if (!strcmp(a, "--ground")) o->ground = 1;
+        else if (!strcmp(a, "--ground-res")) {
+            NEED_ARG();
+            if (!parse_u32(v, &o->gd.resolution) || o->gd.resolution < 1 || o->gd.resolution > 4096)
+                return usage_error(usage, "--ground-res %s: expected 1 to 4096", v);
+            o->ground = 1;
+        } else if (!strcmp(a, "--albedo")) {
+            NEED_ARG();
+            float c[3];
+            int n = sscanf(v, "%f,%f,%f", &c[0], &c[1], &c[2]);
+            if (n == 1) c[1] = c[2] = c[0];
+            if ((n != 1 && n != 3) || !(c[0] >= 0 && c[0] <= 1 && c[1] >= 0 && c[1] <= 1 && c[2] >= 0 && c[2] <= 1))
+                return usage_error(usage, "--albedo %s: expected R or R,G,B in [0, 1]", v);
+            if (c[0] == 0 && c[1] == 0 && c[2] == 0)
+                return usage_error(usage, "--albedo %s: an all-black albedo would make every vertex black", v);
+            memcpy(o->ld.albedo, c, sizeof c);
+            memcpy(o->gd.albedo, c, sizeof c);
+        } else if (!strcmp(a, "--up")) {
+            NEED_ARG();
+            if (strcmp(v, "y") && strcmp(v, "z")) return usage_error(usage, "--up %s: expected y or z", v);
+            o->ld.up_axis = v[0];
+        } else if (!strcmp(a, "--keep-winding")) o->ld.keep_winding = 1;
+        else if (!strcmp(a, "-C") || !strcmp(a, "--cube")) {
+            NEED_ARG();
+            if (!parse_u32(v, &o->pd.C) || o->pd.C < 4 || o->pd.C > 512)
+                return usage_error(usage, "-C %s: the cubemap resolution must be 4 to 512", v);
+        } else if (!strcmp(a, "-N") || !strcmp(a, "--para")) {
+            NEED_ARG();
+            if (!parse_u32(v, &o->pd.N) || o->pd.N < 8 || o->pd.N > 256 || (o->pd.N & (o->pd.N - 1)))
+                return usage_error(usage, "-N %s: the paraboloid resolution must be a power of two from 8 to 256", v);
+        } else if (!strcmp(a, "--supersample")) {
+            NEED_ARG();
+            if (!parse_u32(v, &o->pd.supersample) || o->pd.supersample < 1 || o->pd.supersample > 15)
+                return usage_error(usage, "--supersample %s: expected 1 to 15", v);
+        } else if (!strcmp(a, "--ray-offset")) {
+            NEED_ARG();
+            if (!parse_float(v, &o->pd.ray_offset) || !(o->pd.ray_offset > 0 && o->pd.ray_offset < 0.1f))
+                return usage_error(usage, "--ray-offset %s: expected a number in (0, 0.1)", v);
+        } else if (!strcmp(a, "--energy")) {
+            NEED_ARG();
+            if (!parse_float(v, &o->pd.eps) || !(o->pd.eps > 0 && o->pd.eps < 1))
+                return usage_error(usage, "--energy %s: expected a fraction in (0, 1)", v);
+            o->energy_set = 1;
+        } else if (!strcmp(a, "--terms")) {
+            NEED_ARG();
+            if (!strcmp(v, "all")) o->terms_all = 1;
+            else if (!parse_u32(v, &o->pd.K) || o->pd.K < 1)
+                return usage_error(usage, "--terms %s: expected a count >= 1 or `all`", v);
+            o->terms_set = 1;
+        } else if (!strcmp(a, "--quant")) {
+            NEED_ARG();
+            if (!strcmp(v, "log8")) o->pd.quant = HL_QUANT_LOG8;
+            else if (!strcmp(v, "linear8")) o->pd.quant = HL_QUANT_LINEAR8;
+            else return usage_error(usage, "--quant %s: expected log8 or linear8", v);
+        } else if (!strcmp(a, "--device")) {
+            NEED_ARG();
+            if (!parse_device(v, &o->cd)) return usage_error(usage, "--device %s: expected cl, ref or cl:PLATFORM:DEVICE", v);
+        } else if (!strcmp(a, "--threads")) {
+            NEED_ARG();
+            uint32_t t;
+            if (!parse_u32(v, &t) || t < 1 || t > 256) return usage_error(usage, "--threads %s: expected 1 to 256", v);
+            o->cd.threads = (int)t;
+        } else if (!strcmp(a, "--chunk")) {
+            NEED_ARG();
+            if (!parse_u32(v, &o->pd.chunk) || o->pd.chunk < 1 || o->pd.chunk > (1u << 20))
+                return usage_error(usage, "--chunk %s: expected 1 to 1048576", v);
+        } else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) o->cd.quiet = 1;
+        else if (a[0] == '-' && a[1]) return usage_error(usage, "unknown option %s", a);
+        else if (!o->mesh) o->mesh = a;
+        else return usage_error(usage, "unexpected argument %s", a);
+    }
+    if (!o->mesh) return usage_error(usage, "%s", "no MESH given");
+    if (o->terms_all && o->energy_set) return usage_error(usage, "%s", "--terms all and --energy contradict each other");
+    if (o->terms_all) o->pd.rule = HL_TRUNC_ALL;
+    else if (o->terms_set && !o->energy_set) o->pd.rule = HL_TRUNC_TOPK;
+    else o->pd.rule = HL_TRUNC_ENERGY;
+    return 0;
+}
+
+static hl_result load_scene(hl_context *ctx, pre_opts *o, hl_mesh **mesh)
+{
+    hl_mesh_stats ms;
+    hl_result r = hl_mesh_load(ctx, o->mesh, &o->ld, mesh, &ms);
+    if (r != HL_OK) return r;
+    if (!o->cd.quiet) {
+        fprintf(stderr, "mesh %s: %u vertices, %u triangles", o->mesh, (*mesh)->vertex_count, (*mesh)->triangle_count);
+        if (ms.merged_vertices) fprintf(stderr, ", %u duplicate vertices merged", ms.merged_vertices);
+        if (ms.unreferenced_vertices) fprintf(stderr, ", %u unreferenced vertices dropped", ms.unreferenced_vertices);
+        if (ms.degenerate_triangles) fprintf(stderr, ", %u degenerate triangles dropped", ms.degenerate_triangles);
+        if (!ms.had_normals) fprintf(stderr, ", smooth normals computed");
+        if (ms.flipped) fprintf(stderr, ", inward winding flipped");
+        fputc('\n', stderr);
+    }
+    if (o->ground) {
+        r = hl_mesh_add_ground(ctx, *mesh, &o->gd);
+        if (r == HL_OK && !o->cd.quiet)
+            fprintf(stderr, "ground plane: %u vertices added\n", (*mesh)->vertex_count - (*mesh)->object_vertex_count);
+    }
+    return r;
+}
+
+static int fail(hl_context *ctx, hl_result r)
+{
+    fprintf(stderr, "haarlight: %s\n", ctx ? hl_context_last_error(ctx) : hl_result_string(r));
+    return r == HL_ERR_INTERRUPTED ? 130 : 1;
+}
+
+static int cmd_precompute(int argc, char **argv)
+{
+    pre_opts o;
+    int u = parse_pre(argc, argv, usage_precompute, &o);
+    if (u) return u;
+    if (!o.out) return usage_error(usage_precompute, "%s", "no output given (-o SCENE.hlt)");
+    char err[4096];
+    hl_context *ctx = NULL;
+    hl_result r = hl_context_create(&o.cd, &ctx, err, sizeof err);
+    if (r != HL_OK) {
+        fprintf(stderr, "haarlight: %s\n", err);
+        return 1;
+    }
+    hl_mesh *mesh = NULL;
+    r = load_scene(ctx, &o, &mesh);
+    hl_precompute_stats st;
+    if (r == HL_OK) {
+        if (!o.cd.quiet) fprintf(stderr, "device: %s\n", hl_context_device_name(ctx));
+        r = hl_precompute(ctx, mesh, &o.pd, o.out, &st);
+    }
+    int rc = 0;
+    if (r != HL_OK) rc = fail(ctx, r);
+    else if (!o.cd.quiet) {
+        uint64_t dirs = st.rays_cast + st.rays_culled;
+        fprintf(stderr,
+                "wrote %s: %u vertices, %.1f coefficients kept per vertex\n"
+                "rays: %llu cast, %llu culled below the horizon (%.1f%%)\n"
+                "time: %.2f s total, %.2f s casting rays (%.1f Mrays/s), %.2f s waiting for the stages\n",
+                o.out, mesh->vertex_count, (double)st.coefficients_kept / mesh->vertex_count,
+                (unsigned long long)st.rays_cast, (unsigned long long)st.rays_culled,
+                dirs ? 100.0 * (double)st.rays_culled / (double)dirs : 0.0, st.seconds_total, st.seconds_rays,
+                st.seconds_rays > 0 ? (double)st.rays_cast / st.seconds_rays * 1e-6 : 0.0, st.seconds_kernels);
+    }
+    hl_mesh_destroy(mesh);
+    hl_context_destroy(ctx);
+    return rc;
+}
+
+static int cmd_info(int argc, char **argv)
+{
+    if (argc != 1 || !strcmp(argv[0], "--help") || !strcmp(argv[0], "-h")) {
+        fputs("usage: haarlight info SCENE.hlt\n\nPrints the parameters, counts and savings recorded in a transport file.\n",
+              argc == 1 ? stdout : stderr);
+        return argc == 1 ? 0 : 2;
+    }
+    hl_context_desc cd = {.backend = HL_BACKEND_REFERENCE};
+    hl_context *ctx = NULL;
+    char err[512];
+    if (hl_context_create(&cd, &ctx, err, sizeof err) != HL_OK) {
+        fprintf(stderr, "haarlight: %s\n", err);
+        return 1;
+    }
+    hl_transport *t = NULL;
+    hl_result r = hl_transport_load(ctx, argv[0], &t);
+    int rc = 0;
+    if (r != HL_OK) rc = fail(ctx, r);
+    else hl_transport_describe(t, argv[0], stdout);
+    hl_transport_destroy(t);
+    hl_context_destroy(ctx);
+    return rc;
+}
+
+static int cmd_devices(int argc, char **argv)
+{
+    if (argc > 0) {
+        fputs("usage: haarlight devices\n\nLists OpenCL platforms and devices and the --device value for each.\n",
+              strcmp(argv[0], "--help") ? stderr : stdout);
+        return strcmp(argv[0], "--help") ? 2 : 0;
+    }
+    char err[512];
+    if (hl_list_devices(stdout, err, sizeof err) != HL_OK) {
+        fprintf(stderr, "haarlight: %s\n", err);
+        return 1;
+    }
+    printf("reference: plain C on the host   (--device ref)\n");
+    return 0;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Precompute once, then Embree's raw rate on the same rays (median of 5),
+ * both in this run, and every figure as a ratio to its limit. */
+static int cmd_bench_precompute(int argc, char **argv)
+{
+    pre_opts o;
+    int u = parse_pre(argc, argv, usage_precompute, &o);
+    if (u) return u;
+    char tmp[256];
+    if (!o.out) {
+        snprintf(tmp, sizeof tmp, "/tmp/haarlight-bench-%d.hlt", (int)getpid());
+        o.out = tmp;
+    }
+    char err[4096];
+    hl_context *ctx = NULL;
+    if (hl_context_create(&o.cd, &ctx, err, sizeof err) != HL_OK) {
+        fprintf(stderr, "haarlight: %s\n", err);
+        return 1;
+    }
+    hl_mesh *mesh = NULL;
+    hl_geom *g = NULL;
+    hl_rt *rt = NULL;
+    hl_precompute_stats st;
+    double rates[5];
+    hl_result r = load_scene(ctx, &o, &mesh);
+    if (r == HL_OK) r = hl_precompute(ctx, mesh, &o.pd, o.out, &st);
+    hl_precompute_desc d = o.pd;
+    if (r == HL_OK) r = hl_precompute_resolve(ctx, &d);
+    if (r == HL_OK) r = hl_geom_create(ctx, d.N, d.C, &g);
+    if (r == HL_OK) r = hl_rt_create(ctx, mesh, &rt);
+    uint32_t nsample = mesh && mesh->vertex_count < 512 ? mesh->vertex_count : 512, verts[512];
+    for (uint32_t i = 0; i < nsample; i++) verts[i] = (uint32_t)((uint64_t)i * mesh->vertex_count / nsample);
+    for (int k = 0; k < 5 && r == HL_OK; k++)
+        r = hl_rt_raw_rate(rt, g, mesh, verts, nsample, d.supersample, d.ray_offset * hl_mesh_query_diagonal(mesh), &rates[k]);
+    int rc = 0;
+    if (r != HL_OK) rc = fail(ctx, r);
+    else {
+        qsort(rates, 5, sizeof rates[0], cmp_double);
+        double raw = rates[2], rate = (double)st.rays_cast / st.seconds_rays;
+        double per_vertex_seed = 30.0 * 60.0 / 40000.0; /* seed report: 30 min for 40k vertices */
+        printf("# precompute benchmark\n\n"
+               "mesh: %s%s, %u vertices; N = %u, C = %u, supersample %u; device: %s; %d threads\n\n",
+               o.mesh, o.ground ? " + ground" : "", mesh->vertex_count, d.N, d.C, d.supersample,
+               hl_context_device_name(ctx), hl_context_threads(ctx));
+        printf("| figure | value | limit or target | ratio |\n|---|---|---|---|\n");
+        printf("| ray casting | %.2f s, %.1f Mrays/s | Embree raw rtcOccluded16 on the same rays: %.1f Mrays/s (median of 5, %u vertices) | %.2f of raw (target >= 0.80) |\n",
+               st.seconds_rays, rate * 1e-6, raw * 1e-6, nsample, rate / raw);
+        printf("| waiting for the stages | %.2f s | | |\n", st.seconds_kernels);
+        printf("| total | %.2f s | ray-casting time %.2f s | %.2f x (target <= 1.30) |\n", st.seconds_total,
+               st.seconds_rays, st.seconds_total / st.seconds_rays);
+        printf("| total | %.2f s | 30 s | %.2f of the budget |\n", st.seconds_total, st.seconds_total / 30.0);
+        printf("| rays | %llu cast, %llu culled (%.1f%%) | | |\n", (unsigned long long)st.rays_cast,
+               (unsigned long long)st.rays_culled, 100.0 * (double)st.rays_culled / (double)(st.rays_cast + st.rays_culled));
+        printf("| coefficients kept | %.1f per vertex | %u slots | %.4f |\n", (double)st.coefficients_kept / mesh->vertex_count,
+               2 * d.N * d.N, (double)st.coefficients_kept / mesh->vertex_count / (2.0 * d.N * d.N));
+        printf("| seed report | 30 min for 40k vertices = %.1f ms/vertex | this run: %.3f ms/vertex | %.0f x faster |\n",
+               per_vertex_seed * 1e3, st.seconds_total / mesh->vertex_count * 1e3,
+               per_vertex_seed / (st.seconds_total / mesh->vertex_count));
+    }
+    if (o.out == tmp) remove(tmp);
+    hl_rt_destroy(rt);
+    hl_geom_destroy(g);
+    hl_mesh_destroy(mesh);
+    hl_context_destroy(ctx);
+    return rc;
+}
+
+int main(int argc, char **argv)
+{
+    signal(SIGINT, on_sigint);
+    signal(SIGTERM, on_sigint);
+    if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
+        fputs(usage_main, argc < 2 ? stderr : stdout);
+        return argc < 2 ? 2 : 0;
+    }
+    const char *cmd = argv[1];
+    if (!strcmp(cmd, "precompute")) return cmd_precompute(argc - 2, argv + 2);
+    if (!strcmp(cmd, "info")) return cmd_info(argc - 2, argv + 2);
+    if (!strcmp(cmd, "devices")) return cmd_devices(argc - 2, argv + 2);
+    if (!strcmp(cmd, "bench-precompute")) return cmd_bench_precompute(argc - 2, argv + 2);
+    fprintf(stderr, "haarlight: unknown command %s\n\n%s", cmd, usage_main);
+    return 2;
+}

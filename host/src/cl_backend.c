@@ -1,0 +1,469 @@
+/* cl_backend.c - everything OpenCL: device choice, program build, buffers
+ * and the precompute stage launches. The only file that includes CL/cl.h.
+ *
+ * Kernels come from the binary (host/embed_kernels.cmake) or, when the
+ * context names a kernel folder, from the kernels folder on disk. hl_shared.h is
+ * prepended to the program so both sides share one layout.
+ */
+#define _POSIX_C_SOURCE 200809L
+#define CL_TARGET_OPENCL_VERSION 120
+#include <CL/cl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cl_backend.h"
+#include "geom.h"
+
+typedef struct { const char *name; const char *source; } hl_embedded_kernel;
+extern const char *const hl_embedded_shared;
+extern const hl_embedded_kernel hl_embedded_kernels[];
+
+enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_COUNT };
+static const char *const kernel_names[K_COUNT] = {"hl_cube2para", "hl_haar", "hl_truncate", "hl_quantize"};
+
+struct hl_cl {
+    cl_platform_id platform;
+    cl_device_id device;
+    cl_context context;
+    cl_command_queue queue;
+    cl_program program;
+    cl_kernel k[K_COUNT];
+    cl_ulong max_alloc;
+};
+
+static const char *cl_err_name(cl_int e)
+{
+    switch (e) {
+#define E(x) case x: return #x;
+    E(CL_SUCCESS) E(CL_DEVICE_NOT_FOUND) E(CL_DEVICE_NOT_AVAILABLE) E(CL_COMPILER_NOT_AVAILABLE)
+    E(CL_MEM_OBJECT_ALLOCATION_FAILURE) E(CL_OUT_OF_RESOURCES) E(CL_OUT_OF_HOST_MEMORY)
+    E(CL_BUILD_PROGRAM_FAILURE) E(CL_INVALID_VALUE) E(CL_INVALID_DEVICE) E(CL_INVALID_CONTEXT)
+    E(CL_INVALID_COMMAND_QUEUE) E(CL_INVALID_MEM_OBJECT) E(CL_INVALID_PROGRAM)
+    E(CL_INVALID_PROGRAM_EXECUTABLE) E(CL_INVALID_KERNEL_NAME) E(CL_INVALID_KERNEL)
+    E(CL_INVALID_ARG_INDEX) E(CL_INVALID_ARG_VALUE) E(CL_INVALID_ARG_SIZE)
+    E(CL_INVALID_KERNEL_ARGS) E(CL_INVALID_WORK_DIMENSION) E(CL_INVALID_WORK_GROUP_SIZE)
+    E(CL_INVALID_WORK_ITEM_SIZE) E(CL_INVALID_GLOBAL_OFFSET) E(CL_INVALID_EVENT_WAIT_LIST)
+    E(CL_INVALID_EVENT) E(CL_INVALID_OPERATION) E(CL_INVALID_BUFFER_SIZE)
+    E(CL_INVALID_GLOBAL_WORK_SIZE) E(CL_INVALID_BUILD_OPTIONS) E(CL_INVALID_PLATFORM)
+    E(CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST) E(CL_MISALIGNED_SUB_BUFFER_OFFSET)
+#undef E
+    case -1001: return "CL_PLATFORM_NOT_FOUND_KHR (no OpenCL platform: is an ICD such as pocl-opencl-icd installed?)";
+    default: return "unknown OpenCL error";
+    }
+}
+
+#define CL_TRY(ctx, call, what)                                                            \
+    do {                                                                                   \
+        cl_int e_ = (call);                                                                \
+        if (e_ != CL_SUCCESS)                                                              \
+            return hl_fail((ctx), e_ == CL_MEM_OBJECT_ALLOCATION_FAILURE || e_ == CL_OUT_OF_RESOURCES \
+                                   ? HL_ERR_OUT_OF_MEMORY : HL_ERR_OPENCL,                 \
+                           "OpenCL: %s failed: %s (%d); try a smaller --chunk or --device ref", \
+                           what, cl_err_name(e_), (int)e_);                                \
+    } while (0)
+
+static char *read_text_file(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    char *buf = NULL;
+    if (fseek(f, 0, SEEK_END) == 0) {
+        long n = ftell(f);
+        if (n >= 0 && n < (1L << 24) && fseek(f, 0, SEEK_SET) == 0) {
+            buf = malloc((size_t)n + 1);
+            if (buf && fread(buf, 1, (size_t)n, f) != (size_t)n) { free(buf); buf = NULL; }
+            if (buf) buf[n] = 0;
+        }
+    }
+    fclose(f);
+    return buf;
+}
+
+/* One program source: the shared header, then every kernel file. */
+static hl_result assemble_source(hl_context *ctx, char **out)
+{
+    size_t cap = 1 << 16, len = 0;
+    char *src = malloc(cap);
+    if (!src) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory assembling kernel source");
+    src[0] = 0;
+    const int from_disk = ctx->kernel_dir[0] != 0;
+    for (int i = -1;; i++) {
+        const char *text;
+        char *owned = NULL;
+        char path[1200];
+        if (i < 0) { /* the shared header first */
+            snprintf(path, sizeof path, "%s/../host/include/hl_shared.h", ctx->kernel_dir);
+            text = hl_embedded_shared;
+        } else {
+            const hl_embedded_kernel *k = &hl_embedded_kernels[i];
+            if (!k->name) break;
+            snprintf(path, sizeof path, "%s/%s", ctx->kernel_dir, k->name);
+            text = k->source;
+        }
+        if (from_disk) {
+            owned = read_text_file(path);
+            if (!owned) {
+                free(src);
+                return hl_fail(ctx, HL_ERR_IO, "%s: cannot read kernel source (HL_KERNEL_DIR is set to %s)", path, ctx->kernel_dir);
+            }
+            text = owned;
+        }
+        size_t n = strlen(text);
+        if (len + n + 2 > cap) {
+            while (len + n + 2 > cap) cap *= 2;
+            char *p = realloc(src, cap);
+            if (!p) { free(src); free(owned); return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory assembling kernel source"); }
+            src = p;
+        }
+        memcpy(src + len, text, n);
+        len += n;
+        src[len++] = '\n';
+        src[len] = 0;
+        free(owned);
+    }
+    *out = src;
+    return HL_OK;
+}
+
+static hl_result build_program(hl_context *ctx, struct hl_cl *cl)
+{
+    char *src = NULL;
+    hl_result r = assemble_source(ctx, &src);
+    if (r != HL_OK) return r;
+    cl_int e;
+    const char *srcs[1] = {src};
+    cl->program = clCreateProgramWithSource(cl->context, 1, srcs, NULL, &e);
+    free(src);
+    CL_TRY(ctx, e, "clCreateProgramWithSource");
+    char opts[256] = "-cl-std=CL1.2";
+    cl_device_fp_config fp = 0;
+    clGetDeviceInfo(cl->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL);
+    /* the quantiser divides; correctly rounded division makes the OpenCL
+       integers equal to the plain-C twin's where the device allows it */
+    if (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) strcat(opts, " -cl-fp32-correctly-rounded-divide-sqrt");
+    e = clBuildProgram(cl->program, 1, &cl->device, opts, NULL, NULL);
+    if (e != CL_SUCCESS) {
+        size_t n = 0;
+        clGetProgramBuildInfo(cl->program, cl->device, CL_PROGRAM_BUILD_LOG, 0, NULL, &n);
+        char *log = malloc(n + 1);
+        if (log) {
+            log[0] = 0;
+            clGetProgramBuildInfo(cl->program, cl->device, CL_PROGRAM_BUILD_LOG, n, log, NULL);
+            log[n] = 0;
+        }
+        hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: kernel build failed: %s (%d); build log:\n%s\n(use --device ref to run the plain-C reference instead)",
+                cl_err_name(e), (int)e, log ? log : "(no log)");
+        free(log);
+        return HL_ERR_OPENCL;
+    }
+    for (int i = 0; i < K_COUNT; i++) {
+        cl->k[i] = clCreateKernel(cl->program, kernel_names[i], &e);
+        CL_TRY(ctx, e, kernel_names[i]);
+    }
+    return HL_OK;
+}
+
+hl_result hl_cl_create(hl_context *ctx, int platform, int device)
+{
+    cl_uint np = 0;
+    cl_int e = clGetPlatformIDs(0, NULL, &np);
+    if (e != CL_SUCCESS || np == 0)
+        return hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: no platform found (%s); install an OpenCL driver such as pocl-opencl-icd, or use --device ref",
+                       e == CL_SUCCESS ? "zero platforms" : cl_err_name(e));
+    cl_platform_id plats[16];
+    if (np > 16) np = 16;
+    clGetPlatformIDs(np, plats, NULL);
+    if (platform >= (int)np)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "OpenCL: platform %d does not exist (%u found; see `haarlight devices`)", platform, np);
+    struct hl_cl *cl = calloc(1, sizeof *cl);
+    if (!cl) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    ctx->cl = cl;
+    int found = 0;
+    for (cl_uint p = 0; p < np && !found; p++) {
+        if (platform >= 0 && (int)p != platform) continue;
+        cl_uint nd = 0;
+        if (clGetDeviceIDs(plats[p], CL_DEVICE_TYPE_ALL, 0, NULL, &nd) != CL_SUCCESS || nd == 0) continue;
+        cl_device_id devs[16];
+        if (nd > 16) nd = 16;
+        clGetDeviceIDs(plats[p], CL_DEVICE_TYPE_ALL, nd, devs, NULL);
+        int want = device >= 0 ? device : 0;
+        if (want >= (int)nd) {
+            if (platform >= 0)
+                return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "OpenCL: device %d does not exist on platform %u (%u found)", device, p, nd);
+            continue;
+        }
+        cl->platform = plats[p];
+        cl->device = devs[want];
+        found = 1;
+    }
+    if (!found) return hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: no device found on any platform; use --device ref");
+    char pname[128] = "", dname[128] = "";
+    clGetPlatformInfo(cl->platform, CL_PLATFORM_NAME, sizeof pname, pname, NULL);
+    clGetDeviceInfo(cl->device, CL_DEVICE_NAME, sizeof dname, dname, NULL);
+    clGetDeviceInfo(cl->device, CL_DEVICE_MAX_MEM_ALLOC_SIZE, sizeof cl->max_alloc, &cl->max_alloc, NULL);
+    snprintf(ctx->device_name, sizeof ctx->device_name, "OpenCL: %s / %s", pname, dname);
+    cl->context = clCreateContext(NULL, 1, &cl->device, NULL, NULL, &e);
+    CL_TRY(ctx, e, "clCreateContext");
+    cl->queue = clCreateCommandQueue(cl->context, cl->device, 0, &e);
+    CL_TRY(ctx, e, "clCreateCommandQueue");
+    return build_program(ctx, cl);
+}
+
+void hl_cl_destroy(struct hl_cl *cl)
+{
+    if (!cl) return;
+    for (int i = 0; i < K_COUNT; i++)
+        if (cl->k[i]) clReleaseKernel(cl->k[i]);
+    if (cl->program) clReleaseProgram(cl->program);
+    if (cl->queue) clReleaseCommandQueue(cl->queue);
+    if (cl->context) clReleaseContext(cl->context);
+    free(cl);
+}
+
+hl_result hl_list_devices(void *file, char *err, size_t err_size)
+{
+    FILE *f = file;
+    cl_uint np = 0;
+    cl_int e = clGetPlatformIDs(0, NULL, &np);
+    if (e != CL_SUCCESS || np == 0) {
+        if (err && err_size)
+            snprintf(err, err_size, "no OpenCL platform found (%s); install an OpenCL driver such as pocl-opencl-icd",
+                     e == CL_SUCCESS ? "zero platforms" : cl_err_name(e));
+        return HL_ERR_OPENCL;
+    }
+    cl_platform_id plats[16];
+    if (np > 16) np = 16;
+    clGetPlatformIDs(np, plats, NULL);
+    for (cl_uint p = 0; p < np; p++) {
+        char name[256] = "", ver[256] = "";
+        clGetPlatformInfo(plats[p], CL_PLATFORM_NAME, sizeof name, name, NULL);
+        clGetPlatformInfo(plats[p], CL_PLATFORM_VERSION, sizeof ver, ver, NULL);
+        fprintf(f, "platform %u: %s (%s)\n", p, name, ver);
+        cl_uint nd = 0;
+        if (clGetDeviceIDs(plats[p], CL_DEVICE_TYPE_ALL, 0, NULL, &nd) != CL_SUCCESS) nd = 0;
+        cl_device_id devs[16];
+        if (nd > 16) nd = 16;
+        if (nd) clGetDeviceIDs(plats[p], CL_DEVICE_TYPE_ALL, nd, devs, NULL);
+        for (cl_uint d = 0; d < nd; d++) {
+            char dn[256] = "", dv[256] = "", ext[8192] = "";
+            cl_uint cu = 0;
+            cl_ulong mem = 0;
+            cl_device_type type = 0;
+            clGetDeviceInfo(devs[d], CL_DEVICE_NAME, sizeof dn, dn, NULL);
+            clGetDeviceInfo(devs[d], CL_DEVICE_VERSION, sizeof dv, dv, NULL);
+            clGetDeviceInfo(devs[d], CL_DEVICE_MAX_COMPUTE_UNITS, sizeof cu, &cu, NULL);
+            clGetDeviceInfo(devs[d], CL_DEVICE_GLOBAL_MEM_SIZE, sizeof mem, &mem, NULL);
+            clGetDeviceInfo(devs[d], CL_DEVICE_TYPE, sizeof type, &type, NULL);
+            clGetDeviceInfo(devs[d], CL_DEVICE_EXTENSIONS, sizeof ext, ext, NULL);
+            fprintf(f, "  device %u: %s [%s] %s, %u compute units, %.1f GiB%s   (--device cl:%u:%u)\n", d, dn,
+                    type & CL_DEVICE_TYPE_GPU ? "GPU" : type & CL_DEVICE_TYPE_CPU ? "CPU" : "other", dv, cu,
+                    (double)mem / (1024.0 * 1024.0 * 1024.0), strstr(ext, "cl_khr_gl_sharing") ? ", GL sharing" : "", p, d);
+        }
+    }
+    return HL_OK;
+}
+
+/* ------------------------------------------------------------ pipeline */
+
+struct hl_cl_pipe {
+    hl_context *ctx;
+    struct hl_cl *cl;
+    const hl_geom *g;
+    uint32_t max_rows;
+    cl_mem start, ent, slots;          /* geometry tables */
+    cl_mem vis[2], nrm[2];             /* inputs, one per slot */
+    cl_mem T, coef, tr, rq, bc, entries, nnz;
+    cl_event done[2];
+};
+
+static hl_result make_buf(hl_cl_pipe *p, cl_mem *m, cl_mem_flags fl, size_t bytes, const void *init, const char *what)
+{
+    cl_int e;
+    if (bytes > p->cl->max_alloc)
+        return hl_fail(p->ctx, HL_ERR_OUT_OF_MEMORY,
+                       "OpenCL: %s needs %zu bytes, more than the device's largest allocation (%llu); use a smaller --chunk or --device ref",
+                       what, bytes, (unsigned long long)p->cl->max_alloc);
+    *m = clCreateBuffer(p->cl->context, fl | (init ? CL_MEM_COPY_HOST_PTR : 0), bytes ? bytes : 4, (void *)init, &e);
+    CL_TRY(p->ctx, e, what);
+    return HL_OK;
+}
+
+hl_result hl_cl_pipe_create(hl_context *ctx, const hl_geom *g, uint32_t max_rows, hl_cl_pipe **out)
+{
+    *out = NULL;
+    if (!ctx->cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the context has no OpenCL device");
+    hl_cl_pipe *p = calloc(1, sizeof *p);
+    if (!p) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    p->ctx = ctx;
+    p->cl = ctx->cl;
+    p->g = g;
+    p->max_rows = max_rows;
+    size_t R = max_rows, nc = g->ncoef;
+    hl_result r = HL_OK;
+#define B(m, fl, bytes, init, what) if (r == HL_OK) r = make_buf(p, &p->m, fl, bytes, init, what)
+    B(start, CL_MEM_READ_ONLY, (nc + 1) * 4, g->c2p_start, "the table rows");
+    B(ent, CL_MEM_READ_ONLY, (size_t)g->nentries * sizeof(hl_c2p_entry), g->c2p, "the table entries");
+    B(slots, CL_MEM_READ_ONLY, (size_t)g->N * g->N * 4, g->slot_of_mallat, "the Haar slot order");
+    B(vis[0], CL_MEM_READ_ONLY, R * g->ncube, NULL, "visibility (slot 0)");
+    B(vis[1], CL_MEM_READ_ONLY, R * g->ncube, NULL, "visibility (slot 1)");
+    B(nrm[0], CL_MEM_READ_ONLY, R * 16, NULL, "normals (slot 0)");
+    B(nrm[1], CL_MEM_READ_ONLY, R * 16, NULL, "normals (slot 1)");
+    B(T, CL_MEM_READ_WRITE, R * nc * 4, NULL, "paraboloid transport");
+    B(coef, CL_MEM_READ_WRITE, R * nc * 4, NULL, "Haar coefficients");
+    B(tr, CL_MEM_READ_WRITE, R * sizeof(hl_trunc_result), NULL, "truncation results");
+    B(rq, CL_MEM_READ_WRITE, R * sizeof(hl_row_quant), NULL, "quantisation parameters");
+    B(bc, CL_MEM_READ_WRITE, R * g->nblocks * 2, NULL, "block counts");
+    B(entries, CL_MEM_READ_WRITE, R * nc * 2, NULL, "packed entries");
+    B(nnz, CL_MEM_READ_WRITE, R * 4, NULL, "entry counts");
+#undef B
+    if (r != HL_OK) { hl_cl_pipe_destroy(p); return r; }
+    *out = p;
+    return HL_OK;
+}
+
+void hl_cl_pipe_destroy(hl_cl_pipe *p)
+{
+    if (!p) return;
+    if (p->cl && p->cl->queue) clFinish(p->cl->queue);
+    cl_mem *all[] = {&p->start, &p->ent, &p->slots, &p->vis[0], &p->vis[1], &p->nrm[0], &p->nrm[1],
+                     &p->T, &p->coef, &p->tr, &p->rq, &p->bc, &p->entries, &p->nnz};
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
+        if (*all[i]) clReleaseMemObject(*all[i]);
+    for (int s = 0; s < 2; s++)
+        if (p->done[s]) clReleaseEvent(p->done[s]);
+    free(p);
+}
+
+#define ARG(k, i, v) CL_TRY(p->ctx, clSetKernelArg(k, i, sizeof(v), &(v)), "clSetKernelArg")
+
+static hl_result launch(hl_cl_pipe *p, int which, uint32_t rows)
+{
+    size_t global = rows;
+    CL_TRY(p->ctx, clEnqueueNDRangeKernel(p->cl->queue, p->cl->k[which], 1, NULL, &global, NULL, 0, NULL, NULL),
+           kernel_names[which]);
+    return HL_OK;
+}
+
+static hl_result enqueue_cube2para(hl_cl_pipe *p, int slot, uint32_t rows, float scale)
+{
+    cl_kernel k = p->cl->k[K_CUBE2PARA];
+    cl_uint ncube = p->g->ncube, ncoef = p->g->ncoef, n = rows;
+    ARG(k, 0, p->vis[slot]); ARG(k, 1, ncube); ARG(k, 2, scale); ARG(k, 3, p->nrm[slot]);
+    ARG(k, 4, p->start); ARG(k, 5, p->ent); ARG(k, 6, ncoef); ARG(k, 7, p->T); ARG(k, 8, n);
+    return launch(p, K_CUBE2PARA, rows);
+}
+
+static hl_result enqueue_haar(hl_cl_pipe *p, uint32_t rows)
+{
+    cl_kernel k = p->cl->k[K_HAAR];
+    cl_uint N = p->g->N, n = rows;
+    ARG(k, 0, p->T); ARG(k, 1, p->coef); ARG(k, 2, p->slots); ARG(k, 3, N); ARG(k, 4, n);
+    return launch(p, K_HAAR, rows);
+}
+
+static hl_result enqueue_truncate(hl_cl_pipe *p, uint32_t rows, hl_trunc_params tp)
+{
+    cl_kernel k = p->cl->k[K_TRUNCATE];
+    cl_uint ncoef = p->g->ncoef, n = rows;
+    ARG(k, 0, p->coef); ARG(k, 1, ncoef); ARG(k, 2, tp); ARG(k, 3, p->tr); ARG(k, 4, n);
+    return launch(p, K_TRUNCATE, rows);
+}
+
+static hl_result enqueue_quantize(hl_cl_pipe *p, uint32_t rows, uint32_t scheme)
+{
+    cl_kernel k = p->cl->k[K_QUANTIZE];
+    cl_uint ncoef = p->g->ncoef, nb = p->g->nblocks, n = rows, sc = scheme;
+    ARG(k, 0, p->coef); ARG(k, 1, ncoef); ARG(k, 2, nb); ARG(k, 3, p->tr); ARG(k, 4, sc);
+    ARG(k, 5, p->rq); ARG(k, 6, p->bc); ARG(k, 7, p->entries); ARG(k, 8, p->nnz); ARG(k, 9, n);
+    return launch(p, K_QUANTIZE, rows);
+}
+
+static hl_result check_rows(hl_cl_pipe *p, uint32_t rows)
+{
+    if (rows > p->max_rows)
+        return hl_fail(p->ctx, HL_ERR_INVALID_ARGUMENT, "%u rows exceed the pipeline's %u", rows, p->max_rows);
+    return HL_OK;
+}
+
+#define TRY(x) do { hl_result r_ = (x); if (r_ != HL_OK) return r_; } while (0)
+#define WRITE(buf, bytes, src, blocking) \
+    CL_TRY(p->ctx, clEnqueueWriteBuffer(p->cl->queue, buf, blocking, 0, bytes, src, 0, NULL, NULL), "upload")
+#define READ(buf, bytes, dst, blocking, ev) \
+    CL_TRY(p->ctx, clEnqueueReadBuffer(p->cl->queue, buf, blocking, 0, bytes, dst, 0, NULL, ev), "read-back")
+
+hl_result hl_cl_pipe_submit(hl_cl_pipe *p, int slot, uint32_t rows, float vis_scale,
+                            hl_trunc_params tp, uint32_t scheme, const hl_chunk_buf *io)
+{
+    TRY(check_rows(p, rows));
+    const hl_geom *g = p->g;
+    size_t R = rows;
+    WRITE(p->vis[slot], R * g->ncube, io->vis, CL_FALSE);
+    WRITE(p->nrm[slot], R * 16, io->normals4, CL_FALSE);
+    TRY(enqueue_cube2para(p, slot, rows, vis_scale));
+    TRY(enqueue_haar(p, rows));
+    TRY(enqueue_truncate(p, rows, tp));
+    TRY(enqueue_quantize(p, rows, scheme));
+    READ(p->tr, R * sizeof(hl_trunc_result), io->tr, CL_FALSE, NULL);
+    READ(p->rq, R * sizeof(hl_row_quant), io->rq, CL_FALSE, NULL);
+    READ(p->bc, R * g->nblocks * 2, io->bc, CL_FALSE, NULL);
+    READ(p->nnz, R * 4, io->nnz, CL_FALSE, NULL);
+    if (p->done[slot]) { clReleaseEvent(p->done[slot]); p->done[slot] = NULL; }
+    READ(p->entries, R * g->ncoef * 2, io->entries, CL_FALSE, &p->done[slot]);
+    CL_TRY(p->ctx, clFlush(p->cl->queue), "clFlush");
+    return HL_OK;
+}
+
+hl_result hl_cl_pipe_wait(hl_cl_pipe *p, int slot)
+{
+    if (!p->done[slot]) return HL_OK;
+    CL_TRY(p->ctx, clWaitForEvents(1, &p->done[slot]), "waiting for the kernels");
+    clReleaseEvent(p->done[slot]);
+    p->done[slot] = NULL;
+    return HL_OK;
+}
+
+hl_result hl_cl_pipe_cube2para(hl_cl_pipe *p, uint32_t rows, const uint8_t *vis, float scale,
+                               const float *normals4, float *T)
+{
+    TRY(check_rows(p, rows));
+    WRITE(p->vis[0], (size_t)rows * p->g->ncube, vis, CL_TRUE);
+    WRITE(p->nrm[0], (size_t)rows * 16, normals4, CL_TRUE);
+    TRY(enqueue_cube2para(p, 0, rows, scale));
+    READ(p->T, (size_t)rows * p->g->ncoef * 4, T, CL_TRUE, NULL);
+    return HL_OK;
+}
+
+hl_result hl_cl_pipe_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef)
+{
+    TRY(check_rows(p, rows));
+    WRITE(p->T, (size_t)rows * p->g->ncoef * 4, T, CL_TRUE);
+    TRY(enqueue_haar(p, rows));
+    READ(p->coef, (size_t)rows * p->g->ncoef * 4, coef, CL_TRUE, NULL);
+    return HL_OK;
+}
+
+hl_result hl_cl_pipe_truncate(hl_cl_pipe *p, uint32_t rows, const float *coef, hl_trunc_params tp,
+                              hl_trunc_result *tr)
+{
+    TRY(check_rows(p, rows));
+    WRITE(p->coef, (size_t)rows * p->g->ncoef * 4, coef, CL_TRUE);
+    TRY(enqueue_truncate(p, rows, tp));
+    READ(p->tr, (size_t)rows * sizeof *tr, tr, CL_TRUE, NULL);
+    return HL_OK;
+}
+
+hl_result hl_cl_pipe_quantize(hl_cl_pipe *p, uint32_t rows, const float *coef, const hl_trunc_result *tr,
+                              uint32_t scheme, hl_row_quant *rq, uint16_t *bc, uint8_t *entries, uint32_t *nnz)
+{
+    TRY(check_rows(p, rows));
+    const hl_geom *g = p->g;
+    WRITE(p->coef, (size_t)rows * g->ncoef * 4, coef, CL_TRUE);
+    WRITE(p->tr, (size_t)rows * sizeof *tr, tr, CL_TRUE);
+    TRY(enqueue_quantize(p, rows, scheme));
+    READ(p->rq, (size_t)rows * sizeof *rq, rq, CL_TRUE, NULL);
+    READ(p->bc, (size_t)rows * g->nblocks * 2, bc, CL_TRUE, NULL);
+    READ(p->entries, (size_t)rows * g->ncoef * 2, entries, CL_TRUE, NULL);
+    READ(p->nnz, (size_t)rows * 4, nnz, CL_TRUE, NULL);
+    return HL_OK;
+}

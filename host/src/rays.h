@@ -1,0 +1,38 @@
+/* rays.h - visibility sampling with Embree 3 (rays.c is the only file that
+ * includes Embree's headers).
+ *
+ * For each vertex, one occlusion ray per cube texel (S x S with
+ * supersampling) for the texels above the vertex's horizon; texels below
+ * it are culled. Output per vertex: ncube bytes, the number of unoccluded
+ * rays of each texel. Rows are written by vertex index, so the result does
+ * not depend on the number of threads.
+ */
+#ifndef HL_RAYS_H
+#define HL_RAYS_H
+
+#include "geom.h"
+
+typedef struct hl_rt hl_rt;
+
+hl_result hl_rt_create(hl_context *ctx, const hl_mesh *mesh, hl_rt **out);
+void hl_rt_destroy(hl_rt *rt);
+
+typedef struct hl_vis_counts {
+    uint64_t rays_cast;
+    uint64_t rays_culled; /* directions (texels x S^2) below the horizon */
+} hl_vis_counts;
+
+/* Visibility of vertices [first, first + count) into vis (count * ncube
+ * bytes), using ctx's thread count. offset: absolute ray-origin offset
+ * along the normal. */
+hl_result hl_rt_visibility(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, uint32_t first,
+                           uint32_t count, uint32_t S, float offset, uint8_t *vis,
+                           hl_vis_counts *counts);
+
+/* Embree's raw occlusion rate on the same rays as hl_rt_visibility builds
+ * for the listed vertices: the packets are made first, then only the
+ * rtcOccluded16 calls are timed, on ctx's thread count. Returns rays/s. */
+hl_result hl_rt_raw_rate(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, const uint32_t *verts,
+                         uint32_t nverts, uint32_t S, float offset, double *rays_per_s);
+
+#endif

@@ -1,0 +1,32 @@
+/* ref.h - plain-C twins of the OpenCL kernels, one vertex at a time.
+ *
+ * Each function carries the name of its kernel (kernels/NAME.cl ->
+ * hl_ref_NAME) and computes the same result in the most direct way, so the
+ * tests check the maths and not the scheduling. Thread safe: no state.
+ */
+#ifndef HL_REF_H
+#define HL_REF_H
+
+#include "../geom.h"
+
+/* T[j] = scale * sum over table entries e of texel j of
+ * vis[e.cube] * max(0, n . m_e); scale = 1 / (pi * supersample^2). */
+void hl_ref_cube2para(const hl_geom *g, const uint8_t *vis, float scale,
+                      const float n[3], float *T);
+
+/* Orthonormal non-standard 2D Haar of both N x N maps of T (destroyed),
+ * written to coef in slot order. */
+void hl_ref_haar(const hl_geom *g, float *T, float *coef);
+
+/* Chooses the kept coefficients of one row (see hl_trunc_result). */
+hl_trunc_result hl_ref_truncate(const hl_geom *g, const float *coef,
+                                hl_trunc_params p);
+
+/* Quantises the kept coefficients and packs them: entries gets (index,
+ * code) byte pairs by block, block_counts one count per block. Returns the
+ * number of entries. */
+uint32_t hl_ref_quantize(const hl_geom *g, const float *coef,
+                         hl_trunc_result tr, uint32_t scheme, hl_row_quant *rq,
+                         uint16_t *block_counts, uint8_t *entries);
+
+#endif

@@ -1,0 +1,96 @@
+/* truncate.cl - nonlinear truncation of one transport row per work-item.
+ * Exact radix select on the bit patterns of |T_i| (4 passes of 8 bits), so
+ * no sort and no float summation order: energies are fixed-point integers.
+ * Twin: host/src/ref/truncate_ref.c (sorts instead).
+ */
+#pragma OPENCL FP_CONTRACT OFF
+
+/* Threshold key and ties for keeping the `need` largest keys (need >= 1). */
+static void select_top(global const float *c, uint n, uint need, hl_trunc_result *r)
+{
+    uint hist[256];
+    uint prefix = 0, mask = 0;
+    for (int shift = 24; shift >= 0; shift -= 8) {
+        for (int b = 0; b < 256; b++) hist[b] = 0;
+        for (uint i = 0; i < n; i++) {
+            uint k = hl_key(c[i]);
+            if (k && (k & mask) == prefix) hist[(k >> shift) & 255u]++;
+        }
+        int b = 255;
+        for (; b > 0; b--) {
+            if (hist[b] >= need) break;
+            need -= hist[b];
+        }
+        prefix |= (uint)b << shift;
+        mask |= 255u << shift;
+    }
+    r->thresh = prefix;
+    r->ties = need;
+}
+
+/* Fewest largest coefficients whose energy reaches the target (> 0). */
+static uint energy_count(global const float *c, uint n, float scale, ulong target)
+{
+    uint hist[256];
+    ulong ehist[256];
+    uint prefix = 0, mask = 0, count = 0;
+    ulong acc = 0;
+    for (int shift = 24; shift >= 0; shift -= 8) {
+        for (int b = 0; b < 256; b++) { hist[b] = 0; ehist[b] = 0; }
+        for (uint i = 0; i < n; i++) {
+            uint k = hl_key(c[i]);
+            if (k && (k & mask) == prefix) {
+                uint b = (k >> shift) & 255u;
+                hist[b]++;
+                ehist[b] += hl_energy(c[i], scale);
+            }
+        }
+        int b = 255;
+        for (; b > 0; b--) {
+            if (acc + ehist[b] >= target) break;
+            acc += ehist[b];
+            count += hist[b];
+        }
+        prefix |= (uint)b << shift;
+        mask |= 255u << shift;
+        if (shift == 0) {
+            /* bin b is one key: equal energies, take as many as needed */
+            ulong e = hl_energy(as_float(prefix), scale);
+            ulong need = e ? (target - acc + e - 1) / e : 0;
+            count += (uint)need;
+        }
+    }
+    return count;
+}
+
+kernel void hl_truncate(global const float *coef, uint ncoef, hl_trunc_params p,
+                        global hl_trunc_result *out, uint nrows)
+{
+    uint v = get_global_id(0);
+    if (v >= nrows) return;
+    global const float *c = coef + (size_t)v * ncoef;
+    uint nnz = 0, maxkey = 0;
+    for (uint i = 0; i < ncoef; i++) {
+        uint k = hl_key(c[i]);
+        nnz += k != 0;
+        maxkey = max(maxkey, k);
+    }
+    uint count = nnz;
+    if (p.rule == HL_TRUNC_TOPK) {
+        count = min(p.K, nnz);
+    } else if (p.rule == HL_TRUNC_ENERGY) {
+        float scale = hl_energy_scale(maxkey);
+        ulong total = 0;
+        for (uint i = 0; i < ncoef; i++) total += hl_energy(c[i], scale);
+        ulong target = total - hl_energy_drop(total, p.eps_q20);
+        count = target ? energy_count(c, ncoef, scale, target) : 0;
+        if (p.K > 0) count = min(count, p.K);
+    }
+    hl_trunc_result r;
+    r.thresh = 0xffffffffu;
+    r.ties = 0;
+    r.count = count;
+    r.pad_ = 0;
+    if (count > 0) select_top(c, ncoef, count, &r);
+    out[v] = r;
+}
