@@ -220,7 +220,8 @@ static hl_result load_scene(hl_context *ctx, pre_opts *o, hl_mesh **mesh)
     if (r != HL_OK) return r;
     if (!o->cd.quiet) {
         fprintf(stderr, "mesh %s: %u vertices, %u triangles", o->mesh, (*mesh)->vertex_count, (*mesh)->triangle_count);
-        if (ms.merged_vertices) fprintf(stderr, ", %u duplicate vertices merged", ms.merged_vertices);
+        if (ms.merged_vertices)
+            fprintf(stderr, " (welded from the importer's %u vertices)", ms.file_vertices);
         if (ms.unreferenced_vertices) fprintf(stderr, ", %u unreferenced vertices dropped", ms.unreferenced_vertices);
         if (ms.degenerate_triangles) fprintf(stderr, ", %u degenerate triangles dropped", ms.degenerate_triangles);
         if (!ms.had_normals) fprintf(stderr, ", smooth normals computed");

@@ -45,6 +45,14 @@ void hl_free_big(void *p);
 /* Monotonic wall clock in seconds. */
 double hl_now(void);
 
+/* mesh.c: validates raw arrays (name appears in errors), welds equal
+ * positions, drops degenerate triangles and unreferenced vertices, computes
+ * missing normals, orients closed meshes. colors may be NULL. */
+hl_result hl_mesh_build_(hl_context *ctx, const char *name, uint32_t vertex_count,
+                         const float *positions, const float *normals, const float *colors,
+                         uint32_t triangle_count, const uint32_t *indices,
+                         const hl_mesh_load_desc *desc, hl_mesh **out, hl_mesh_stats *stats);
+
 /* Set by SIGINT handlers of the CLI; long loops poll it. */
 extern volatile int hl_interrupt_requested;
 

@@ -48,7 +48,7 @@ hl_result hl_rt_create(hl_context *ctx, const hl_mesh *mesh, hl_rt **out)
     }
     rtcSetDeviceErrorFunction(rt->device, embree_error, rt);
     rt->scene = rtcNewScene(rt->device);
-    rtcSetSceneFlags(rt->scene, RTC_SCENE_FLAG_ROBUST);
+    if (!getenv("HL_X_NOROBUST")) rtcSetSceneFlags(rt->scene, RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(rt->scene, RTC_BUILD_QUALITY_HIGH);
     RTCGeometry geom = rtcNewGeometry(rt->device, RTC_GEOMETRY_TYPE_TRIANGLE);
     float *vb = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),

@@ -1,0 +1,189 @@
+/* mesh_import.c - hl_mesh_load: reading mesh files through assimp.
+ *
+ * The only file that includes assimp. Every format (OBJ, PLY, glTF, ...)
+ * goes through aiImportFile; the raw arrays then go to hl_mesh_build_ in
+ * mesh.c, which welds, drops degenerates and computes normals. assimp's
+ * OBJ importer gives each face corner its own vertex and drops vertices no
+ * face uses, so for OBJ the "merged" count includes that expansion and
+ * unreferenced vertices of the file are not seen.
+ *
+ * Dependencies: assimp C API (Debian libassimp-dev 5.2), POSIX (stat,
+ * uselocale), hl_internal.h.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <locale.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include <assimp/cimport.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include "hl_internal.h"
+
+/* Opens path to learn whether it is a readable, non-empty regular file, so
+ * that a missing file is HL_ERR_IO and an empty one HL_ERR_FORMAT whatever
+ * the importer would have said. Returns the open stream on success. */
+static hl_result open_checked(hl_context *ctx, const char *path, FILE **out, size_t *size)
+{
+    *out = NULL;
+    FILE *f = fopen(path, "rb");
+    if (!f) return hl_fail(ctx, HL_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    struct stat st;
+    if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode)) {
+        fclose(f);
+        return hl_fail(ctx, HL_ERR_IO, "%s: not a regular file", path);
+    }
+    if (st.st_size == 0) {
+        fclose(f);
+        return hl_fail(ctx, HL_ERR_FORMAT, "%s: empty file", path);
+    }
+    if ((unsigned long long)st.st_size >= (unsigned long long)SIZE_MAX) {
+        fclose(f);
+        return hl_fail(ctx, HL_ERR_FORMAT, "%s: file too large", path);
+    }
+    *out = f;
+    *size = (size_t)st.st_size;
+    return HL_OK;
+}
+
+static void skipped_note(hl_context *ctx, const char *path, uint64_t skipped)
+{
+    if (skipped && ctx && !ctx->quiet)
+        fprintf(stderr, "haarlight: %s: skipped %llu point/line primitives\n", path,
+                (unsigned long long)skipped);
+}
+
+/* After a failed import, a second import without post-processing tells
+ * "no faces" and "no meshes" apart from a real parse error, which the
+ * validation step otherwise reports in the same words. */
+static hl_result assimp_diagnose(hl_context *ctx, const char *path, const char *msg)
+{
+    const struct aiScene *s = aiImportFile(path, 0);
+    if (s) {
+        uint64_t verts = 0, faces = 0;
+        for (unsigned m = 0; m < s->mNumMeshes; m++) {
+            verts += s->mMeshes[m]->mNumVertices;
+            for (unsigned f = 0; f < s->mMeshes[m]->mNumFaces; f++)
+                if (s->mMeshes[m]->mFaces[f].mNumIndices >= 3) faces++;
+        }
+        unsigned meshes = s->mNumMeshes;
+        aiReleaseImport(s);
+        if (meshes == 0) return hl_fail(ctx, HL_ERR_FORMAT, "%s: the file holds no mesh (importer: %s)", path, msg);
+        if (faces == 0)
+            return hl_fail(ctx, HL_ERR_MESH, "%s: mesh has %llu vertices but no faces", path, (unsigned long long)verts);
+    }
+    return hl_fail(ctx, HL_ERR_FORMAT, "%s: importer: %s", path, msg);
+}
+
+static hl_result load_assimp(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc,
+                             hl_mesh **out, hl_mesh_stats *stats)
+{
+    /* Vertex joining and normal generation stay off: the builder does both
+     * and counts what it changed. */
+    const struct aiScene *s = aiImportFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices |
+                                                     aiProcess_ValidateDataStructure);
+    if (!s) {
+        char msg[512];
+        snprintf(msg, sizeof msg, "%s", aiGetErrorString());
+        return assimp_diagnose(ctx, path, msg);
+    }
+    uint64_t nv = 0, nt = 0, skipped = 0;
+    int all_normals = s->mNumMeshes > 0, all_colors = s->mNumMeshes > 0;
+    for (unsigned m = 0; m < s->mNumMeshes; m++) {
+        const struct aiMesh *am = s->mMeshes[m];
+        nv += am->mNumVertices;
+        for (unsigned f = 0; f < am->mNumFaces; f++) {
+            if (am->mFaces[f].mNumIndices == 3) nt++;
+            else skipped++;
+        }
+        if (!am->mNormals) all_normals = 0;
+        if (!am->mColors[0]) all_colors = 0;
+    }
+    hl_result r = HL_OK;
+    float *pos = NULL, *nrm = NULL, *col = NULL;
+    uint32_t *idx = NULL;
+    if (s->mNumMeshes == 0) {
+        r = hl_fail(ctx, HL_ERR_FORMAT, "%s: the file holds no mesh", path);
+        goto done;
+    }
+    if (nv > UINT32_MAX || nt > UINT32_MAX) {
+        r = hl_fail(ctx, HL_ERR_MESH, "%s: %llu vertices and %llu triangles exceed the 2^32 limit", path,
+                    (unsigned long long)nv, (unsigned long long)nt);
+        goto done;
+    }
+    skipped_note(ctx, path, skipped);
+    pos = hl_malloc(ctx, (size_t)nv * 3 * sizeof(float), "vertex positions");
+    nrm = all_normals ? hl_malloc(ctx, (size_t)nv * 3 * sizeof(float), "vertex normals") : NULL;
+    col = all_colors ? hl_malloc(ctx, (size_t)nv * 3 * sizeof(float), "vertex colours") : NULL;
+    idx = hl_malloc(ctx, (size_t)nt * 3 * sizeof(uint32_t), "triangle indices");
+    if (!pos || !idx || (all_normals && !nrm) || (all_colors && !col)) {
+        r = HL_ERR_OUT_OF_MEMORY;
+        goto done;
+    }
+    size_t base = 0, t = 0;
+    for (unsigned m = 0; m < s->mNumMeshes; m++) {
+        const struct aiMesh *am = s->mMeshes[m];
+        for (size_t v = 0; v < am->mNumVertices; v++) {
+            float *p = pos + 3 * (base + v);
+            p[0] = (float)am->mVertices[v].x;
+            p[1] = (float)am->mVertices[v].y;
+            p[2] = (float)am->mVertices[v].z;
+            if (nrm) {
+                float *n = nrm + 3 * (base + v);
+                n[0] = (float)am->mNormals[v].x;
+                n[1] = (float)am->mNormals[v].y;
+                n[2] = (float)am->mNormals[v].z;
+            }
+            if (col) {
+                /* Colours are taken as linear reflectance and clamped. */
+                float *c = col + 3 * (base + v);
+                const float rgb[3] = {(float)am->mColors[0][v].r, (float)am->mColors[0][v].g,
+                                      (float)am->mColors[0][v].b};
+                for (int k = 0; k < 3; k++) c[k] = rgb[k] < 0.0f ? 0.0f : (rgb[k] > 1.0f ? 1.0f : rgb[k]);
+            }
+        }
+        for (unsigned f = 0; f < am->mNumFaces; f++) {
+            const struct aiFace *af = &am->mFaces[f];
+            if (af->mNumIndices != 3) continue;
+            for (int k = 0; k < 3; k++) {
+                /* An index past this mesh's vertices stays out of range
+                 * after the offset so the builder reports it. */
+                uint64_t i = af->mIndices[k] < am->mNumVertices ? base + af->mIndices[k] : UINT32_MAX;
+                idx[3 * t + k] = (uint32_t)(i > UINT32_MAX ? UINT32_MAX : i);
+            }
+            t++;
+        }
+        base += am->mNumVertices;
+    }
+    aiReleaseImport(s);
+    s = NULL;
+    r = hl_mesh_build_(ctx, path, (uint32_t)nv, pos, nrm, col, (uint32_t)nt, idx, desc, out, stats);
+done:
+    if (s) aiReleaseImport(s);
+    free(pos);
+    free(nrm);
+    free(col);
+    free(idx);
+    return r;
+}
+
+/* ---------------------------------------------------------------- public */
+
+hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc,
+                       hl_mesh **out, hl_mesh_stats *stats)
+{
+    if (out) *out = NULL;
+    if (stats) memset(stats, 0, sizeof *stats);
+    if (!path || !out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_mesh_load: path and out are required");
+    FILE *f = NULL;
+    size_t size = 0;
+    hl_result r = open_checked(ctx, path, &f, &size);
+    if (r != HL_OK) return r;
+    fclose(f);
+    return load_assimp(ctx, path, desc, out, stats);
+}

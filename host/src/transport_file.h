@@ -1,0 +1,67 @@
+/* transport_file.h - streaming writer and report for transport files (.hlt).
+ *
+ * The byte layout is documented in host/FORMAT.md; the reader is the public
+ * hl_transport_load. The precompute pipeline opens a writer, appends vertex
+ * rows in order as chunks finish, and finishes it. Memory stays bounded: the
+ * mesh is written at open, rows and entries are streamed straight to their
+ * final positions in a temporary file (path + ".tmp.<pid>"), and only the
+ * header is written at finish, just before the file is renamed onto path.
+ *
+ * Errors: HL_ERR_INVALID_ARGUMENT for bad parameters or appended data (the
+ * writer is left as it was, so the caller may still abort or continue),
+ * HL_ERR_IO for file system failures (the writer is then unusable except for
+ * abort), HL_ERR_OUT_OF_MEMORY. Messages go to the context.
+ *
+ * Thread safety: a writer belongs to one thread at a time, like its context.
+ * Depends on: hl_internal.h (hl_fail, allocation), POSIX file I/O.
+ */
+#ifndef HL_TRANSPORT_FILE_H
+#define HL_TRANSPORT_FILE_H
+
+#include <stdio.h>
+
+#include "hl_internal.h"
+
+typedef struct hl_tfile_writer hl_tfile_writer;
+
+/* Creates the temporary file and writes the mesh into it. info gives every
+ * parameter (resolved, no zero defaults: rule, quant, supersample >= 1) and
+ * the vertex, object vertex, triangle and block counts, which must agree
+ * with mesh; its version, coefficients_kept and ray counters are ignored.
+ * On failure *out is NULL and nothing is left on disk. */
+hl_result hl_tfile_writer_open(hl_context *ctx, const char *path,
+                               const hl_transport_info *info,
+                               const hl_mesh *mesh, hl_tfile_writer **out);
+
+/* Appends the next vertex_count vertices in vertex order. Vertex i has
+ * row parameters rq[i], block counts block_counts[i * block_count ..] and
+ * nnz[i] entries (2 * nnz[i] bytes: in-block index, quantised value) at
+ * entries + i * entry_stride_bytes, ordered by block then strictly
+ * increasing index. The whole call is validated before anything is
+ * written, so a refused append (HL_ERR_INVALID_ARGUMENT) changes nothing. */
+hl_result hl_tfile_writer_append(hl_tfile_writer *w, uint32_t vertex_count,
+                                 const hl_row_quant *rq,
+                                 const uint16_t *block_counts,
+                                 const uint8_t *entries,
+                                 size_t entry_stride_bytes,
+                                 const uint32_t *nnz);
+
+/* Checks that every vertex was appended, writes the header with the
+ * checksums, fsyncs and renames the temporary file onto path. final_info
+ * supplies rays_cast and rays_culled (NULL: zero); its parameters and counts
+ * must equal those given at open, and its coefficients_kept must be 0 or the
+ * number appended. The writer is consumed whatever the result: on failure
+ * the temporary file is removed and path is untouched. Do not call abort
+ * after finish. */
+hl_result hl_tfile_writer_finish(hl_tfile_writer *w,
+                                 const hl_transport_info *final_info);
+
+/* Removes the temporary file and frees the writer. NULL does nothing. */
+void hl_tfile_writer_abort(hl_tfile_writer *w);
+
+/* Human report of a loaded transport for `haarlight info`: parameters,
+ * counts, per-vertex statistics, ray counters and sizes. path is only
+ * printed (and its size queried); it may be NULL. */
+void hl_transport_describe(const hl_transport *t, const char *path, FILE *f);
+
+#endif
