@@ -28,8 +28,10 @@ static void select_top(global const float *c, uint n, uint need, hl_trunc_result
     r->ties = need;
 }
 
-/* Fewest largest coefficients whose energy reaches the target (> 0). */
-static uint energy_count(global const float *c, uint n, float scale, ulong target)
+/* Fewest largest coefficients whose energy reaches the target (> 0). The
+ * walk ends on the key of the last one kept, so it yields the threshold and
+ * ties of that set as well. */
+static uint energy_select(global const float *c, uint n, float scale, ulong target, hl_trunc_result *r)
 {
     uint hist[256];
     ulong ehist[256];
@@ -53,14 +55,14 @@ static uint energy_count(global const float *c, uint n, float scale, ulong targe
         }
         prefix |= (uint)b << shift;
         mask |= 255u << shift;
-        if (shift == 0) {
-            /* bin b is one key: equal energies, take as many as needed */
-            ulong e = hl_energy(as_float(prefix), scale);
-            ulong need = e ? (target - acc + e - 1) / e : 0;
-            count += (uint)need;
-        }
     }
-    return count;
+    /* the last bin is one key: equal energies, take as many as needed
+       (acc < target here, so at least one) */
+    ulong e = hl_energy(as_float(prefix), scale);
+    uint need = e ? (uint)((target - acc + e - 1) / e) : 0u;
+    r->thresh = prefix;
+    r->ties = need;
+    return count + need;
 }
 
 kernel void hl_truncate(global const float *coef, uint ncoef, hl_trunc_params p,
@@ -69,28 +71,35 @@ kernel void hl_truncate(global const float *coef, uint ncoef, hl_trunc_params p,
     uint v = get_global_id(0);
     if (v >= nrows) return;
     global const float *c = coef + (size_t)v * ncoef;
-    uint nnz = 0, maxkey = 0;
+    uint nnz = 0, maxkey = 0, minkey = 0xffffffffu, nmin = 0;
     for (uint i = 0; i < ncoef; i++) {
         uint k = hl_key(c[i]);
-        nnz += k != 0;
+        if (!k) continue;
+        nnz++;
         maxkey = max(maxkey, k);
+        if (k < minkey) { minkey = k; nmin = 0; }
+        nmin += k == minkey;
     }
+    hl_trunc_result r = {0xffffffffu, 0u, 0u, 0u};
     uint count = nnz;
-    if (p.rule == HL_TRUNC_TOPK) {
-        count = min(p.K, nnz);
-    } else if (p.rule == HL_TRUNC_ENERGY) {
+    if (p.rule == HL_TRUNC_TOPK) count = min(p.K, nnz);
+    if (p.rule == HL_TRUNC_ENERGY) {
         float scale = hl_energy_scale(maxkey);
         ulong total = 0;
         for (uint i = 0; i < ncoef; i++) total += hl_energy(c[i], scale);
         ulong target = total - hl_energy_drop(total, p.eps_q20);
-        count = target ? energy_count(c, ncoef, scale, target) : 0;
-        if (p.K > 0) count = min(count, p.K);
+        if (target) r.count = energy_select(c, ncoef, scale, target, &r);
+        if (p.K > 0 && r.count > p.K) {
+            r.count = p.K;
+            select_top(c, ncoef, p.K, &r);
+        }
+    } else if (count == nnz) {
+        /* everything non-zero: the threshold is the smallest key */
+        r.count = nnz;
+        if (nnz) { r.thresh = minkey; r.ties = nmin; }
+    } else {
+        r.count = count;
+        if (count) select_top(c, ncoef, count, &r);
     }
-    hl_trunc_result r;
-    r.thresh = 0xffffffffu;
-    r.ties = 0;
-    r.count = count;
-    r.pad_ = 0;
-    if (count > 0) select_top(c, ncoef, count, &r);
     out[v] = r;
 }

@@ -48,10 +48,15 @@ static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return 
 /* One entry of the cubemap-to-paraboloid table: the part of a paraboloid
  * texel's footprint that falls in one cube texel. m is the first moment of
  * that part, the integral of w dw over it, so n.m is its cosine-weighted
- * solid angle exactly wherever the part lies above the horizon. */
+ * solid angle exactly wherever the part lies above the horizon. The table
+ * exists in two orders: by paraboloid texel (index = cube texel, face * C *
+ * C + row * C + col; ascending within a texel) for the plain-C twin, and by
+ * cube texel (index = paraboloid texel) for the kernel, which then skips
+ * cube texels with no visibility. Both add a texel's parts in the same
+ * order, so they round identically. */
 typedef struct hl_c2p_entry {
     float mx, my, mz;
-    HL_U32 cube; /* cube texel index: face * C * C + row * C + col */
+    HL_U32 index;
 } hl_c2p_entry;
 
 /* Per-vertex dequantisation parameters (meaning depends on the scheme):

@@ -30,6 +30,9 @@ struct hl_cl {
     cl_program program;
     cl_kernel k[K_COUNT];
     cl_ulong max_alloc;
+    size_t wg; /* work-group size: 1 on CPUs, where each work-item's long
+                  row loop is the unit of work and PoCL would otherwise
+                  put every row in one group on one core */
 };
 
 static const char *cl_err_name(cl_int e)
@@ -126,6 +129,9 @@ static hl_result assemble_source(hl_context *ctx, char **out)
     return HL_OK;
 }
 
+/* rows per work-item of hl_cube2para (HL_C2P_ROWS in kernels/cube2para.cl) */
+#define C2P_ROWS 4u
+
 static hl_result build_program(hl_context *ctx, struct hl_cl *cl)
 {
     char *src = NULL;
@@ -136,7 +142,8 @@ static hl_result build_program(hl_context *ctx, struct hl_cl *cl)
     cl->program = clCreateProgramWithSource(cl->context, 1, srcs, NULL, &e);
     free(src);
     CL_TRY(ctx, e, "clCreateProgramWithSource");
-    char opts[256] = "-cl-std=CL1.2";
+    char opts[256];
+    snprintf(opts, sizeof opts, "-cl-std=CL1.2 -DHL_C2P_ROWS=%u", C2P_ROWS);
     cl_device_fp_config fp = 0;
     clGetDeviceInfo(cl->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL);
     /* the quantiser divides; correctly rounded division makes the OpenCL
@@ -203,6 +210,9 @@ hl_result hl_cl_create(hl_context *ctx, int platform, int device)
     clGetDeviceInfo(cl->device, CL_DEVICE_NAME, sizeof dname, dname, NULL);
     clGetDeviceInfo(cl->device, CL_DEVICE_MAX_MEM_ALLOC_SIZE, sizeof cl->max_alloc, &cl->max_alloc, NULL);
     snprintf(ctx->device_name, sizeof ctx->device_name, "OpenCL: %s / %s", pname, dname);
+    cl_device_type type = 0;
+    clGetDeviceInfo(cl->device, CL_DEVICE_TYPE, sizeof type, &type, NULL);
+    cl->wg = (type & CL_DEVICE_TYPE_CPU) ? 1 : 64;
     cl->context = clCreateContext(NULL, 1, &cl->device, NULL, NULL, &e);
     CL_TRY(ctx, e, "clCreateContext");
     cl->queue = clCreateCommandQueue(cl->context, cl->device, 0, &e);
@@ -302,8 +312,8 @@ hl_result hl_cl_pipe_create(hl_context *ctx, const hl_geom *g, uint32_t max_rows
     size_t R = max_rows, nc = g->ncoef;
     hl_result r = HL_OK;
 #define B(m, fl, bytes, init, what) if (r == HL_OK) r = make_buf(p, &p->m, fl, bytes, init, what)
-    B(start, CL_MEM_READ_ONLY, (nc + 1) * 4, g->c2p_start, "the table rows");
-    B(ent, CL_MEM_READ_ONLY, (size_t)g->nentries * sizeof(hl_c2p_entry), g->c2p, "the table entries");
+    B(start, CL_MEM_READ_ONLY, ((size_t)g->ncube + 1) * 4, g->p2c_start, "the table rows");
+    B(ent, CL_MEM_READ_ONLY, (size_t)g->nentries * sizeof(hl_c2p_entry), g->p2c, "the table entries");
     B(slots, CL_MEM_READ_ONLY, (size_t)g->N * g->N * 4, g->slot_of_mallat, "the Haar slot order");
     B(vis[0], CL_MEM_READ_ONLY, R * g->ncube, NULL, "visibility (slot 0)");
     B(vis[1], CL_MEM_READ_ONLY, R * g->ncube, NULL, "visibility (slot 1)");
@@ -339,8 +349,9 @@ void hl_cl_pipe_destroy(hl_cl_pipe *p)
 
 static hl_result launch(hl_cl_pipe *p, int which, uint32_t rows)
 {
-    size_t global = rows;
-    CL_TRY(p->ctx, clEnqueueNDRangeKernel(p->cl->queue, p->cl->k[which], 1, NULL, &global, NULL, 0, NULL, NULL),
+    if (which == K_CUBE2PARA) rows = (rows + C2P_ROWS - 1) / C2P_ROWS;
+    size_t local = p->cl->wg, global = (rows + local - 1) / local * local;
+    CL_TRY(p->ctx, clEnqueueNDRangeKernel(p->cl->queue, p->cl->k[which], 1, NULL, &global, &local, 0, NULL, NULL),
            kernel_names[which]);
     return HL_OK;
 }

@@ -195,17 +195,42 @@ static hl_result build_c2p(hl_context *ctx, hl_geom *g)
                     if (!p) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory growing the cube-to-paraboloid table");
                     g->c2p = p;
                 }
+                /* ascending cube index: the order both table forms add in */
+                for (int x = 1; x < na; x++)
+                    for (int y = x; y > 0 && acc[y - 1].cube > acc[y].cube; y--) {
+                        c2p_acc tmp = acc[y];
+                        acc[y] = acc[y - 1];
+                        acc[y - 1] = tmp;
+                    }
                 double scale = om / wsum;
                 for (int e = 0; e < na; e++) {
                     hl_c2p_entry *o = &g->c2p[n++];
                     o->mx = (float)(acc[e].m[0] * scale);
                     o->my = (float)(acc[e].m[1] * scale);
                     o->mz = (float)(acc[e].m[2] * scale);
-                    o->cube = acc[e].cube;
+                    o->index = acc[e].cube;
                 }
             }
     g->c2p_start[g->ncoef] = (uint32_t)n;
     g->nentries = (uint32_t)n;
+    /* the same entries by cube texel (a stable counting sort keeps them in
+       paraboloid-texel order within a cube texel) */
+    g->p2c_start = hl_calloc(ctx, (size_t)g->ncube + 1, sizeof(uint32_t), "the transposed table");
+    g->p2c = hl_malloc(ctx, n * sizeof *g->p2c, "the transposed table");
+    if (!g->p2c_start || !g->p2c) return HL_ERR_OUT_OF_MEMORY;
+    for (size_t e = 0; e < n; e++) g->p2c_start[g->c2p[e].index + 1]++;
+    for (uint32_t c = 0; c < g->ncube; c++) g->p2c_start[c + 1] += g->p2c_start[c];
+    uint32_t *fill = hl_malloc(ctx, (size_t)g->ncube * sizeof(uint32_t), "the transposed table");
+    if (!fill) return HL_ERR_OUT_OF_MEMORY;
+    memcpy(fill, g->p2c_start, (size_t)g->ncube * sizeof(uint32_t));
+    for (uint32_t j = 0; j < g->ncoef; j++)
+        for (uint32_t e = g->c2p_start[j]; e < g->c2p_start[j + 1]; e++) {
+            hl_c2p_entry t = g->c2p[e];
+            uint32_t c = t.index;
+            t.index = j;
+            g->p2c[fill[c]++] = t;
+        }
+    free(fill);
     return HL_OK;
 }
 
@@ -249,6 +274,8 @@ void hl_geom_destroy(hl_geom *g)
     free(g->omega);
     free(g->c2p_start);
     free(g->c2p);
+    free(g->p2c_start);
+    free(g->p2c);
     free(g->slot_of_mallat);
     free(g);
 }

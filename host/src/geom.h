@@ -16,8 +16,10 @@ typedef struct hl_geom {
     uint32_t ncube;   /* 6 C^2 */
     float *cube_dirs; /* 4 per cube texel: unit centre direction, pad */
     float *omega;     /* ncoef: paraboloid texel solid angle (0 outside) */
-    uint32_t *c2p_start;   /* ncoef + 1: CSR rows of the table */
-    hl_c2p_entry *c2p;     /* nentries */
+    uint32_t *c2p_start;   /* ncoef + 1: rows by paraboloid texel */
+    hl_c2p_entry *c2p;     /* nentries, index = cube texel */
+    uint32_t *p2c_start;   /* ncube + 1: rows by cube texel */
+    hl_c2p_entry *p2c;     /* nentries, index = paraboloid texel */
     uint32_t nentries;
     uint32_t *slot_of_mallat; /* N^2: Mallat-layout position -> slot in map */
 } hl_geom;

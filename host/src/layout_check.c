@@ -4,7 +4,7 @@
 #include "hl_internal.h"
 
 _Static_assert(sizeof(hl_c2p_entry) == 16, "hl_c2p_entry must be 16 bytes");
-_Static_assert(offsetof(hl_c2p_entry, cube) == 12, "hl_c2p_entry.cube at 12");
+_Static_assert(offsetof(hl_c2p_entry, index) == 12, "hl_c2p_entry.index at 12");
 _Static_assert(sizeof(hl_row_quant) == 8, "hl_row_quant must be 8 bytes");
 _Static_assert(sizeof(hl_trunc_result) == 16, "hl_trunc_result must be 16 bytes");
 _Static_assert(sizeof(hl_trunc_params) == 16, "hl_trunc_params must be 16 bytes");

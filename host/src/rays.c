@@ -122,6 +122,17 @@ static void flush_packet(vis_job *job, packet *pk, struct RTCIntersectContext *i
     pk->n = 0;
 }
 
+/* Lanes' constant fields are set once; per vertex only the origin, per
+ * ray only the direction, tfar and valid change (Embree writes only tfar). */
+static void packet_init(packet *pk)
+{
+    memset(pk, 0, sizeof *pk);
+    for (int i = 0; i < 16; i++) {
+        pk->ray.mask[i] = 0xffffffffu;
+        pk->ray.id[i] = (unsigned)i;
+    }
+}
+
 static void trace_vertex(vis_job *job, uint32_t v, packet *pk, const float *off)
 {
     const hl_geom *g = job->g;
@@ -134,6 +145,11 @@ static void trace_vertex(vis_job *job, uint32_t v, packet *pk, const float *off)
     struct RTCIntersectContext ic;
     rtcInitIntersectContext(&ic);
     ic.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    for (int i = 0; i < 16; i++) {
+        pk->ray.org_x[i] = o[0];
+        pk->ray.org_y[i] = o[1];
+        pk->ray.org_z[i] = o[2];
+    }
     uint64_t cast = 0, culled = 0;
     pk->n = 0;
     for (uint32_t c = 0; c < g->ncube; c++) {
@@ -151,14 +167,10 @@ static void trace_vertex(vis_job *job, uint32_t v, packet *pk, const float *off)
                 if (S == 1) { dir[0] = d[0]; dir[1] = d[1]; dir[2] = d[2]; }
                 else hl_cube_face_dir(face, sc + off[b], tc + off[a], dir);
                 int i = pk->n++;
-                pk->ray.org_x[i] = o[0]; pk->ray.org_y[i] = o[1]; pk->ray.org_z[i] = o[2];
-                pk->ray.dir_x[i] = dir[0]; pk->ray.dir_y[i] = dir[1]; pk->ray.dir_z[i] = dir[2];
-                pk->ray.tnear[i] = 0.0f;
+                pk->ray.dir_x[i] = dir[0];
+                pk->ray.dir_y[i] = dir[1];
+                pk->ray.dir_z[i] = dir[2];
                 pk->ray.tfar[i] = INFINITY;
-                pk->ray.time[i] = 0.0f;
-                pk->ray.mask[i] = 0xffffffffu;
-                pk->ray.id[i] = (unsigned)i;
-                pk->ray.flags[i] = 0;
                 pk->valid[i] = -1;
                 pk->texel[i] = c;
                 if (pk->n == 16) flush_packet(job, pk, &ic, row);
@@ -176,6 +188,7 @@ static void *vis_worker(void *arg)
     packet *pk = aligned_alloc(64, sizeof *pk);
     float off[16];
     if (!pk) return NULL;
+    packet_init(pk);
     sub_offsets(job->S, job->g->C, off);
     for (;;) {
         uint32_t i = atomic_fetch_add(&job->next, 4u);
@@ -273,6 +286,7 @@ hl_result hl_rt_raw_rate(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, const
         return hl_fail(rt->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for %zu ray packets", cap);
     }
     job.capstore = cap;
+    packet_init(pk);
     atomic_init(&job.cast, 0ull);
     atomic_init(&job.culled, 0ull);
     float off[16];

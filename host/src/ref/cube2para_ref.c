@@ -8,7 +8,7 @@ void hl_ref_cube2para(const hl_geom *g, const uint8_t *vis, float scale,
         float acc = 0.0f;
         for (uint32_t e = g->c2p_start[j]; e < g->c2p_start[j + 1]; e++) {
             const hl_c2p_entry *c = &g->c2p[e];
-            uint32_t v = vis[c->cube];
+            uint32_t v = vis[c->index];
             if (!v) continue;
             float w = n[0] * c->mx + n[1] * c->my + n[2] * c->mz;
             if (w > 0.0f) acc += (float)v * w;

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# setup.sh - install what haarlight needs from Debian, build it, and run
+# the demo or the tests.
+#
+#   ./setup.sh demo    precompute the built-in default scene (bunny + ground)
+#   ./setup.sh test    run the test suite (ctest, on PoCL's CPU device)
+#   ./setup.sh build   only install and build
+#
+# Packages are installed with apt-get only when missing (as root, or through
+# sudo). The build goes to ./build.
+set -euo pipefail
+cd "$(dirname "$0")"
+
+what="${1:-build}"
+case "$what" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exit 2 ;; esac
+
+packages=(build-essential cmake pkg-config
+          pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
+          libembree-dev libopenexr-dev libglfw3-dev libassimp-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ "${#missing[@]}" -gt 0 ]; then
+  echo "setup: installing ${missing[*]}"
+  sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+jobs="$(nproc 2>/dev/null || echo 2)"
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
+cmake --build build -j"$jobs"
+
+case "$what" in
+  demo)
+    ./build/haarlight precompute data/bunny_lowres.obj --ground -o build/demo.hlt
+    ./build/haarlight info build/demo.hlt
+    ;;
+  test)
+    cd build
+    ctest --output-on-failure
+    ;;
+esac
