@@ -1,0 +1,106 @@
+#!/usr/bin/env bash
+# test_cli.sh CASE - end-to-end checks of the haarlight command.
+# Env: HL_BIN (the binary), HL_TMP (scratch), HL_REPO_DATA (data/).
+set -u
+bin="${HL_BIN:?}"
+tmp="${HL_TMP:-/tmp}/cli.$$"
+data="${HL_REPO_DATA:?}"
+mkdir -p "$tmp"
+trap 'rm -rf "$tmp"' EXIT
+fails=0
+fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+
+# expect_error NAME EXPECTED_RC MESSAGE_PART OUTPUT -- ARGS...: the command
+# must exit with EXPECTED_RC, print MESSAGE_PART on stderr, leave no OUTPUT.
+expect_error() {
+  local name="$1" want="$2" part="$3" out="$4"; shift 5
+  "$bin" "$@" >"$tmp/out.txt" 2>"$tmp/err.txt"
+  local rc=$?
+  local msg; msg="$(head -c 300 "$tmp/err.txt" | tr '\n' ' ')"
+  echo "$name: exit $rc: $msg"
+  [ "$rc" -eq "$want" ] || fail "$name: exit code $rc, expected $want"
+  grep -q -- "$part" "$tmp/err.txt" || fail "$name: message lacks '$part'"
+  [ -n "$out" ] && [ -e "$out" ] && fail "$name: $out was written"
+  ls "$tmp" | grep -q '\.tmp\.' && fail "$name: a temporary file was left behind"
+  return 0
+}
+
+small=(-C 16 -N 16 -q)
+
+case "${1:-}" in
+bad_input)
+  printf 'v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n' >"$tmp/nan.obj"
+  printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n' >"$tmp/index.obj"
+  printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\n' >"$tmp/nofaces.obj"
+  head -c 4096 /dev/urandom >"$tmp/noise.obj"
+  printf 'hello, I am not a mesh\n' >"$tmp/text.ply"
+  expect_error nan 1 "nan.obj" "$tmp/o1.hlt" -- precompute "$tmp/nan.obj" -o "$tmp/o1.hlt" "${small[@]}"
+  expect_error index 1 "index.obj" "$tmp/o2.hlt" -- precompute "$tmp/index.obj" -o "$tmp/o2.hlt" "${small[@]}"
+  expect_error nofaces 1 "nofaces.obj" "$tmp/o3.hlt" -- precompute "$tmp/nofaces.obj" -o "$tmp/o3.hlt" "${small[@]}"
+  expect_error noise 1 "noise.obj" "$tmp/o4.hlt" -- precompute "$tmp/noise.obj" -o "$tmp/o4.hlt" "${small[@]}"
+  expect_error text 1 "text.ply" "$tmp/o5.hlt" -- precompute "$tmp/text.ply" -o "$tmp/o5.hlt" "${small[@]}"
+  expect_error missing 1 "missing.obj" "$tmp/o6.hlt" -- precompute "$tmp/missing.obj" -o "$tmp/o6.hlt" "${small[@]}"
+  expect_error unwritable 1 "no/such/dir" "" -- precompute "$data/bunny_lowres.obj" -o "$tmp/no/such/dir/x.hlt" "${small[@]}"
+  ;;
+bad_options)
+  m="$data/bunny_lowres.obj"
+  expect_error N_not_pow2 2 "power of two" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" -N 48
+  expect_error N_small 2 "power of two" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" -N 4
+  expect_error C_zero 2 "cubemap" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" -C 0
+  expect_error K_negative 2 "--terms" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --terms -3
+  expect_error K_zero 2 "--terms" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --terms 0
+  expect_error eps_one 2 "--energy" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --energy 1
+  expect_error eps_text 2 "--energy" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --energy lots
+  expect_error supersample 2 "--supersample" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --supersample 16
+  expect_error quant 2 "--quant" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --quant fp4
+  expect_error device 2 "--device" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --device gpu
+  expect_error no_platform 1 "does not exist" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --device cl:9:0
+  expect_error no_output 2 "no output" "" -- precompute "$m"
+  expect_error unknown_opt 2 "unknown option" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --frobnicate
+  expect_error all_and_energy 2 "contradict" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --terms all --energy 0.1
+  expect_error unknown_cmd 2 "unknown command" "" -- relightify
+  ;;
+cl_equals_ref)
+  # the OpenCL path and the plain-C reference write the same bytes
+  m="$data/bunny_lowres.obj"
+  for q in log8 linear8; do
+    "$bin" precompute "$m" --ground --ground-res 16 -o "$tmp/cl.hlt" -C 32 -N 32 --quant $q -q || fail "cl run ($q)"
+    "$bin" precompute "$m" --ground --ground-res 16 -o "$tmp/ref.hlt" -C 32 -N 32 --quant $q -q --device ref || fail "ref run ($q)"
+    if cmp -s "$tmp/cl.hlt" "$tmp/ref.hlt"; then echo "$q: OpenCL and reference files identical ($(stat -c %s "$tmp/cl.hlt") bytes)"
+    else fail "$q: OpenCL and reference files differ"; fi
+  done
+  # and the thread count and chunk size do not change the bytes
+  "$bin" precompute "$m" --ground --ground-res 16 -o "$tmp/t1.hlt" -C 32 -N 32 -q --quant linear8 --threads 1 --chunk 77 || fail "1-thread run"
+  cmp -s "$tmp/t1.hlt" "$tmp/cl.hlt" && echo "1 thread, chunk 77: identical" || fail "1 thread / chunk 77 differs"
+  ;;
+info)
+  m="$data/bunny_lowres.obj"
+  "$bin" precompute "$m" --ground --ground-res 8 -o "$tmp/i.hlt" -C 16 -N 16 -q --terms 20 || fail "precompute"
+  "$bin" info "$tmp/i.hlt" >"$tmp/info.txt" || fail "info"
+  cat "$tmp/info.txt"
+  grep -q "rays culled" "$tmp/info.txt" || fail "info does not report culled rays"
+  # fully occluded ground vertices have fewer than 20 non-zeros, so the
+  # mean is below 20; no vertex may exceed it
+  grep -q "max 20)" "$tmp/info.txt" || fail "--terms 20 must keep at most 20 per vertex, and 20 where available"
+  head -c 1000 "$tmp/i.hlt" >"$tmp/trunc.hlt"
+  expect_error truncated 1 "trunc.hlt" "" -- info "$tmp/trunc.hlt"
+  ;;
+interrupt)
+  # SIGINT part-way leaves neither the output nor a temporary file
+  m="$data/bunny_lowres.obj"
+  "$bin" precompute "$m" --ground -o "$tmp/int.hlt" -q --device ref --chunk 64 &
+  pid=$!
+  sleep 1.5
+  kill -INT $pid
+  wait $pid
+  rc=$?
+  echo "interrupted run: exit $rc"
+  [ "$rc" -ne 0 ] || fail "an interrupted run must fail"
+  [ -e "$tmp/int.hlt" ] && fail "output written by an interrupted run"
+  ls "$tmp" | grep -q '\.tmp\.' && fail "temporary file left behind"
+  ;;
+*) echo "usage: $0 bad_input|bad_options|cl_equals_ref|info|interrupt"; exit 2 ;;
+esac
+echo "$((fails == 0 ? 1 : 0)) passed, $fails failed" >/dev/null
+[ "$fails" -eq 0 ] && echo "${1}: passed" || echo "${1}: FAILED ($fails)"
+[ "$fails" -eq 0 ]
