@@ -28,11 +28,13 @@ static void select_top(global const float *c, uint n, uint need, hl_trunc_result
     r->ties = need;
 }
 
-/* Fewest largest coefficients whose energy reaches the target (> 0). The
+/* Fewest largest coefficients holding all but eps of the row's energy. The
+ * first histogram sees every coefficient, so it gives the total too. The
  * walk ends on the key of the last one kept, so it yields the threshold and
  * ties of that set as well. */
-static uint energy_select(global const float *c, uint n, float scale, ulong target, hl_trunc_result *r)
+static uint energy_select(global const float *c, uint n, float scale, uint eps_q20, hl_trunc_result *r)
 {
+    ulong target = 0;
     uint hist[256];
     ulong ehist[256];
     uint prefix = 0, mask = 0, count = 0;
@@ -46,6 +48,12 @@ static uint energy_select(global const float *c, uint n, float scale, ulong targ
                 hist[b]++;
                 ehist[b] += hl_energy(c[i], scale);
             }
+        }
+        if (shift == 24) {
+            ulong total = 0;
+            for (int b = 0; b < 256; b++) total += ehist[b];
+            target = total - hl_energy_drop(total, eps_q20);
+            if (!target) return 0;
         }
         int b = 255;
         for (; b > 0; b--) {
@@ -84,11 +92,7 @@ kernel void hl_truncate(global const float *coef, uint ncoef, hl_trunc_params p,
     uint count = nnz;
     if (p.rule == HL_TRUNC_TOPK) count = min(p.K, nnz);
     if (p.rule == HL_TRUNC_ENERGY) {
-        float scale = hl_energy_scale(maxkey);
-        ulong total = 0;
-        for (uint i = 0; i < ncoef; i++) total += hl_energy(c[i], scale);
-        ulong target = total - hl_energy_drop(total, p.eps_q20);
-        if (target) r.count = energy_select(c, ncoef, scale, target, &r);
+        if (nnz) r.count = energy_select(c, ncoef, hl_energy_scale(maxkey), p.eps_q20, &r);
         if (p.K > 0 && r.count > p.K) {
             r.count = p.K;
             select_top(c, ncoef, p.K, &r);
