@@ -181,11 +181,15 @@ static hl_result build_c2p(hl_context *ctx, hl_geom *g)
                         acc[e].w += dw;
                         wsum += dw;
                     }
-                if (na == 0) { /* sliver of the rim: use the texel centre */
-                    float d[3];
-                    hl_para_texel_dir(N, map, col, row, d);
+                if (na == 0) {
+                    /* a sliver of the rim that no sub-sample hit: use the
+                       in-disc point nearest the texel centre (the centre
+                       itself lies outside, in the other hemisphere) */
+                    double cs = s0 + 0.5 * h, ct = t0 + 0.5 * h, r = sqrt(cs * cs + ct * ct);
+                    double k = (1.0 - 1e-7) / r, s = cs * k, t = ct * k, r2 = s * s + t * t, q = 1.0 / (1.0 + r2);
+                    float d[3] = {(float)(2 * s * q), (float)((map ? -1 : 1) * (1 - r2) * q), (float)(2 * t * q)};
                     acc[0].cube = hl_dir_to_cube(d, g->C);
-                    for (int q = 0; q < 3; q++) acc[0].m[q] = d[q];
+                    for (int c = 0; c < 3; c++) acc[0].m[c] = d[c];
                     acc[0].w = wsum = 1.0;
                     na = 1;
                 }
