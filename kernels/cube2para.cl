@@ -29,6 +29,13 @@ kernel void hl_cube2para(global const uchar *vis, uint ncube, float scale,
     global float *out = T + (size_t)v0 * ncoef;
     for (uint j = 0; j < nr * ncoef; j++) out[j] = 0.0f;
     for (uint c = 0; c < ncube; c++) {
+        if ((c & 3u) == 0 && c + 4 <= ncube) {
+            /* skip 4 texels at once where no row sees anything (the
+               culled half of the sphere is all zeros) */
+            uint word = 0;
+            for (uint r = 0; r < nr; r++) word |= as_uint(vload4(0, row + (size_t)r * ncube + c));
+            if (!word) { c += 3; continue; }
+        }
         float fv[HL_C2P_ROWS];
         uint any = 0;
         for (uint r = 0; r < HL_C2P_ROWS; r++) {

@@ -154,6 +154,17 @@ static void trace_vertex(vis_job *job, uint32_t v, packet *pk, const float *off)
     pk->n = 0;
     for (uint32_t c = 0; c < g->ncube; c++) {
         const float *d = g->cube_dirs + 4 * (size_t)c;
+        if (c % C == 0) {
+            /* along a face row d is affine, so n.d - margin |d| (margin < 0)
+               is convex and its culled set is an interval: a row whose end
+               texels are both culled is culled whole */
+            const float *e = d + 4 * (size_t)(C - 1);
+            if (d[0] * n[0] + d[1] * n[1] + d[2] * n[2] <= margin && e[0] * n[0] + e[1] * n[1] + e[2] * n[2] <= margin) {
+                culled += (uint64_t)S * S * C;
+                c += C - 1;
+                continue;
+            }
+        }
         if (d[0] * n[0] + d[1] * n[1] + d[2] * n[2] <= margin) {
             culled += (uint64_t)S * S;
             continue;
