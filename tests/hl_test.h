@@ -8,6 +8,7 @@
 #define HL_TEST_H
 
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -56,6 +57,17 @@ static inline int hl_test_main(int argc, char **argv, const hl_test_case *cases)
     }
     fprintf(stderr, "unknown case %s\n", argv[1]);
     return 2;
+}
+
+/* splitmix64: a deterministic generator for test data, the same on every
+ * platform. Each test executable has its own state. */
+static uint64_t hl_rng_state = 0x9E3779B97F4A7C15ull;
+static inline uint64_t hl_rng_next(void)
+{
+    uint64_t z = (hl_rng_state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
 }
 
 /* Environment helpers: shared data folder, scratch folder, CLI binary. */

@@ -34,15 +34,7 @@
 
 /* ---------------------------------------------------------------- helpers */
 
-static uint64_t rng_state = 0x243F6A8885A308D3ull;
-static uint64_t rng_next(void)
-{
-    /* splitmix64: deterministic across platforms */
-    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
+static uint64_t rng_next(void) { return hl_rng_next(); }
 static double rng_unit(void) { return (double)(rng_next() >> 11) * (1.0 / 9007199254740992.0); }
 static float rng_float(double lo, double hi) { return (float)(lo + (hi - lo) * rng_unit()); }
 

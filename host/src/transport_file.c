@@ -449,28 +449,15 @@ static void stream_start(tf_stream *s, uint64_t pos)
     s->len = 0;
 }
 
-static hl_result put_floats(hl_tfile_writer *w, tf_stream *s, const float *v, size_t count)
+/* 4-byte words (uint32 or float bit patterns), little-endian. */
+static hl_result put_words(hl_tfile_writer *w, tf_stream *s, const void *v, size_t count)
 {
     uint8_t tmp[4096];
     size_t used = 0;
     for (size_t i = 0; i < count; i++) {
-        put_u32(tmp + used, HL_AS_U32(v[i]));
-        used += 4;
-        if (used == sizeof tmp || i + 1 == count) {
-            hl_result r = stream_put(w, s, tmp, used);
-            if (r != HL_OK) return r;
-            used = 0;
-        }
-    }
-    return HL_OK;
-}
-
-static hl_result put_u32s(hl_tfile_writer *w, tf_stream *s, const uint32_t *v, size_t count)
-{
-    uint8_t tmp[4096];
-    size_t used = 0;
-    for (size_t i = 0; i < count; i++) {
-        put_u32(tmp + used, v[i]);
+        uint32_t u;
+        memcpy(&u, (const uint8_t *)v + 4 * i, 4);
+        put_u32(tmp + used, u);
         used += 4;
         if (used == sizeof tmp || i + 1 == count) {
             hl_result r = stream_put(w, s, tmp, used);
@@ -571,10 +558,10 @@ hl_result hl_tfile_writer_open(hl_context *ctx, const char *path, const hl_trans
     size_t v3 = 3 * (size_t)mesh->vertex_count;
     tf_stream *s = &w->rows;
     stream_start(s, h->sec[SEC_MESH].offset);
-    hl_result r = put_floats(w, s, mesh->positions, v3);
-    if (r == HL_OK) r = put_floats(w, s, mesh->normals, v3);
-    if (r == HL_OK) r = put_floats(w, s, mesh->albedo, v3);
-    if (r == HL_OK) r = put_u32s(w, s, mesh->indices, 3 * (size_t)mesh->triangle_count);
+    hl_result r = put_words(w, s, mesh->positions, v3);
+    if (r == HL_OK) r = put_words(w, s, mesh->normals, v3);
+    if (r == HL_OK) r = put_words(w, s, mesh->albedo, v3);
+    if (r == HL_OK) r = put_words(w, s, mesh->indices, 3 * (size_t)mesh->triangle_count);
     if (r == HL_OK) r = stream_flush(w, s);
     if (r == HL_OK) r = write_padding(w, h->sec[SEC_MESH].offset + h->sec[SEC_MESH].size, h->sec[SEC_ROWS].offset);
     if (r != HL_OK) {
