@@ -250,6 +250,114 @@ void hl_transport_destroy(hl_transport *t);
  * floats (zero elsewhere). */
 void hl_transport_query_row(const hl_transport *t, uint32_t v, float *dense);
 
+/* ---------------------------------------------------------------- environments */
+
+/* An equirectangular environment: linear RGB radiance, width x height
+ * pixels (height = width / 2), row 0 = +Y, read exactly as ENVMAP.md says:
+ * direction w -> u = 0.5 + atan2(w.z, w.x) / 2pi, v = acos(w.y) / pi. */
+typedef struct hl_env {
+    uint32_t width, height;
+    float *rgb; /* 3 * width * height, row-major, never NaN, Inf or < 0 */
+} hl_env;
+
+/* What loading repaired. */
+typedef struct hl_env_stats {
+    uint64_t nonfinite_pixels; /* pixels with a NaN or Inf channel, set to 0 */
+    uint64_t negative_pixels;  /* pixels with a channel < 0, clamped to 0 */
+} hl_env_stats;
+
+/* Reads an equirectangular OpenEXR (any compression the OpenEXR library
+ * reads, DWAB included). Refuses files that are not 2:1 (HL_ERR_FORMAT);
+ * NaN/Inf channels are set to 0 and negative ones clamped, and stats says
+ * how many pixels were affected. Errors name the file. */
+hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_stats *stats);
+
+/* hl_sky_desc fields and defaults (a procedural sun and sky):
+ *   sun_elevation_deg  0: 35 degrees above the horizon (use -90..90;
+ *                      exactly 0 means the default, pass 1e-3 for the horizon)
+ *   sun_azimuth_deg    0: sun towards +X rotated by this about +Y (as
+ *                      --rotate turns an environment)
+ *   sun_size_deg       0: 2 degrees angular diameter
+ *   sun_irradiance     0: 8 (irradiance from the sun on a surface facing it,
+ *                      against pi for a white sky of radiance 1: a real HDR
+ *                      case, the disc is thousands of times the sky)
+ *   sky_zenith / sky_horizon  {0,0,0}: a blue zenith fading to a pale
+ *                      horizon (linear RGB radiance)
+ *   ground             {0,0,0}: dark grey-brown below the horizon
+ *   width              0: 1024 (height = width / 2)
+ */
+typedef struct hl_sky_desc {
+    float sun_elevation_deg;
+    float sun_azimuth_deg;
+    float sun_size_deg;
+    float sun_irradiance;
+    float sky_zenith[3];
+    float sky_horizon[3];
+    float ground[3];
+    uint32_t width;
+} hl_sky_desc;
+
+hl_result hl_env_create_sky(hl_context *ctx, const hl_sky_desc *desc, hl_env **out);
+
+/* Builds an environment from a copy of rgb (3 * width * height floats),
+ * repairing like hl_env_load. width must be 2 * height, height >= 1. */
+hl_result hl_env_create(hl_context *ctx, uint32_t width, uint32_t height, const float *rgb,
+                        hl_env **out, hl_env_stats *stats);
+
+/* Radiance seen in direction w (need not be unit) with the content turned
+ * by rotate_deg about +Y (ENVMAP.md): nearest pixel. */
+void hl_env_query(const hl_env *env, const float w[3], float rotate_deg, float rgb[3]);
+
+void hl_env_destroy(hl_env *env);
+
+/* ---------------------------------------------------------------- images */
+
+typedef struct hl_image {
+    uint32_t width, height;
+    float *rgb; /* 3 * width * height, linear, row 0 at the top */
+} hl_image;
+
+hl_result hl_image_create(hl_context *ctx, uint32_t width, uint32_t height, hl_image **out);
+void hl_image_destroy(hl_image *img);
+
+/* Writes by extension: .exr linear float RGB (ZIP), .png 8-bit tone-mapped
+ * (scale by 2^exposure_ev, then the sRGB transfer curve). Atomic: written
+ * to a temporary name and renamed. */
+hl_result hl_image_save(hl_context *ctx, const hl_image *img, const char *path, float exposure_ev);
+
+/* Linear radiance to an 8-bit sRGB code after scaling by 2^exposure_ev. */
+uint8_t hl_tonemap_srgb8(float linear, float exposure_ev);
+
+/* ---------------------------------------------------------------- rendering */
+
+/* hl_camera_desc fields and defaults:
+ *   width, height    0: 960 x 720
+ *   fov_deg          0: 35 degrees vertical
+ *   eye, target      all zero: framed automatically: looking at the object's
+ *                    bounding-box centre from the front (+Z side), a little
+ *                    above, far enough that the whole object (ground plane
+ *                    excluded) fits with a margin
+ *   up               {0,0,0}: +Y
+ */
+typedef struct hl_camera_desc {
+    uint32_t width, height;
+    float fov_deg;
+    float eye[3], target[3], up[3];
+} hl_camera_desc;
+
+/* Renders the mesh with per-vertex linear RGB colours (3 per vertex),
+ * interpolated with barycentrics, from Embree primary rays; pixels that
+ * miss show the environment (may be NULL: black) turned by rotate_deg. */
+hl_result hl_render(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
+                    const hl_env *background, float rotate_deg, const hl_camera_desc *camera,
+                    hl_image **out);
+
+/* Writes the mesh as binary PLY with per-vertex colours: float red, green,
+ * blue (linear radiance) by default, or 8-bit tone-mapped uchar colours
+ * when tonemapped8 is set (exposure_ev then applies). Atomic. */
+hl_result hl_mesh_save_ply(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
+                           const char *path, int tonemapped8, float exposure_ev);
+
 #ifdef __cplusplus
 }
 #endif

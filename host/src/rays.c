@@ -321,3 +321,61 @@ hl_result hl_rt_raw_rate(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, const
     *rays_per_s = dt > 0 ? (double)rays / dt : 0.0;
     return HL_OK;
 }
+
+/* ------------------------------------------------------------ primary rays */
+
+typedef struct primary_job {
+    hl_rt *rt;
+    uint32_t count;
+    const float *org, *dir;
+    uint32_t *prim;
+    float *u, *v;
+    atomic_uint next;
+} primary_job;
+
+static void *primary_worker(void *arg)
+{
+    primary_job *j = arg;
+    struct RTCIntersectContext ic;
+    rtcInitIntersectContext(&ic);
+    for (;;) {
+        uint32_t i0 = atomic_fetch_add(&j->next, 256u);
+        if (i0 >= j->count) break;
+        uint32_t end = i0 + 256 < j->count ? i0 + 256 : j->count;
+        for (uint32_t i = i0; i < end; i++) {
+            struct RTCRayHit rh;
+            memset(&rh, 0, sizeof rh);
+            rh.ray.org_x = j->org[3 * (size_t)i];
+            rh.ray.org_y = j->org[3 * (size_t)i + 1];
+            rh.ray.org_z = j->org[3 * (size_t)i + 2];
+            rh.ray.dir_x = j->dir[3 * (size_t)i];
+            rh.ray.dir_y = j->dir[3 * (size_t)i + 1];
+            rh.ray.dir_z = j->dir[3 * (size_t)i + 2];
+            rh.ray.tfar = INFINITY;
+            rh.ray.mask = 0xffffffffu;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(j->rt->scene, &ic, &rh);
+            int hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+            j->prim[i] = hit ? rh.hit.primID : UINT32_MAX;
+            j->u[i] = hit ? rh.hit.u : 0.0f;
+            j->v[i] = hit ? rh.hit.v : 0.0f;
+        }
+    }
+    return NULL;
+}
+
+hl_result hl_rt_trace_primary(hl_rt *rt, uint32_t count, const float *org, const float *dir,
+                              uint32_t *prim, float *u, float *v)
+{
+    primary_job j = {.rt = rt, .count = count, .org = org, .dir = dir, .prim = prim, .u = u, .v = v};
+    atomic_init(&j.next, 0u);
+    int nt = rt->ctx->threads > 64 ? 64 : rt->ctx->threads;
+    pthread_t th[64];
+    int started = 0;
+    for (int t = 1; t < nt; t++)
+        if (pthread_create(&th[started], NULL, primary_worker, &j) == 0) started++;
+    primary_worker(&j);
+    for (int t = 0; t < started; t++) pthread_join(th[t], NULL);
+    if (rt->err[0]) return hl_fail(rt->ctx, HL_ERR_EMBREE, "Embree: %s", rt->err);
+    return HL_OK;
+}

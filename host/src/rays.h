@@ -35,4 +35,11 @@ hl_result hl_rt_visibility(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, uin
 hl_result hl_rt_raw_rate(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, const uint32_t *verts,
                          uint32_t nverts, uint32_t S, float offset, double *rays_per_s);
 
+/* Closest hits of `count` rays (origins and directions, 3 floats each,
+ * directions need not be unit): prim[i] = triangle index or UINT32_MAX
+ * for a miss, (u[i], v[i]) = barycentrics of vertices 1 and 2 of that
+ * triangle. Runs on ctx's threads. */
+hl_result hl_rt_trace_primary(hl_rt *rt, uint32_t count, const float *org, const float *dir,
+                              uint32_t *prim, float *u, float *v);
+
 #endif
