@@ -310,6 +310,50 @@ void hl_env_query(const hl_env *env, const float w[3], float rotate_deg, float r
 
 void hl_env_destroy(hl_env *env);
 
+/* ---------------------------------------------------------------- relighting */
+
+/* Relights a transport under environments: environment to paraboloid
+ * (with rotation), Haar, selection of the M most important lighting terms,
+ * and the sparse dot products, on the context's device. Holds the
+ * transport on the device; one per transport. Not thread safe. */
+typedef struct hl_relighter hl_relighter;
+
+/* hl_relight_desc fields and defaults:
+ *   terms       0: 200 lighting terms; HL_TERMS_ALL keeps every one
+ *   select      HL_SELECT_DEFAULT: area-weighted (HL_SELECT_AREA)
+ *   rotate_deg  0: the environment as stored (ENVMAP.md's --rotate)
+ */
+#define HL_TERMS_ALL 0xffffffffu
+typedef struct hl_relight_desc {
+    uint32_t terms;
+    uint32_t select;
+    float rotate_deg;
+} hl_relight_desc;
+
+typedef struct hl_relight_stats {
+    uint32_t terms_kept;          /* lighting terms actually kept */
+    double energy_kept;           /* fraction of the lighting's (luminance)
+                                     wavelet energy the kept terms hold */
+    double error_bound;           /* |B - B_M| <= this for every vertex and
+                                     albedo 1 (Cauchy-Schwarz: max over
+                                     vertices of |T_v| times |L - L_M|),
+                                     in luminance units of radiance */
+    double blocks_skipped;        /* fraction of 256-blocks skipped */
+    double seconds;               /* wall time of this lighting change */
+    int reused;                   /* 1: nothing changed, no work was done */
+} hl_relight_stats;
+
+hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out);
+/* Takes a new environment (resampled once here; rotations are cheap). The
+ * environment is copied, the caller keeps ownership. */
+hl_result hl_relighter_set_env(hl_relighter *r, const hl_env *env);
+/* Vertex colours (3 floats per vertex: outgoing radiance, albedo
+ * included) for the current environment. Repeating the same settings
+ * does no work (stats->reused). */
+hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb,
+                           hl_relight_stats *stats);
+void hl_relighter_destroy(hl_relighter *r);
+
 /* ---------------------------------------------------------------- images */
 
 typedef struct hl_image {

@@ -10,6 +10,10 @@
 #define HL_SHARED_H
 
 #ifdef __OPENCL_C_VERSION__
+/* No fused multiply-add contraction anywhere in the program, these inline
+ * formulas included: the plain-C twins are built with -ffp-contract=off,
+ * and both sides must round alike. */
+#pragma OPENCL FP_CONTRACT OFF
 #define HL_U32 uint
 #define HL_U64 ulong
 #define HL_INLINE inline
@@ -84,6 +88,44 @@ typedef struct hl_trunc_params {
     HL_U32 eps_q20; /* eps in units of 2^-20 */
     HL_U32 pad_;
 } hl_trunc_params;
+
+/* ---- lighting ---- */
+
+/* Selection of the lighting terms: priority of coefficient i is |Y_i|
+ * times a weight, Y the luminance coefficient (RGB share one index set). */
+#define HL_SELECT_DEFAULT 0u
+#define HL_SELECT_AREA 1u        /* weight: solid angle of i's support */
+#define HL_SELECT_UNWEIGHTED 2u  /* weight 1 */
+#define HL_SELECT_TRANSPORT 3u   /* weight: mean |T_i| over the vertices */
+
+/* One environment cell's share of a paraboloid texel (at rotation 0):
+ * weight = the solid angle of the part of cell (row, col) inside the
+ * texel, over the texel's total, so a texel's weights sum to 1. */
+typedef struct hl_env_tap {
+    HL_U32 row;
+    HL_U32 col;
+    float weight;
+    HL_U32 pad_;
+} hl_env_tap;
+
+typedef struct hl_select_params {
+    HL_U32 M;      /* terms to keep (>= number of non-zeros: all) */
+    HL_U32 scheme; /* HL_SELECT_* */
+    HL_U32 pad_[2];
+} hl_select_params;
+
+typedef struct hl_select_result {
+    float energy_total; /* sum of Y_i^2 over all coefficients */
+    float energy_kept;  /* ... over the kept ones */
+    HL_U32 kept;
+    HL_U32 blocks_used; /* 256-blocks holding a kept term */
+} hl_select_result;
+
+/* Luminance of linear Rec.709 RGB. */
+HL_INLINE float hl_luminance(float r, float g, float b)
+{
+    return 0.2126f * r + 0.7152f * g + 0.0722f * b;
+}
 
 /* Key of a coefficient: |v| as ordered bits. */
 HL_INLINE HL_U32 hl_key(float v) { return HL_AS_U32(v) & 0x7fffffffu; }

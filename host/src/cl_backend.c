@@ -14,13 +14,15 @@
 
 #include "cl_backend.h"
 #include "geom.h"
+#include "lighting.h"
 
 typedef struct { const char *name; const char *source; } hl_embedded_kernel;
 extern const char *const hl_embedded_shared;
 extern const hl_embedded_kernel hl_embedded_kernels[];
 
-enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_COUNT };
-static const char *const kernel_names[K_COUNT] = {"hl_cube2para", "hl_haar", "hl_truncate", "hl_quantize"};
+enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_ENV2PARA, K_SELECT, K_RELIGHT, K_COUNT };
+static const char *const kernel_names[K_COUNT] = {"hl_cube2para", "hl_haar",   "hl_truncate", "hl_quantize",
+                                                  "hl_env2para",  "hl_select", "hl_relight"};
 
 struct hl_cl {
     cl_platform_id platform;
@@ -476,5 +478,183 @@ hl_result hl_cl_pipe_quantize(hl_cl_pipe *p, uint32_t rows, const float *coef, c
     READ(p->bc, (size_t)rows * g->nblocks * 2, bc, CL_TRUE, NULL);
     READ(p->entries, (size_t)rows * g->ncoef * 2, entries, CL_TRUE, NULL);
     READ(p->nnz, (size_t)rows * 4, nnz, CL_TRUE, NULL);
+    return HL_OK;
+}
+
+/* ------------------------------------------------------------ lighting */
+
+struct hl_cl_light {
+    hl_context *ctx;
+    struct hl_cl *cl;
+    const hl_geom *g;
+    const hl_light_geom *lg;
+    uint32_t nverts, scheme;
+    cl_mem cells, start, runs, slots, weight;      /* tables and inputs */
+    cl_mem Lp, Lw, Lsel, used, res;                /* lighting stages */
+    cl_mem entries, offs, bc, rq, albedo, B;       /* transport */
+};
+
+void hl_cl_light_destroy(hl_cl_light *l)
+{
+    if (!l) return;
+    if (l->cl && l->cl->queue) clFinish(l->cl->queue);
+    cl_mem *all[] = {&l->cells, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
+                     &l->res, &l->entries, &l->offs, &l->bc, &l->rq, &l->albedo, &l->B};
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
+        if (*all[i]) clReleaseMemObject(*all[i]);
+    free(l);
+}
+
+static hl_result light_buf(hl_cl_light *l, cl_mem *m, cl_mem_flags fl, size_t bytes, const void *init, const char *what)
+{
+    hl_cl_pipe tmp = {.ctx = l->ctx, .cl = l->cl};
+    return make_buf(&tmp, m, fl, bytes, init, what);
+}
+
+hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
+                             const float *albedo4, hl_cl_light **out)
+{
+    *out = NULL;
+    if (!ctx->cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the context has no OpenCL device");
+    hl_cl_light *l = calloc(1, sizeof *l);
+    if (!l) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    l->ctx = ctx;
+    l->cl = ctx->cl;
+    l->g = g;
+    l->lg = lg;
+    l->nverts = t->info.vertex_count;
+    l->scheme = t->info.quant;
+    size_t nc = g->ncoef, V = l->nverts, cells = (size_t)lg->wc * lg->hc;
+    uint64_t nnz = t->info.coefficients_kept;
+    hl_result r = HL_OK;
+#define B(m, fl, bytes, init, what) if (r == HL_OK) r = light_buf(l, &l->m, fl, bytes, init, what)
+    B(cells, CL_MEM_READ_ONLY, cells * 16, NULL, "environment cells");
+    B(start, CL_MEM_READ_ONLY, (nc + 1) * 4, lg->tap_start, "environment runs");
+    B(runs, CL_MEM_READ_ONLY, (size_t)lg->ntaps * sizeof(hl_env_tap), lg->taps, "environment runs");
+    B(slots, CL_MEM_READ_ONLY, (size_t)g->N * g->N * 4, g->slot_of_mallat, "the Haar slot order");
+    B(weight, CL_MEM_READ_ONLY, nc * 4, lg->area, "selection weights");
+    B(Lp, CL_MEM_READ_WRITE, 3 * nc * 4, NULL, "paraboloid lighting");
+    B(Lw, CL_MEM_READ_WRITE, 3 * nc * 4, NULL, "wavelet lighting");
+    B(Lsel, CL_MEM_READ_WRITE, nc * 16, NULL, "selected lighting");
+    B(used, CL_MEM_READ_WRITE, g->nblocks, NULL, "block flags");
+    B(res, CL_MEM_READ_WRITE, sizeof(hl_select_result), NULL, "selection result");
+    B(entries, CL_MEM_READ_ONLY, (size_t)nnz * 2, nnz ? t->entries : NULL, "transport entries");
+    B(offs, CL_MEM_READ_ONLY, V * 8, t->row_offset, "row offsets");
+    B(bc, CL_MEM_READ_ONLY, V * g->nblocks * 2, t->block_counts, "block counts");
+    B(rq, CL_MEM_READ_ONLY, V * sizeof(hl_row_quant), t->row_quant, "quantisation parameters");
+    B(albedo, CL_MEM_READ_ONLY, V * 16, albedo4, "albedo");
+    B(B, CL_MEM_READ_WRITE, V * 16, NULL, "vertex colours");
+#undef B
+    if (r != HL_OK) { hl_cl_light_destroy(l); return r; }
+    *out = l;
+    return HL_OK;
+}
+
+#define LWRITE(buf, bytes, src) \
+    CL_TRY(l->ctx, clEnqueueWriteBuffer(l->cl->queue, buf, CL_TRUE, 0, bytes, src, 0, NULL, NULL), "upload")
+#define LREAD(buf, bytes, dst, blocking) \
+    CL_TRY(l->ctx, clEnqueueReadBuffer(l->cl->queue, buf, blocking, 0, bytes, dst, 0, NULL, NULL), "read-back")
+#define LARG(k, i, v) CL_TRY(l->ctx, clSetKernelArg(k, i, sizeof(v), &(v)), "clSetKernelArg")
+
+hl_result hl_cl_light_set_cells(hl_cl_light *l, const float *cells4)
+{
+    LWRITE(l->cells, (size_t)l->lg->wc * l->lg->hc * 16, cells4);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight)
+{
+    LWRITE(l->weight, (size_t)l->g->ncoef * 4, weight);
+    return HL_OK;
+}
+
+static hl_result light_launch(hl_cl_light *l, int which, size_t items)
+{
+    size_t local = which == K_SELECT ? 1 : l->cl->wg, global = (items + local - 1) / local * local;
+    CL_TRY(l->ctx, clEnqueueNDRangeKernel(l->cl->queue, l->cl->k[which], 1, NULL, &global, &local, 0, NULL, NULL),
+           kernel_names[which]);
+    return HL_OK;
+}
+
+static hl_result enq_env2para(hl_cl_light *l, uint32_t s0, float f)
+{
+    cl_kernel k = l->cl->k[K_ENV2PARA];
+    cl_uint wc = l->lg->wc, nc = l->g->ncoef, sh = s0;
+    LARG(k, 0, l->cells); LARG(k, 1, wc); LARG(k, 2, l->start); LARG(k, 3, l->runs); LARG(k, 4, sh);
+    LARG(k, 5, f); LARG(k, 6, nc); LARG(k, 7, l->Lp);
+    return light_launch(l, K_ENV2PARA, nc);
+}
+
+static hl_result enq_haar3(hl_cl_light *l)
+{
+    cl_kernel k = l->cl->k[K_HAAR];
+    cl_uint N = l->g->N, rows = 3;
+    LARG(k, 0, l->Lp); LARG(k, 1, l->Lw); LARG(k, 2, l->slots); LARG(k, 3, N); LARG(k, 4, rows);
+    return light_launch(l, K_HAAR, 3);
+}
+
+static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
+{
+    cl_kernel k = l->cl->k[K_SELECT];
+    cl_uint nc = l->g->ncoef, nb = l->g->nblocks;
+    LARG(k, 0, l->Lw); LARG(k, 1, nc); LARG(k, 2, l->weight); LARG(k, 3, sp); LARG(k, 4, l->Lsel);
+    LARG(k, 5, l->used); LARG(k, 6, nb); LARG(k, 7, l->res);
+    return light_launch(l, K_SELECT, 1);
+}
+
+static hl_result enq_relight(hl_cl_light *l)
+{
+    cl_kernel k = l->cl->k[K_RELIGHT];
+    cl_uint sc = l->scheme, nb = l->g->nblocks, nv = l->nverts;
+    LARG(k, 0, l->entries); LARG(k, 1, l->offs); LARG(k, 2, l->bc); LARG(k, 3, l->rq); LARG(k, 4, sc);
+    LARG(k, 5, nb); LARG(k, 6, l->Lsel); LARG(k, 7, l->used); LARG(k, 8, l->albedo); LARG(k, 9, l->B);
+    LARG(k, 10, nv);
+    return light_launch(l, K_RELIGHT, nv);
+}
+
+hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, float *B4, hl_select_result *res)
+{
+    /* one submission, one wait: launches cost ~50 us each to finish */
+    TRY(enq_env2para(l, s0, f));
+    TRY(enq_haar3(l));
+    TRY(enq_select(l, sp));
+    TRY(enq_relight(l));
+    LREAD(l->res, sizeof *res, res, CL_FALSE);
+    LREAD(l->B, (size_t)l->nverts * 16, B4, CL_TRUE);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_stage_env2para(hl_cl_light *l, uint32_t s0, float f, float *Lp)
+{
+    TRY(enq_env2para(l, s0, f));
+    LREAD(l->Lp, (size_t)3 * l->g->ncoef * 4, Lp, CL_TRUE);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_stage_haar(hl_cl_light *l, const float *Lp, float *Lw)
+{
+    LWRITE(l->Lp, (size_t)3 * l->g->ncoef * 4, Lp);
+    TRY(enq_haar3(l));
+    LREAD(l->Lw, (size_t)3 * l->g->ncoef * 4, Lw, CL_TRUE);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_stage_select(hl_cl_light *l, const float *Lw, hl_select_params sp, float *Lsel4,
+                                   uint8_t *used, hl_select_result *res)
+{
+    LWRITE(l->Lw, (size_t)3 * l->g->ncoef * 4, Lw);
+    TRY(enq_select(l, sp));
+    LREAD(l->Lsel, (size_t)l->g->ncoef * 16, Lsel4, CL_TRUE);
+    LREAD(l->used, l->g->nblocks, used, CL_TRUE);
+    LREAD(l->res, sizeof *res, res, CL_TRUE);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint8_t *used, float *B4)
+{
+    LWRITE(l->Lsel, (size_t)l->g->ncoef * 16, Lsel4);
+    LWRITE(l->used, l->g->nblocks, used);
+    TRY(enq_relight(l));
+    LREAD(l->B, (size_t)l->nverts * 16, B4, CL_TRUE);
     return HL_OK;
 }

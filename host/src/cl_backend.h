@@ -56,4 +56,27 @@ hl_result hl_cl_pipe_quantize(hl_cl_pipe *p, uint32_t rows, const float *coef,
                               const hl_trunc_result *tr, uint32_t scheme,
                               hl_row_quant *rq, uint16_t *bc, uint8_t *entries,
                               uint32_t *nnz);
+/* ---- lighting: environment cells to vertex colours ---- */
+
+struct hl_light_geom;
+typedef struct hl_cl_light hl_cl_light;
+
+/* Uploads the transport (entries, offsets, counts, parameters) and albedo
+ * (4 floats per vertex) once; tables from g and lg. */
+hl_result hl_cl_light_create(hl_context *ctx, const struct hl_geom *g, const struct hl_light_geom *lg,
+                             const hl_transport *t, const float *albedo4, hl_cl_light **out);
+void hl_cl_light_destroy(hl_cl_light *l);
+hl_result hl_cl_light_set_cells(hl_cl_light *l, const float *cells4);
+hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight);
+/* A lighting change in one submission: env2para, Haar of R, G, B,
+ * selection, dot products; B4 gets 4 floats per vertex. */
+hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, float *B4,
+                          hl_select_result *res);
+/* Single stages, blocking (tests and `haarlight check`). */
+hl_result hl_cl_light_stage_env2para(hl_cl_light *l, uint32_t s0, float f, float *Lp);
+hl_result hl_cl_light_stage_haar(hl_cl_light *l, const float *Lp, float *Lw);
+hl_result hl_cl_light_stage_select(hl_cl_light *l, const float *Lw, hl_select_params sp, float *Lsel4,
+                                   uint8_t *used, hl_select_result *res);
+hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint8_t *used, float *B4);
+
 #endif

@@ -127,6 +127,22 @@ static uint32_t mallat_slot(uint32_t N, uint32_t row, uint32_t col)
     return tile * HL_BLOCK + 1 + 3 * local + type;
 }
 
+void hl_geom_support(uint32_t N, uint32_t row, uint32_t col, uint32_t *r0, uint32_t *c0, uint32_t *w)
+{
+    if (row == 0 && col == 0) { /* the scaling coefficient */
+        *r0 = *c0 = 0;
+        *w = N;
+        return;
+    }
+    uint32_t m = row > col ? row : col, s = 2;
+    while (s <= m) s *= 2;
+    uint32_t h = s / 2;
+    uint32_t i = row >= h ? row - h : row, j = col >= h ? col - h : col;
+    *w = 2 * N / s;
+    *r0 = i * *w;
+    *c0 = j * *w;
+}
+
 static void build_cube_dirs(hl_geom *g)
 {
     uint32_t C = g->C;

@@ -40,6 +40,10 @@ double hl_para_rect_omega(double s0, double s1, double t0, double t1);
 void hl_cube_face_dir(int face, float sc, float tc, float d[3]);
 uint32_t hl_dir_to_cube(const float d[3], uint32_t C);
 
+/* Support of the Haar coefficient at Mallat position (row, col): the
+ * texels [r0, r0 + w) x [c0, c0 + w) of its map. */
+void hl_geom_support(uint32_t N, uint32_t row, uint32_t col, uint32_t *r0, uint32_t *c0, uint32_t *w);
+
 /* Slot (0 .. 2N^2-1) of the Haar coefficient at Mallat position (row, col)
  * of map m. Slots put each 16x16 tile's details and one coarse coefficient
  * in one 256-block, so blocks are spatially compact. */

@@ -29,4 +29,24 @@ uint32_t hl_ref_quantize(const hl_geom *g, const float *coef,
                          hl_trunc_result tr, uint32_t scheme, hl_row_quant *rq,
                          uint16_t *block_counts, uint8_t *entries);
 
+/* Lighting texel j = sum over its taps of weight * the tap's cell blended
+ * with its neighbour: c[k + s0] + f (c[k + s0 + 1] - c[k + s0]) (indices
+ * modulo wc). cells: 4 floats per cell, wc per row. L: R, G, B
+ * planes of ncoef. */
+void hl_ref_env2para(const float *cells, uint32_t wc, const uint32_t *start,
+                     const hl_env_tap *runs, uint32_t s0, float f, uint32_t ncoef, float *L);
+
+/* Keeps the p.M lighting terms of highest priority (see select.cl):
+ * out gets 4 floats per slot (zero where not kept), block_used one flag per
+ * block. */
+hl_select_result hl_ref_select(const float *L, uint32_t ncoef, const float *weight,
+                               hl_select_params p, float *out, uint8_t *block_used,
+                               uint32_t nblocks);
+
+/* One vertex: sum over all its entries of dequantised T times light
+ * (4 floats per slot), times albedo (3 floats). rgb: 3 floats. */
+void hl_ref_relight(const uint8_t *entries, const uint16_t *block_counts, hl_row_quant rq,
+                    uint32_t scheme, uint32_t nblocks, const float *light, const float *albedo,
+                    float *rgb);
+
 #endif

@@ -1,0 +1,32 @@
+/* lighting.h - tables for turning an environment into paraboloid lighting,
+ * and the environment resampling. Depends only on N (and the cell grid
+ * that N implies); build once per transport.
+ */
+#ifndef HL_LIGHTING_H
+#define HL_LIGHTING_H
+
+#include "geom.h"
+
+typedef struct hl_light_geom {
+    uint32_t N, ncoef, nblocks;
+    uint32_t wc, hc;        /* cell grid: wc x hc equirectangular cells */
+    double *cell_omega;     /* hc: solid angle of one cell of each row */
+    uint32_t *tap_start;    /* ncoef + 1: CSR rows of taps by texel */
+    hl_env_tap *taps;
+    uint32_t ntaps;
+    float *area;            /* ncoef, slot order: solid angle of each
+                               wavelet's support (area-weighted selection) */
+} hl_light_geom;
+
+hl_result hl_light_geom_create(hl_context *ctx, const hl_geom *g, hl_light_geom **out);
+void hl_light_geom_destroy(hl_light_geom *lg);
+
+/* Area-weighted box resampling of env onto the wc x hc cell grid (4 floats
+ * per cell, the fourth 0): the integral of radiance over the sphere is
+ * kept exactly, whatever the two resolutions. */
+hl_result hl_env_to_cells(hl_context *ctx, const hl_env *env, uint32_t wc, uint32_t hc, float **cells4);
+
+/* Rotation to a cell offset: s0 whole cells plus a fraction f. */
+void hl_rotation_to_shift(float rotate_deg, uint32_t wc, uint32_t *s0, float *f);
+
+#endif

@@ -1,0 +1,16 @@
+/* relight_ref.c - twin of kernels/relight.cl, without block skipping. */
+#include "ref.h"
+
+void hl_ref_relight(const uint8_t *entries, const uint16_t *block_counts, hl_row_quant rq, uint32_t scheme,
+                    uint32_t nblocks, const float *light, const float *albedo, float *rgb)
+{
+    float acc[3] = {0.0f, 0.0f, 0.0f};
+    size_t e = 0;
+    for (uint32_t b = 0; b < nblocks; b++)
+        for (uint32_t k = 0; k < block_counts[b]; k++, e++) {
+            float t = hl_dequant(scheme, entries[2 * e + 1], rq.a, rq.b);
+            const float *l = light + 4 * ((size_t)b * HL_BLOCK + entries[2 * e]);
+            for (int c = 0; c < 3; c++) acc[c] += t * l[c];
+        }
+    for (int c = 0; c < 3; c++) rgb[c] = acc[c] * albedo[c];
+}

@@ -1,0 +1,70 @@
+/* select.cl - nonlinear approximation of the lighting: keep the M Haar
+ * coefficients of highest priority |Y_i| * weight_i (Y the luminance
+ * coefficient; RGB share the index set), by exact radix select on the
+ * priority's bit pattern, ties to the lower slot. One work-item: the
+ * vector is small. Writes the kept terms densely (zeros elsewhere) as
+ * float4 RGB, a flag per 256-block, and the energies for the error bound.
+ * Twin: host/src/ref/select_ref.c.
+ */
+#pragma OPENCL FP_CONTRACT OFF
+
+static float priority(global const float *L, uint n, uint i, global const float *w)
+{
+    float y = hl_luminance(L[i], L[n + i], L[2 * n + i]);
+    return fabs(y) * w[i];
+}
+
+kernel void hl_select(global const float *L, uint ncoef, global const float *weight,
+                      hl_select_params p, global float4 *out, global uchar *block_used,
+                      uint nblocks, global hl_select_result *res)
+{
+    if (get_global_id(0) != 0) return;
+    uint hist[256];
+    uint nnz = 0;
+    for (uint i = 0; i < ncoef; i++) nnz += hl_key(priority(L, ncoef, i, weight)) != 0u;
+    uint need = min(p.M, nnz);
+    uint thresh = 0xffffffffu, ties = 0;
+    if (need > 0) {
+        uint prefix = 0, mask = 0;
+        for (int shift = 24; shift >= 0; shift -= 8) {
+            for (int b = 0; b < 256; b++) hist[b] = 0;
+            for (uint i = 0; i < ncoef; i++) {
+                uint k = hl_key(priority(L, ncoef, i, weight));
+                if (k && (k & mask) == prefix) hist[(k >> shift) & 255u]++;
+            }
+            int b = 255;
+            for (; b > 0; b--) {
+                if (hist[b] >= need) break;
+                need -= hist[b];
+            }
+            prefix |= (uint)b << shift;
+            mask |= 255u << shift;
+        }
+        thresh = prefix;
+        ties = need;
+    }
+    for (uint b = 0; b < nblocks; b++) block_used[b] = 0;
+    float et = 0.0f, ek = 0.0f;
+    uint kept = 0, seen = 0;
+    for (uint i = 0; i < ncoef; i++) {
+        float r = L[i], g = L[ncoef + i], b = L[2 * ncoef + i];
+        float y = hl_luminance(r, g, b);
+        et += y * y;
+        uint k = hl_key(priority(L, ncoef, i, weight));
+        int keep = k > thresh || (k == thresh && k != 0u && seen++ < ties);
+        out[i] = keep ? (float4)(r, g, b, 0.0f) : (float4)(0.0f);
+        if (keep) {
+            ek += y * y;
+            kept++;
+            block_used[i >> 8] = 1;
+        }
+    }
+    uint used = 0;
+    for (uint b = 0; b < nblocks; b++) used += block_used[b];
+    hl_select_result s;
+    s.energy_total = et;
+    s.energy_kept = ek;
+    s.kept = kept;
+    s.blocks_used = used;
+    *res = s;
+}
