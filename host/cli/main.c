@@ -12,6 +12,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "cli.h"
 #include "haarlight.h"
 #include "precompute.h"
 #include "rays.h"
@@ -24,6 +25,8 @@ static const char *const usage_main =
     "  precompute MESH -o SCENE.hlt   mesh to compressed wavelet transport\n"
     "  info SCENE.hlt                 what a transport file holds\n"
     "  devices                        list OpenCL platforms and devices\n"
+    "  relight SCENE.hlt -o OUT       relight under an environment: .ply, .exr or .png\n"
+    "  check SCENE.hlt                OpenCL stages against the plain-C reference\n"
     "  bench-precompute MESH          time the precompute against Embree's raw rate\n"
     "\n"
     "`haarlight COMMAND --help` lists a command's options.\n";
@@ -63,49 +66,6 @@ static void on_sigint(int sig)
 {
     (void)sig;
     hl_interrupt_requested = 1;
-}
-
-static int usage_error(const char *usage, const char *fmt, const char *arg)
-{
-    fprintf(stderr, "haarlight: ");
-    fprintf(stderr, fmt, arg);
-    fprintf(stderr, "\n\n%s", usage);
-    return 2;
-}
-
-static int parse_u32(const char *s, uint32_t *out)
-{
-    char *end;
-    errno = 0;
-    long long v = strtoll(s, &end, 10);
-    if (errno || end == s || *end || v < 0 || v > 0xffffffffLL) return 0;
-    *out = (uint32_t)v;
-    return 1;
-}
-
-static int parse_float(const char *s, float *out)
-{
-    char *end;
-    errno = 0;
-    double v = strtod(s, &end);
-    if (errno || end == s || *end || !isfinite(v)) return 0;
-    *out = (float)v;
-    return 1;
-}
-
-static int parse_device(const char *s, hl_context_desc *cd)
-{
-    if (strcmp(s, "ref") == 0) { cd->backend = HL_BACKEND_REFERENCE; return 1; }
-    if (strcmp(s, "cl") == 0) { cd->backend = HL_BACKEND_OPENCL; return 1; }
-    int p, d;
-    char tail;
-    if (sscanf(s, "cl:%d:%d%c", &p, &d, &tail) == 2 && p >= 0 && d >= 0) {
-        cd->backend = HL_BACKEND_OPENCL;
-        cd->cl_platform = p;
-        cd->cl_device = d;
-        return 1;
-    }
-    return 0;
 }
 
 /* Options shared by precompute and bench-precompute. */
@@ -236,11 +196,6 @@ static hl_result load_scene(hl_context *ctx, pre_opts *o, hl_mesh **mesh)
     return r;
 }
 
-static int fail(hl_context *ctx, hl_result r)
-{
-    fprintf(stderr, "haarlight: %s\n", ctx ? hl_context_last_error(ctx) : hl_result_string(r));
-    return r == HL_ERR_INTERRUPTED ? 130 : 1;
-}
 
 static int cmd_precompute(int argc, char **argv)
 {
@@ -263,7 +218,7 @@ static int cmd_precompute(int argc, char **argv)
         r = hl_precompute(ctx, mesh, &o.pd, o.out, &st);
     }
     int rc = 0;
-    if (r != HL_OK) rc = fail(ctx, r);
+    if (r != HL_OK) rc = cli_fail(ctx, r);
     else if (!o.cd.quiet) {
         uint64_t dirs = st.rays_cast + st.rays_culled;
         fprintf(stderr,
@@ -297,7 +252,7 @@ static int cmd_info(int argc, char **argv)
     hl_transport *t = NULL;
     hl_result r = hl_transport_load(ctx, argv[0], &t);
     int rc = 0;
-    if (r != HL_OK) rc = fail(ctx, r);
+    if (r != HL_OK) rc = cli_fail(ctx, r);
     else hl_transport_describe(t, argv[0], stdout);
     hl_transport_destroy(t);
     hl_context_destroy(ctx);
@@ -360,7 +315,7 @@ static int cmd_bench_precompute(int argc, char **argv)
     for (int k = 0; k < 5 && r == HL_OK; k++)
         r = hl_rt_raw_rate(rt, g, mesh, verts, nsample, d.supersample, d.ray_offset * hl_mesh_query_diagonal(mesh), &rates[k]);
     int rc = 0;
-    if (r != HL_OK) rc = fail(ctx, r);
+    if (r != HL_OK) rc = cli_fail(ctx, r);
     else {
         qsort(rates, 5, sizeof rates[0], cmp_double);
         double raw = rates[2], rate = (double)st.rays_cast / st.seconds_rays;
@@ -404,6 +359,8 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "precompute")) return cmd_precompute(argc - 2, argv + 2);
     if (!strcmp(cmd, "info")) return cmd_info(argc - 2, argv + 2);
     if (!strcmp(cmd, "devices")) return cmd_devices(argc - 2, argv + 2);
+    if (!strcmp(cmd, "relight")) return cmd_relight(argc - 2, argv + 2);
+    if (!strcmp(cmd, "check")) return cmd_check(argc - 2, argv + 2);
     if (!strcmp(cmd, "bench-precompute")) return cmd_bench_precompute(argc - 2, argv + 2);
     fprintf(stderr, "haarlight: unknown command %s\n\n%s", cmd, usage_main);
     return 2;

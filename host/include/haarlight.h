@@ -364,7 +364,8 @@ typedef struct hl_image {
 hl_result hl_image_create(hl_context *ctx, uint32_t width, uint32_t height, hl_image **out);
 void hl_image_destroy(hl_image *img);
 
-/* Writes by extension: .exr linear float RGB (ZIP), .png 8-bit tone-mapped
+/* Writes by extension: .exr linear half-float RGB (ZIP; the OpenEXR C API
+ * writes half, so values above 65504 clamp), .png 8-bit tone-mapped
  * (scale by 2^exposure_ev, then the sRGB transfer curve). Atomic: written
  * to a temporary name and renamed. */
 hl_result hl_image_save(hl_context *ctx, const hl_image *img, const char *path, float exposure_ev);

@@ -1,0 +1,65 @@
+/* cli_util.c - option parsing shared by the subcommands. */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+
+int usage_error(const char *usage, const char *fmt, const char *arg)
+{
+    fprintf(stderr, "haarlight: ");
+    fprintf(stderr, fmt, arg);
+    fprintf(stderr, "\n\n%s", usage);
+    return 2;
+}
+
+int parse_u32(const char *s, uint32_t *out)
+{
+    char *end;
+    errno = 0;
+    long long v = strtoll(s, &end, 10);
+    if (errno || end == s || *end || v < 0 || v > 0xffffffffLL) return 0;
+    *out = (uint32_t)v;
+    return 1;
+}
+
+int parse_float(const char *s, float *out)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (errno || end == s || *end || !isfinite(v)) return 0;
+    *out = (float)v;
+    return 1;
+}
+
+int parse_device(const char *s, hl_context_desc *cd)
+{
+    if (strcmp(s, "ref") == 0) { cd->backend = HL_BACKEND_REFERENCE; return 1; }
+    if (strcmp(s, "cl") == 0) { cd->backend = HL_BACKEND_OPENCL; return 1; }
+    int p, d;
+    char tail;
+    if (sscanf(s, "cl:%d:%d%c", &p, &d, &tail) == 2 && p >= 0 && d >= 0) {
+        cd->backend = HL_BACKEND_OPENCL;
+        cd->cl_platform = p;
+        cd->cl_device = d;
+        return 1;
+    }
+    return 0;
+}
+
+
+int parse_vec3(const char *s, float v[3])
+{
+    char tail;
+    return sscanf(s, "%f,%f,%f%c", &v[0], &v[1], &v[2], &tail) == 3 && isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
+}
+
+int cli_fail(hl_context *ctx, hl_result r)
+{
+    fprintf(stderr, "haarlight: %s\n", ctx ? hl_context_last_error(ctx) : hl_result_string(r));
+    return r == HL_ERR_INTERRUPTED ? 130 : 1;
+}

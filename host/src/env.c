@@ -1,0 +1,317 @@
+/* env.c - equirectangular environments: loading, repair, procedural sky
+ * and direction queries.
+ *
+ * The mapping is that of ENVMAP.md (shared with the team): a direction w
+ * reads u = 0.5 + atan2(w.z, w.x) / 2pi, v = acos(w.y) / pi, row 0 = +Y.
+ * Every pixel that leaves this file is finite and >= 0: NaN/Inf channels
+ * become 0 and negative ones are clamped, and the counts are reported.
+ * Depends on: exr_io.c for the file format.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "exr_io.h"
+#include "hl_internal.h"
+
+/* Sets NaN/Inf and negative channels to 0 and counts the pixels touched. */
+static void repair(float *rgb, size_t pixels, hl_env_stats *stats)
+{
+    uint64_t nonfinite = 0, negative = 0;
+    for (size_t i = 0; i < pixels; i++) {
+        int bad = 0, neg = 0;
+        for (int c = 0; c < 3; c++) {
+            float x = rgb[3 * i + (size_t)c];
+            if (!isfinite(x)) {
+                rgb[3 * i + (size_t)c] = 0.0f;
+                bad = 1;
+            } else if (x < 0.0f) {
+                rgb[3 * i + (size_t)c] = 0.0f;
+                neg = 1;
+            }
+        }
+        nonfinite += (uint64_t)bad;
+        negative += (uint64_t)neg;
+    }
+    if (stats) {
+        stats->nonfinite_pixels = nonfinite;
+        stats->negative_pixels = negative;
+    }
+}
+
+static hl_result wrap(hl_context *ctx, uint32_t width, uint32_t height, float *rgb, hl_env **out)
+{
+    hl_env *env = hl_calloc(ctx, 1, sizeof *env, "environment");
+    if (!env) {
+        free(rgb);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    env->width = width;
+    env->height = height;
+    env->rgb = rgb;
+    *out = env;
+    return HL_OK;
+}
+
+hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_stats *stats)
+{
+    if (stats) memset(stats, 0, sizeof *stats);
+    if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_env_load: out is NULL");
+    *out = NULL;
+    if (!path || !*path) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_env_load: no path given");
+    uint32_t w, h;
+    float *rgb;
+    hl_result r = hl_exr_read_rgb_(ctx, path, HL_EXR_REQUIRE_2TO1, &w, &h, &rgb);
+    if (r != HL_OK) return r;
+    repair(rgb, (size_t)w * h, stats);
+    return wrap(ctx, w, h, rgb, out);
+}
+
+hl_result hl_env_create(hl_context *ctx, uint32_t width, uint32_t height, const float *rgb,
+                        hl_env **out, hl_env_stats *stats)
+{
+    if (stats) memset(stats, 0, sizeof *stats);
+    if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_env_create: out is NULL");
+    *out = NULL;
+    if (!rgb) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_env_create: rgb is NULL");
+    if (height < 1 || width != 2 * height || width > HL_EXR_MAX_SIDE ||
+        (uint64_t)width * height > HL_EXR_MAX_PIXELS)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "hl_env_create: %u x %u is not an equirectangular size (width = 2 x height, "
+                       "1 <= height, width <= %u)", width, height, HL_EXR_MAX_SIDE);
+    size_t n = 3 * (size_t)width * height;
+    float *copy = hl_malloc(ctx, n * sizeof(float), "environment pixels");
+    if (!copy) return HL_ERR_OUT_OF_MEMORY;
+    memcpy(copy, rgb, n * sizeof(float));
+    repair(copy, (size_t)width * height, stats);
+    return wrap(ctx, width, height, copy, out);
+}
+
+void hl_env_query(const hl_env *env, const float w[3], float rotate_deg, float rgb[3])
+{
+    rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    if (!env || !env->rgb || !w) return;
+    double x = w[0], y = w[1], z = w[2];
+    double len = sqrt(x * x + y * y + z * z);
+    if (!(len > 0.0) || !isfinite(len)) return; /* no direction: black */
+    double u = 0.5 + atan2(z, x) / (2.0 * HL_PI);
+    if (rotate_deg != 0.0f && isfinite(rotate_deg)) u += (double)rotate_deg / 360.0;
+    u -= floor(u);
+    double ct = y / len;
+    if (ct > 1.0) ct = 1.0;
+    if (ct < -1.0) ct = -1.0;
+    double v = acos(ct) / HL_PI;
+    double col = floor(u * (double)env->width), row = floor(v * (double)env->height);
+    uint32_t i = col < 0.0 ? 0u : col >= (double)env->width ? env->width - 1 : (uint32_t)col;
+    uint32_t j = row < 0.0 ? 0u : row >= (double)env->height ? env->height - 1 : (uint32_t)row;
+    const float *p = env->rgb + 3 * ((size_t)j * env->width + i);
+    rgb[0] = p[0];
+    rgb[1] = p[1];
+    rgb[2] = p[2];
+}
+
+void hl_env_destroy(hl_env *env)
+{
+    if (!env) return;
+    free(env->rgb);
+    free(env);
+}
+
+/* ---------------------------------------------------------------- sky */
+
+static void pixel_dir(double phi, double ct, double out[3])
+{
+    double st = sqrt(fmax(0.0, 1.0 - ct * ct));
+    out[0] = st * cos(phi);
+    out[1] = ct;
+    out[2] = st * sin(phi);
+}
+
+/* Adds the sun disc (direction s, angular radius rad, radiance L) to rgb:
+ * each pixel gets L times the fraction of its solid angle inside the disc.
+ * Pixels wholly inside or outside are decided from the pixel's angular
+ * extent; the rest are supersampled on an equal-area grid (equal steps in
+ * u and in cos(theta)). The covered solid angles are then scaled so that
+ * they add up to the disc's exact 2pi(1 - cos rad), which keeps the
+ * energy right even for a disc smaller than a pixel. */
+static hl_result add_sun(hl_context *ctx, float *rgb, uint32_t W, uint32_t H, const double s[3],
+                         double rad, const double L[3])
+{
+    const double dphi = 2.0 * HL_PI / W, dtheta = HL_PI / H;
+    const double cos_rad = cos(rad);
+    const double theta_s = acos(fmax(-1.0, fmin(1.0, s[1])));
+    const double phi_s = atan2(s[2], s[0]);
+    /* Row range: theta in [theta_s - rad, theta_s + rad], one row margin. */
+    double t0 = theta_s - rad, t1 = theta_s + rad;
+    int64_t j0 = (int64_t)floor(t0 / dtheta) - 1, j1 = (int64_t)floor(t1 / dtheta) + 1;
+    if (j0 < 0) j0 = 0;
+    if (j1 > (int64_t)H - 1) j1 = (int64_t)H - 1;
+    /* Column range: all when the disc holds a pole, else the azimuth
+     * half-width asin(sin rad / sin theta_s), one column margin. */
+    int64_t i0 = 0, i1 = (int64_t)W - 1;
+    int all_cols = t0 <= 0.0 || t1 >= HL_PI;
+    if (!all_cols) {
+        double sr = sin(rad) / sin(theta_s);
+        double half = sr >= 1.0 ? HL_PI : asin(sr);
+        double uc = 0.5 + phi_s / (2.0 * HL_PI);
+        i0 = (int64_t)floor((uc - half / (2.0 * HL_PI)) * W) - 1;
+        i1 = (int64_t)floor((uc + half / (2.0 * HL_PI)) * W) + 1;
+        if (i1 - i0 + 1 >= (int64_t)W) {
+            i0 = 0;
+            i1 = (int64_t)W - 1;
+        }
+    }
+    size_t rows = (size_t)(j1 - j0 + 1), cols = (size_t)(i1 - i0 + 1);
+    double *cover = hl_calloc(ctx, rows * cols, sizeof(double), "sun coverage");
+    if (!cover) return HL_ERR_OUT_OF_MEMORY;
+
+    double total = 0.0;
+    for (int64_t j = j0; j <= j1; j++) {
+        double ta = HL_PI * (double)j / H, tb = HL_PI * (double)(j + 1) / H;
+        double ca = cos(ta), cb = cos(tb);
+        double omega = dphi * (ca - cb);
+        double ctc = cos(HL_PI * ((double)j + 0.5) / H);
+        /* Largest distance from the pixel centre to a point of the pixel,
+         * bounded by a path along the meridian (dtheta / 2) then along a
+         * parallel (sin theta dphi / 2). */
+        double smax = (ta <= 0.5 * HL_PI && tb >= 0.5 * HL_PI) ? 1.0 : fmax(sin(ta), sin(tb));
+        double reach = 0.5 * dtheta + 0.5 * dphi * smax;
+        /* Subsamples: about 40 across the disc's radius on each axis. */
+        double sv = ceil(40.0 * dtheta / rad), su = ceil(40.0 * dphi * smax / rad);
+        int Sv = sv < 8.0 ? 8 : sv > 256.0 ? 256 : (int)sv;
+        int Su = su < 8.0 ? 8 : su > 256.0 ? 256 : (int)su;
+        for (int64_t ii = i0; ii <= i1; ii++) {
+            int64_t i = ((ii % (int64_t)W) + (int64_t)W) % (int64_t)W;
+            double phic = dphi * ((double)i + 0.5) - HL_PI, d[3];
+            pixel_dir(phic, ctc, d);
+            double ang = acos(fmax(-1.0, fmin(1.0, d[0] * s[0] + d[1] * s[1] + d[2] * s[2])));
+            double frac;
+            if (ang + reach <= rad) {
+                frac = 1.0;
+            } else if (ang - reach >= rad) {
+                frac = 0.0;
+            } else {
+                long hits = 0;
+                for (int b = 0; b < Sv; b++) {
+                    double ct = ca - (ca - cb) * ((double)b + 0.5) / Sv;
+                    double st = sqrt(fmax(0.0, 1.0 - ct * ct));
+                    for (int a = 0; a < Su; a++) {
+                        double phi = dphi * ((double)i + ((double)a + 0.5) / Su) - HL_PI;
+                        double dot = st * cos(phi) * s[0] + ct * s[1] + st * sin(phi) * s[2];
+                        hits += dot >= cos_rad;
+                    }
+                }
+                frac = (double)hits / ((double)Su * Sv);
+            }
+            cover[(size_t)(j - j0) * cols + (size_t)(ii - i0)] = frac * omega;
+            total += frac * omega;
+        }
+    }
+    double exact = 2.0 * HL_PI * (1.0 - cos_rad);
+    if (!(exact > 0.0)) exact = HL_PI * rad * rad;
+    if (!(total > 0.0)) {
+        /* Nothing sampled (a vanishing disc): put it all in the pixel that
+         * holds the sun's direction. */
+        double u = 0.5 + phi_s / (2.0 * HL_PI);
+        u -= floor(u);
+        uint32_t i = (uint32_t)fmin((double)W - 1, floor(u * W));
+        uint32_t j = (uint32_t)fmin((double)H - 1, floor(theta_s / dtheta));
+        double omega = dphi * (cos(HL_PI * j / H) - cos(HL_PI * (j + 1) / H));
+        for (int c = 0; c < 3; c++)
+            rgb[3 * ((size_t)j * W + i) + (size_t)c] += (float)(L[c] * exact / omega);
+        free(cover);
+        return HL_OK;
+    }
+    double scale = exact / total;
+    for (int64_t j = j0; j <= j1; j++) {
+        double omega = dphi * (cos(HL_PI * (double)j / H) - cos(HL_PI * (double)(j + 1) / H));
+        for (int64_t ii = i0; ii <= i1; ii++) {
+            double cov = cover[(size_t)(j - j0) * cols + (size_t)(ii - i0)];
+            if (cov <= 0.0) continue;
+            size_t i = (size_t)(((ii % (int64_t)W) + (int64_t)W) % (int64_t)W);
+            double f = cov * scale / omega;
+            for (int c = 0; c < 3; c++) rgb[3 * ((size_t)j * W + i) + (size_t)c] += (float)(L[c] * f);
+        }
+    }
+    free(cover);
+    return HL_OK;
+}
+
+static int colour_ok(const float c[3])
+{
+    for (int k = 0; k < 3; k++)
+        if (!isfinite(c[k]) || c[k] < 0.0f) return 0;
+    return 1;
+}
+
+static int colour_zero(const float c[3]) { return c[0] == 0.0f && c[1] == 0.0f && c[2] == 0.0f; }
+
+hl_result hl_env_create_sky(hl_context *ctx, const hl_sky_desc *desc, hl_env **out)
+{
+    static const float def_zenith[3] = {0.20f, 0.38f, 0.85f};
+    static const float def_horizon[3] = {0.85f, 0.90f, 1.00f};
+    static const float def_ground[3] = {0.12f, 0.10f, 0.08f};
+    hl_sky_desc d;
+    memset(&d, 0, sizeof d);
+    if (desc) d = *desc;
+    if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_env_create_sky: out is NULL");
+    *out = NULL;
+    if (d.sun_elevation_deg == 0.0f) d.sun_elevation_deg = 35.0f;
+    if (d.sun_size_deg == 0.0f) d.sun_size_deg = 2.0f;
+    if (d.sun_irradiance == 0.0f) d.sun_irradiance = 8.0f;
+    if (d.width == 0) d.width = 1024;
+    if (colour_zero(d.sky_zenith)) memcpy(d.sky_zenith, def_zenith, sizeof def_zenith);
+    if (colour_zero(d.sky_horizon)) memcpy(d.sky_horizon, def_horizon, sizeof def_horizon);
+    if (colour_zero(d.ground)) memcpy(d.ground, def_ground, sizeof def_ground);
+
+    if (!(d.sun_elevation_deg >= -90.0f && d.sun_elevation_deg <= 90.0f))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "sky: sun elevation %g degrees is outside -90..90",
+                       (double)d.sun_elevation_deg);
+    if (!isfinite(d.sun_azimuth_deg))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "sky: sun azimuth %g is not a number of degrees",
+                       (double)d.sun_azimuth_deg);
+    if (!(d.sun_size_deg > 0.0f && d.sun_size_deg <= 90.0f))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "sky: sun size %g degrees is outside (0, 90]",
+                       (double)d.sun_size_deg);
+    if (!(d.sun_irradiance > 0.0f) || !isfinite(d.sun_irradiance))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "sky: sun irradiance %g must be positive and finite",
+                       (double)d.sun_irradiance);
+    if (!colour_ok(d.sky_zenith) || !colour_ok(d.sky_horizon) || !colour_ok(d.ground))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "sky: colours must be finite and >= 0");
+    if (d.width < 4 || d.width % 2 != 0 || d.width > HL_EXR_MAX_SIDE)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "sky: width %u must be even and in 4..%u",
+                       d.width, HL_EXR_MAX_SIDE);
+
+    uint32_t W = d.width, H = d.width / 2;
+    float *rgb = hl_malloc(ctx, sizeof(float) * 3 * (size_t)W * H, "sky pixels");
+    if (!rgb) return HL_ERR_OUT_OF_MEMORY;
+    for (uint32_t j = 0; j < H; j++) {
+        double elev = 0.5 * HL_PI - HL_PI * ((double)j + 0.5) / H; /* pixel centre */
+        float c[3];
+        if (elev >= 0.0) {
+            double t = sqrt(sin(elev)); /* quick rise from the horizon colour */
+            for (int k = 0; k < 3; k++)
+                c[k] = (float)((double)d.sky_horizon[k] + t * ((double)d.sky_zenith[k] - (double)d.sky_horizon[k]));
+        } else {
+            memcpy(c, d.ground, sizeof c);
+        }
+        for (uint32_t i = 0; i < W; i++) memcpy(rgb + 3 * ((size_t)j * W + i), c, sizeof c);
+    }
+
+    /* Sun direction: R_y(azimuth) applied to (cos e, sin e, 0), with
+     * R_y(a)(x, y, z) = (x cos a + z sin a, y, -x sin a + z cos a). */
+    double e = (double)d.sun_elevation_deg * HL_PI / 180.0;
+    double a = (double)d.sun_azimuth_deg * HL_PI / 180.0;
+    double s[3] = {cos(e) * cos(a), sin(e), -cos(e) * sin(a)};
+    double rad = 0.5 * (double)d.sun_size_deg * HL_PI / 180.0;
+    /* Irradiance of a uniform disc of radiance L on a surface facing it:
+     * L pi sin^2(rad). The sun is white. */
+    double Ls = (double)d.sun_irradiance / (HL_PI * sin(rad) * sin(rad));
+    double L[3] = {Ls, Ls, Ls};
+    hl_result r = add_sun(ctx, rgb, W, H, s, rad, L);
+    if (r != HL_OK) {
+        free(rgb);
+        return r;
+    }
+    return wrap(ctx, W, H, rgb, out);
+}
