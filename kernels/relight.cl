@@ -21,8 +21,10 @@ kernel void hl_relight(global const uchar2 *entries, global const ulong *row_off
     float4 acc = (float4)(0.0f);
     for (uint b = 0; b < nblocks; b++) {
         uint n = bc[b];
-        if (block_used[b]) {
-            global const float4 *l = light + (size_t)b * HL_BLOCK;
+        global const float4 *l = light + (size_t)b * HL_BLOCK;
+        if (!block_used[b]) {
+            if (n && e[0].x == 0) acc += hl_dequant(scheme, e[0].y, q.a, q.b) * l[0];
+        } else {
             for (uint k = 0; k < n; k++) {
                 uchar2 x = e[k];
                 float t = hl_dequant(scheme, x.y, q.a, q.b);

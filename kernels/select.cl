@@ -4,6 +4,9 @@
  * priority's bit pattern, ties to the lower slot. One work-item: the
  * vector is small. Writes the kept terms densely (zeros elsewhere) as
  * float4 RGB, a flag per 256-block, and the energies for the error bound.
+ * A block's flag counts only its detail slots 1..255: slot 0 holds a
+ * coarse coefficient (kept almost always), which the dot products handle
+ * apart, so that blocks still skip.
  * Twin: host/src/ref/select_ref.c.
  */
 #pragma OPENCL FP_CONTRACT OFF
@@ -56,7 +59,7 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
         if (keep) {
             ek += y * y;
             kept++;
-            block_used[i >> 8] = 1;
+            if (i & 255u) block_used[i >> 8] = 1;
         }
     }
     uint used = 0;

@@ -27,7 +27,8 @@ static const char *const usage_relight =
     "  --select area|unweighted|transport\n"
     "                       how the terms are chosen (default area: |L_i| x support area)\n"
     "output:\n"
-    "  --exposure EV        scale by 2^EV before tone mapping (PNG, 8-bit PLY; default 0)\n"
+    "  --exposure EV        scale by 2^EV before tone mapping (PNG, 8-bit PLY; default:\n"
+    "                       automatic: the 90th percentile of vertex luminance to 0.8)\n"
     "  --ply8               PLY with tone-mapped 8-bit colours instead of linear floats\n"
     "  --size WxH           image size (default 960x720)\n"
     "  --fov DEG            vertical field of view (default 35)\n"
@@ -45,6 +46,29 @@ static const char *ext_of(const char *path)
     return dot && (!slash || dot > slash) ? dot : "";
 }
 
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* Exposure that puts the 90th percentile of vertex luminance (ground
+ * included) at 0.8: sunlit surfaces stay just below white and the sky's
+ * soft shadows keep their gradations. */
+static float auto_exposure(const hl_mesh *m, const float *rgb)
+{
+    uint32_t n = m->vertex_count;
+    float *y = malloc((size_t)n * sizeof *y);
+    if (!y) return 0.0f;
+    for (uint32_t v = 0; v < n; v++) y[v] = hl_luminance(rgb[3 * (size_t)v], rgb[3 * (size_t)v + 1], rgb[3 * (size_t)v + 2]);
+    qsort(y, n, sizeof *y, cmp_float);
+    float p90 = y[(size_t)n * 9 / 10];
+    free(y);
+    if (!(p90 > 0.0f) || !isfinite(p90)) return 0.0f;
+    float ev = log2f(0.8f / p90);
+    return ev < -64.0f ? -64.0f : ev > 64.0f ? 64.0f : ev;
+}
+
 int cmd_relight(int argc, char **argv)
 {
     const char *usage = usage_relight;
@@ -54,6 +78,7 @@ int cmd_relight(int argc, char **argv)
     hl_relight_desc rd = {0};
     hl_camera_desc cam = {0};
     float exposure = 0.0f;
+    int exposure_set = 0;
     int ply8 = 0, no_bg = 0, want_sky = 0;
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i], *v = NULL;
@@ -94,6 +119,7 @@ int cmd_relight(int argc, char **argv)
         } else if (!strcmp(a, "--exposure")) {
             NEED();
             if (!parse_float(v, &exposure) || fabsf(exposure) > 64.0f) return usage_error(usage, "--exposure %s: expected EV in [-64, 64]", v);
+            exposure_set = 1;
         } else if (!strcmp(a, "--ply8")) ply8 = 1;
         else if (!strcmp(a, "--no-background")) no_bg = 1;
         else if (!strcmp(a, "--size")) {
@@ -161,6 +187,10 @@ int cmd_relight(int argc, char **argv)
                 "(error bound %.4g per unit albedo); %.0f%% of blocks skipped; %.2f ms\n",
                 scene, env_path ? env_path : "the procedural sky", hl_context_device_name(ctx), st.terms_kept,
                 100.0 * st.energy_kept, st.error_bound, 100.0 * st.blocks_skipped, 1e3 * st.seconds);
+    if (r == HL_OK && !exposure_set) {
+        exposure = auto_exposure(t->mesh, rgb);
+        if (!cd.quiet && (ply8 || !strcmp(ext, ".png"))) fprintf(stderr, "exposure: %+.2f EV (automatic)\n", (double)exposure);
+    }
     if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, t->mesh, rgb, out, ply8, exposure);
     if (r == HL_OK && is_img) r = hl_render(ctx, t->mesh, rgb, no_bg ? NULL : env, rd.rotate_deg, &cam, &img);
     if (r == HL_OK && is_img) r = hl_image_save(ctx, img, out, exposure);

@@ -307,6 +307,8 @@ hl_result hl_env_create(hl_context *ctx, uint32_t width, uint32_t height, const 
 /* Radiance seen in direction w (need not be unit) with the content turned
  * by rotate_deg about +Y (ENVMAP.md): nearest pixel. */
 void hl_env_query(const hl_env *env, const float w[3], float rotate_deg, float rgb[3]);
+/* The same, bilinear between pixel centres (for display). */
+void hl_env_query_smooth(const hl_env *env, const float w[3], float rotate_deg, float rgb[3]);
 
 void hl_env_destroy(hl_env *env);
 

@@ -87,20 +87,28 @@ hl_result hl_env_create(hl_context *ctx, uint32_t width, uint32_t height, const 
     return wrap(ctx, width, height, copy, out);
 }
 
-void hl_env_query(const hl_env *env, const float w[3], float rotate_deg, float rgb[3])
+/* Map coordinates (u, v) of direction w with the rotation applied, or 0
+ * when w is no direction. */
+static int env_uv(const float w[3], float rotate_deg, double *u, double *v)
 {
-    rgb[0] = rgb[1] = rgb[2] = 0.0f;
-    if (!env || !env->rgb || !w) return;
     double x = w[0], y = w[1], z = w[2];
     double len = sqrt(x * x + y * y + z * z);
-    if (!(len > 0.0) || !isfinite(len)) return; /* no direction: black */
-    double u = 0.5 + atan2(z, x) / (2.0 * HL_PI);
-    if (rotate_deg != 0.0f && isfinite(rotate_deg)) u += (double)rotate_deg / 360.0;
-    u -= floor(u);
+    if (!(len > 0.0) || !isfinite(len)) return 0;
+    *u = 0.5 + atan2(z, x) / (2.0 * HL_PI);
+    if (rotate_deg != 0.0f && isfinite(rotate_deg)) *u += (double)rotate_deg / 360.0;
+    *u -= floor(*u);
     double ct = y / len;
     if (ct > 1.0) ct = 1.0;
     if (ct < -1.0) ct = -1.0;
-    double v = acos(ct) / HL_PI;
+    *v = acos(ct) / HL_PI;
+    return 1;
+}
+
+void hl_env_query(const hl_env *env, const float w[3], float rotate_deg, float rgb[3])
+{
+    rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    double u, v;
+    if (!env || !env->rgb || !w || !env_uv(w, rotate_deg, &u, &v)) return; /* no direction: black */
     double col = floor(u * (double)env->width), row = floor(v * (double)env->height);
     uint32_t i = col < 0.0 ? 0u : col >= (double)env->width ? env->width - 1 : (uint32_t)col;
     uint32_t j = row < 0.0 ? 0u : row >= (double)env->height ? env->height - 1 : (uint32_t)row;
@@ -108,6 +116,25 @@ void hl_env_query(const hl_env *env, const float w[3], float rotate_deg, float r
     rgb[0] = p[0];
     rgb[1] = p[1];
     rgb[2] = p[2];
+}
+
+void hl_env_query_smooth(const hl_env *env, const float w[3], float rotate_deg, float rgb[3])
+{
+    rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    double u, v;
+    if (!env || !env->rgb || !w || !env_uv(w, rotate_deg, &u, &v)) return;
+    const uint32_t W = env->width, H = env->height;
+    /* between pixel centres: wrap across the seam, clamp at the poles */
+    double x = u * W - 0.5, y = v * H - 0.5, fx = x - floor(x), fy = y - floor(y);
+    long x0 = (long)floor(x), y0 = (long)floor(y);
+    uint32_t xa = (uint32_t)((x0 % (long)W + (long)W) % (long)W), xb = (xa + 1) % W;
+    uint32_t ya = y0 < 0 ? 0u : (uint32_t)y0, yb = y0 + 1 >= (long)H ? H - 1 : (uint32_t)(y0 + 1);
+    if (ya >= H) ya = H - 1;
+    for (int c = 0; c < 3; c++) {
+        double a = env->rgb[3 * ((size_t)ya * W + xa) + c], b = env->rgb[3 * ((size_t)ya * W + xb) + c];
+        double d = env->rgb[3 * ((size_t)yb * W + xa) + c], e = env->rgb[3 * ((size_t)yb * W + xb) + c];
+        rgb[c] = (float)((a + (b - a) * fx) * (1.0 - fy) + (d + (e - d) * fx) * fy);
+    }
 }
 
 void hl_env_destroy(hl_env *env)

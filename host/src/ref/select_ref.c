@@ -41,7 +41,7 @@ hl_select_result hl_ref_select(const float *L, uint32_t n, const float *weight, 
         if (keep[i]) {
             res.energy_kept += y * y;
             res.kept++;
-            block_used[i / HL_BLOCK] = 1;
+            if (i % HL_BLOCK) block_used[i / HL_BLOCK] = 1; /* detail slots only */
         }
     }
     for (uint32_t b = 0; b < nblocks; b++) res.blocks_used += block_used[b];
