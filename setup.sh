@@ -2,7 +2,9 @@
 # setup.sh - install what haarlight needs from Debian, build it, and run
 # the demo or the tests.
 #
-#   ./setup.sh demo    precompute the built-in default scene (bunny + ground)
+#   ./setup.sh demo    the built-in default scene (bunny on a ground plane):
+#                      precompute, then relight under the procedural sun and
+#                      sky and under data/city.exr, writing build/demo-*.png
 #   ./setup.sh test    run the test suite (ctest, on PoCL's CPU device)
 #   ./setup.sh build   only install and build
 #
@@ -37,6 +39,10 @@ case "$what" in
   demo)
     ./build/haarlight precompute data/bunny_lowres.obj --ground -o build/demo.hlt
     ./build/haarlight info build/demo.hlt
+    ./build/haarlight relight build/demo.hlt --sky -o build/demo-sky.png
+    ./build/haarlight relight build/demo.hlt --env data/city.exr -o build/demo-city.png
+    ./build/haarlight relight build/demo.hlt --sky -o build/demo-sky.ply
+    echo "demo: wrote build/demo-sky.png, build/demo-city.png and build/demo-sky.ply"
     ;;
   test)
     cd build

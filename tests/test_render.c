@@ -389,6 +389,7 @@ static void background(void)
         cv.width = 64;
         cv.height = 64;
         cv.fov_deg = 60.0f;
+        cv.nearest_background = 1; /* exact map values */
         cv.eye[0] = 100.0f * views[vi].dir;
         cv.target[0] = 200.0f * views[vi].dir;
         img = NULL;

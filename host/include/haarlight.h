@@ -385,11 +385,14 @@ uint8_t hl_tonemap_srgb8(float linear, float exposure_ev);
  *                    above, far enough that the whole object (ground plane
  *                    excluded) fits with a margin
  *   up               {0,0,0}: +Y
+ *   nearest_background  0: the environment behind the object is filtered
+ *                    bilinearly; 1: nearest pixel (exact map values)
  */
 typedef struct hl_camera_desc {
     uint32_t width, height;
     float fov_deg;
     float eye[3], target[3], up[3];
+    int nearest_background;
 } hl_camera_desc;
 
 /* Renders the mesh with per-vertex linear RGB colours (3 per vertex),

@@ -265,7 +265,8 @@ hl_result hl_render(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rg
             float *px = img->rgb + 3 * (first + i);
             if (prim[i] == UINT32_MAX || prim[i] >= mesh->triangle_count) {
                 if (background) {
-                    hl_env_query_smooth(background, dir + 3 * (size_t)i, rotate_deg, px);
+                    if (camera && camera->nearest_background) hl_env_query(background, dir + 3 * (size_t)i, rotate_deg, px);
+                    else hl_env_query_smooth(background, dir + 3 * (size_t)i, rotate_deg, px);
                 } else {
                     px[0] = px[1] = px[2] = 0.0f;
                 }
