@@ -18,7 +18,7 @@ case "$what" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exi
 
 packages=(build-essential cmake pkg-config
           pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
-          libembree-dev libopenexr-dev libglfw3-dev libassimp-dev)
+          libembree-dev libopenexr-dev libglfw3-dev libassimp-dev gnuplot-nox)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -19,5 +19,6 @@ int cli_fail(hl_context *ctx, hl_result r);
 
 int cmd_relight(int argc, char **argv);
 int cmd_check(int argc, char **argv);
+int cmd_bench(int argc, char **argv);
 
 #endif

@@ -27,6 +27,7 @@ static const char *const usage_main =
     "  devices                        list OpenCL platforms and devices\n"
     "  relight SCENE.hlt -o OUT       relight under an environment: .ply, .exr or .png\n"
     "  check SCENE.hlt                OpenCL stages against the plain-C reference\n"
+    "  bench SCENE.hlt --env ENV.exr  error against run time for M, selection and quantisation\n"
     "  bench-precompute MESH          time the precompute against Embree's raw rate\n"
     "\n"
     "`haarlight COMMAND --help` lists a command's options.\n";
@@ -361,6 +362,7 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "devices")) return cmd_devices(argc - 2, argv + 2);
     if (!strcmp(cmd, "relight")) return cmd_relight(argc - 2, argv + 2);
     if (!strcmp(cmd, "check")) return cmd_check(argc - 2, argv + 2);
+    if (!strcmp(cmd, "bench")) return cmd_bench(argc - 2, argv + 2);
     if (!strcmp(cmd, "bench-precompute")) return cmd_bench_precompute(argc - 2, argv + 2);
     fprintf(stderr, "haarlight: unknown command %s\n\n%s", cmd, usage_main);
     return 2;

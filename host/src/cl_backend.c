@@ -20,9 +20,9 @@ typedef struct { const char *name; const char *source; } hl_embedded_kernel;
 extern const char *const hl_embedded_shared;
 extern const hl_embedded_kernel hl_embedded_kernels[];
 
-enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_ENV2PARA, K_SELECT, K_RELIGHT, K_COUNT };
+enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_ENV2PARA, K_SELECT, K_RELIGHT, K_BANDWIDTH, K_COUNT };
 static const char *const kernel_names[K_COUNT] = {"hl_cube2para", "hl_haar",   "hl_truncate", "hl_quantize",
-                                                  "hl_env2para",  "hl_select", "hl_relight"};
+                                                  "hl_env2para",  "hl_select", "hl_relight",  "hl_read_bandwidth"};
 
 struct hl_cl {
     cl_platform_id platform;
@@ -656,5 +656,56 @@ hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const ui
     LWRITE(l->used, l->g->nblocks, used);
     TRY(enq_relight(l));
     LREAD(l->B, (size_t)l->nverts * 16, B4, CL_TRUE);
+    return HL_OK;
+}
+
+/* ------------------------------------------------------------ measuring */
+
+hl_result hl_cl_light_time_relight(hl_cl_light *l, uint32_t reps, double *seconds)
+{
+    /* the kernel alone, several launches in one submission */
+    TRY(enq_relight(l));
+    CL_TRY(l->ctx, clFinish(l->cl->queue), "clFinish");
+    double t0 = hl_now();
+    for (uint32_t i = 0; i < reps; i++) TRY(enq_relight(l));
+    CL_TRY(l->ctx, clFinish(l->cl->queue), "clFinish");
+    *seconds = (hl_now() - t0) / (reps ? reps : 1);
+    return HL_OK;
+}
+
+hl_result hl_cl_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, double *bytes_per_s)
+{
+    struct hl_cl *cl = ctx->cl;
+    *bytes_per_s = 0.0;
+    if (!cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the context has no OpenCL device");
+    const size_t items = 64, per = bytes / 16 / items;
+    cl_int e;
+    cl_mem buf = clCreateBuffer(cl->context, CL_MEM_READ_ONLY, items * per * 16, NULL, &e);
+    CL_TRY(ctx, e, "bandwidth buffer");
+    cl_mem out = clCreateBuffer(cl->context, CL_MEM_WRITE_ONLY, items * 4, NULL, &e);
+    if (e != CL_SUCCESS) { clReleaseMemObject(buf); CL_TRY(ctx, e, "bandwidth buffer"); }
+    const cl_uchar zero = 1;
+    e = clEnqueueFillBuffer(cl->queue, buf, &zero, 1, 0, items * per * 16, 0, NULL, NULL);
+    cl_kernel k = cl->k[K_BANDWIDTH];
+    cl_ulong pi = per;
+    if (e == CL_SUCCESS) e = clSetKernelArg(k, 0, sizeof buf, &buf);
+    if (e == CL_SUCCESS) e = clSetKernelArg(k, 1, sizeof pi, &pi);
+    if (e == CL_SUCCESS) e = clSetKernelArg(k, 2, sizeof out, &out);
+    double best[64];
+    if (reps > 64) reps = 64;
+    size_t global = items, local = 1;
+    for (uint32_t r = 0; e == CL_SUCCESS && r <= reps; r++) {
+        double t0 = hl_now();
+        e = clEnqueueNDRangeKernel(cl->queue, k, 1, NULL, &global, &local, 0, NULL, NULL);
+        if (e == CL_SUCCESS) e = clFinish(cl->queue);
+        if (r > 0) best[r - 1] = hl_now() - t0; /* the first run warms up */
+    }
+    clReleaseMemObject(buf);
+    clReleaseMemObject(out);
+    CL_TRY(ctx, e, "the bandwidth kernel");
+    /* median */
+    for (uint32_t i = 1; i < reps; i++)
+        for (uint32_t j = i; j > 0 && best[j - 1] > best[j]; j--) { double x = best[j]; best[j] = best[j - 1]; best[j - 1] = x; }
+    *bytes_per_s = (double)(items * per * 16) / best[reps / 2];
     return HL_OK;
 }

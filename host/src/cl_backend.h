@@ -79,4 +79,10 @@ hl_result hl_cl_light_stage_select(hl_cl_light *l, const float *Lw, hl_select_pa
                                    uint8_t *used, hl_select_result *res);
 hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint8_t *used, float *B4);
 
+/* The dot-product kernel alone on the current lighting, mean of reps
+ * launches queued together. */
+hl_result hl_cl_light_time_relight(hl_cl_light *l, uint32_t reps, double *seconds);
+/* The device's read bandwidth: median of reps passes over `bytes`. */
+hl_result hl_cl_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, double *bytes_per_s);
+
 #endif

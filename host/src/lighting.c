@@ -441,3 +441,6 @@ hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *
     if (stats) *stats = st;
     return HL_OK;
 }
+
+struct hl_cl_light *hl_relighter_device(hl_relighter *r) { return r ? r->cl : NULL; }
+const hl_light_geom *hl_relighter_tables(const hl_relighter *r) { return r ? r->lg : NULL; }

@@ -29,4 +29,9 @@ hl_result hl_env_to_cells(hl_context *ctx, const hl_env *env, uint32_t wc, uint3
 /* Rotation to a cell offset: s0 whole cells plus a fraction f. */
 void hl_rotation_to_shift(float rotate_deg, uint32_t wc, uint32_t *s0, float *f);
 
+/* The relighter's device stages (NULL on the reference backend) and
+ * tables, for the benchmark. */
+struct hl_cl_light *hl_relighter_device(hl_relighter *r);
+const hl_light_geom *hl_relighter_tables(const hl_relighter *r);
+
 #endif

@@ -330,6 +330,8 @@ typedef struct primary_job {
     const float *org, *dir;
     uint32_t *prim;
     float *u, *v;
+    uint8_t *occluded; /* set: occlusion queries instead of closest hits */
+    float tnear;
     atomic_uint next;
 } primary_job;
 
@@ -342,7 +344,22 @@ static void *primary_worker(void *arg)
         uint32_t i0 = atomic_fetch_add(&j->next, 256u);
         if (i0 >= j->count) break;
         uint32_t end = i0 + 256 < j->count ? i0 + 256 : j->count;
-        for (uint32_t i = i0; i < end; i++) {
+        for (uint32_t i = i0; i < end && j->occluded; i++) {
+            struct RTCRay ray;
+            memset(&ray, 0, sizeof ray);
+            ray.org_x = j->org[3 * (size_t)i];
+            ray.org_y = j->org[3 * (size_t)i + 1];
+            ray.org_z = j->org[3 * (size_t)i + 2];
+            ray.dir_x = j->dir[3 * (size_t)i];
+            ray.dir_y = j->dir[3 * (size_t)i + 1];
+            ray.dir_z = j->dir[3 * (size_t)i + 2];
+            ray.tnear = j->tnear;
+            ray.tfar = INFINITY;
+            ray.mask = 0xffffffffu;
+            rtcOccluded1(j->rt->scene, &ic, &ray);
+            j->occluded[i] = ray.tfar < 0.0f;
+        }
+        for (uint32_t i = i0; i < end && !j->occluded; i++) {
             struct RTCRayHit rh;
             memset(&rh, 0, sizeof rh);
             rh.ray.org_x = j->org[3 * (size_t)i];
@@ -368,6 +385,21 @@ hl_result hl_rt_trace_primary(hl_rt *rt, uint32_t count, const float *org, const
                               uint32_t *prim, float *u, float *v)
 {
     primary_job j = {.rt = rt, .count = count, .org = org, .dir = dir, .prim = prim, .u = u, .v = v};
+    atomic_init(&j.next, 0u);
+    int nt = rt->ctx->threads > 64 ? 64 : rt->ctx->threads;
+    pthread_t th[64];
+    int started = 0;
+    for (int t = 1; t < nt; t++)
+        if (pthread_create(&th[started], NULL, primary_worker, &j) == 0) started++;
+    primary_worker(&j);
+    for (int t = 0; t < started; t++) pthread_join(th[t], NULL);
+    if (rt->err[0]) return hl_fail(rt->ctx, HL_ERR_EMBREE, "Embree: %s", rt->err);
+    return HL_OK;
+}
+
+hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, const float *dir, uint8_t *occluded)
+{
+    primary_job j = {.rt = rt, .count = count, .org = org, .dir = dir, .occluded = occluded};
     atomic_init(&j.next, 0u);
     int nt = rt->ctx->threads > 64 ? 64 : rt->ctx->threads;
     pthread_t th[64];

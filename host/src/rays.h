@@ -42,4 +42,9 @@ hl_result hl_rt_raw_rate(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, const
 hl_result hl_rt_trace_primary(hl_rt *rt, uint32_t count, const float *org, const float *dir,
                               uint32_t *prim, float *u, float *v);
 
+/* Occlusion of `count` rays (3 floats each for origin and direction):
+ * occluded[i] = 1 when anything lies along ray i. */
+hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, const float *dir,
+                               uint8_t *occluded);
+
 #endif
