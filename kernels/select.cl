@@ -3,7 +3,8 @@
  * coefficient; RGB share the index set), by exact radix select on the
  * priority's bit pattern, ties to the lower slot. One work-item: the
  * vector is small. Writes the kept terms densely (zeros elsewhere) as
- * float4 RGB, a flag per 256-block, and the energies for the error bound.
+ * float4 RGB, a flag per 256-block, a bit per slot, and the energies for
+ * the error bound.
  * A block's flag counts only its detail slots 1..255: slot 0 holds a
  * coarse coefficient (kept almost always), which the dot products handle
  * apart, so that blocks still skip.
@@ -19,7 +20,7 @@ static float priority(global const float *L, uint n, uint i, global const float 
 
 kernel void hl_select(global const float *L, uint ncoef, global const float *weight,
                       hl_select_params p, global float4 *out, global uchar *block_used,
-                      uint nblocks, global hl_select_result *res)
+                      global uint *kept_bits, uint nblocks, global hl_select_result *res)
 {
     if (get_global_id(0) != 0) return;
     uint hist[256];
@@ -47,6 +48,7 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
         ties = need;
     }
     for (uint b = 0; b < nblocks; b++) block_used[b] = 0;
+    for (uint w = 0; w < ncoef / 32u; w++) kept_bits[w] = 0;
     float et = 0.0f, ek = 0.0f;
     uint kept = 0, seen = 0;
     for (uint i = 0; i < ncoef; i++) {
@@ -60,6 +62,7 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
             ek += y * y;
             kept++;
             if (i & 255u) block_used[i >> 8] = 1;
+            kept_bits[i >> 5] |= 1u << (i & 31u);
         }
     }
     uint used = 0;

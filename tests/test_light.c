@@ -197,6 +197,7 @@ static void case_stages(void)
         hl_check_error("Haar of R, G, B: OpenCL vs C (relative to max)", hw / hs, 1e-6);
         float *sa = malloc((size_t)nc * 16), *sb = malloc((size_t)nc * 16), *Ba = malloc((size_t)V * 16), *Bb = malloc((size_t)V * 16);
         uint8_t *ua = malloc(g->nblocks), *ub = malloc(g->nblocks);
+        uint32_t *ka = malloc((size_t)nc / 8), *kb = malloc((size_t)nc / 8);
         static const uint32_t Ms[] = {1, 25, 200, 1000, HL_TERMS_ALL};
         for (uint32_t sel = HL_SELECT_AREA; sel <= HL_SELECT_UNWEIGHTED; sel++)
             for (size_t m = 0; m < 5; m++) {
@@ -205,9 +206,9 @@ static void case_stages(void)
                 float *ones = NULL;
                 if (!w) { ones = malloc((size_t)nc * 4); for (uint32_t i = 0; i < nc; i++) ones[i] = 1.0f; w = ones; }
                 hl_cl_light_set_weights(l, w);
-                hl_select_result ra = hl_ref_select(wa, nc, w, sp, sa, ua, g->nblocks), rb;
-                HL_CHECK(hl_cl_light_stage_select(l, wa, sp, sb, ub, &rb) == HL_OK, "select");
-                int same = !memcmp(sa, sb, (size_t)nc * 16) && !memcmp(ua, ub, g->nblocks) && ra.kept == rb.kept &&
+                hl_select_result ra = hl_ref_select(wa, nc, w, sp, sa, ua, ka, g->nblocks), rb;
+                HL_CHECK(hl_cl_light_stage_select(l, wa, sp, sb, ub, kb, &rb) == HL_OK, "select");
+                int same = !memcmp(sa, sb, (size_t)nc * 16) && !memcmp(ua, ub, g->nblocks) && !memcmp(ka, kb, nc / 8) && ra.kept == rb.kept &&
                            ra.blocks_used == rb.blocks_used && ra.energy_kept == rb.energy_kept && ra.energy_total == rb.energy_total;
                 HL_CHECK(same, "selection M=%u scheme %u: OpenCL differs from C", Ms[m], sel);
                 HL_CHECK(ra.kept == (Ms[m] < nc ? Ms[m] : ra.kept), "kept %u of M=%u", ra.kept, Ms[m]);
@@ -217,7 +218,7 @@ static void case_stages(void)
                                    t->row_quant[v], t->info.quant, g->nblocks, sa, alb + 4 * v, Ba + 4 * v);
                     Ba[4 * v + 3] = 0.0f;
                 }
-                HL_CHECK(hl_cl_light_stage_relight(l, sa, ua, Bb) == HL_OK, "relight");
+                HL_CHECK(hl_cl_light_stage_relight(l, sa, ua, ka, Bb) == HL_OK, "relight");
                 uint32_t diff = 0;
                 for (uint32_t v = 0; v < V; v++) diff += memcmp(Ba + 4 * v, Bb + 4 * v, 12) != 0;
                 printf("%s, %s, M=%u: kept %u, %u of %u blocks, energy kept %.6f; %u of %u vertices differ\n",
@@ -226,7 +227,7 @@ static void case_stages(void)
                 HL_CHECK(diff == 0, "dot products: OpenCL must equal C bit for bit");
                 free(ones);
             }
-        free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub);
+        free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub); free(ka); free(kb);
         free(Lp); free(Lp2); free(wa); free(wb); free(alb);
         hl_free_big(cells);
         hl_env_destroy(env);

@@ -418,6 +418,7 @@ int cmd_bench(int argc, char **argv)
         if (r == HL_OK) {
             float *Lp = malloc((size_t)nc * 12), *Lwf = malloc((size_t)nc * 12), *cells = NULL, *sel = malloc((size_t)nc * 16);
             uint8_t *used = malloc(nb);
+            uint32_t *bits = malloc((size_t)nc / 8);
             uint32_t s0;
             float fr;
             hl_rotation_to_shift(d.rotate_deg, lg->wc, &s0, &fr);
@@ -426,7 +427,7 @@ int cmd_bench(int argc, char **argv)
                 hl_ref_env2para(cells, lg->wc, lg->tap_start, lg->taps, s0, fr, nc, Lp);
                 for (int c = 0; c < 3; c++) hl_ref_haar(g, Lp + (size_t)c * nc, Lwf + (size_t)c * nc);
                 hl_select_params sp = {200, HL_SELECT_AREA, {0, 0}};
-                hl_ref_select(Lwf, nc, lg->area, sp, sel, used, nb);
+                hl_ref_select(Lwf, nc, lg->area, sp, sel, used, bits, nb);
                 double rb = (double)V * (2.0 * nb + 8 + 8 + 16 + 16);
                 for (uint32_t v = 0; v < V; v++) {
                     uint64_t e = t[f]->row_offset[v];
@@ -440,7 +441,7 @@ int cmd_bench(int argc, char **argv)
                 summary_dot[f] = dot;
             }
             hl_free_big(cells);
-            free(Lp); free(Lwf); free(sel); free(used);
+            free(Lp); free(Lwf); free(sel); free(used); free(bits);
         }
         hl_relighter_destroy(rc);
         hl_relighter_destroy(rr);

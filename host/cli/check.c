@@ -181,6 +181,7 @@ int cmd_check(int argc, char **argv)
     float *wa = malloc((size_t)nc * 12), *wb = malloc((size_t)nc * 12), *sa = malloc((size_t)nc * 16), *sb = malloc((size_t)nc * 16);
     float *Ba = malloc((size_t)V * 16), *Bb = malloc((size_t)V * 16);
     uint8_t *ua = malloc(nb), *ub = malloc(nb);
+    uint32_t *ka = malloc((size_t)nc / 8), *kb = malloc((size_t)nc / 8);
     for (uint32_t v = 0; v < V; v++) { memcpy(alb + 4 * (size_t)v, t->mesh->albedo + 3 * (size_t)v, 12); alb[4 * (size_t)v + 3] = 0.0f; }
     if (r == HL_OK) r = hl_env_to_cells(ref, env, lg->wc, lg->hc, &cells);
     if (r == HL_OK) r = hl_cl_light_create(cl, g, lg, t, alb, &light);
@@ -202,18 +203,18 @@ int cmd_check(int argc, char **argv)
     hl_select_result sra, srb;
     if (r == HL_OK) {
         all_ok &= report(&(row_report){"haar of the lighting", rel_worst(wa, wb, (size_t)nc * 3), 1e-5, 0, (uint64_t)nc * 3});
-        sra = hl_ref_select(wa, nc, lg->area, sp, sa, ua, nb);
-        r = hl_cl_light_stage_select(light, wa, sp, sb, ub, &srb);
+        sra = hl_ref_select(wa, nc, lg->area, sp, sa, ua, ka, nb);
+        r = hl_cl_light_stage_select(light, wa, sp, sb, ub, kb, &srb);
     }
     if (r == HL_OK) {
         uint64_t mm = 0;
         for (uint32_t i = 0; i < nc; i++) mm += memcmp(sa + 4 * i, sb + 4 * i, 16) != 0;
-        mm += memcmp(ua, ub, nb) != 0 || sra.kept != srb.kept;
+        mm += memcmp(ua, ub, nb) != 0 || memcmp(ka, kb, nc / 8) != 0 || sra.kept != srb.kept;
         all_ok &= report(&(row_report){"select (kept terms)", 0.0, 0.0, mm, nc});
         for (uint32_t v = 0; v < V; v++)
             hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * nb, t->row_quant[v], in->quant, nb, sa,
                            alb + 4 * (size_t)v, Ba + 4 * (size_t)v);
-        r = hl_cl_light_stage_relight(light, sa, ua, Bb);
+        r = hl_cl_light_stage_relight(light, sa, ua, ka, Bb);
     }
     if (r == HL_OK) {
         double w = 0.0, s = 0.0;
@@ -231,7 +232,7 @@ int cmd_check(int argc, char **argv)
     if (r == HL_OK && !all_ok) fprintf(stderr, "haarlight: the OpenCL device and the reference differ\n");
     hl_cl_light_destroy(light);
     hl_free_big(cells);
-    free(alb); free(La); free(Lb); free(wa); free(wb); free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub);
+    free(alb); free(La); free(Lb); free(wa); free(wb); free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub); free(ka); free(kb);
     free(vis); free(n4); free(Ta); free(Tb); free(Tc); free(ca); free(cb); free(tra); free(trb); free(rqa); free(rqb);
     free(bca); free(bcb); free(ea); free(eb); free(na); free(nbb); free(idx);
     hl_rt_destroy(rt);

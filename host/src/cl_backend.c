@@ -490,8 +490,8 @@ struct hl_cl_light {
     const hl_light_geom *lg;
     uint32_t nverts, scheme;
     cl_mem cells, start, runs, slots, weight;      /* tables and inputs */
-    cl_mem Lp, Lw, Lsel, used, res;                /* lighting stages */
-    cl_mem entries, offs, bc, rq, albedo, B;       /* transport */
+    cl_mem Lp, Lw, Lsel, used, bits, res;          /* lighting stages */
+    cl_mem entries, offs, bc, rq, vmask, albedo, B; /* transport */
 };
 
 void hl_cl_light_destroy(hl_cl_light *l)
@@ -499,7 +499,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (!l) return;
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
-                     &l->res, &l->entries, &l->offs, &l->bc, &l->rq, &l->albedo, &l->B};
+                     &l->bits, &l->res, &l->entries, &l->offs, &l->bc, &l->rq, &l->vmask, &l->albedo, &l->B};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
         if (*all[i]) clReleaseMemObject(*all[i]);
     free(l);
@@ -537,11 +537,25 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
     B(Lw, CL_MEM_READ_WRITE, 3 * nc * 4, NULL, "wavelet lighting");
     B(Lsel, CL_MEM_READ_WRITE, nc * 16, NULL, "selected lighting");
     B(used, CL_MEM_READ_WRITE, g->nblocks, NULL, "block flags");
+    B(bits, CL_MEM_READ_WRITE, nc / 8, NULL, "kept-slot bits");
     B(res, CL_MEM_READ_WRITE, sizeof(hl_select_result), NULL, "selection result");
     B(entries, CL_MEM_READ_ONLY, (size_t)nnz * 2, nnz ? t->entries : NULL, "transport entries");
     B(offs, CL_MEM_READ_ONLY, V * 8, t->row_offset, "row offsets");
     B(bc, CL_MEM_READ_ONLY, V * g->nblocks * 2, t->block_counts, "block counts");
     B(rq, CL_MEM_READ_ONLY, V * sizeof(hl_row_quant), t->row_quant, "quantisation parameters");
+    /* which slots each vertex-block stores, from the index bytes */
+    uint32_t *vm = r == HL_OK ? calloc(V * g->nblocks * 8, 4) : NULL;
+    if (r == HL_OK && !vm) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the slot masks");
+    for (size_t v = 0; r == HL_OK && v < V; v++) {
+        uint64_t e = t->row_offset[v];
+        for (uint32_t b = 0; b < g->nblocks; b++)
+            for (uint32_t k = 0; k < t->block_counts[v * g->nblocks + b]; k++, e++) {
+                uint32_t s = t->entries[2 * e];
+                vm[(v * g->nblocks + b) * 8 + s / 32] |= 1u << (s % 32);
+            }
+    }
+    B(vmask, CL_MEM_READ_ONLY, V * g->nblocks * 32, vm, "slot masks");
+    free(vm);
     B(albedo, CL_MEM_READ_ONLY, V * 16, albedo4, "albedo");
     B(B, CL_MEM_READ_WRITE, V * 16, NULL, "vertex colours");
 #undef B
@@ -598,7 +612,7 @@ static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
     cl_kernel k = l->cl->k[K_SELECT];
     cl_uint nc = l->g->ncoef, nb = l->g->nblocks;
     LARG(k, 0, l->Lw); LARG(k, 1, nc); LARG(k, 2, l->weight); LARG(k, 3, sp); LARG(k, 4, l->Lsel);
-    LARG(k, 5, l->used); LARG(k, 6, nb); LARG(k, 7, l->res);
+    LARG(k, 5, l->used); LARG(k, 6, l->bits); LARG(k, 7, nb); LARG(k, 8, l->res);
     return light_launch(l, K_SELECT, 1);
 }
 
@@ -607,8 +621,8 @@ static hl_result enq_relight(hl_cl_light *l)
     cl_kernel k = l->cl->k[K_RELIGHT];
     cl_uint sc = l->scheme, nb = l->g->nblocks, nv = l->nverts;
     LARG(k, 0, l->entries); LARG(k, 1, l->offs); LARG(k, 2, l->bc); LARG(k, 3, l->rq); LARG(k, 4, sc);
-    LARG(k, 5, nb); LARG(k, 6, l->Lsel); LARG(k, 7, l->used); LARG(k, 8, l->albedo); LARG(k, 9, l->B);
-    LARG(k, 10, nv);
+    LARG(k, 5, nb); LARG(k, 6, l->Lsel); LARG(k, 7, l->used); LARG(k, 8, l->bits); LARG(k, 9, l->vmask);
+    LARG(k, 10, l->albedo); LARG(k, 11, l->B); LARG(k, 12, nv);
     return light_launch(l, K_RELIGHT, nv);
 }
 
@@ -640,20 +654,23 @@ hl_result hl_cl_light_stage_haar(hl_cl_light *l, const float *Lp, float *Lw)
 }
 
 hl_result hl_cl_light_stage_select(hl_cl_light *l, const float *Lw, hl_select_params sp, float *Lsel4,
-                                   uint8_t *used, hl_select_result *res)
+                                   uint8_t *used, uint32_t *bits, hl_select_result *res)
 {
     LWRITE(l->Lw, (size_t)3 * l->g->ncoef * 4, Lw);
     TRY(enq_select(l, sp));
     LREAD(l->Lsel, (size_t)l->g->ncoef * 16, Lsel4, CL_TRUE);
     LREAD(l->used, l->g->nblocks, used, CL_TRUE);
+    LREAD(l->bits, l->g->ncoef / 8, bits, CL_TRUE);
     LREAD(l->res, sizeof *res, res, CL_TRUE);
     return HL_OK;
 }
 
-hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint8_t *used, float *B4)
+hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint8_t *used, const uint32_t *bits,
+                                    float *B4)
 {
     LWRITE(l->Lsel, (size_t)l->g->ncoef * 16, Lsel4);
     LWRITE(l->used, l->g->nblocks, used);
+    LWRITE(l->bits, l->g->ncoef / 8, bits);
     TRY(enq_relight(l));
     LREAD(l->B, (size_t)l->nverts * 16, B4, CL_TRUE);
     return HL_OK;

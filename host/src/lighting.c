@@ -260,6 +260,7 @@ struct hl_relighter {
     float *B4;
     float *Lp, *Lw, *Lsel;  /* reference scratch */
     uint8_t *used;
+    uint32_t *bits;
     int have_last;
     hl_relight_desc last;
     uint64_t last_serial;
@@ -281,6 +282,7 @@ void hl_relighter_destroy(hl_relighter *r)
     free(r->Lw);
     free(r->Lsel);
     free(r->used);
+    free(r->bits);
     free(r);
 }
 
@@ -304,7 +306,8 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
         r->Lw = hl_malloc(ctx, (size_t)nc * 12, "lighting");
         r->Lsel = hl_malloc(ctx, (size_t)nc * 16, "lighting");
         r->used = hl_malloc(ctx, r->g->nblocks, "block flags");
-        if (!r->albedo4 || !r->B4 || !r->w_unweighted || !r->Lp || !r->Lw || !r->Lsel || !r->used)
+        r->bits = hl_malloc(ctx, (size_t)nc / 8, "kept-slot bits");
+        if (!r->albedo4 || !r->B4 || !r->w_unweighted || !r->Lp || !r->Lw || !r->Lsel || !r->used || !r->bits)
             res = HL_ERR_OUT_OF_MEMORY;
     }
     if (res == HL_OK) {
@@ -381,7 +384,7 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
     const hl_transport *t = r->t;
     hl_ref_env2para(r->cells, r->lg->wc, r->lg->tap_start, r->lg->taps, s0, f, g->ncoef, r->Lp);
     for (int c = 0; c < 3; c++) hl_ref_haar(g, r->Lp + (size_t)c * g->ncoef, r->Lw + (size_t)c * g->ncoef);
-    *sr = hl_ref_select(r->Lw, g->ncoef, weight, sp, r->Lsel, r->used, g->nblocks);
+    *sr = hl_ref_select(r->Lw, g->ncoef, weight, sp, r->Lsel, r->used, r->bits, g->nblocks);
     for (uint32_t v = 0; v < t->info.vertex_count; v++) {
         hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * g->nblocks, t->row_quant[v],
                        t->info.quant, g->nblocks, r->Lsel, r->albedo4 + 4 * (size_t)v, r->B4 + 4 * (size_t)v);

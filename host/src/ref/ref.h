@@ -38,10 +38,10 @@ void hl_ref_env2para(const float *cells, uint32_t wc, const uint32_t *start,
 
 /* Keeps the p.M lighting terms of highest priority (see select.cl):
  * out gets 4 floats per slot (zero where not kept), block_used one flag per
- * block. */
+ * block (detail slots), kept_bits one bit per slot (ncoef / 32 words). */
 hl_select_result hl_ref_select(const float *L, uint32_t ncoef, const float *weight,
                                hl_select_params p, float *out, uint8_t *block_used,
-                               uint32_t nblocks);
+                               uint32_t *kept_bits, uint32_t nblocks);
 
 /* One vertex: sum over all its entries of dequantised T times light
  * (4 floats per slot), times albedo (3 floats). rgb: 3 floats. */

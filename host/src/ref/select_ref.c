@@ -15,7 +15,7 @@ static int by_key_desc(const void *pa, const void *pb)
 }
 
 hl_select_result hl_ref_select(const float *L, uint32_t n, const float *weight, hl_select_params p,
-                               float *out, uint8_t *block_used, uint32_t nblocks)
+                               float *out, uint8_t *block_used, uint32_t *kept_bits, uint32_t nblocks)
 {
     hl_select_result res = {0.0f, 0.0f, 0u, 0u};
     prio *k = malloc((size_t)n * sizeof *k);
@@ -31,6 +31,7 @@ hl_select_result hl_ref_select(const float *L, uint32_t n, const float *weight, 
     uint32_t m = p.M < nnz ? p.M : nnz;
     for (uint32_t i = 0; i < m; i++) keep[k[i].slot] = 1;
     memset(block_used, 0, nblocks);
+    memset(kept_bits, 0, n / 32 * sizeof *kept_bits);
     for (uint32_t i = 0; i < n; i++) {
         float r = L[i], g = L[n + i], b = L[2 * n + i], y = hl_luminance(r, g, b);
         res.energy_total += y * y;
@@ -42,6 +43,7 @@ hl_select_result hl_ref_select(const float *L, uint32_t n, const float *weight, 
             res.energy_kept += y * y;
             res.kept++;
             if (i % HL_BLOCK) block_used[i / HL_BLOCK] = 1; /* detail slots only */
+            kept_bits[i / 32] |= 1u << (i % 32);
         }
     }
     for (uint32_t b = 0; b < nblocks; b++) res.blocks_used += block_used[b];
