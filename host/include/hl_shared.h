@@ -170,8 +170,9 @@ HL_INLINE HL_U32 hl_quant_linear8(float v, float lo, float hi)
 
 HL_INLINE float hl_dequant_linear8(HL_U32 q, float lo, float hi)
 {
-    float range = hi - lo;
-    return lo + ((float)q / 255.0f) * range;
+    /* a multiply, not a division: this runs once per term in the dot
+       products */
+    return lo + (float)q * ((hi - lo) * (1.0f / 255.0f));
 }
 
 HL_INLINE HL_U32 hl_quant_log8(float v, float mn, float mx)

@@ -584,7 +584,10 @@ hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight)
 
 static hl_result light_launch(hl_cl_light *l, int which, size_t items)
 {
-    size_t local = which == K_SELECT ? 1 : l->cl->wg, global = (items + local - 1) / local * local;
+    /* selection is one work-item; the dot products are short per vertex, so
+       on a CPU they go 64 to a group, or per-group overhead dominates */
+    size_t local = which == K_SELECT ? 1 : which == K_RELIGHT && l->cl->wg == 1 ? 64 : l->cl->wg;
+    size_t global = (items + local - 1) / local * local;
     CL_TRY(l->ctx, clEnqueueNDRangeKernel(l->cl->queue, l->cl->k[which], 1, NULL, &global, &local, 0, NULL, NULL),
            kernel_names[which]);
     return HL_OK;
