@@ -165,9 +165,10 @@ static void adler_update(png_writer *w, const uint8_t *p, size_t n)
 #define DF_MIN_MATCH 3
 #define DF_MAX_MATCH 258
 #define DF_LOOKAHEAD (DF_MAX_MATCH + DF_MIN_MATCH + 1) /* kept ahead until the end */
-#define DF_MAX_CHAIN 48   /* candidates looked at per position */
+#define DF_MAX_CHAIN 16   /* candidates looked at per position */
+#define DF_GOOD 8         /* past a lazy match this long, look at a quarter as many */
 #define DF_NICE 128       /* a match this long ends the search */
-#define DF_LAZY 32        /* a match this long is taken without a lazy look */
+#define DF_LAZY 16        /* a match this long is taken without a lazy look */
 #define DF_SYMS (1 << 15) /* symbols per block at most */
 #define DF_OUT 16384      /* compressed bytes gathered before idat_put */
 #define DF_NLL 286        /* literal/length codes used */
@@ -562,7 +563,8 @@ static uint32_t df_longest(const deflater *d, size_t p, uint32_t at_least, uint3
     const uint8_t *s = d->buf + p;
     uint32_t best = at_least < DF_MIN_MATCH - 1 ? DF_MIN_MATCH - 1 : at_least, found = 0;
     int32_t cand = d->prev[p & DF_WMASK];
-    for (int chain = DF_MAX_CHAIN; chain > 0 && cand >= 0; chain--) {
+    int chain = at_least >= DF_GOOD ? DF_MAX_CHAIN / 4 : DF_MAX_CHAIN;
+    for (; chain > 0 && cand >= 0; chain--) {
         size_t c = (size_t)cand;
         if (c >= p || p - c >= DF_WSIZE) break;
         const uint8_t *t = d->buf + c;
@@ -666,39 +668,44 @@ static void df_finish(deflater *d)
 
 /* ---------------------------------------------------- PNG row filters */
 
-static unsigned paeth(unsigned a, unsigned b, unsigned c)
-{
-    int p = (int)a + (int)b - (int)c;
-    int pa = abs(p - (int)a), pb = abs(p - (int)b), pc = abs(p - (int)c);
-    return pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
-}
-
 /* Filters row cur (n bytes, 3 per pixel) against the row above, up (zeros
- * for the first row), with filter type t into out[0] (type) and out[1..n]. */
-static void filter_row(unsigned t, const uint8_t *cur, const uint8_t *up, size_t n, uint8_t *out)
+ * for the first row), with filter type t into out[0] (type) and out[1..n].
+ * Returns the sum of the filtered bytes taken as signed values, the usual
+ * estimate of how well a row will compress. */
+static uint64_t filter_row(unsigned t, const uint8_t *cur, const uint8_t *up, size_t n, uint8_t *out)
 {
     out[0] = (uint8_t)t;
     uint8_t *o = out + 1;
-    for (size_t i = 0; i < n; i++) {
-        unsigned a = i >= 3 ? cur[i - 3] : 0, b = up[i], c = i >= 3 ? up[i - 3] : 0, pred;
-        switch (t) {
-        case 0: pred = 0; break;
-        case 1: pred = a; break;
-        case 2: pred = b; break;
-        case 3: pred = (a + b) >> 1; break;
-        default: pred = paeth(a, b, c); break;
+    size_t first = n < 3 ? n : 3; /* the first pixel has no left neighbour */
+    switch (t) {
+    case 0: memcpy(o, cur, n); break;
+    case 1:
+        memcpy(o, cur, first);
+        for (size_t i = 3; i < n; i++) o[i] = (uint8_t)(cur[i] - cur[i - 3]);
+        break;
+    case 2:
+        for (size_t i = 0; i < n; i++) o[i] = (uint8_t)(cur[i] - up[i]);
+        break;
+    case 3:
+        for (size_t i = 0; i < first; i++) o[i] = (uint8_t)(cur[i] - (up[i] >> 1));
+        for (size_t i = 3; i < n; i++) o[i] = (uint8_t)(cur[i] - ((cur[i - 3] + up[i]) >> 1));
+        break;
+    default: /* Paeth; with a = c = 0 it predicts b */
+        for (size_t i = 0; i < first; i++) o[i] = (uint8_t)(cur[i] - up[i]);
+        for (size_t i = 3; i < n; i++) {
+            int a = cur[i - 3], b = up[i], c = up[i - 3];
+            int pa = abs(b - c), pb = abs(a - c), pc = abs(a + b - 2 * c);
+            int pred = pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
+            o[i] = (uint8_t)(cur[i] - pred);
         }
-        o[i] = (uint8_t)(cur[i] - pred);
+        break;
     }
-}
-
-/* Sum of the filtered bytes as signed values, the usual estimate of how
- * well a row compresses. */
-static uint64_t filter_cost(const uint8_t *f, size_t n)
-{
-    uint64_t s = 0;
-    for (size_t i = 0; i < n; i++) s += f[i] < 128 ? f[i] : 256u - f[i];
-    return s;
+    uint64_t sum = 0;
+    for (size_t i = 0; i < n; i++) {
+        int v = (int8_t)o[i];
+        sum += (uint64_t)(v < 0 ? -v : v);
+    }
+    return sum;
 }
 
 /* Writes img as PNG to the open file f: 8-bit RGB, each row filtered with
@@ -745,8 +752,7 @@ static hl_result png_write(hl_context *ctx, const hl_image *img, FILE *f, float 
         for (size_t i = 0; i < n; i++) cur[i] = hl_tonemap_srgb8(src[i], exposure_ev);
         uint64_t best_cost = UINT64_MAX;
         for (unsigned t = 0; t < 5; t++) {
-            filter_row(t, cur, up, n, trial);
-            uint64_t cost = filter_cost(trial + 1, n);
+            uint64_t cost = filter_row(t, cur, up, n, trial);
             if (cost < best_cost) {
                 best_cost = cost;
                 uint8_t *x = best;
