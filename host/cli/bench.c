@@ -413,8 +413,9 @@ int cmd_bench(int argc, char **argv)
         summary_rate[f] = r == HL_OK ? 1.0 / median(times, (int)reps) : 0.0;
         double dot = 0.0;
         if (r == HL_OK) r = hl_cl_light_time_relight(hl_relighter_device(rc), 20, &dot);
-        /* bytes the dot products read: counts, offsets, parameters, albedo,
-           colours out, and the entries of used blocks (slot 0 of the rest) */
+        /* bytes the dot products read: per vertex its counts, offset,
+           parameters, albedo and colour out; per non-empty block the slot
+           mask (one word where the block is skipped) and the entries hit */
         if (r == HL_OK) {
             float *Lp = malloc((size_t)nc * 12), *Lwf = malloc((size_t)nc * 12), *cells = NULL, *sel = malloc((size_t)nc * 16);
             uint8_t *used = malloc(nb);
@@ -432,8 +433,12 @@ int cmd_bench(int argc, char **argv)
                 for (uint32_t v = 0; v < V; v++) {
                     uint64_t e = t[f]->row_offset[v];
                     for (uint32_t b = 0; b < nb; b++) {
-                        uint32_t n = t[f]->block_counts[(size_t)v * nb + b];
-                        rb += used[b] ? 2.0 * n : (n ? 2.0 : 0.0);
+                        uint32_t n = t[f]->block_counts[(size_t)v * nb + b], hits = 0;
+                        for (uint32_t k = 0; k < n; k++) {
+                            uint32_t slot = b * HL_BLOCK + t[f]->entries[2 * (e + k)];
+                            hits += used[b] ? (bits[slot / 32] >> (slot % 32)) & 1u : slot % HL_BLOCK == 0;
+                        }
+                        if (n) rb += (used[b] ? 32.0 : 4.0) + 2.0 * hits;
                         e += n;
                     }
                 }
