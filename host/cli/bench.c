@@ -341,7 +341,6 @@ int cmd_bench(int argc, char **argv)
         if (!gp) r = hl_fail(ref, HL_ERR_IO, "%s: cannot write: %s", path, strerror(errno));
     }
     int nseries = 0;
-    char series_title[MAX_FILES * MAX_ENVS][160];
     for (int f = 0; f < nfiles && r == HL_OK; f++) {
         hl_relighter *rc = NULL, *rr = NULL;
         r = hl_relighter_create(cl, t[f], &rc);
@@ -355,7 +354,6 @@ int cmd_bench(int argc, char **argv)
             if (r == HL_OK && rr && e == 0) r = hl_relighter_set_env(rr, envs[e].env);
             if (r == HL_OK && f == 0 && e == 0) r = hl_relighter_run(rc, NULL, B, NULL); /* PoCL compiles lazily */
             fprintf(gp, "$s%d << EOD\n", nseries);
-            snprintf(series_title[nseries], sizeof series_title[nseries], "%s, %s", base_name(files[f]), envs[e].name);
             for (uint32_t s = 0; s < nsel && r == HL_OK; s++)
                 for (uint32_t mi = 0; mi < nterms && r == HL_OK; mi++) {
                     hl_relight_desc d = {.terms = terms[mi], .select = selects[s]};
@@ -466,14 +464,22 @@ int cmd_bench(int argc, char **argv)
             printf("bench: %s: %.0f lighting changes/s at M = 200; dot products %.3f ms for %.1f MB = %.2f of the read bandwidth\n",
                    base_name(files[f]), summary_rate[f], 1e3 * summary_dot[f], summary_bytes[f] * 1e-6,
                    summary_dot[f] > 0 ? summary_bytes[f] / summary_dot[f] / bw : 0.0);
-        fprintf(gp, "set terminal svg size 960,640 dynamic font 'sans,12'\nset output '%s/bench.svg'\n", outdir);
-        fprintf(gp, "set logscale xy\nset grid\nset key outside right\n"
+        /* one panel per transport file, a line per environment */
+        fprintf(gp, "set terminal svg size %d,560 dynamic font 'sans,11' noenhanced\nset output '%s/bench.svg'\n",
+                420 * nfiles + 60, outdir);
+        fprintf(gp, "set logscale xy\nset grid\nset key bottom left font ',9'\n"
                     "set xlabel 'time per lighting change, OpenCL (ms)'\n"
-                    "set ylabel 'relative L2 error against the exact discrete result'\n"
-                    "set title 'Error against run time (area-weighted selection; points: M = 25 ... all)'\n");
-        fprintf(gp, "plot ");
-        for (int s = 0; s < nseries; s++)
-            fprintf(gp, "%s$s%d using 1:2 with linespoints title '%s'", s ? ", \\\n     " : "", s, series_title[s]);
+                    "set ylabel 'relative L2 error vs exact discrete'\n"
+                    "set multiplot layout 1,%d title 'Error against run time, area-weighted selection, M = 25 ... all'\n",
+                nfiles);
+        for (int f = 0; f < nfiles; f++) {
+            fprintf(gp, "set title '%s'\nplot ", base_name(files[f]));
+            for (int e = 0; e < nenvs; e++)
+                fprintf(gp, "%s$s%d using 1:2 with linespoints pt 7 ps 0.5 title '%s'", e ? ", \\\n     " : "", f * nenvs + e,
+                        envs[e].name);
+            fprintf(gp, "\n");
+        }
+        fprintf(gp, "unset multiplot\n");
         fprintf(gp, "\n");
     }
     if (csv) fclose(csv);
