@@ -5,6 +5,7 @@
  * the CLI's signal handler sets.
  */
 #define _POSIX_C_SOURCE 200809L
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -76,6 +77,16 @@ void *hl_alloc_big(hl_context *ctx, size_t bytes, const char *what)
 }
 
 void hl_free_big(void *p) { free(p); }
+
+void hl_run_threads(int threads, void *(*fn)(void *), void *arg)
+{
+    pthread_t th[64];
+    int n = threads > 64 ? 64 : threads, started = 0;
+    for (int t = 1; t < n; t++)
+        if (pthread_create(&th[started], NULL, fn, arg) == 0) started++;
+    fn(arg);
+    for (int t = 0; t < started; t++) pthread_join(th[t], NULL);
+}
 
 double hl_now(void)
 {

@@ -42,6 +42,10 @@ void hl_free_big(void *p);
 
 #define HL_PI 3.14159265358979323846
 
+/* Runs fn(arg) on `threads` threads (the caller's among them) and waits
+ * for all; fewer if threads cannot be created. */
+void hl_run_threads(int threads, void *(*fn)(void *), void *arg);
+
 /* Monotonic wall clock in seconds. */
 double hl_now(void);
 

@@ -128,13 +128,7 @@ hl_result hl_ref_rows(hl_context *ctx, const hl_geom *g, uint32_t rows, float vi
     ref_job j = {.g = g, .rows = rows, .scale = vis_scale, .tp = tp, .scheme = scheme, .io = io};
     atomic_init(&j.next, 0u);
     atomic_init(&j.oom, 0);
-    int nt = ctx->threads > 64 ? 64 : ctx->threads;
-    pthread_t th[64];
-    int started = 0;
-    for (int t = 1; t < nt; t++)
-        if (pthread_create(&th[started], NULL, ref_worker, &j) == 0) started++;
-    ref_worker(&j);
-    for (int t = 0; t < started; t++) pthread_join(th[t], NULL);
+    hl_run_threads(ctx->threads, ref_worker, &j);
     if (atomic_load(&j.oom)) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory in the reference stages");
     return HL_OK;
 }

@@ -213,14 +213,7 @@ static void *vis_worker(void *arg)
 
 static hl_result run_job(hl_rt *rt, vis_job *job)
 {
-    int nt = rt->ctx->threads;
-    if (nt > 64) nt = 64;
-    pthread_t th[64];
-    int started = 0;
-    for (int t = 1; t < nt; t++)
-        if (pthread_create(&th[started], NULL, vis_worker, job) == 0) started++;
-    vis_worker(job);
-    for (int t = 0; t < started; t++) pthread_join(th[t], NULL);
+    hl_run_threads(rt->ctx->threads, vis_worker, job);
     if (rt->err[0]) return hl_fail(rt->ctx, HL_ERR_EMBREE, "Embree: %s", rt->err);
     if (hl_interrupt_requested) return hl_fail(rt->ctx, HL_ERR_INTERRUPTED, "interrupted");
     return HL_OK;
@@ -306,14 +299,8 @@ hl_result hl_rt_raw_rate(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, const
     uint64_t rays = atomic_load(&job.cast);
     raw_job rj = {.rt = rt, .pk = job.store, .n = job.nstore};
     atomic_init(&rj.next, (size_t)0);
-    int nt = rt->ctx->threads > 64 ? 64 : rt->ctx->threads;
-    pthread_t th[64];
-    int started = 0;
     double t0 = hl_now();
-    for (int t = 1; t < nt; t++)
-        if (pthread_create(&th[started], NULL, raw_worker, &rj) == 0) started++;
-    raw_worker(&rj);
-    for (int t = 0; t < started; t++) pthread_join(th[t], NULL);
+    hl_run_threads(rt->ctx->threads, raw_worker, &rj);
     double dt = hl_now() - t0;
     free(job.store);
     free(pk);
@@ -386,13 +373,7 @@ hl_result hl_rt_trace_primary(hl_rt *rt, uint32_t count, const float *org, const
 {
     primary_job j = {.rt = rt, .count = count, .org = org, .dir = dir, .prim = prim, .u = u, .v = v};
     atomic_init(&j.next, 0u);
-    int nt = rt->ctx->threads > 64 ? 64 : rt->ctx->threads;
-    pthread_t th[64];
-    int started = 0;
-    for (int t = 1; t < nt; t++)
-        if (pthread_create(&th[started], NULL, primary_worker, &j) == 0) started++;
-    primary_worker(&j);
-    for (int t = 0; t < started; t++) pthread_join(th[t], NULL);
+    hl_run_threads(rt->ctx->threads, primary_worker, &j);
     if (rt->err[0]) return hl_fail(rt->ctx, HL_ERR_EMBREE, "Embree: %s", rt->err);
     return HL_OK;
 }
@@ -401,13 +382,7 @@ hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, cons
 {
     primary_job j = {.rt = rt, .count = count, .org = org, .dir = dir, .occluded = occluded};
     atomic_init(&j.next, 0u);
-    int nt = rt->ctx->threads > 64 ? 64 : rt->ctx->threads;
-    pthread_t th[64];
-    int started = 0;
-    for (int t = 1; t < nt; t++)
-        if (pthread_create(&th[started], NULL, primary_worker, &j) == 0) started++;
-    primary_worker(&j);
-    for (int t = 0; t < started; t++) pthread_join(th[t], NULL);
+    hl_run_threads(rt->ctx->threads, primary_worker, &j);
     if (rt->err[0]) return hl_fail(rt->ctx, HL_ERR_EMBREE, "Embree: %s", rt->err);
     return HL_OK;
 }
