@@ -99,7 +99,46 @@ interrupt)
   [ -e "$tmp/int.hlt" ] && fail "output written by an interrupted run"
   ls "$tmp" | grep -q '\.tmp\.' && fail "temporary file left behind"
   ;;
-*) echo "usage: $0 bad_input|bad_options|cl_equals_ref|info|interrupt"; exit 2 ;;
+relight)
+  # every output kind, from the sky and from a map, on both devices
+  m="$data/bunny_lowres.obj"
+  "$bin" precompute "$m" --ground --ground-res 12 -C 32 -N 32 -q -o "$tmp/r.hlt" || fail "precompute"
+  for dev in cl ref; do
+    "$bin" relight "$tmp/r.hlt" --sky -o "$tmp/r_$dev.ply" --device $dev -q || fail "relight ply ($dev)"
+    head -c 600 "$tmp/r_$dev.ply" | grep -a -q "property float red" || fail "PLY without float colours ($dev)"
+  done
+  cmp -s "$tmp/r_cl.ply" "$tmp/r_ref.ply" && echo "relight: OpenCL and reference PLY identical" || fail "OpenCL and reference PLY differ"
+  "$bin" relight "$tmp/r.hlt" --env "$data/city.exr" --rotate 30 --terms 50 --size 64x48 -o "$tmp/r.png" -q || fail "relight png"
+  head -c 8 "$tmp/r.png" | od -An -c | grep -q "P   N   G" || fail "not a PNG"
+  "$bin" relight "$tmp/r.hlt" --sky --size 64x48 -o "$tmp/r.exr" -q || fail "relight exr"
+  "$bin" relight "$tmp/r.hlt" --sky --ply8 -o "$tmp/r8.ply" -q || fail "relight ply8"
+  head -c 600 "$tmp/r8.ply" | grep -a -q "property uchar red" || fail "PLY8 without uchar colours"
+  "$bin" check "$tmp/r.hlt" --env "$data/city.exr" --vertices 8 >"$tmp/check.txt" || fail "check found differences"
+  grep -c "| ok |" "$tmp/check.txt" | grep -q 9 || fail "check did not report 9 stages ok"
+  "$bin" bench "$tmp/r.hlt" --sky --terms 10,all --select area --reps 2 --vertices 16 --continuous 2 -o "$tmp/bench" >/dev/null 2>&1 || fail "bench"
+  for f in bench.md bench.csv; do [ -s "$tmp/bench/$f" ] || fail "bench wrote no $f"; done
+  [ "$(wc -l <"$tmp/bench/bench.csv")" -eq 3 ] || fail "bench.csv should hold a header and 2 rows"
+  ;;
+relight_bad)
+  m="$data/bunny_lowres.obj"
+  "$bin" precompute "$m" -C 16 -N 16 -q -o "$tmp/b.hlt" || fail "precompute"
+  printf 'not an exr' >"$tmp/bad.exr"
+  head -c 5000 "$data/city.exr" >"$tmp/trunc.exr"
+  "$bin" relight "$tmp/b.hlt" --sky --size 10x10 -o "$tmp/square.exr" -q || fail "writing a 10x10 EXR"
+  # a transport file from another format version (the version follows the 8-byte magic)
+  cp "$tmp/b.hlt" "$tmp/v2.hlt"
+  printf '\x63' | dd of="$tmp/v2.hlt" bs=1 seek=8 conv=notrunc 2>/dev/null
+  expect_error missing_env 1 "nosuch.exr" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/nosuch.exr" -o "$tmp/o.ply"
+  expect_error corrupt_env 1 "bad.exr" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/bad.exr" -o "$tmp/o.ply"
+  expect_error truncated_env 1 "trunc.exr" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/trunc.exr" -o "$tmp/o.ply"
+  expect_error square_env 1 "square.exr" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/square.exr" -o "$tmp/o.ply"
+  expect_error terms_zero 2 "--terms" "$tmp/o.ply" -- relight "$tmp/b.hlt" --sky --terms 0 -o "$tmp/o.ply"
+  expect_error other_version 1 "v2.hlt" "$tmp/o.ply" -- relight "$tmp/v2.hlt" --sky -o "$tmp/o.ply"
+  expect_error bad_ext 2 "o.jpg" "$tmp/o.jpg" -- relight "$tmp/b.hlt" --sky -o "$tmp/o.jpg"
+  expect_error env_and_sky 2 "contradict" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$data/city.exr" --sun-size 3 -o "$tmp/o.ply"
+  expect_error unwritable 1 "no/dir" "" -- relight "$tmp/b.hlt" --sky -o "$tmp/no/dir/o.png"
+  ;;
+*) echo "usage: $0 bad_input|bad_options|cl_equals_ref|info|interrupt|relight|relight_bad"; exit 2 ;;
 esac
 echo "$((fails == 0 ? 1 : 0)) passed, $fails failed" >/dev/null
 [ "$fails" -eq 0 ] && echo "${1}: passed" || echo "${1}: FAILED ($fails)"
