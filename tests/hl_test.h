@@ -13,6 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "haarlight.h"
+
 static int hl_test_failures = 0;
 
 #define HL_CHECK(cond, ...)                                                   \
@@ -75,6 +77,29 @@ static inline const char *hl_test_env(const char *name, const char *fallback)
 {
     const char *v = getenv(name);
     return v && *v ? v : fallback;
+}
+
+/* A plain-C reference context (no OpenCL needed); exits on failure. */
+static inline hl_context *hl_test_ref_context(int threads)
+{
+    hl_context_desc d = {.backend = HL_BACKEND_REFERENCE, .quiet = 1, .threads = threads};
+    hl_context *ctx = NULL;
+    char err[512];
+    if (hl_context_create(&d, &ctx, err, sizeof err) != HL_OK) {
+        fprintf(stderr, "cannot create a reference context: %s\n", err);
+        exit(1);
+    }
+    return ctx;
+}
+
+/* HL_TMP/name in one of 8 rotating buffers, so a test can hold several. */
+static inline const char *hl_test_tmp_path(const char *name)
+{
+    static char buf[8][1024];
+    static int next = 0;
+    char *b = buf[next++ & 7];
+    snprintf(b, 1024, "%s/%s", hl_test_env("HL_TMP", "/tmp"), name);
+    return b;
 }
 
 #endif

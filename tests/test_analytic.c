@@ -57,19 +57,7 @@ static void *xcalloc(size_t n, size_t s)
     return p;
 }
 
-static hl_context *make_ctx(void)
-{
-    hl_context_desc d = {0};
-    d.backend = HL_BACKEND_REFERENCE;
-    d.quiet = 1;
-    hl_context *ctx = NULL;
-    char err[256];
-    if (hl_context_create(&d, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "context: %s\n", err);
-        exit(1);
-    }
-    return ctx;
-}
+static hl_context *make_ctx(void) { return hl_test_ref_context(0); }
 
 static hl_geom *make_geom(hl_context *ctx, uint32_t N, uint32_t C)
 {

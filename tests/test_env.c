@@ -28,17 +28,7 @@
 
 /* ---------------------------------------------------------------- helpers */
 
-static hl_context *make_ctx(void)
-{
-    hl_context_desc d = {.backend = HL_BACKEND_REFERENCE, .quiet = 1};
-    hl_context *ctx = NULL;
-    char err[512];
-    if (hl_context_create(&d, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "cannot create a reference context: %s\n", err);
-        exit(1);
-    }
-    return ctx;
-}
+static hl_context *make_ctx(void) { return hl_test_ref_context(0); }
 
 static const char *tmp_dir(void) { return hl_test_env("HL_TMP", "/tmp"); }
 

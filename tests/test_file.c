@@ -82,20 +82,7 @@ static void fix_section_crc(uint8_t *f, int offset_field, int crc_field)
     fix_header_crc(f);
 }
 
-static hl_context *make_ctx(void)
-{
-    hl_context_desc d = {0};
-    d.backend = HL_BACKEND_REFERENCE;
-    d.quiet = 1;
-    hl_context *ctx = NULL;
-    char err[256];
-    hl_result r = hl_context_create(&d, &ctx, err, sizeof err);
-    if (r != HL_OK) {
-        fprintf(stderr, "context: %s\n", err);
-        exit(1);
-    }
-    return ctx;
-}
+static hl_context *make_ctx(void) { return hl_test_ref_context(0); }
 
 static void tmp_path(char *out, size_t n, const char *name)
 {

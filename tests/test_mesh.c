@@ -18,21 +18,7 @@
 
 /* ---------------------------------------------------------------- helpers */
 
-static hl_context *make_ctx(void)
-{
-    hl_context_desc d = {0};
-    d.backend = HL_BACKEND_REFERENCE;
-    d.quiet = 1;
-    d.threads = 1;
-    hl_context *ctx = NULL;
-    char err[512];
-    hl_result r = hl_context_create(&d, &ctx, err, sizeof err);
-    if (r != HL_OK) {
-        fprintf(stderr, "cannot create a reference context: %s\n", err);
-        exit(1);
-    }
-    return ctx;
-}
+static hl_context *make_ctx(void) { return hl_test_ref_context(1); }
 
 static char path_buf[8][1024];
 static int path_next = 0;
@@ -45,12 +31,7 @@ static const char *data_path(const char *name)
     return b;
 }
 
-static const char *tmp_path(const char *name)
-{
-    char *b = path_buf[path_next++ & 7];
-    snprintf(b, 1024, "%s/%s", hl_test_env("HL_TMP", "/tmp"), name);
-    return b;
-}
+static const char *tmp_path(const char *name) { return hl_test_tmp_path(name); }
 
 static int have_data(void)
 {

@@ -230,14 +230,8 @@ int cmd_bench(int argc, char **argv)
         return 1;
     }
 
-    char err[4096];
     hl_context *cl = NULL, *ref = NULL;
-    hl_context_desc rdsc = {.backend = HL_BACKEND_REFERENCE, .quiet = 1};
-    if (hl_context_create(&cd, &cl, err, sizeof err) != HL_OK || hl_context_create(&rdsc, &ref, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "haarlight: %s\n", err);
-        hl_context_destroy(cl);
-        return 1;
-    }
+    if (!cli_context_pair(&cd, &cl, &ref)) return 1;
     hl_transport *t[MAX_FILES] = {0};
     hl_geom *g = NULL;
     hl_light_geom *lg = NULL;

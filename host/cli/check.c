@@ -77,14 +77,8 @@ int cmd_check(int argc, char **argv)
     }
     if (!scene) return usage_error(usage, "%s", "no SCENE.hlt given");
     if (!rd.terms) rd.terms = 200;
-    char err[4096];
     hl_context *cl = NULL, *ref = NULL;
-    hl_context_desc rdsc = {.backend = HL_BACKEND_REFERENCE, .quiet = 1};
-    if (hl_context_create(&cd, &cl, err, sizeof err) != HL_OK || hl_context_create(&rdsc, &ref, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "haarlight: %s\n", err);
-        hl_context_destroy(cl);
-        return 1;
-    }
+    if (!cli_context_pair(&cd, &cl, &ref)) return 1;
     hl_transport *t = NULL;
     hl_env *env = NULL;
     hl_geom *g = NULL;

@@ -14,6 +14,9 @@ int parse_float(const char *s, float *out);
 int parse_device(const char *s, hl_context_desc *cd);
 /* "x,y,z" of finite numbers. */
 int parse_vec3(const char *s, float v[3]);
+/* An OpenCL context from cl_desc and a reference context beside it (for
+ * comparing the two); prints the error and returns 0 on failure. */
+int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context **ref);
 /* Prints the context's last error; returns the exit code for r. */
 int cli_fail(hl_context *ctx, hl_result r);
 

@@ -63,3 +63,17 @@ int cli_fail(hl_context *ctx, hl_result r)
     fprintf(stderr, "haarlight: %s\n", ctx ? hl_context_last_error(ctx) : hl_result_string(r));
     return r == HL_ERR_INTERRUPTED ? 130 : 1;
 }
+
+int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context **ref)
+{
+    char err[4096];
+    hl_context_desc rdsc = {.backend = HL_BACKEND_REFERENCE, .quiet = 1};
+    *cl = *ref = NULL;
+    if (hl_context_create(cl_desc, cl, err, sizeof err) != HL_OK || hl_context_create(&rdsc, ref, err, sizeof err) != HL_OK) {
+        fprintf(stderr, "haarlight: %s\n", err);
+        hl_context_destroy(*cl);
+        *cl = NULL;
+        return 0;
+    }
+    return 1;
+}
