@@ -5,6 +5,7 @@
  * the CLI's signal handler sets.
  */
 #define _POSIX_C_SOURCE 200809L
+#define _DEFAULT_SOURCE /* MADV_HUGEPAGE is a Linux extension */
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -65,13 +66,16 @@ void *hl_calloc(hl_context *ctx, size_t count, size_t size, const char *what)
 void *hl_alloc_big(hl_context *ctx, size_t bytes, const char *what)
 {
     void *p = NULL;
-    size_t rounded = (bytes + 63) & ~(size_t)63;
-    if (posix_memalign(&p, 64, rounded ? rounded : 64) != 0) {
+    /* madvise needs a page-aligned start; huge pages want 2 MiB */
+    const size_t huge = (size_t)2 << 20;
+    size_t align = bytes >= 2 * huge ? huge : 64;
+    size_t rounded = (bytes + align - 1) & ~(align - 1);
+    if (posix_memalign(&p, align, rounded ? rounded : 64) != 0) {
         hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory allocating %zu bytes for %s", bytes, what);
         return NULL;
     }
 #ifdef MADV_HUGEPAGE
-    if (rounded >= (size_t)4 << 20) madvise(p, rounded, MADV_HUGEPAGE);
+    if (align == huge) madvise(p, rounded, MADV_HUGEPAGE);
 #endif
     return p;
 }
