@@ -492,8 +492,9 @@ struct hl_cl_light {
     uint32_t nverts, scheme;
     cl_mem cells, start, runs, slots, weight;      /* tables and inputs */
     cl_mem Lp, Lw, Lsel, used, bits, res;          /* lighting stages */
-    cl_mem entries, offs, bc, rq, vmask, albedo, B; /* transport */
+    cl_mem colv, colc, cols, rq, albedo, B;        /* transport, by column */
     void *host[3];                                  /* CPU devices: their memory */
+    uint32_t range, nranges;                        /* vertices per work-item */
 };
 
 void hl_cl_light_destroy(hl_cl_light *l)
@@ -501,7 +502,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (!l) return;
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
-                     &l->bits, &l->res, &l->entries, &l->offs, &l->bc, &l->rq, &l->vmask, &l->albedo, &l->B};
+                     &l->bits, &l->res, &l->colv, &l->colc, &l->cols, &l->rq, &l->albedo, &l->B};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
         if (*all[i]) clReleaseMemObject(*all[i]);
     for (int i = 0; i < 3; i++) hl_free_big(l->host[i]);
@@ -555,23 +556,55 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
     B(used, CL_MEM_READ_WRITE, g->nblocks, NULL, "block flags");
     B(bits, CL_MEM_READ_WRITE, nc / 8, NULL, "kept-slot bits");
     B(res, CL_MEM_READ_WRITE, sizeof(hl_select_result), NULL, "selection result");
-    if (r == HL_OK) r = light_big_buf(l, &l->entries, (size_t)nnz * 2, nnz ? t->entries : NULL, &l->host[0], "transport entries");
-    B(offs, CL_MEM_READ_ONLY, V * 8, t->row_offset, "row offsets");
-    if (r == HL_OK) r = light_big_buf(l, &l->bc, V * g->nblocks * 2, t->block_counts, &l->host[1], "block counts");
     B(rq, CL_MEM_READ_ONLY, V * sizeof(hl_row_quant), t->row_quant, "quantisation parameters");
-    /* which slots each vertex-block stores, from the index bytes */
-    uint32_t *vm = r == HL_OK ? calloc(V * g->nblocks * 8, 4) : NULL;
-    if (r == HL_OK && !vm) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the slot masks");
-    for (size_t v = 0; r == HL_OK && v < V; v++) {
-        uint64_t e = t->row_offset[v];
-        for (uint32_t b = 0; b < g->nblocks; b++)
-            for (uint32_t k = 0; k < t->block_counts[v * g->nblocks + b]; k++, e++) {
-                uint32_t s = t->entries[2 * e];
-                vm[(v * g->nblocks + b) * 8 + s / 32] |= 1u << (s % 32);
+    /* the rows turned into columns: for each range of vertices (one
+       work-item's) and each slot, the (vertex in range, code) entries that
+       store it, in vertex order */
+    l->range = l->cl->wg == 1 ? (uint32_t)((V + 63) / 64) : 64u;
+    if (l->range < 1) l->range = 1;
+    if (l->range > 65536) l->range = 65536;
+    l->nranges = (uint32_t)((V + l->range - 1) / l->range);
+    size_t ncs = (size_t)l->nranges * (nc + 1);
+    uint32_t *cs = r == HL_OK ? calloc(ncs, 4) : NULL;
+    uint16_t *cv = r == HL_OK ? hl_alloc_big(ctx, (size_t)(nnz ? nnz : 1) * 2, "transport columns") : NULL;
+    uint8_t *cc = r == HL_OK ? hl_alloc_big(ctx, (size_t)(nnz ? nnz : 1), "transport columns") : NULL;
+    if (r == HL_OK && (!cs || !cv || !cc)) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+    if (r == HL_OK) {
+        for (size_t v = 0; v < V; v++) {
+            size_t base = (v / l->range) * (nc + 1);
+            uint64_t e = t->row_offset[v];
+            for (uint32_t b = 0; b < g->nblocks; b++)
+                for (uint32_t k = 0; k < t->block_counts[v * g->nblocks + b]; k++, e++)
+                    cs[base + b * HL_BLOCK + t->entries[2 * e] + 1]++;
+        }
+        uint32_t run = 0; /* absolute starts, range after range */
+        for (size_t i = 0; i < ncs; i++) {
+            if (i % (nc + 1) == 0) cs[i] = run;
+            else { run += cs[i]; cs[i] = run; }
+        }
+        uint32_t *fill = malloc(ncs * 4);
+        if (!fill) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+        else {
+            memcpy(fill, cs, ncs * 4);
+            for (size_t v = 0; v < V; v++) {
+                size_t base = (v / l->range) * (nc + 1);
+                uint64_t e = t->row_offset[v];
+                for (uint32_t b = 0; b < g->nblocks; b++)
+                    for (uint32_t k = 0; k < t->block_counts[v * g->nblocks + b]; k++, e++) {
+                        uint32_t pos = fill[base + b * HL_BLOCK + t->entries[2 * e]]++;
+                        cv[pos] = (uint16_t)(v % l->range);
+                        cc[pos] = t->entries[2 * e + 1];
+                    }
             }
+            free(fill);
+        }
     }
-    if (r == HL_OK) r = light_big_buf(l, &l->vmask, V * g->nblocks * 32, vm, &l->host[2], "slot masks");
-    free(vm);
+    if (r == HL_OK) r = light_big_buf(l, &l->colv, (size_t)(nnz ? nnz : 1) * 2, cv, &l->host[0], "transport columns");
+    if (r == HL_OK) r = light_big_buf(l, &l->colc, (size_t)(nnz ? nnz : 1), cc, &l->host[1], "transport columns");
+    if (r == HL_OK) r = light_big_buf(l, &l->cols, ncs * 4, cs, &l->host[2], "column starts");
+    free(cs);
+    hl_free_big(cv);
+    hl_free_big(cc);
     B(albedo, CL_MEM_READ_ONLY, V * 16, albedo4, "albedo");
     B(B, CL_MEM_READ_WRITE, V * 16, NULL, "vertex colours");
 #undef B
@@ -600,9 +633,8 @@ hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight)
 
 static hl_result light_launch(hl_cl_light *l, int which, size_t items)
 {
-    /* selection is one work-item; the dot products are short per vertex, so
-       on a CPU they go 64 to a group, or per-group overhead dominates */
-    size_t local = which == K_SELECT ? 1 : which == K_RELIGHT && l->cl->wg == 1 ? 64 : l->cl->wg;
+    /* selection is one work-item */
+    size_t local = which == K_SELECT ? 1 : l->cl->wg;
     size_t global = (items + local - 1) / local * local;
     CL_TRY(l->ctx, clEnqueueNDRangeKernel(l->cl->queue, l->cl->k[which], 1, NULL, &global, &local, 0, NULL, NULL),
            kernel_names[which]);
@@ -638,11 +670,11 @@ static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
 static hl_result enq_relight(hl_cl_light *l)
 {
     cl_kernel k = l->cl->k[K_RELIGHT];
-    cl_uint sc = l->scheme, nb = l->g->nblocks, nv = l->nverts;
-    LARG(k, 0, l->entries); LARG(k, 1, l->offs); LARG(k, 2, l->bc); LARG(k, 3, l->rq); LARG(k, 4, sc);
-    LARG(k, 5, nb); LARG(k, 6, l->Lsel); LARG(k, 7, l->used); LARG(k, 8, l->bits); LARG(k, 9, l->vmask);
-    LARG(k, 10, l->albedo); LARG(k, 11, l->B); LARG(k, 12, nv);
-    return light_launch(l, K_RELIGHT, nv);
+    cl_uint sc = l->scheme, nc = l->g->ncoef, nv = l->nverts, range = l->range;
+    LARG(k, 0, l->colv); LARG(k, 1, l->colc); LARG(k, 2, l->cols); LARG(k, 3, range); LARG(k, 4, l->rq);
+    LARG(k, 5, sc); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->bits); LARG(k, 9, l->albedo);
+    LARG(k, 10, l->B); LARG(k, 11, nv);
+    return light_launch(l, K_RELIGHT, l->nranges);
 }
 
 hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, float *B4, hl_select_result *res)
