@@ -405,9 +405,10 @@ int cmd_bench(int argc, char **argv)
         summary_rate[f] = r == HL_OK ? 1.0 / median(times, (int)reps) : 0.0;
         double dot = 0.0;
         if (r == HL_OK) r = hl_cl_light_time_relight(hl_relighter_device(rc), 20, &dot);
-        /* bytes the dot products read: per vertex its counts, offset,
-           parameters, albedo and colour out; per non-empty block the slot
-           mask (one word where the block is skipped) and the entries hit */
+        /* bytes the dot products read: the kept slots' column entries (2-byte
+           vertex, 1-byte code), two column starts per kept slot and range,
+           and per vertex its parameters, albedo and colour (written, read
+           back, written) */
         if (r == HL_OK) {
             float *Lp = malloc((size_t)nc * 12), *Lwf = malloc((size_t)nc * 12), *cells = NULL, *sel = malloc((size_t)nc * 16);
             uint8_t *used = malloc(nb);
@@ -421,18 +422,17 @@ int cmd_bench(int argc, char **argv)
                 for (int c = 0; c < 3; c++) hl_ref_haar(g, Lp + (size_t)c * nc, Lwf + (size_t)c * nc);
                 hl_select_params sp = {200, HL_SELECT_AREA, {0, 0}};
                 hl_ref_select(Lwf, nc, lg->area, sp, sel, used, bits, nb);
-                double rb = (double)V * (2.0 * nb + 8 + 8 + 16 + 16);
+                uint32_t kept = 0;
+                for (uint32_t i = 0; i < nc; i++) kept += (bits[i / 32] >> (i % 32)) & 1u;
+                uint32_t range = (V + 63) / 64, nranges = (V + range - 1) / range; /* as cl_backend.c on a CPU */
+                double rb = (double)V * (8 + 16 + 3 * 16) + 8.0 * kept * nranges;
                 for (uint32_t v = 0; v < V; v++) {
                     uint64_t e = t[f]->row_offset[v];
-                    for (uint32_t b = 0; b < nb; b++) {
-                        uint32_t n = t[f]->block_counts[(size_t)v * nb + b], hits = 0;
-                        for (uint32_t k = 0; k < n; k++) {
-                            uint32_t slot = b * HL_BLOCK + t[f]->entries[2 * (e + k)];
-                            hits += used[b] ? (bits[slot / 32] >> (slot % 32)) & 1u : slot % HL_BLOCK == 0;
+                    for (uint32_t b = 0; b < nb; b++)
+                        for (uint32_t k = 0; k < t[f]->block_counts[(size_t)v * nb + b]; k++, e++) {
+                            uint32_t slot = b * HL_BLOCK + t[f]->entries[2 * e];
+                            rb += 3.0 * ((bits[slot / 32] >> (slot % 32)) & 1u);
                         }
-                        if (n) rb += (used[b] ? 32.0 : 4.0) + 2.0 * hits;
-                        e += n;
-                    }
                 }
                 summary_bytes[f] = rb;
                 summary_dot[f] = dot;

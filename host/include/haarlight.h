@@ -340,7 +340,9 @@ typedef struct hl_relight_stats {
                                      albedo 1 (Cauchy-Schwarz: max over
                                      vertices of |T_v| times |L - L_M|),
                                      in luminance units of radiance */
-    double blocks_skipped;        /* fraction of 256-blocks skipped */
+    double blocks_skipped;        /* fraction of 256-blocks whose detail
+                                     slots keep no lighting term (the dot
+                                     products skip every slot not kept) */
     double seconds;               /* wall time of this lighting change */
     int reused;                   /* 1: nothing changed, no work was done */
 } hl_relight_stats;
