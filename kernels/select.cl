@@ -36,12 +36,8 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
                 uint k = hl_key(priority(L, ncoef, i, weight));
                 if (k && (k & mask) == prefix) hist[(k >> shift) & 255u]++;
             }
-            int b = 255;
-            for (; b > 0; b--) {
-                if (hist[b] >= need) break;
-                need -= hist[b];
-            }
-            prefix |= (uint)b << shift;
+            uint b = hl_radix_bin(hist, &need);
+            prefix |= b << shift;
             mask |= 255u << shift;
         }
         thresh = prefix;

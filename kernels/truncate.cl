@@ -16,12 +16,8 @@ static void select_top(global const float *c, uint n, uint need, hl_trunc_result
             uint k = hl_key(c[i]);
             if (k && (k & mask) == prefix) hist[(k >> shift) & 255u]++;
         }
-        int b = 255;
-        for (; b > 0; b--) {
-            if (hist[b] >= need) break;
-            need -= hist[b];
-        }
-        prefix |= (uint)b << shift;
+        uint b = hl_radix_bin(hist, &need);
+        prefix |= b << shift;
         mask |= 255u << shift;
     }
     r->thresh = prefix;

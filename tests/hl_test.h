@@ -72,6 +72,18 @@ static inline uint64_t hl_rng_next(void)
     return z ^ (z >> 31);
 }
 
+/* CRC-32 (IEEE), bit by bit: an independent check of the files' own
+ * table-driven checksums. */
+static inline uint32_t hl_test_crc32(const uint8_t *p, size_t n)
+{
+    uint32_t c = 0xFFFFFFFFu;
+    for (size_t i = 0; i < n; i++) {
+        c ^= p[i];
+        for (int k = 0; k < 8; k++) c = (c & 1u) ? (c >> 1) ^ 0xEDB88320u : c >> 1;
+    }
+    return ~c;
+}
+
 /* Environment helpers: shared data folder, scratch folder, CLI binary. */
 static inline const char *hl_test_env(const char *name, const char *fallback)
 {

@@ -635,15 +635,6 @@ static void test_sky(void)
 
 static uint32_t be32(const uint8_t *p) { return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3]; }
 
-static uint32_t crc32_bitwise(const uint8_t *p, size_t n)
-{
-    uint32_t c = 0xFFFFFFFFu;
-    for (size_t i = 0; i < n; i++) {
-        c ^= p[i];
-        for (int k = 0; k < 8; k++) c = (c & 1u) ? (c >> 1) ^ 0xEDB88320u : c >> 1;
-    }
-    return ~c;
-}
 
 /* ---- A small inflater (RFC 1950/1951) for the PNG checks: stored, fixed
  * and dynamic blocks, every read bounds-checked; a failure sets err. */
@@ -862,7 +853,7 @@ static int png_decode(const uint8_t *f, size_t n, uint32_t *w, uint32_t *h, uint
         uint32_t len = be32(f + pos);
         if (pos + 12 + (size_t)len > n) break;
         const uint8_t *type = f + pos + 4, *data = f + pos + 8;
-        HL_CHECK(crc32_bitwise(type, 4 + (size_t)len) == be32(data + len), "chunk %.4s: bad CRC", (const char *)type);
+        HL_CHECK(hl_test_crc32(type, 4 + (size_t)len) == be32(data + len), "chunk %.4s: bad CRC", (const char *)type);
         if (memcmp(type, "IHDR", 4) == 0) {
             HL_CHECK(len == 13 && data[8] == 8 && data[9] == 2 && data[10] == 0 && data[11] == 0 && data[12] == 0,
                      "IHDR is not 8-bit RGB, deflate, filter method 0, no interlace");

@@ -218,7 +218,7 @@ static void case_stages(void)
                                    t->row_quant[v], t->info.quant, g->nblocks, sa, alb + 4 * v, Ba + 4 * v);
                     Ba[4 * v + 3] = 0.0f;
                 }
-                HL_CHECK(hl_cl_light_stage_relight(l, sa, ua, ka, Bb) == HL_OK, "relight");
+                HL_CHECK(hl_cl_light_stage_relight(l, sa, ka, Bb) == HL_OK, "relight");
                 uint32_t diff = 0;
                 for (uint32_t v = 0; v < V; v++) diff += memcmp(Ba + 4 * v, Bb + 4 * v, 12) != 0;
                 printf("%s, %s, M=%u: kept %u, %u of %u blocks, energy kept %.6f; %u of %u vertices differ\n",

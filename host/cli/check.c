@@ -208,7 +208,7 @@ int cmd_check(int argc, char **argv)
         for (uint32_t v = 0; v < V; v++)
             hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * nb, t->row_quant[v], in->quant, nb, sa,
                            alb + 4 * (size_t)v, Ba + 4 * (size_t)v);
-        r = hl_cl_light_stage_relight(light, sa, ua, ka, Bb);
+        r = hl_cl_light_stage_relight(light, sa, ka, Bb);
     }
     if (r == HL_OK) {
         double w = 0.0, s = 0.0;

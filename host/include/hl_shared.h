@@ -127,6 +127,21 @@ HL_INLINE float hl_luminance(float r, float g, float b)
     return 0.2126f * r + 0.7152f * g + 0.0722f * b;
 }
 
+#ifdef __OPENCL_C_VERSION__
+/* One pass of a radix select for the `need` largest keys: the highest
+ * 8-bit bin that reaches them, with need reduced by the keys in the bins
+ * above it (the plain-C twins sort instead). */
+HL_INLINE uint hl_radix_bin(const uint *hist, uint *need)
+{
+    uint b = 255;
+    for (; b > 0; b--) {
+        if (hist[b] >= *need) break;
+        *need -= hist[b];
+    }
+    return b;
+}
+#endif
+
 /* Key of a coefficient: |v| as ordered bits. */
 HL_INLINE HL_U32 hl_key(float v) { return HL_AS_U32(v) & 0x7fffffffu; }
 

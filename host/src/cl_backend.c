@@ -716,11 +716,9 @@ hl_result hl_cl_light_stage_select(hl_cl_light *l, const float *Lw, hl_select_pa
     return HL_OK;
 }
 
-hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint8_t *used, const uint32_t *bits,
-                                    float *B4)
+hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint32_t *bits, float *B4)
 {
     LWRITE(l->Lsel, (size_t)l->g->ncoef * 16, Lsel4);
-    LWRITE(l->used, l->g->nblocks, used);
     LWRITE(l->bits, l->g->ncoef / 8, bits);
     TRY(enq_relight(l));
     LREAD(l->B, (size_t)l->nverts * 16, B4, CL_TRUE);

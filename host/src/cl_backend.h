@@ -77,8 +77,7 @@ hl_result hl_cl_light_stage_env2para(hl_cl_light *l, uint32_t s0, float f, float
 hl_result hl_cl_light_stage_haar(hl_cl_light *l, const float *Lp, float *Lw);
 hl_result hl_cl_light_stage_select(hl_cl_light *l, const float *Lw, hl_select_params sp, float *Lsel4,
                                    uint8_t *used, uint32_t *bits, hl_select_result *res);
-hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint8_t *used, const uint32_t *bits,
-                                    float *B4);
+hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint32_t *bits, float *B4);
 
 /* The dot-product kernel alone on the current lighting, mean of reps
  * launches queued together. */

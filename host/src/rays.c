@@ -219,18 +219,17 @@ static hl_result run_job(hl_rt *rt, vis_job *job)
     return HL_OK;
 }
 
-static hl_result check_job(hl_rt *rt, const hl_geom *g, uint32_t S)
+static hl_result check_job(hl_rt *rt, uint32_t S)
 {
     if (S < 1 || S > 15)
         return hl_fail(rt->ctx, HL_ERR_INVALID_ARGUMENT, "supersample = %u: must be 1 to 15 (S x S rays per texel count in 8 bits)", S);
-    (void)g;
     return HL_OK;
 }
 
 hl_result hl_rt_visibility(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, uint32_t first, uint32_t count,
                            uint32_t S, float offset, uint8_t *vis, hl_vis_counts *counts)
 {
-    hl_result r = check_job(rt, g, S);
+    hl_result r = check_job(rt, S);
     if (r != HL_OK) return r;
     vis_job job = {.rt = rt, .g = g, .mesh = mesh, .first = first, .count = count, .S = S, .offset = offset, .vis = vis};
     atomic_init(&job.next, 0u);
@@ -276,7 +275,7 @@ static void *raw_worker(void *arg)
 hl_result hl_rt_raw_rate(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, const uint32_t *verts,
                          uint32_t nverts, uint32_t S, float offset, double *rays_per_s)
 {
-    hl_result r = check_job(rt, g, S);
+    hl_result r = check_job(rt, S);
     if (r != HL_OK) return r;
     *rays_per_s = 0.0;
     /* the same packets hl_rt_visibility builds, made up front */
