@@ -1,39 +1,97 @@
 /* relight.cl - vertex colours: B(v) = albedo(v) * sum_i T_i(v) L_i over the
- * kept lighting terms. The transport is held by column on the device (built
- * on load from the file's rows): for each range of vertices and each slot,
- * the (vertex, code) entries that store it. One work-item owns a range and
- * walks only the columns of the kept slots, in ascending slot order, so the
- * traffic follows the kept terms and not the rows' length, and each vertex
- * adds its terms in the order the twin does (host/src/ref/relight_ref.c,
- * which walks whole rows; the terms it adds that are not kept are exact
- * zeros, so the sums round the same).
+ * kept lighting terms.
+ *
+ * The transport is held by column on the device (built on load from the
+ * file's rows, see build_columns in host/src/cl_backend.c). Vertices are
+ * grouped in tiles of HL_TILE consecutive vertices and tiles in ranges, one
+ * range per work-item. For each range and slot, the column lists the tiles
+ * in which at least one vertex stores that slot, each as one entry of
+ * 1 + HL_TILE / 4 words: a head (tile in range | lane mask << 16) and the
+ * tile's HL_TILE codes (zero in lanes the mask leaves out). A work-item
+ * walks only the kept slots' columns, in ascending slot order, and decodes
+ * and adds each entry's terms as one vector into the range's running sums
+ * (red, green and blue planes in `acc`). Lanes outside the mask add exact
+ * zeros (fma(0, l, s) = s), so every vertex sums its terms in the order
+ * the twin does (host/src/ref/relight_ref.c walks whole rows) and rounds
+ * alike.
  */
 #pragma OPENCL FP_CONTRACT OFF
 
-kernel void hl_relight(global const ushort *col_vertex, global const uchar *col_code,
-                       global const uint *col_start, uint range, global const hl_row_quant *rq,
-                       uint scheme, uint ncoef, global const float4 *light,
-                       global const uint *kept_bits, global const float4 *albedo,
+#define HL_CAT_(a, b) a##b
+#define HL_CAT(a, b) HL_CAT_(a, b)
+#define UV HL_CAT(uint, HL_TILE)             /* uint8 */
+#define FV HL_CAT(float, HL_TILE)            /* float8 */
+#define AS_UV HL_CAT(as_uint, HL_TILE)
+#define AS_FV HL_CAT(as_float, HL_TILE)
+#define TO_UV HL_CAT(convert_uint, HL_TILE)
+#define TO_FV HL_CAT(convert_float, HL_TILE)
+#define VLOAD HL_CAT(vload, HL_TILE)
+#define VSTORE HL_CAT(vstore, HL_TILE)
+#define CODE_WORDS (HL_TILE / 4)
+
+#if HL_TILE == 8
+#define CODES(e) as_uchar8(vload2(0, (e) + 1))
+#define LANE_BITS (UV)(1u, 2u, 4u, 8u, 16u, 32u, 64u, 128u)
+#elif HL_TILE == 16
+#define CODES(e) as_uchar16(vload4(0, (e) + 1))
+#define LANE_BITS (UV)(1u, 2u, 4u, 8u, 16u, 32u, 64u, 128u, 256u, 512u, 1024u, 2048u, 4096u, 8192u, 16384u, 32768u)
+#else
+#error "HL_TILE must be 8 or 16"
+#endif
+
+/* Adds d times the light to a tile's running sums, each term with one
+ * rounding (an explicit fused multiply-add; the twin calls fmaf). */
+#define ADD_TILE(d)                                      \
+    do {                                                 \
+        VSTORE(fma((d), lr, VLOAD(0, ar + t)), 0, ar + t); \
+        VSTORE(fma((d), lg, VLOAD(0, ag + t)), 0, ag + t); \
+        VSTORE(fma((d), lb, VLOAD(0, ab + t)), 0, ab + t); \
+    } while (0)
+
+kernel void hl_relight(global const uint *col, global const uint *col_start, uint range, global const uint *p0,
+                       global const uint *p1, uint scheme, uint ncoef, global const float4 *light,
+                       global const uint *kept_bits, global const float4 *albedo, global float *acc,
                        global float4 *out, uint nverts)
 {
     uint w = get_global_id(0);
     uint v0 = w * range;
     if (v0 >= nverts) return;
     uint v1 = min(v0 + range, nverts);
-    for (uint v = v0; v < v1; v++) out[v] = (float4)(0.0f);
+    global float *ar = acc + (size_t)3 * v0, *ag = ar + range, *ab = ag + range;
+    for (uint i = 0; i < range; i++) ar[i] = ag[i] = ab[i] = 0.0f;
+    global const uint *q0 = p0 + v0, *q1 = p1 + v0;
     global const uint *cs = col_start + (size_t)w * (ncoef + 1);
+    const uint stride = 1u + CODE_WORDS;
     for (uint word = 0; word < ncoef / 32u; word++) {
         uint bits = kept_bits[word];
         while (bits) {
             uint low = bits & (0u - bits), slot = word * 32u + (31u - clz(low));
             bits ^= low;
             float4 l = light[slot];
-            for (uint k = cs[slot]; k < cs[slot + 1]; k++) {
-                uint v = v0 + col_vertex[k];
-                hl_row_quant q = rq[v];
-                out[v] += hl_dequant(scheme, col_code[k], q.a, q.b) * l;
+            FV lr = (FV)(l.x), lg = (FV)(l.y), lb = (FV)(l.z);
+            global const uint *e = col + (size_t)cs[slot] * stride, *end = col + (size_t)cs[slot + 1] * stride;
+            if (scheme == HL_QUANT_LOG8) {
+                for (; e < end; e += stride) {
+                    uint head = e[0], t = (head & 0xffffu) * HL_TILE;
+                    UV keep = AS_UV(((UV)(head >> 16) & LANE_BITS) != (UV)(0u));
+                    UV c = TO_UV(CODES(e));
+                    FV d = AS_FV(((VLOAD(0, q0 + t) + (c & 127u) * VLOAD(0, q1 + t)) | ((c & 128u) << 24)) & keep);
+                    ADD_TILE(d);
+                }
+            } else {
+                for (; e < end; e += stride) {
+                    uint head = e[0], t = (head & 0xffffu) * HL_TILE;
+                    UV keep = AS_UV(((UV)(head >> 16) & LANE_BITS) != (UV)(0u));
+                    FV c = TO_FV(CODES(e));
+                    FV d = AS_FV(VLOAD(0, q0 + t)) + c * AS_FV(VLOAD(0, q1 + t));
+                    d = AS_FV(AS_UV(d) & keep);
+                    ADD_TILE(d);
+                }
             }
         }
     }
-    for (uint v = v0; v < v1; v++) out[v] *= albedo[v];
+    for (uint v = v0; v < v1; v++) {
+        uint i = v - v0;
+        out[v] = (float4)(ar[i], ag[i], ab[i], 0.0f) * albedo[v];
+    }
 }

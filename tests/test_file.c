@@ -251,7 +251,7 @@ static void synth_compare(const hl_transport *t, const synth *s, const char *wha
 {
     const hl_transport_info *a = &t->info, *e = &s->info;
     uint32_t V = e->vertex_count, B = e->block_count;
-    HL_CHECK(a->version == 1, "%s: version %u", what, a->version);
+    HL_CHECK(a->version == HL_TRANSPORT_VERSION, "%s: version %u", what, a->version);
     HL_CHECK(a->N == e->N && a->C == e->C && a->supersample == e->supersample && a->rule == e->rule &&
                  a->K == e->K && a->quant == e->quant && memcmp(&a->eps, &e->eps, 4) == 0 &&
                  memcmp(&a->ray_offset, &e->ray_offset, 4) == 0,
@@ -554,9 +554,9 @@ static void case_corrupt(void)
     memcpy(f, "HLTRANS2", 8);
     expect_refused(ctx, bad, f, size, "magic", "not a haarlight transport file");
     memcpy(f, data, size);
-    wr32(f + F_VERSION, 2);
+    wr32(f + F_VERSION, 1);
     fix_header_crc(f);
-    expect_refused(ctx, bad, f, size, "version", "version 2, this build reads 1");
+    expect_refused(ctx, bad, f, size, "version", "version 1, this build reads 2");
     memcpy(f, data, size);
     wr32(f + F_N, 12);
     fix_header_crc(f);

@@ -405,10 +405,6 @@ int cmd_bench(int argc, char **argv)
         summary_rate[f] = r == HL_OK ? 1.0 / median(times, (int)reps) : 0.0;
         double dot = 0.0;
         if (r == HL_OK) r = hl_cl_light_time_relight(hl_relighter_device(rc), 20, &dot);
-        /* bytes the dot products read: the kept slots' column entries (2-byte
-           vertex, 1-byte code), two column starts per kept slot and range,
-           and per vertex its parameters, albedo and colour (written, read
-           back, written) */
         if (r == HL_OK) {
             float *Lp = malloc((size_t)nc * 12), *Lwf = malloc((size_t)nc * 12), *cells = NULL, *sel = malloc((size_t)nc * 16);
             uint8_t *used = malloc(nb);
@@ -422,18 +418,7 @@ int cmd_bench(int argc, char **argv)
                 for (int c = 0; c < 3; c++) hl_ref_haar(g, Lp + (size_t)c * nc, Lwf + (size_t)c * nc);
                 hl_select_params sp = {200, HL_SELECT_AREA, {0, 0}};
                 hl_ref_select(Lwf, nc, lg->area, sp, sel, used, bits, nb);
-                uint32_t kept = 0;
-                for (uint32_t i = 0; i < nc; i++) kept += (bits[i / 32] >> (i % 32)) & 1u;
-                uint32_t range = (V + 63) / 64, nranges = (V + range - 1) / range; /* as cl_backend.c on a CPU */
-                double rb = (double)V * (8 + 16 + 3 * 16) + 8.0 * kept * nranges;
-                for (uint32_t v = 0; v < V; v++) {
-                    uint64_t e = t[f]->row_offset[v];
-                    for (uint32_t b = 0; b < nb; b++)
-                        for (uint32_t k = 0; k < t[f]->block_counts[(size_t)v * nb + b]; k++, e++) {
-                            uint32_t slot = b * HL_BLOCK + t[f]->entries[2 * e];
-                            rb += 3.0 * ((bits[slot / 32] >> (slot % 32)) & 1u);
-                        }
-                }
+                double rb = hl_cl_light_bytes_read(hl_relighter_device(rc), bits);
                 summary_bytes[f] = rb;
                 summary_dot[f] = dot;
             }

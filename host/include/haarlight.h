@@ -202,6 +202,9 @@ typedef struct hl_precompute_stats {
     double seconds_total;
 } hl_precompute_stats;
 
+/* The transport file format version this build writes and reads. */
+#define HL_TRANSPORT_VERSION 2u
+
 /* Header of a transport file: every parameter and count. See
  * docs in host/FORMAT.md. */
 typedef struct hl_transport_info {

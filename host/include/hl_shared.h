@@ -34,6 +34,10 @@ static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return 
 /* Coefficient slots per sparse block: an in-block index fits in 8 bits. */
 #define HL_BLOCK 256
 
+/* Vertices per tile in the device's dot products: one tile's terms for one
+ * slot are decoded and added as one 8-wide vector. */
+#define HL_TILE 16
+
 /* Truncation rules. */
 #define HL_TRUNC_DEFAULT 0u
 #define HL_TRUNC_ALL 1u    /* keep every non-zero coefficient */
@@ -190,27 +194,52 @@ HL_INLINE float hl_dequant_linear8(HL_U32 q, float lo, float hi)
     return lo + (float)q * ((hi - lo) * (1.0f / 255.0f));
 }
 
+/* log8: the magnitude's float bit pattern on a grid of 128 points from
+ * min |v| in whole steps of step = (bits(max) - bits(min)) / 127 (rounded
+ * down, so the last point is at most 126 units below max). Decoding is one
+ * integer multiply-add; the dot products run it per term. */
+HL_INLINE HL_U32 hl_log8_step(float mn, float mx)
+{
+    HL_U32 kmn = HL_AS_U32(mn), kmx = HL_AS_U32(mx);
+    return kmx > kmn ? (kmx - kmn) / 127u : 0u;
+}
+
 HL_INLINE HL_U32 hl_quant_log8(float v, float mn, float mx)
 {
     HL_U32 sign = (HL_AS_U32(v) >> 31) << 7;
-    HL_U32 k = hl_key(v);
-    HL_U32 kmn = HL_AS_U32(mn), kmx = HL_AS_U32(mx);
-    if (kmx <= kmn) return sign;
+    HL_U32 step = hl_log8_step(mn, mx);
+    if (step == 0u) return sign;
+    HL_U32 k = hl_key(v), kmn = HL_AS_U32(mn), kmx = HL_AS_U32(mx);
     if (k < kmn) k = kmn;
     if (k > kmx) k = kmx;
-    HL_U64 span = (HL_U64)(kmx - kmn);
-    HL_U64 q = ((HL_U64)(k - kmn) * 127u + span / 2u) / span;
-    return sign | (HL_U32)q;
+    HL_U32 q = (k - kmn + step / 2u) / step;
+    return sign | (q > 127u ? 127u : q);
+}
+
+/* Decoding from the per-vertex parameters the dot products keep:
+ * p0 = bits(min |v|), p1 = step. */
+HL_INLINE float hl_dequant_log8_p(HL_U32 code, HL_U32 p0, HL_U32 p1)
+{
+    return HL_AS_F32((p0 + (code & 127u) * p1) | ((code & 128u) << 24));
 }
 
 HL_INLINE float hl_dequant_log8(HL_U32 code, float mn, float mx)
 {
-    HL_U32 kmn = HL_AS_U32(mn), kmx = HL_AS_U32(mx);
-    HL_U32 q = code & 127u;
-    HL_U32 k = kmn;
-    if (kmx > kmn) k = kmn + (HL_U32)(((HL_U64)q * (HL_U64)(kmx - kmn) + 63u) / 127u);
-    float m = HL_AS_F32(k);
-    return (code & 128u) ? -m : m;
+    return hl_dequant_log8_p(code, HL_AS_U32(mn), hl_log8_step(mn, mx));
+}
+
+/* The per-vertex decoding parameters (bit patterns) of either scheme:
+ * LOG8 as above; LINEAR8 p0 = lo, p1 = (hi - lo) / 255 as hl_dequant_linear8
+ * computes it. */
+HL_INLINE void hl_dequant_params(HL_U32 scheme, float a, float b, HL_U32 *p0, HL_U32 *p1)
+{
+    if (scheme == HL_QUANT_LOG8) {
+        *p0 = HL_AS_U32(a);
+        *p1 = hl_log8_step(a, b);
+    } else {
+        *p0 = HL_AS_U32(a);
+        *p1 = HL_AS_U32((b - a) * (1.0f / 255.0f));
+    }
 }
 
 HL_INLINE float hl_dequant(HL_U32 scheme, HL_U32 code, float a, float b)

@@ -20,8 +20,8 @@ typedef struct { const char *name; const char *source; } hl_embedded_kernel;
 extern const char *const hl_embedded_shared;
 extern const hl_embedded_kernel hl_embedded_kernels[];
 
-enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_ENV2PARA, K_SELECT, K_RELIGHT, K_BANDWIDTH, K_COUNT };
-static const char *const kernel_names[K_COUNT] = {"hl_cube2para", "hl_haar",   "hl_truncate", "hl_quantize",
+enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_TURN, K_ENV2PARA, K_SELECT, K_RELIGHT, K_BANDWIDTH, K_COUNT };
+static const char *const kernel_names[K_COUNT] = {"hl_cube2para", "hl_haar",   "hl_truncate", "hl_quantize", "hl_turn",
                                                   "hl_env2para",  "hl_select", "hl_relight",  "hl_read_bandwidth"};
 
 struct hl_cl {
@@ -490,22 +490,25 @@ struct hl_cl_light {
     const hl_geom *g;
     const hl_light_geom *lg;
     uint32_t nverts, scheme;
-    cl_mem cells, start, runs, slots, weight;      /* tables and inputs */
+    cl_mem cells, turned, start, runs, slots, weight; /* tables and inputs */
     cl_mem Lp, Lw, Lsel, used, bits, res;          /* lighting stages */
-    cl_mem colv, colc, cols, rq, albedo, B;        /* transport, by column */
-    void *host[3];                                  /* CPU devices: their memory */
+    cl_mem col, cols, p0, p1, albedo, B, acc;       /* transport, by column */
+    void *host[5];                                  /* CPU devices: their memory */
     uint32_t range, nranges;                        /* vertices per work-item */
+    uint64_t col_entries;                           /* tile entries in all columns */
+    uint32_t *col_start;                            /* host copy, for counting bytes */
 };
 
 void hl_cl_light_destroy(hl_cl_light *l)
 {
     if (!l) return;
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
-    cl_mem *all[] = {&l->cells, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
-                     &l->bits, &l->res, &l->colv, &l->colc, &l->cols, &l->rq, &l->albedo, &l->B};
+    cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
+                     &l->bits, &l->res, &l->col, &l->cols, &l->p0, &l->p1, &l->albedo, &l->B, &l->acc};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
         if (*all[i]) clReleaseMemObject(*all[i]);
-    for (int i = 0; i < 3; i++) hl_free_big(l->host[i]);
+    for (int i = 0; i < 5; i++) hl_free_big(l->host[i]);
+    free(l->col_start);
     free(l);
 }
 
@@ -528,6 +531,87 @@ static hl_result light_big_buf(hl_cl_light *l, cl_mem *m, size_t bytes, const vo
     return light_buf(l, m, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, *keep, what);
 }
 
+/* The rows turned into columns (see kernels/relight.cl): vertices in tiles
+ * of HL_TILE, tiles in ranges of `range` vertices (one work-item each); for
+ * each range and slot, the tiles that store the slot, in tile order, each
+ * as one entry: a head word (tile in range | lane mask << 16) and the HL_TILE
+ * codes. Also
+ * the per-vertex decoding parameters, padded to whole ranges. */
+static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
+{
+    hl_context *ctx = l->ctx;
+    const size_t nc = l->g->ncoef, V = l->nverts, nb = l->g->nblocks;
+    /* CPU: 64 ranges (32 per core keeps both busy to the end); a GPU: one
+       range of 64 vertices per work-item */
+    size_t range = l->cl->wg == 1 ? (V + 63) / 64 : 64;
+    range = (range + HL_TILE - 1) / HL_TILE * HL_TILE;
+    if (range < HL_TILE) range = HL_TILE;
+    if (range > (size_t)65536 * HL_TILE) range = (size_t)65536 * HL_TILE;
+    l->range = (uint32_t)range;
+    l->nranges = (uint32_t)((V + range - 1) / range);
+    const size_t vpad = (size_t)l->nranges * range, ncs = (size_t)l->nranges * (nc + 1);
+    uint32_t *cs = calloc(ncs, 4), *fill = malloc(ncs * 4), *last = malloc(nc * 4), *pos = malloc(nc * 4);
+    uint32_t *p0 = calloc(vpad, 4), *p1 = calloc(vpad, 4), *col = NULL;
+    const size_t stride = 1 + HL_TILE / 4; /* words per entry: head, codes */
+    hl_result r = HL_OK;
+    if (!cs || !fill || !last || !pos || !p0 || !p1)
+        r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+    /* pass 0 counts the tile entries of each (range, slot); pass 1 fills */
+    for (int pass = 0; pass < 2 && r == HL_OK; pass++) {
+        for (size_t rg = 0; rg < l->nranges; rg++) {
+            uint32_t *c = (pass == 0 ? cs : fill) + rg * (nc + 1);
+            memset(last, 0xff, nc * 4);
+            for (size_t v = rg * range; v < V && v < (rg + 1) * range; v++) {
+                uint32_t tile = (uint32_t)((v % range) / HL_TILE), lane = (uint32_t)(v % HL_TILE);
+                uint64_t e = t->row_offset[v];
+                for (size_t b = 0; b < nb; b++)
+                    for (uint32_t k = 0; k < t->block_counts[v * nb + b]; k++, e++) {
+                        size_t s = b * HL_BLOCK + t->entries[2 * e];
+                        if (pass == 0) {
+                            if (last[s] != tile) { last[s] = tile; c[s + 1]++; }
+                            continue;
+                        }
+                        if (last[s] != tile) { last[s] = tile; pos[s] = c[s]++; col[pos[s] * stride] = tile; }
+                        uint32_t *entry = col + pos[s] * stride;
+                        entry[0] |= 1u << (16 + lane);
+                        ((uint8_t *)(entry + 1))[lane] = t->entries[2 * e + 1];
+                    }
+            }
+        }
+        if (pass == 1) break;
+        uint64_t run = 0; /* absolute starts, range after range */
+        for (size_t i = 0; i < ncs; i++) {
+            if (i % (nc + 1) == 0) cs[i] = (uint32_t)run;
+            else { run += cs[i]; cs[i] = (uint32_t)(run < UINT32_MAX ? run : UINT32_MAX); }
+        }
+        if (run >= UINT32_MAX) {
+            r = hl_fail(ctx, HL_ERR_UNSUPPORTED, "the transport needs %llu column entries; one device holds at most 2^32",
+                        (unsigned long long)run);
+            break;
+        }
+        l->col_entries = run;
+        memcpy(fill, cs, ncs * 4);
+        col = hl_alloc_big(ctx, (size_t)(run ? run : 1) * stride * 4, "transport columns");
+        if (!col) r = HL_ERR_OUT_OF_MEMORY;
+        else memset(col, 0, (size_t)(run ? run : 1) * stride * 4);
+    }
+    for (size_t v = 0; v < V && r == HL_OK; v++)
+        hl_dequant_params(l->scheme, t->row_quant[v].a, t->row_quant[v].b, &p0[v], &p1[v]);
+    size_t n = (size_t)(l->col_entries ? l->col_entries : 1);
+    if (r == HL_OK) r = light_big_buf(l, &l->col, n * stride * 4, col, &l->host[0], "transport columns");
+    if (r == HL_OK) r = light_big_buf(l, &l->cols, ncs * 4, cs, &l->host[2], "column starts");
+    if (r == HL_OK) r = light_big_buf(l, &l->p0, vpad * 4, p0, &l->host[3], "quantisation parameters");
+    if (r == HL_OK) r = light_big_buf(l, &l->p1, vpad * 4, p1, &l->host[4], "quantisation parameters");
+    l->col_start = cs;
+    free(fill);
+    free(last);
+    free(pos);
+    free(p0);
+    free(p1);
+    hl_free_big(col);
+    return r;
+}
+
 hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
                              const float *albedo4, hl_cl_light **out)
 {
@@ -542,10 +626,10 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
     l->nverts = t->info.vertex_count;
     l->scheme = t->info.quant;
     size_t nc = g->ncoef, V = l->nverts, cells = (size_t)lg->wc * lg->hc;
-    uint64_t nnz = t->info.coefficients_kept;
     hl_result r = HL_OK;
 #define B(m, fl, bytes, init, what) if (r == HL_OK) r = light_buf(l, &l->m, fl, bytes, init, what)
     B(cells, CL_MEM_READ_ONLY, cells * 16, NULL, "environment cells");
+    B(turned, CL_MEM_READ_WRITE, cells * 16, NULL, "environment cells");
     B(start, CL_MEM_READ_ONLY, (nc + 1) * 4, lg->tap_start, "environment runs");
     B(runs, CL_MEM_READ_ONLY, (size_t)lg->ntaps * sizeof(hl_env_tap), lg->taps, "environment runs");
     B(slots, CL_MEM_READ_ONLY, (size_t)g->N * g->N * 4, g->slot_of_mallat, "the Haar slot order");
@@ -556,57 +640,10 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
     B(used, CL_MEM_READ_WRITE, g->nblocks, NULL, "block flags");
     B(bits, CL_MEM_READ_WRITE, nc / 8, NULL, "kept-slot bits");
     B(res, CL_MEM_READ_WRITE, sizeof(hl_select_result), NULL, "selection result");
-    B(rq, CL_MEM_READ_ONLY, V * sizeof(hl_row_quant), t->row_quant, "quantisation parameters");
-    /* the rows turned into columns: for each range of vertices (one
-       work-item's) and each slot, the (vertex in range, code) entries that
-       store it, in vertex order */
-    l->range = l->cl->wg == 1 ? (uint32_t)((V + 63) / 64) : 64u;
-    if (l->range < 1) l->range = 1;
-    if (l->range > 65536) l->range = 65536;
-    l->nranges = (uint32_t)((V + l->range - 1) / l->range);
-    size_t ncs = (size_t)l->nranges * (nc + 1);
-    uint32_t *cs = r == HL_OK ? calloc(ncs, 4) : NULL;
-    uint16_t *cv = r == HL_OK ? hl_alloc_big(ctx, (size_t)(nnz ? nnz : 1) * 2, "transport columns") : NULL;
-    uint8_t *cc = r == HL_OK ? hl_alloc_big(ctx, (size_t)(nnz ? nnz : 1), "transport columns") : NULL;
-    if (r == HL_OK && (!cs || !cv || !cc)) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
-    if (r == HL_OK) {
-        for (size_t v = 0; v < V; v++) {
-            size_t base = (v / l->range) * (nc + 1);
-            uint64_t e = t->row_offset[v];
-            for (uint32_t b = 0; b < g->nblocks; b++)
-                for (uint32_t k = 0; k < t->block_counts[v * g->nblocks + b]; k++, e++)
-                    cs[base + b * HL_BLOCK + t->entries[2 * e] + 1]++;
-        }
-        uint32_t run = 0; /* absolute starts, range after range */
-        for (size_t i = 0; i < ncs; i++) {
-            if (i % (nc + 1) == 0) cs[i] = run;
-            else { run += cs[i]; cs[i] = run; }
-        }
-        uint32_t *fill = malloc(ncs * 4);
-        if (!fill) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
-        else {
-            memcpy(fill, cs, ncs * 4);
-            for (size_t v = 0; v < V; v++) {
-                size_t base = (v / l->range) * (nc + 1);
-                uint64_t e = t->row_offset[v];
-                for (uint32_t b = 0; b < g->nblocks; b++)
-                    for (uint32_t k = 0; k < t->block_counts[v * g->nblocks + b]; k++, e++) {
-                        uint32_t pos = fill[base + b * HL_BLOCK + t->entries[2 * e]]++;
-                        cv[pos] = (uint16_t)(v % l->range);
-                        cc[pos] = t->entries[2 * e + 1];
-                    }
-            }
-            free(fill);
-        }
-    }
-    if (r == HL_OK) r = light_big_buf(l, &l->colv, (size_t)(nnz ? nnz : 1) * 2, cv, &l->host[0], "transport columns");
-    if (r == HL_OK) r = light_big_buf(l, &l->colc, (size_t)(nnz ? nnz : 1), cc, &l->host[1], "transport columns");
-    if (r == HL_OK) r = light_big_buf(l, &l->cols, ncs * 4, cs, &l->host[2], "column starts");
-    free(cs);
-    hl_free_big(cv);
-    hl_free_big(cc);
+    if (r == HL_OK) r = build_columns(l, t);
     B(albedo, CL_MEM_READ_ONLY, V * 16, albedo4, "albedo");
     B(B, CL_MEM_READ_WRITE, V * 16, NULL, "vertex colours");
+    B(acc, CL_MEM_READ_WRITE, (size_t)3 * l->nranges * l->range * 4, NULL, "running sums");
 #undef B
     if (r != HL_OK) { hl_cl_light_destroy(l); return r; }
     *out = l;
@@ -643,11 +680,19 @@ static hl_result light_launch(hl_cl_light *l, int which, size_t items)
 
 static hl_result enq_env2para(hl_cl_light *l, uint32_t s0, float f)
 {
-    cl_kernel k = l->cl->k[K_ENV2PARA];
-    cl_uint wc = l->lg->wc, nc = l->g->ncoef, sh = s0;
-    LARG(k, 0, l->cells); LARG(k, 1, wc); LARG(k, 2, l->start); LARG(k, 3, l->runs); LARG(k, 4, sh);
-    LARG(k, 5, f); LARG(k, 6, nc); LARG(k, 7, l->Lp);
-    return light_launch(l, K_ENV2PARA, nc);
+    /* CPU: 64 chunks of consecutive cells or texels; a GPU: one each per
+       work-item */
+    cl_kernel k = l->cl->k[K_TURN];
+    cl_uint wc = l->lg->wc, ncell = l->lg->wc * l->lg->hc, nc = l->g->ncoef, sh = s0;
+    cl_uint per = l->cl->wg == 1 ? (ncell + 63) / 64 : 1;
+    LARG(k, 0, l->cells); LARG(k, 1, wc); LARG(k, 2, ncell); LARG(k, 3, sh); LARG(k, 4, f); LARG(k, 5, per);
+    LARG(k, 6, l->turned);
+    TRY(light_launch(l, K_TURN, (ncell + per - 1) / per));
+    k = l->cl->k[K_ENV2PARA];
+    per = l->cl->wg == 1 ? (nc + 63) / 64 : 1;
+    LARG(k, 0, l->turned); LARG(k, 1, wc); LARG(k, 2, l->start); LARG(k, 3, l->runs); LARG(k, 4, nc);
+    LARG(k, 5, per); LARG(k, 6, l->Lp);
+    return light_launch(l, K_ENV2PARA, (nc + per - 1) / per);
 }
 
 static hl_result enq_haar3(hl_cl_light *l)
@@ -671,9 +716,9 @@ static hl_result enq_relight(hl_cl_light *l)
 {
     cl_kernel k = l->cl->k[K_RELIGHT];
     cl_uint sc = l->scheme, nc = l->g->ncoef, nv = l->nverts, range = l->range;
-    LARG(k, 0, l->colv); LARG(k, 1, l->colc); LARG(k, 2, l->cols); LARG(k, 3, range); LARG(k, 4, l->rq);
+    LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, range); LARG(k, 3, l->p0); LARG(k, 4, l->p1);
     LARG(k, 5, sc); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->bits); LARG(k, 9, l->albedo);
-    LARG(k, 10, l->B); LARG(k, 11, nv);
+    LARG(k, 10, l->acc); LARG(k, 11, l->B); LARG(k, 12, nv);
     return light_launch(l, K_RELIGHT, l->nranges);
 }
 
@@ -726,6 +771,26 @@ hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const ui
 }
 
 /* ------------------------------------------------------------ measuring */
+
+double hl_cl_light_bytes_read(const hl_cl_light *l, const uint32_t *bits)
+{
+    const size_t nc = l->g->ncoef;
+    double entries = 0.0, kept = 0.0;
+    for (size_t s = 0; s < nc; s++) {
+        if (!((bits[s / 32] >> (s % 32)) & 1u)) continue;
+        kept += 1.0;
+        for (size_t rg = 0; rg < l->nranges; rg++) {
+            const uint32_t *c = l->col_start + rg * (nc + 1);
+            entries += (double)(c[s + 1] - c[s]);
+        }
+    }
+    /* per tile entry its head word and codes; per kept slot and range two
+       starts; per vertex slot its two parameters, three running sums
+       (zeroed, then read once they leave the cache), albedo and colour */
+    double vpad = (double)l->nranges * l->range;
+    return entries * (4.0 + HL_TILE) + kept * (double)l->nranges * 8.0 + vpad * (8.0 + 12.0 + 12.0) +
+           (double)l->nverts * 32.0;
+}
 
 hl_result hl_cl_light_time_relight(hl_cl_light *l, uint32_t reps, double *seconds)
 {

@@ -29,7 +29,7 @@
 /* ---------------------------------------------------------------- format */
 
 #define TF_MAGIC "HLTRANS1"
-#define TF_VERSION 1u
+#define TF_VERSION HL_TRANSPORT_VERSION
 #define TF_HEADER_SIZE 192u
 #define TF_ALIGN 64u /* section alignment: lets a later reader mmap them */
 

@@ -1,4 +1,8 @@
-/* relight_ref.c - twin of kernels/relight.cl, without block skipping. */
+/* relight_ref.c - twin of kernels/relight.cl: walks the whole row (the terms
+ * not kept meet a zero light and add nothing), one fused multiply-add per
+ * term as the kernel does. */
+#include <math.h>
+
 #include "ref.h"
 
 void hl_ref_relight(const uint8_t *entries, const uint16_t *block_counts, hl_row_quant rq, uint32_t scheme,
@@ -10,7 +14,7 @@ void hl_ref_relight(const uint8_t *entries, const uint16_t *block_counts, hl_row
         for (uint32_t k = 0; k < block_counts[b]; k++, e++) {
             float t = hl_dequant(scheme, entries[2 * e + 1], rq.a, rq.b);
             const float *l = light + 4 * ((size_t)b * HL_BLOCK + entries[2 * e]);
-            for (int c = 0; c < 3; c++) acc[c] += t * l[c];
+            for (int c = 0; c < 3; c++) acc[c] = fmaf(t, l[c], acc[c]);
         }
     for (int c = 0; c < 3; c++) rgb[c] = acc[c] * albedo[c];
 }
