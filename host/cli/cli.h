@@ -20,6 +20,45 @@ int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context
 /* Prints the context's last error; returns the exit code for r. */
 int cli_fail(hl_context *ctx, hl_result r);
 
+/* Options shared by `relight` and `view` (cli_scene.c). */
+typedef struct cli_scene_opts {
+    hl_context_desc cd;
+    hl_relight_desc rd;
+    hl_sky_desc sky;
+    hl_camera_desc cam;
+    float exposure;
+    int exposure_set;
+    int sky_set; /* a --sun-* option was given */
+} cli_scene_opts;
+
+void cli_scene_opts_init(cli_scene_opts *o);
+/* If argv[*i] is a shared option, reads it and its value (advancing *i)
+ * and returns 1; returns 0 when it is not one, and -2 after printing the
+ * usage error for a bad value (exit code 2). */
+int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_opts *o);
+/* "WxH", each side 1 to 16384. */
+int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
+
+/* Help lines of the shared options, for the commands' usage texts. */
+#define CLI_USAGE_SKY                                                                     \
+    "  --sun-elevation DEG  sun height above the horizon (default 35)\n"                  \
+    "  --sun-azimuth DEG    sun direction: +X turned about +Y by DEG (default 0)\n"       \
+    "  --sun-size DEG       sun angular diameter (default 2)\n"
+#define CLI_USAGE_LIGHTING                                                                \
+    "  --rotate DEG         turn the environment about +Y (Blender's world Z rotation)\n" \
+    "  --terms M|all        lighting wavelet terms kept (default 200)\n"                  \
+    "  --select area|unweighted|transport\n"                                              \
+    "                       how the terms are chosen (default area: |L_i| x support area)\n"
+#define CLI_USAGE_CAMERA                                                                  \
+    "  --size WxH           image size (default 960x720)\n"                              \
+    "  --fov DEG            vertical field of view (default 35)\n"                       \
+    "  --eye X,Y,Z --target X,Y,Z --up X,Y,Z\n"                                          \
+    "                       camera (default: frames the object automatically)\n"
+#define CLI_USAGE_RUNNING                                                                 \
+    "  --device cl|ref|cl:P:D   OpenCL device (default: first), or the plain-C reference\n" \
+    "  --threads T          host threads (rendering, reference)\n"                       \
+    "  -q, --quiet          print nothing but errors\n"
+
 int cmd_relight(int argc, char **argv);
 int cmd_check(int argc, char **argv);
 int cmd_bench(int argc, char **argv);

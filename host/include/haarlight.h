@@ -413,6 +413,34 @@ hl_result hl_render(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rg
 hl_result hl_mesh_save_ply(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
                            const char *path, int tonemapped8, float exposure_ev);
 
+/* ---------------------------------------------------------------- viewer support
+ *
+ * What the interactive viewer (viewer/, `haarlight view`) needs so that it
+ * shows exactly what hl_render and `haarlight relight` produce.
+ */
+
+/* The pinhole camera that hl_render uses for (mesh, desc), automatic
+ * framing included: the eye, the point looked at, a right-handed unit
+ * basis (right = forward x up), and the tangents of half the vertical and
+ * horizontal fields of view. Pixel (x, y), row 0 at the top, is seen along
+ * forward + sx tan_half_x right + sy tan_half_y up with
+ * sx = 2 (x + 0.5) / width - 1 and sy = 1 - 2 (y + 0.5) / height. */
+typedef struct hl_camera_view {
+    uint32_t width, height;
+    float eye[3], target[3];
+    float forward[3], right[3], up[3];
+    float tan_half_y, tan_half_x;
+} hl_camera_view;
+
+/* Fails like hl_render on an impossible camera (HL_ERR_INVALID_ARGUMENT). */
+hl_result hl_camera_query_view(hl_context *ctx, const hl_mesh *mesh, const hl_camera_desc *desc,
+                               hl_camera_view *out);
+
+/* The automatic exposure of `haarlight relight` (EV, in [-64, 64]): puts the
+ * 90th percentile of vertex luminance (ground included) at 0.8; 0 when the
+ * colours are all black or memory runs out. */
+float hl_exposure_auto(const hl_mesh *mesh, const float *vertex_rgb);
+
 #ifdef __cplusplus
 }
 #endif

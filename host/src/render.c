@@ -296,3 +296,37 @@ done:
     hl_image_destroy(img);
     return r;
 }
+
+/* The camera above as the viewer needs it (haarlight.h, viewer support):
+ * the same setup_camera and auto_frame, so that the viewer's first frame
+ * is the picture hl_render makes. */
+hl_result hl_camera_query_view(hl_context *ctx, const hl_mesh *mesh, const hl_camera_desc *desc,
+                               hl_camera_view *out)
+{
+    if (!ctx) return HL_ERR_INVALID_ARGUMENT;
+    if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "camera: no output given");
+    if (!mesh || !mesh->positions || mesh->vertex_count == 0)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "camera: the mesh is empty");
+    cam c;
+    memset(&c, 0, sizeof c);
+    hl_result r = setup_camera(ctx, mesh, desc, &c);
+    if (r != HL_OK) return r;
+    double eye[3], target[3];
+    if (!desc || (zero3(desc->eye) && zero3(desc->target))) {
+        auto_frame(mesh, c.tan_half_v, c.tan_half_h, eye, target);
+    } else {
+        for (int k = 0; k < 3; k++) target[k] = desc->target[k];
+    }
+    out->width = c.width;
+    out->height = c.height;
+    for (int k = 0; k < 3; k++) {
+        out->eye[k] = (float)c.eye[k];
+        out->target[k] = (float)target[k];
+        out->forward[k] = (float)c.fwd[k];
+        out->right[k] = (float)c.right[k];
+        out->up[k] = (float)c.up[k];
+    }
+    out->tan_half_y = (float)c.tan_half_v;
+    out->tan_half_x = (float)c.tan_half_h;
+    return HL_OK;
+}

@@ -1,0 +1,88 @@
+/* cli_scene.c - the options that `relight` and `view` share: lighting
+ * terms and selection, rotation, the built-in sky's sun, the camera, the
+ * exposure and the device. One parser, so that both commands read them
+ * alike and say the same thing about a bad value.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+
+void cli_scene_opts_init(cli_scene_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    o->cd.cl_platform = -1;
+    o->cd.cl_device = -1;
+}
+
+int cli_parse_size(const char *s, uint32_t *w, uint32_t *h)
+{
+    char tail;
+    return sscanf(s, "%ux%u%c", w, h, &tail) == 2 && *w >= 1 && *h >= 1 && *w <= 16384 && *h <= 16384;
+}
+
+int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_opts *o)
+{
+    const char *a = argv[*i], *v = NULL;
+    static const char *const with_value[] = {
+        "--sun-elevation", "--sun-azimuth", "--sun-size", "--rotate", "--terms", "--select", "--exposure",
+        "--size", "--fov", "--eye", "--target", "--up", "--device", "--threads", NULL};
+    int known = 0;
+    for (int k = 0; with_value[k]; k++) known |= !strcmp(a, with_value[k]);
+    if (known) {
+        if (*i + 1 >= argc) return -usage_error(usage, "option %s needs a value", a);
+        v = argv[++*i];
+    }
+    if (!strcmp(a, "--sun-elevation")) {
+        if (!parse_float(v, &o->sky.sun_elevation_deg) || fabsf(o->sky.sun_elevation_deg) > 90.0f)
+            return -usage_error(usage, "--sun-elevation %s: expected -90 to 90 degrees", v);
+        if (o->sky.sun_elevation_deg == 0.0f) o->sky.sun_elevation_deg = 1e-3f; /* 0 means the default */
+        o->sky_set = 1;
+    } else if (!strcmp(a, "--sun-azimuth")) {
+        if (!parse_float(v, &o->sky.sun_azimuth_deg)) return -usage_error(usage, "--sun-azimuth %s: expected degrees", v);
+        o->sky_set = 1;
+    } else if (!strcmp(a, "--sun-size")) {
+        if (!parse_float(v, &o->sky.sun_size_deg) || !(o->sky.sun_size_deg > 0.0f && o->sky.sun_size_deg <= 90.0f))
+            return -usage_error(usage, "--sun-size %s: expected (0, 90] degrees", v);
+        o->sky_set = 1;
+    } else if (!strcmp(a, "--rotate")) {
+        if (!parse_float(v, &o->rd.rotate_deg)) return -usage_error(usage, "--rotate %s: expected degrees", v);
+    } else if (!strcmp(a, "--terms")) {
+        if (!strcmp(v, "all")) o->rd.terms = HL_TERMS_ALL;
+        else if (!parse_u32(v, &o->rd.terms) || o->rd.terms < 1)
+            return -usage_error(usage, "--terms %s: expected M >= 1 or `all`", v);
+    } else if (!strcmp(a, "--select")) {
+        if (!strcmp(v, "area")) o->rd.select = HL_SELECT_AREA;
+        else if (!strcmp(v, "unweighted")) o->rd.select = HL_SELECT_UNWEIGHTED;
+        else if (!strcmp(v, "transport")) o->rd.select = HL_SELECT_TRANSPORT;
+        else return -usage_error(usage, "--select %s: expected area, unweighted or transport", v);
+    } else if (!strcmp(a, "--exposure")) {
+        if (!parse_float(v, &o->exposure) || fabsf(o->exposure) > 64.0f)
+            return -usage_error(usage, "--exposure %s: expected EV in [-64, 64]", v);
+        o->exposure_set = 1;
+    } else if (!strcmp(a, "--size")) {
+        if (!cli_parse_size(v, &o->cam.width, &o->cam.height))
+            return -usage_error(usage, "--size %s: expected WxH, each 1 to 16384", v);
+    } else if (!strcmp(a, "--fov")) {
+        if (!parse_float(v, &o->cam.fov_deg) || !(o->cam.fov_deg > 0.0f && o->cam.fov_deg < 180.0f))
+            return -usage_error(usage, "--fov %s: expected (0, 180) degrees", v);
+    } else if (!strcmp(a, "--eye") || !strcmp(a, "--target") || !strcmp(a, "--up")) {
+        float *dst = a[2] == 'e' ? o->cam.eye : a[2] == 't' ? o->cam.target : o->cam.up;
+        char fmt[64];
+        snprintf(fmt, sizeof fmt, "%s %%s: expected X,Y,Z", a); /* a is one of the three names */
+        if (!parse_vec3(v, dst)) return -usage_error(usage, fmt, v);
+    } else if (!strcmp(a, "--device")) {
+        if (!parse_device(v, &o->cd)) return -usage_error(usage, "--device %s: expected cl, ref or cl:PLATFORM:DEVICE", v);
+    } else if (!strcmp(a, "--threads")) {
+        uint32_t t;
+        if (!parse_u32(v, &t) || t < 1 || t > 256) return -usage_error(usage, "--threads %s: expected 1 to 256", v);
+        o->cd.threads = (int)t;
+    } else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) {
+        o->cd.quiet = 1;
+    } else {
+        return 0;
+    }
+    return 1;
+}
