@@ -1,6 +1,7 @@
 /* main.c - the `haarlight` command line.
  *
- * Subcommands: precompute, info, devices, bench-precompute. Usage errors
+ * Subcommands: precompute, info, devices, bench-precompute; relight, check
+ * and bench (relight.c, check.c, bench.c); view (viewer/, when built). Usage errors
  * exit 2, failures exit 1 with a message naming the file and the problem.
  */
 #define _POSIX_C_SOURCE 200809L
@@ -17,6 +18,9 @@
 #include "precompute.h"
 #include "rays.h"
 #include "transport_file.h"
+#ifdef HL_HAVE_VIEWER
+#include "viewer.h"
+#endif
 
 static const char *const usage_main =
     "usage: haarlight COMMAND [options]\n"
@@ -26,6 +30,7 @@ static const char *const usage_main =
     "  info SCENE.hlt                 what a transport file holds\n"
     "  devices                        list OpenCL platforms and devices\n"
     "  relight SCENE.hlt -o OUT       relight under an environment: .ply, .exr or .png\n"
+    "  view SCENE.hlt                 interactive relighting in a window (GLFW viewer)\n"
     "  check SCENE.hlt                OpenCL stages against the plain-C reference\n"
     "  bench SCENE.hlt --env ENV.exr  error against run time for M, selection and quantisation\n"
     "  bench-precompute MESH          time the precompute against Embree's raw rate\n"
@@ -361,6 +366,15 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "info")) return cmd_info(argc - 2, argv + 2);
     if (!strcmp(cmd, "devices")) return cmd_devices(argc - 2, argv + 2);
     if (!strcmp(cmd, "relight")) return cmd_relight(argc - 2, argv + 2);
+    if (!strcmp(cmd, "view")) {
+#ifdef HL_HAVE_VIEWER
+        return cmd_view(argc - 2, argv + 2);
+#else
+        fprintf(stderr, "haarlight: view: this haarlight was built without the viewer; it needs GLFW 3.3 and OpenGL "
+                        "(Debian: libglfw3-dev, libgl1-mesa-dev), then configure with -DHL_WITH_VIEWER=ON\n");
+        return 1;
+#endif
+    }
     if (!strcmp(cmd, "check")) return cmd_check(argc - 2, argv + 2);
     if (!strcmp(cmd, "bench")) return cmd_bench(argc - 2, argv + 2);
     if (!strcmp(cmd, "bench-precompute")) return cmd_bench_precompute(argc - 2, argv + 2);

@@ -1,0 +1,516 @@
+/* gl_draw.c - everything the viewer draws, in OpenGL 3.3 core.
+ *
+ * A frame: the mesh (per-vertex linear colours, interpolated like
+ * hl_render's barycentrics) and then the environment behind it (a full-
+ * screen triangle at the far plane, each pixel reading the equirectangular
+ * map along its own view direction with ENVMAP.md's mapping, bilinear like
+ * hl_env_query_smooth) into an RGBA16F target; optionally the glare (a
+ * bright-pass of exposure-scaled values above 1 into a quarter-size float
+ * target, a separable Gaussian blur, added back); then the tone map onto
+ * the window: 2^EV, then hl_tonemap_srgb8 itself, as its table of code
+ * thresholds (vw_tonemap_thresholds), searched per channel.
+ *
+ * Dependencies: OpenGL 3.3 core through <GL/glcorearb.h> with the entry
+ * points of libGL (GL_GLEXT_PROTOTYPES); haarlight.h for meshes and
+ * environments. The caller owns the context and makes it current.
+ */
+#define GL_GLEXT_PROTOTYPES 1
+#include <GL/glcorearb.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "viewer.h"
+
+/* Glare: the blurred excess is added back at this gain; the blur's
+ * standard deviation is in quarter-size pixels (4 window pixels each). */
+#define VW_GLARE_GAIN 0.3f
+#define VW_GLARE_SIGMA 3.0
+#define VW_GLARE_RADIUS 9 /* taps each side: 3 sigma */
+#define VW_GLARE_DOWN 4   /* quarter size: 4 x 4 window pixels per texel */
+
+struct vw_gl {
+    GLuint vao, empty_vao, vbo_pos, vbo_rgb, ebo;
+    GLsizei index_count;
+    uint32_t vertex_count;
+    int have_colours;
+    GLuint env_tex, thr_tex;
+    GLuint prog_mesh, prog_bg, prog_bright, prog_blur, prog_final;
+    uint32_t w, h, qw, qh;
+    GLuint fbo_scene, tex_scene, rb_depth;
+    GLuint fbo_q[2], tex_q[2];
+    GLuint fbo_lin, tex_lin;
+    float blur_w[VW_GLARE_RADIUS + 1];
+    char renderer[256];
+};
+
+/* ---------------------------------------------------------------- shaders */
+
+static const char *const vs_mesh =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_pos;\n"
+    "layout(location = 1) in vec3 a_rgb;\n"
+    "uniform mat4 u_mvp;\n"
+    "out vec3 v_rgb;\n"
+    "void main() { v_rgb = a_rgb; gl_Position = u_mvp * vec4(a_pos, 1.0); }\n";
+
+static const char *const fs_mesh =
+    "#version 330 core\n"
+    "in vec3 v_rgb;\n"
+    "out vec4 o;\n"
+    "void main() { o = vec4(v_rgb, 1.0); }\n";
+
+/* A triangle covering the viewport, at the far plane (depth 1). */
+static const char *const vs_full =
+    "#version 330 core\n"
+    "void main() {\n"
+    "  vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0);\n"
+    "  gl_Position = vec4(p, 1.0, 1.0);\n"
+    "}\n";
+
+/* The pixel's ray as hl_render shoots it, then ENVMAP.md: u = 0.5 +
+ * atan2(z, x) / 2pi + rotation / 360, v = acos(y) / pi, row 0 = +Y at
+ * t = 0. Repeat along u and clamp along v is hl_env_query_smooth's
+ * wrap across the seam and clamp at the poles. */
+static const char *const fs_bg =
+    "#version 330 core\n"
+    "uniform sampler2D u_env;\n"
+    "uniform vec3 u_fwd, u_right, u_up;\n"
+    "uniform vec2 u_tan, u_size;\n"
+    "uniform float u_rot;\n"
+    "out vec4 o;\n"
+    "const float PI = 3.14159265358979;\n"
+    "void main() {\n"
+    "  vec2 s = 2.0 * gl_FragCoord.xy / u_size - 1.0;\n"
+    "  vec3 d = u_fwd + s.x * u_tan.x * u_right + s.y * u_tan.y * u_up;\n"
+    "  float u = 0.5 + atan(d.z, d.x) / (2.0 * PI) + u_rot;\n"
+    "  float v = acos(clamp(d.y / length(d), -1.0, 1.0)) / PI;\n"
+    "  o = vec4(texture(u_env, vec2(u - floor(u), v)).rgb, 1.0);\n"
+    "}\n";
+
+/* Average over a 4 x 4 block of the excess above 1 after exposure. */
+static const char *const fs_bright =
+    "#version 330 core\n"
+    "uniform sampler2D u_src;\n"
+    "uniform float u_scale;\n"
+    "out vec4 o;\n"
+    "void main() {\n"
+    "  ivec2 lim = textureSize(u_src, 0) - 1, base = ivec2(gl_FragCoord.xy) * 4;\n"
+    "  vec3 acc = vec3(0.0);\n"
+    "  for (int j = 0; j < 4; j++)\n"
+    "    for (int i = 0; i < 4; i++)\n"
+    "      acc += max(texelFetch(u_src, min(base + ivec2(i, j), lim), 0).rgb * u_scale - 1.0, 0.0);\n"
+    "  o = vec4(acc / 16.0, 1.0);\n"
+    "}\n";
+
+static const char *const fs_blur =
+    "#version 330 core\n"
+    "#define R 9\n"
+    "uniform sampler2D u_src;\n"
+    "uniform ivec2 u_dir;\n"
+    "uniform float u_w[R + 1];\n"
+    "out vec4 o;\n"
+    "void main() {\n"
+    "  ivec2 lim = textureSize(u_src, 0) - 1, p = ivec2(gl_FragCoord.xy);\n"
+    "  vec3 acc = u_w[0] * texelFetch(u_src, p, 0).rgb;\n"
+    "  for (int k = 1; k <= R; k++)\n"
+    "    acc += u_w[k] * (texelFetch(u_src, clamp(p + k * u_dir, ivec2(0), lim), 0).rgb +\n"
+    "                     texelFetch(u_src, clamp(p - k * u_dir, ivec2(0), lim), 0).rgb);\n"
+    "  o = vec4(acc, 1.0);\n"
+    "}\n";
+
+/* Composite, then either linear radiance out (screenshots) or the 8-bit
+ * code that hl_tonemap_srgb8 gives. The sRGB curve in float only guesses
+ * the code k (within one); u_thr holds, for each k, the least values that
+ * give k and k + 1 (vw_tonemap_thresholds), and those decide, so the
+ * result is the C function's, not this formula's. (A bisection over all
+ * 255 thresholds would need 24 fetches a pixel: on llvmpipe, as much as
+ * the rest of the frame.) */
+static const char *const fs_final =
+    "#version 330 core\n"
+    "uniform sampler2D u_hdr, u_glare, u_thr;\n"
+    "uniform float u_scale;\n"
+    "uniform float u_gain;\n"
+    "uniform int u_linear;\n"
+    "out vec4 o;\n"
+    "float code(float x) {\n"
+    "  float e = clamp(x, 0.0, 1.0);\n"
+    "  float y = e < 0.0031308 ? 12.92 * e : 1.055 * pow(e, 1.0 / 2.4) - 0.055;\n"
+    "  int k = clamp(int(floor(y * 255.0 + 0.5)), 0, 255);\n"
+    "  vec2 t = texelFetch(u_thr, ivec2(k, 0), 0).rg;\n"
+    "  return float(clamp(k + int(x >= t.g) - int(x < t.r), 0, 255));\n"
+    "}\n"
+    "void main() {\n"
+    "  vec3 c = texelFetch(u_hdr, ivec2(gl_FragCoord.xy), 0).rgb;\n"
+    "  if (u_gain > 0.0) c += u_gain * texture(u_glare, gl_FragCoord.xy / (4.0 * vec2(textureSize(u_glare, 0)))).rgb / u_scale;\n"
+    "  if (u_linear != 0) { o = vec4(c, 1.0); return; }\n"
+    "  vec3 x = c * u_scale;\n"
+    "  o = vec4(code(x.r), code(x.g), code(x.b), 255.0) / 255.0;\n"
+    "}\n";
+
+/* The compile or link status of a shader or program; on failure the log
+ * goes to err. */
+static int status_ok(GLuint obj, void (*get_iv)(GLuint, GLenum, GLint *), GLenum which,
+                     void (*get_log)(GLuint, GLsizei, GLsizei *, GLchar *), const char *what, char *err,
+                     size_t err_size)
+{
+    GLint ok = 0;
+    get_iv(obj, which, &ok);
+    if (ok) return 1;
+    char log[2048] = "";
+    get_log(obj, sizeof log, NULL, log);
+    snprintf(err, err_size, "OpenGL: the %s shaders do not %s: %s", what,
+             which == GL_COMPILE_STATUS ? "compile" : "link", log);
+    return 0;
+}
+
+static GLuint compile(GLenum type, const char *src, const char *what, char *err, size_t err_size)
+{
+    GLuint s = glCreateShader(type);
+    glShaderSource(s, 1, &src, NULL);
+    glCompileShader(s);
+    if (status_ok(s, glGetShaderiv, GL_COMPILE_STATUS, glGetShaderInfoLog, what, err, err_size)) return s;
+    glDeleteShader(s);
+    return 0;
+}
+
+static GLuint program(const char *vs, const char *fs, const char *what, char *err, size_t err_size)
+{
+    GLuint v = compile(GL_VERTEX_SHADER, vs, what, err, err_size);
+    GLuint f = v ? compile(GL_FRAGMENT_SHADER, fs, what, err, err_size) : 0;
+    if (!f) {
+        glDeleteShader(v);
+        return 0;
+    }
+    GLuint p = glCreateProgram();
+    glAttachShader(p, v);
+    glAttachShader(p, f);
+    glLinkProgram(p);
+    glDeleteShader(v);
+    glDeleteShader(f);
+    if (status_ok(p, glGetProgramiv, GL_LINK_STATUS, glGetProgramInfoLog, what, err, err_size)) return p;
+    glDeleteProgram(p);
+    return 0;
+}
+
+static GLint loc(GLuint prog, const char *name)
+{
+    return glGetUniformLocation(prog, name);
+}
+
+/* ---------------------------------------------------------------- targets */
+
+static void float_texture(GLuint tex, GLenum internal, uint32_t w, uint32_t h, GLint filter)
+{
+    glBindTexture(GL_TEXTURE_2D, tex);
+    glTexImage2D(GL_TEXTURE_2D, 0, (GLint)internal, (GLsizei)w, (GLsizei)h, 0, GL_RGBA, GL_FLOAT, NULL);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+}
+
+static int attach(GLuint fbo, GLuint tex, GLuint depth, const char *what, char *err, size_t err_size)
+{
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
+    if (depth) glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth);
+    GLenum st = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    if (st != GL_FRAMEBUFFER_COMPLETE) {
+        snprintf(err, err_size, "OpenGL: the %s render target is incomplete (status 0x%x)", what, (unsigned)st);
+        return 0;
+    }
+    return 1;
+}
+
+int vw_gl_resize(vw_gl *g, uint32_t w, uint32_t h, char *err, size_t err_size)
+{
+    if (w < 1) w = 1;
+    if (h < 1) h = 1;
+    g->w = w;
+    g->h = h;
+    g->qw = (w + VW_GLARE_DOWN - 1) / VW_GLARE_DOWN;
+    g->qh = (h + VW_GLARE_DOWN - 1) / VW_GLARE_DOWN;
+    float_texture(g->tex_scene, GL_RGBA16F, w, h, GL_NEAREST);
+    glBindRenderbuffer(GL_RENDERBUFFER, g->rb_depth);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, (GLsizei)w, (GLsizei)h);
+    for (int i = 0; i < 2; i++) float_texture(g->tex_q[i], GL_RGBA16F, g->qw, g->qh, GL_LINEAR);
+    float_texture(g->tex_lin, GL_RGBA32F, w, h, GL_NEAREST);
+    return attach(g->fbo_scene, g->tex_scene, g->rb_depth, "scene", err, err_size) &&
+           attach(g->fbo_q[0], g->tex_q[0], 0, "glare", err, err_size) &&
+           attach(g->fbo_q[1], g->tex_q[1], 0, "glare", err, err_size) &&
+           attach(g->fbo_lin, g->tex_lin, 0, "capture", err, err_size);
+}
+
+/* ---------------------------------------------------------------- setup */
+
+int vw_gl_create(const hl_mesh *mesh, const float thr[256], vw_gl **out, char *err, size_t err_size)
+{
+    *out = NULL;
+    vw_gl *g = calloc(1, sizeof *g);
+    if (!g) {
+        snprintf(err, err_size, "out of memory");
+        return 0;
+    }
+    snprintf(g->renderer, sizeof g->renderer, "%s, OpenGL %s", (const char *)glGetString(GL_RENDERER),
+             (const char *)glGetString(GL_VERSION));
+    g->prog_mesh = program(vs_mesh, fs_mesh, "mesh", err, err_size);
+    g->prog_bg = g->prog_mesh ? program(vs_full, fs_bg, "background", err, err_size) : 0;
+    g->prog_bright = g->prog_bg ? program(vs_full, fs_bright, "bright-pass", err, err_size) : 0;
+    g->prog_blur = g->prog_bright ? program(vs_full, fs_blur, "blur", err, err_size) : 0;
+    g->prog_final = g->prog_blur ? program(vs_full, fs_final, "tone-map", err, err_size) : 0;
+    if (!g->prog_final) {
+        vw_gl_destroy(g);
+        return 0;
+    }
+
+    g->vertex_count = mesh->vertex_count;
+    g->index_count = (GLsizei)(3 * (size_t)mesh->triangle_count);
+    glGenVertexArrays(1, &g->vao);
+    glGenVertexArrays(1, &g->empty_vao);
+    glBindVertexArray(g->vao);
+    glGenBuffers(1, &g->vbo_pos);
+    glBindBuffer(GL_ARRAY_BUFFER, g->vbo_pos);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(12 * (size_t)mesh->vertex_count), mesh->positions, GL_STATIC_DRAW);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, NULL);
+    glEnableVertexAttribArray(0);
+    glGenBuffers(1, &g->vbo_rgb);
+    glBindBuffer(GL_ARRAY_BUFFER, g->vbo_rgb);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(12 * (size_t)mesh->vertex_count), NULL, GL_STREAM_DRAW);
+    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 12, NULL);
+    glEnableVertexAttribArray(1);
+    glGenBuffers(1, &g->ebo);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g->ebo);
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(4 * (size_t)g->index_count), mesh->indices, GL_STATIC_DRAW);
+    glBindVertexArray(0);
+
+    glGenTextures(1, &g->env_tex);
+    glGenTextures(1, &g->thr_tex);
+    glBindTexture(GL_TEXTURE_2D, g->thr_tex);
+    float pairs[2 * 256];
+    for (int k = 0; k < 256; k++) {
+        pairs[2 * k] = k ? thr[k] : -INFINITY;
+        pairs[2 * k + 1] = k < 255 ? thr[k + 1] : INFINITY;
+    }
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RG32F, 256, 1, 0, GL_RG, GL_FLOAT, pairs);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+
+    glGenTextures(1, &g->tex_scene);
+    glGenTextures(2, g->tex_q);
+    glGenTextures(1, &g->tex_lin);
+    glGenRenderbuffers(1, &g->rb_depth);
+    glGenFramebuffers(1, &g->fbo_scene);
+    glGenFramebuffers(2, g->fbo_q);
+    glGenFramebuffers(1, &g->fbo_lin);
+
+    double sum = 0.0, w[VW_GLARE_RADIUS + 1];
+    for (int k = 0; k <= VW_GLARE_RADIUS; k++) {
+        w[k] = exp(-0.5 * k * k / (VW_GLARE_SIGMA * VW_GLARE_SIGMA));
+        sum += k ? 2.0 * w[k] : w[k];
+    }
+    for (int k = 0; k <= VW_GLARE_RADIUS; k++) g->blur_w[k] = (float)(w[k] / sum);
+
+    GLenum e = glGetError();
+    if (e != GL_NO_ERROR) {
+        snprintf(err, err_size, "OpenGL: error 0x%x while uploading the mesh (%u vertices)", (unsigned)e,
+                 mesh->vertex_count);
+        vw_gl_destroy(g);
+        return 0;
+    }
+    *out = g;
+    return 1;
+}
+
+void vw_gl_destroy(vw_gl *g)
+{
+    if (!g) return;
+    GLuint progs[] = {g->prog_mesh, g->prog_bg, g->prog_bright, g->prog_blur, g->prog_final};
+    for (size_t i = 0; i < sizeof progs / sizeof progs[0]; i++)
+        if (progs[i]) glDeleteProgram(progs[i]);
+    GLuint bufs[] = {g->vbo_pos, g->vbo_rgb, g->ebo};
+    glDeleteBuffers(3, bufs);
+    GLuint vaos[] = {g->vao, g->empty_vao};
+    glDeleteVertexArrays(2, vaos);
+    GLuint texs[] = {g->env_tex, g->thr_tex, g->tex_scene, g->tex_q[0], g->tex_q[1], g->tex_lin};
+    glDeleteTextures(6, texs);
+    glDeleteRenderbuffers(1, &g->rb_depth);
+    GLuint fbos[] = {g->fbo_scene, g->fbo_q[0], g->fbo_q[1], g->fbo_lin};
+    glDeleteFramebuffers(4, fbos);
+    free(g);
+}
+
+const char *vw_gl_renderer(const vw_gl *g)
+{
+    return g->renderer;
+}
+
+int vw_gl_set_env(vw_gl *g, const hl_env *env, char *err, size_t err_size)
+{
+    GLint max = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max);
+    if (env->width > (uint32_t)max) {
+        snprintf(err, err_size, "environment %u x %u is wider than the OpenGL texture limit (%d)", env->width,
+                 env->height, (int)max);
+        return 0;
+    }
+    glBindTexture(GL_TEXTURE_2D, g->env_tex);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, (GLsizei)env->width, (GLsizei)env->height, 0, GL_RGB, GL_FLOAT, env->rgb);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    GLenum e = glGetError();
+    if (e != GL_NO_ERROR) {
+        snprintf(err, err_size, "OpenGL: error 0x%x while uploading a %u x %u environment", (unsigned)e, env->width,
+                 env->height);
+        return 0;
+    }
+    return 1;
+}
+
+void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgb)
+{
+    glBindBuffer(GL_ARRAY_BUFFER, g->vbo_rgb);
+    glBufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(12 * (size_t)g->vertex_count), vertex_rgb);
+    g->have_colours = 1;
+}
+
+/* ---------------------------------------------------------------- frame */
+
+static void bind_texture(GLuint unit, GLuint tex)
+{
+    glActiveTexture(GL_TEXTURE0 + unit);
+    glBindTexture(GL_TEXTURE_2D, tex);
+}
+
+static void full_screen(vw_gl *g)
+{
+    glBindVertexArray(g->empty_vao);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+}
+
+static void draw_scene(vw_gl *g, const vw_frame *f)
+{
+    glBindFramebuffer(GL_FRAMEBUFFER, g->fbo_scene);
+    glViewport(0, 0, (GLsizei)g->w, (GLsizei)g->h);
+    glClearColor(0.0f, 0.0f, 0.0f, 1.0f);
+    glClearDepth(1.0);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    glEnable(GL_DEPTH_TEST);
+    glDepthMask(GL_TRUE);
+    glDepthFunc(GL_LESS);
+    if (g->have_colours) {
+        glUseProgram(g->prog_mesh);
+        glUniformMatrix4fv(loc(g->prog_mesh, "u_mvp"), 1, GL_FALSE, f->mvp);
+        glBindVertexArray(g->vao);
+        glDrawElements(GL_TRIANGLES, g->index_count, GL_UNSIGNED_INT, NULL);
+    }
+    /* the background only where no triangle was drawn */
+    glDepthFunc(GL_LEQUAL);
+    glDepthMask(GL_FALSE);
+    GLuint p = g->prog_bg;
+    glUseProgram(p);
+    bind_texture(0, g->env_tex);
+    glUniform1i(loc(p, "u_env"), 0);
+    glUniform3fv(loc(p, "u_fwd"), 1, f->view.forward);
+    glUniform3fv(loc(p, "u_right"), 1, f->view.right);
+    glUniform3fv(loc(p, "u_up"), 1, f->view.up);
+    glUniform2f(loc(p, "u_tan"), f->view.tan_half_x, f->view.tan_half_y);
+    glUniform2f(loc(p, "u_size"), (float)g->w, (float)g->h);
+    glUniform1f(loc(p, "u_rot"), (float)fmod((double)f->rotate_deg / 360.0, 1.0));
+    full_screen(g);
+    glDepthMask(GL_TRUE);
+    glDisable(GL_DEPTH_TEST);
+}
+
+static void draw_glare(vw_gl *g, float scale)
+{
+    glViewport(0, 0, (GLsizei)g->qw, (GLsizei)g->qh);
+    glBindFramebuffer(GL_FRAMEBUFFER, g->fbo_q[0]);
+    glUseProgram(g->prog_bright);
+    bind_texture(0, g->tex_scene);
+    glUniform1i(loc(g->prog_bright, "u_src"), 0);
+    glUniform1f(loc(g->prog_bright, "u_scale"), scale);
+    full_screen(g);
+    glUseProgram(g->prog_blur);
+    glUniform1i(loc(g->prog_blur, "u_src"), 0);
+    glUniform1fv(loc(g->prog_blur, "u_w"), VW_GLARE_RADIUS + 1, g->blur_w);
+    for (int pass = 0; pass < 2; pass++) { /* horizontal into q[1], vertical back into q[0] */
+        glBindFramebuffer(GL_FRAMEBUFFER, g->fbo_q[1 - pass]);
+        bind_texture(0, g->tex_q[pass]);
+        glUniform2i(loc(g->prog_blur, "u_dir"), pass == 0, pass == 1);
+        full_screen(g);
+    }
+}
+
+static void draw_final(vw_gl *g, const vw_frame *f, GLuint fbo, int linear)
+{
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    glViewport(0, 0, (GLsizei)g->w, (GLsizei)g->h);
+    GLuint p = g->prog_final;
+    glUseProgram(p);
+    bind_texture(0, g->tex_scene);
+    bind_texture(1, g->tex_q[0]);
+    bind_texture(2, g->thr_tex);
+    glUniform1i(loc(p, "u_hdr"), 0);
+    glUniform1i(loc(p, "u_glare"), 1);
+    glUniform1i(loc(p, "u_thr"), 2);
+    glUniform1f(loc(p, "u_scale"), (float)exp2((double)f->exposure_ev));
+    glUniform1f(loc(p, "u_gain"), f->glare ? VW_GLARE_GAIN : 0.0f);
+    glUniform1i(loc(p, "u_linear"), linear);
+    full_screen(g);
+    glActiveTexture(GL_TEXTURE0);
+}
+
+void vw_gl_draw(vw_gl *g, const vw_frame *f)
+{
+    draw_scene(g, f);
+    if (f->glare) draw_glare(g, (float)exp2((double)f->exposure_ev));
+    draw_final(g, f, 0, 0);
+    glFinish();
+}
+
+int vw_gl_read(vw_gl *g, const vw_frame *f, float *rgb, uint8_t *srgb8, char *err, size_t err_size)
+{
+    size_t n = (size_t)g->w * g->h;
+    float *px = malloc(4 * n * sizeof *px);
+    uint8_t *b8 = srgb8 ? malloc(4 * n) : NULL;
+    if (!px || (srgb8 && !b8)) {
+        free(px);
+        free(b8);
+        snprintf(err, err_size, "out of memory for a %u x %u capture", g->w, g->h);
+        return 0;
+    }
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    if (b8) { /* the window's back buffer as drawn by vw_gl_draw */
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+        glReadBuffer(GL_BACK);
+        glReadPixels(0, 0, (GLsizei)g->w, (GLsizei)g->h, GL_RGBA, GL_UNSIGNED_BYTE, b8);
+    }
+    draw_final(g, f, g->fbo_lin, 1);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, g->fbo_lin);
+    glReadBuffer(GL_COLOR_ATTACHMENT0);
+    glReadPixels(0, 0, (GLsizei)g->w, (GLsizei)g->h, GL_RGBA, GL_FLOAT, px);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    GLenum e = glGetError();
+    for (uint32_t y = 0; y < g->h; y++) { /* OpenGL rows go up, images' rows down */
+        const float *src = px + 4 * (size_t)(g->h - 1 - y) * g->w;
+        const uint8_t *s8 = b8 ? b8 + 4 * (size_t)(g->h - 1 - y) * g->w : NULL;
+        for (uint32_t x = 0; x < g->w; x++)
+            for (int c = 0; c < 3; c++) {
+                rgb[3 * ((size_t)y * g->w + x) + c] = src[4 * (size_t)x + c];
+                if (s8) srgb8[3 * ((size_t)y * g->w + x) + c] = s8[4 * (size_t)x + c];
+            }
+    }
+    free(px);
+    free(b8);
+    if (e != GL_NO_ERROR) {
+        snprintf(err, err_size, "OpenGL: error 0x%x while reading the frame back", (unsigned)e);
+        return 0;
+    }
+    return 1;
+}

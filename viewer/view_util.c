@@ -1,0 +1,210 @@
+/* view_util.c - the viewer's helpers that need neither OpenGL nor GLFW:
+ * the tone-map table, camera maths, the colour feed decision, file names.
+ *
+ * Dependencies: haarlight.h (hl_tonemap_srgb8, hl_list_devices,
+ * hl_context_*), libc, libm, POSIX (open_memstream, access).
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "viewer.h"
+
+#define VW_PI 3.14159265358979323846
+
+/* ---------------------------------------------------------------- tone map */
+
+void vw_tonemap_thresholds(float thr[256])
+{
+    thr[0] = 0.0f;
+    /* hl_tonemap_srgb8 is monotonic in x, and positive floats order like
+     * their bit patterns: bisect on the bits for each code's first value. */
+    for (int k = 1; k < 256; k++) {
+        uint32_t lo = 0, hi = 0x3f800000u; /* 0 .. 1.0f, where the code is 255 */
+        while (lo < hi) {
+            uint32_t mid = lo + (hi - lo) / 2;
+            float x;
+            memcpy(&x, &mid, sizeof x);
+            if (hl_tonemap_srgb8(x, 0.0f) >= k) hi = mid;
+            else lo = mid + 1;
+        }
+        memcpy(&thr[k], &lo, sizeof lo);
+    }
+}
+
+/* ---------------------------------------------------------------- camera */
+
+static double dot3(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static void cross3(const double a[3], const double b[3], double o[3])
+{
+    o[0] = a[1] * b[2] - a[2] * b[1];
+    o[1] = a[2] * b[0] - a[0] * b[2];
+    o[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static int normalise3(double a[3])
+{
+    double l = sqrt(dot3(a, a));
+    if (!(l > 0.0) || !isfinite(l)) return 0;
+    for (int k = 0; k < 3; k++) a[k] /= l;
+    return 1;
+}
+
+/* Rodrigues: v turned by angle about the unit axis a. */
+static void rotate3(double v[3], const double a[3], double angle)
+{
+    double c = cos(angle), s = sin(angle), axv[3], d = dot3(a, v);
+    cross3(a, v, axv);
+    for (int k = 0; k < 3; k++) v[k] = v[k] * c + axv[k] * s + a[k] * d * (1.0 - c);
+}
+
+void vw_mesh_bounds(const hl_mesh *mesh, float centre[3], float *radius)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t i = 0; i < mesh->vertex_count; i++)
+        for (int k = 0; k < 3; k++) {
+            double p = mesh->positions[3 * (size_t)i + k];
+            lo[k] = p < lo[k] ? p : lo[k];
+            hi[k] = p > hi[k] ? p : hi[k];
+        }
+    double c[3], r2 = 0.0;
+    for (int k = 0; k < 3; k++) c[k] = 0.5 * (lo[k] + hi[k]);
+    for (uint32_t i = 0; i < mesh->vertex_count; i++) {
+        double d[3];
+        for (int k = 0; k < 3; k++) d[k] = mesh->positions[3 * (size_t)i + k] - c[k];
+        double q = dot3(d, d);
+        r2 = q > r2 ? q : r2;
+    }
+    for (int k = 0; k < 3; k++) centre[k] = (float)c[k];
+    *radius = r2 > 0.0 ? (float)sqrt(r2) : 1.0f;
+}
+
+void vw_camera_matrix(const hl_camera_view *v, const float centre[3], float radius, float mvp[16])
+{
+    double e[3], ax[3][3], d[3];
+    for (int k = 0; k < 3; k++) {
+        e[k] = v->eye[k];
+        ax[0][k] = v->right[k];
+        ax[1][k] = v->up[k];
+        ax[2][k] = -(double)v->forward[k]; /* eye space looks down -z */
+        d[k] = e[k] - centre[k];
+    }
+    /* The depth range just holds the bounding sphere; a 32-bit float depth
+     * buffer keeps a 1e-5 near/far ratio precise. */
+    double dist = sqrt(dot3(d, d)), far = 1.01 * (dist + radius), near = 0.99 * (dist - radius);
+    if (near < 1e-5 * far) near = 1e-5 * far;
+    double view[4][4] = {{0}}; /* row-major */
+    for (int r = 0; r < 3; r++) {
+        for (int k = 0; k < 3; k++) view[r][k] = ax[r][k];
+        view[r][3] = -dot3(ax[r], e);
+    }
+    view[3][3] = 1.0;
+    double proj[4][4] = {{0}};
+    proj[0][0] = 1.0 / v->tan_half_x;
+    proj[1][1] = 1.0 / v->tan_half_y;
+    proj[2][2] = (far + near) / (near - far);
+    proj[2][3] = 2.0 * far * near / (near - far);
+    proj[3][2] = -1.0;
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++) {
+            double s = 0.0;
+            for (int k = 0; k < 4; k++) s += proj[r][k] * view[k][c];
+            mvp[c * 4 + r] = (float)s; /* column-major for OpenGL */
+        }
+}
+
+void vw_orbit(float eye[3], const float target[3], const float up[3], double yaw, double pitch)
+{
+    double o[3], u[3] = {up[0], up[1], up[2]};
+    for (int k = 0; k < 3; k++) o[k] = (double)eye[k] - target[k];
+    if (!normalise3(u)) {
+        u[0] = 0.0;
+        u[1] = 1.0;
+        u[2] = 0.0;
+    }
+    rotate3(o, u, yaw);
+    double f[3] = {-o[0], -o[1], -o[2]}, r[3], p[3] = {o[0], o[1], o[2]};
+    cross3(f, u, r);
+    if (normalise3(r)) {
+        rotate3(p, r, pitch);
+        double pn[3] = {p[0], p[1], p[2]};
+        /* within 2 degrees of the up axis the picture's roll would flip */
+        if (normalise3(pn) && fabs(dot3(pn, u)) < cos(2.0 * VW_PI / 180.0))
+            for (int k = 0; k < 3; k++) o[k] = p[k];
+    }
+    for (int k = 0; k < 3; k++) eye[k] = (float)(target[k] + o[k]);
+}
+
+void vw_zoom(float eye[3], const float target[3], double factor, double min_distance)
+{
+    double o[3];
+    for (int k = 0; k < 3; k++) o[k] = (double)eye[k] - target[k];
+    double d = sqrt(dot3(o, o)), want = d * factor;
+    if (!(d > 0.0)) return;
+    if (want < min_distance) want = min_distance;
+    for (int k = 0; k < 3; k++) eye[k] = (float)(target[k] + o[k] * want / d);
+}
+
+/* ---------------------------------------------------------------- colour feed */
+
+/* The relighter hands colours back in host memory (hl_relighter_run), so
+ * the viewer reads them back and uploads them. CL/GL sharing would let the
+ * dot products write into the GL buffer directly, but only on a device
+ * with cl_khr_gl_sharing and with a relighter entry point that takes a
+ * GL buffer; this says which of the two is missing. The device's
+ * extensions come from the project's own device list (hl_list_devices),
+ * matched by platform and device name. */
+void vw_feed_mode(hl_context *ctx, char *buf, size_t size)
+{
+    if (hl_context_backend(ctx) == HL_BACKEND_REFERENCE) {
+        snprintf(buf, size, "readback (reference backend: colours computed on the host)");
+        return;
+    }
+    const char *name = hl_context_device_name(ctx);
+    char *list = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&list, &len);
+    char err[256];
+    int listed = f && hl_list_devices(f, err, sizeof err) == HL_OK;
+    if (f) fclose(f);
+    int found = 0, sharing = 0;
+    char platform[256] = "";
+    for (char *line = listed ? list : NULL; line && *line;) {
+        char *next = strchr(line, '\n');
+        if (next) *next++ = '\0';
+        if (!strncmp(line, "platform ", 9)) {
+            const char *p = strstr(line, ": "), *q = p ? strstr(p, " (") : NULL;
+            if (q) snprintf(platform, sizeof platform, "%.*s", (int)(q - (p + 2)), p + 2);
+        } else if (!strncmp(line, "  device ", 9)) {
+            const char *p = strstr(line, ": "), *q = p ? strstr(p, " [") : NULL;
+            char full[600] = "";
+            if (q) snprintf(full, sizeof full, "OpenCL: %s / %.*s", platform, (int)(q - (p + 2)), p + 2);
+            if (q && !strcmp(full, name)) {
+                found = 1;
+                sharing |= strstr(line, ", GL sharing") != NULL;
+            }
+        }
+        line = next;
+    }
+    free(list);
+    if (!found) snprintf(buf, size, "readback (device not found in the device list: cl_khr_gl_sharing unknown)");
+    else if (!sharing) snprintf(buf, size, "readback (device has no cl_khr_gl_sharing)");
+    else snprintf(buf, size, "readback (device has cl_khr_gl_sharing; the relighter returns host arrays)");
+}
+
+/* ---------------------------------------------------------------- files */
+
+void vw_screenshot_name(char *buf, size_t size)
+{
+    for (int i = 1; i < 100000; i++) {
+        snprintf(buf, size, "haarlight-view-%03d.png", i);
+        if (access(buf, F_OK) != 0) return;
+    }
+}
