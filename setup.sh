@@ -18,7 +18,8 @@ case "$what" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exi
 
 packages=(build-essential cmake pkg-config
           pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
-          libembree-dev libopenexr-dev libglfw3-dev libassimp-dev gnuplot-nox)
+          libembree-dev libopenexr-dev libglfw3-dev libassimp-dev gnuplot-nox
+          libgl1-mesa-dev libgl1-mesa-dri xvfb xauth)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -32,7 +33,8 @@ if [ "${#missing[@]}" -gt 0 ]; then
 fi
 
 jobs="$(nproc 2>/dev/null || echo 2)"
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
+# the viewer (`haarlight view`) is built; its tests open windows under Xvfb
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DHL_WITH_VIEWER=ON
 cmake --build build -j"$jobs"
 
 case "$what" in
