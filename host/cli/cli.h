@@ -47,8 +47,9 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
 #define CLI_USAGE_LIGHTING                                                                \
     "  --rotate DEG         turn the environment about +Y (Blender's world Z rotation)\n" \
     "  --terms M|all        lighting wavelet terms kept (default 200)\n"                  \
-    "  --select area|unweighted|transport\n"                                              \
-    "                       how the terms are chosen (default area: |L_i| x support area)\n"
+    "  --select transport|area|unweighted\n"                                              \
+    "                       how the terms are chosen: |L_i| x mean |T_i| over the vertices\n" \
+    "                       (the default), x support area, or x 1\n"
 #define CLI_USAGE_CAMERA                                                                  \
     "  --size WxH           image size (default 960x720)\n"                              \
     "  --fov DEG            vertical field of view (default 35)\n"                       \

@@ -56,7 +56,7 @@ static const char *const usage_precompute =
     "  --ray-offset F       ray origin offset, fraction of the bbox diagonal (default 1e-3)\n"
     "truncation (per vertex):\n"
     "  --energy EPS         keep the fewest coefficients holding 1-EPS of the energy\n"
-    "                       (the default rule, EPS = 1e-4)\n"
+    "                       (the default rule, EPS = 1e-5)\n"
     "  --terms K            keep the K largest; with --energy, cap the count at K\n"
     "  --terms all          keep every non-zero coefficient\n"
     "quantisation:\n"

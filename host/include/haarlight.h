@@ -175,7 +175,7 @@ void hl_mesh_destroy(hl_mesh *mesh);
  *   supersample   0: 1 ray per cube texel (S gives S x S rays, S <= 15)
  *   rule          HL_TRUNC_DEFAULT: energy rule
  *   K             0: no cap (top-K rule: required, >= 1 unless keep none)
- *   eps           0: 1e-4 of the row's energy may be dropped (energy rule)
+ *   eps           0: 1e-5 of the row's energy may be dropped (energy rule)
  *   quant         HL_QUANT_DEFAULT: the scheme the bench measured best
  *   ray_offset    0: 1e-3 of the bounding-box diagonal
  *   chunk         0: 1024 vertices per chunk
@@ -325,7 +325,7 @@ typedef struct hl_relighter hl_relighter;
 
 /* hl_relight_desc fields and defaults:
  *   terms       0: 200 lighting terms; HL_TERMS_ALL keeps every one
- *   select      HL_SELECT_DEFAULT: area-weighted (HL_SELECT_AREA)
+ *   select      HL_SELECT_DEFAULT: transport-weighted (HL_SELECT_TRANSPORT)
  *   rotate_deg  0: the environment as stored (ENVMAP.md's --rotate)
  */
 #define HL_TERMS_ALL 0xffffffffu

@@ -772,10 +772,14 @@ hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const ui
 
 /* ------------------------------------------------------------ measuring */
 
-double hl_cl_light_bytes_read(const hl_cl_light *l, const uint32_t *bits)
+hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
 {
     const size_t nc = l->g->ncoef;
     double entries = 0.0, kept = 0.0;
+    uint32_t *bits = malloc(nc / 8);
+    if (!bits) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    cl_int e = clEnqueueReadBuffer(l->cl->queue, l->bits, CL_TRUE, 0, nc / 8, bits, 0, NULL, NULL);
+    if (e != CL_SUCCESS) { free(bits); CL_TRY(l->ctx, e, "read-back"); }
     for (size_t s = 0; s < nc; s++) {
         if (!((bits[s / 32] >> (s % 32)) & 1u)) continue;
         kept += 1.0;
@@ -787,9 +791,11 @@ double hl_cl_light_bytes_read(const hl_cl_light *l, const uint32_t *bits)
     /* per tile entry its head word and codes; per kept slot and range two
        starts; per vertex slot its two parameters, three running sums
        (zeroed, then read once they leave the cache), albedo and colour */
+    free(bits);
     double vpad = (double)l->nranges * l->range;
-    return entries * (4.0 + HL_TILE) + kept * (double)l->nranges * 8.0 + vpad * (8.0 + 12.0 + 12.0) +
-           (double)l->nverts * 32.0;
+    *bytes = entries * (4.0 + HL_TILE) + kept * (double)l->nranges * 8.0 + vpad * (8.0 + 12.0 + 12.0) +
+             (double)l->nverts * 32.0;
+    return HL_OK;
 }
 
 hl_result hl_cl_light_time_relight(hl_cl_light *l, uint32_t reps, double *seconds)

@@ -82,9 +82,9 @@ hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const ui
 /* The dot-product kernel alone on the current lighting, mean of reps
  * launches queued together. */
 hl_result hl_cl_light_time_relight(hl_cl_light *l, uint32_t reps, double *seconds);
-/* Bytes the dot-product kernel reads and writes for the kept slots in bits
+/* Bytes the dot-product kernel reads and writes for the last selection
  * (each byte once: what stays in cache is not counted twice). */
-double hl_cl_light_bytes_read(const hl_cl_light *l, const uint32_t *bits);
+hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes);
 /* The device's read bandwidth: median of reps passes over `bytes`. */
 hl_result hl_cl_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, double *bytes_per_s);
 

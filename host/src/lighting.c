@@ -398,7 +398,7 @@ hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *
     hl_relight_desc d = {0};
     if (desc) d = *desc;
     if (!d.terms) d.terms = 200;
-    if (!d.select) d.select = HL_SELECT_AREA;
+    if (!d.select) d.select = HL_SELECT_TRANSPORT;
     if (d.select > HL_SELECT_TRANSPORT) return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "unknown selection scheme %u", d.select);
     if (!isfinite(d.rotate_deg)) return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "rotation is not a finite number");
     if (!r->cells) return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "no environment set (hl_relighter_set_env)");

@@ -9,7 +9,7 @@
 /* Defaults (documented in haarlight.h and the CLI's --help). */
 #define HL_DEFAULT_N 64u
 #define HL_DEFAULT_C 64u
-#define HL_DEFAULT_EPS 1e-4f
+#define HL_DEFAULT_EPS 1e-5f
 #define HL_DEFAULT_QUANT HL_QUANT_LOG8
 #define HL_DEFAULT_RAY_OFFSET 1e-3f
 #define HL_DEFAULT_CHUNK 1024u
