@@ -631,7 +631,15 @@ static int run_loop(viewer *v)
         update_title(v);
         if (headless && ++frame >= v->frames_limit) break;
     }
-    if (hl_interrupt_requested) fprintf(stderr, "haarlight: interrupted\n");
+    if (hl_interrupt_requested) {
+        fprintf(stderr, "haarlight: interrupted\n");
+        return 130;
+    }
+    if (headless && frame < v->frames_limit) {
+        fprintf(stderr, "haarlight: the window was closed after %u of %u frames%s%s\n", frame, v->frames_limit,
+                v->shot_path ? "; not written: " : "", v->shot_path ? v->shot_path : "");
+        return 1;
+    }
     return rc;
 }
 
@@ -788,7 +796,7 @@ static int load(viewer *v, const char **env_args, int n_env_args)
             sky_label(v, &v->envs[k]);
         }
     }
-    v->rgb = malloc(12 * (size_t)v->t->info.vertex_count);
+    v->rgb = calloc(3 * (size_t)v->t->info.vertex_count, sizeof *v->rgb); /* zero until the first relight */
     if (!v->rgb) {
         fprintf(stderr, "haarlight: out of memory for %u vertex colours\n", v->t->info.vertex_count);
         return 0;
