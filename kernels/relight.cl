@@ -4,7 +4,7 @@
  * The transport is held by column on the device (built on load from the
  * file's rows, see build_columns in host/src/cl_backend.c). Vertices are
  * grouped in tiles of HL_TILE consecutive vertices and tiles in ranges, one
- * range per work-item. For each range and slot, the column lists the tiles
+ * range per work-item (range_start: vertex boundaries, whole tiles). For each range and slot, the column lists the tiles
  * in which at least one vertex stores that slot, each as one entry of
  * 1 + HL_TILE / 4 words: a head (tile in range | lane mask << 16) and the
  * tile's HL_TILE codes (zero in lanes the mask leaves out). A work-item
@@ -48,14 +48,14 @@
         VSTORE(fma((d), lb, VLOAD(0, ab + t)), 0, ab + t); \
     } while (0)
 
-kernel void hl_relight(global const uint *col, global const uint *col_start, uint range, global const uint *p0,
-                       global const uint *p1, uint scheme, uint ncoef, global const float4 *light,
-                       global const uint *kept_bits, global const float4 *albedo, global float *acc,
-                       global float4 *out, uint nverts)
+kernel void hl_relight(global const uint *col, global const uint *col_start, global const uint *range_start,
+                       global const uint *p0, global const uint *p1, uint scheme, uint ncoef,
+                       global const float4 *light, global const uint *kept_bits, global const float4 *albedo,
+                       global float *acc, global float4 *out, uint nverts, uint nranges)
 {
     uint w = get_global_id(0);
-    uint v0 = w * range;
-    if (v0 >= nverts) return;
+    if (w >= nranges) return;
+    uint v0 = range_start[w], range = range_start[w + 1] - v0;
     uint v1 = min(v0 + range, nverts);
     global float *ar = acc + (size_t)3 * v0, *ag = ar + range, *ab = ag + range;
     for (uint i = 0; i < range; i++) ar[i] = ag[i] = ab[i] = 0.0f;

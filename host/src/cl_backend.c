@@ -35,6 +35,7 @@ struct hl_cl {
     size_t wg; /* work-group size: 1 on CPUs, where each work-item's long
                   row loop is the unit of work and PoCL would otherwise
                   put every row in one group on one core */
+    cl_uint units; /* compute units (cores on a CPU device) */
 };
 
 static const char *cl_err_name(cl_int e)
@@ -215,6 +216,9 @@ hl_result hl_cl_create(hl_context *ctx, int platform, int device)
     cl_device_type type = 0;
     clGetDeviceInfo(cl->device, CL_DEVICE_TYPE, sizeof type, &type, NULL);
     cl->wg = (type & CL_DEVICE_TYPE_CPU) ? 1 : 64;
+    cl->units = 1;
+    clGetDeviceInfo(cl->device, CL_DEVICE_MAX_COMPUTE_UNITS, sizeof cl->units, &cl->units, NULL);
+    if (cl->units < 1) cl->units = 1;
     cl->context = clCreateContext(NULL, 1, &cl->device, NULL, NULL, &e);
     CL_TRY(ctx, e, "clCreateContext");
     cl->queue = clCreateCommandQueue(cl->context, cl->device, 0, &e);
@@ -492,9 +496,9 @@ struct hl_cl_light {
     uint32_t nverts, scheme;
     cl_mem cells, turned, start, runs, slots, weight; /* tables and inputs */
     cl_mem Lp, Lw, Lsel, used, bits, res;          /* lighting stages */
-    cl_mem col, cols, p0, p1, albedo, B, acc;       /* transport, by column */
+    cl_mem col, cols, rstart, p0, p1, albedo, B, acc; /* transport, by column */
     void *host[5];                                  /* CPU devices: their memory */
-    uint32_t range, nranges;                        /* vertices per work-item */
+    uint32_t nranges, *range_start;                 /* vertices of each work-item */
     uint64_t col_entries;                           /* tile entries in all columns */
     uint32_t *col_start;                            /* host copy, for counting bytes */
 };
@@ -504,11 +508,12 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (!l) return;
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
-                     &l->bits, &l->res, &l->col, &l->cols, &l->p0, &l->p1, &l->albedo, &l->B, &l->acc};
+                     &l->bits, &l->res, &l->col, &l->cols, &l->rstart, &l->p0, &l->p1, &l->albedo, &l->B, &l->acc};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
         if (*all[i]) clReleaseMemObject(*all[i]);
     for (int i = 0; i < 5; i++) hl_free_big(l->host[i]);
     free(l->col_start);
+    free(l->range_start);
     free(l);
 }
 
@@ -531,25 +536,53 @@ static hl_result light_big_buf(hl_cl_light *l, cl_mem *m, size_t bytes, const vo
     return light_buf(l, m, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, *keep, what);
 }
 
+/* Range boundaries, in whole tiles. On a CPU device, one range per core,
+ * cut so that each holds about the same number of stored terms (the work
+ * follows them): long columns, so each kept slot's entries stream, and no
+ * core waits for another. On a GPU, 64 vertices per work-item. A range
+ * holds at most 65536 tiles (the head word's tile field). Returns the
+ * count, or 0 when out of memory. */
+static uint32_t cut_ranges(const hl_cl_light *l, const hl_transport *t, uint32_t **starts)
+{
+    const size_t V = l->nverts, tiles = (V + HL_TILE - 1) / HL_TILE, max_tiles = 65536;
+    const size_t per_gpu = 64 / HL_TILE ? 64 / HL_TILE : 1;
+    size_t want = l->cl->wg == 1 ? l->cl->units : (tiles + per_gpu - 1) / per_gpu;
+    if (want < 1) want = 1;
+    uint32_t *rs = malloc((want + tiles / max_tiles + 2) * 4);
+    if (!rs) return 0;
+    /* work of a tile: its stored terms, plus a little per vertex */
+    double total = 0.0;
+    for (size_t v = 0; v < V; v++) total += (double)(t->row_offset[v + 1] - t->row_offset[v]) + 16.0;
+    uint32_t n = 0;
+    rs[n++] = 0;
+    double done = 0.0;
+    size_t first = 0; /* first tile of the open range */
+    for (size_t tile = 0; tile < tiles; tile++) {
+        for (size_t v = tile * HL_TILE; v < V && v < (tile + 1) * HL_TILE; v++)
+            done += (double)(t->row_offset[v + 1] - t->row_offset[v]) + 16.0;
+        int full = l->cl->wg == 1 ? done >= total * (double)n / (double)want : tile + 1 - first >= per_gpu;
+        if (tile + 1 < tiles && (full || tile + 1 - first >= max_tiles)) {
+            rs[n++] = (uint32_t)((tile + 1) * HL_TILE);
+            first = tile + 1;
+        }
+    }
+    rs[n] = (uint32_t)(tiles * HL_TILE);
+    *starts = rs;
+    return n;
+}
+
 /* The rows turned into columns (see kernels/relight.cl): vertices in tiles
- * of HL_TILE, tiles in ranges of `range` vertices (one work-item each); for
- * each range and slot, the tiles that store the slot, in tile order, each
- * as one entry: a head word (tile in range | lane mask << 16) and the HL_TILE
- * codes. Also
- * the per-vertex decoding parameters, padded to whole ranges. */
+ * of HL_TILE, tiles in ranges (one work-item each, cut_ranges); for each
+ * range and slot, the tiles that store the slot, in tile order, each as one
+ * entry: a head word (tile in range | lane mask << 16) and the HL_TILE
+ * codes. Also the per-vertex decoding parameters, padded to whole tiles. */
 static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
 {
     hl_context *ctx = l->ctx;
     const size_t nc = l->g->ncoef, V = l->nverts, nb = l->g->nblocks;
-    /* CPU: 64 ranges (32 per core keeps both busy to the end); a GPU: one
-       range of 64 vertices per work-item */
-    size_t range = l->cl->wg == 1 ? (V + 63) / 64 : 64;
-    range = (range + HL_TILE - 1) / HL_TILE * HL_TILE;
-    if (range < HL_TILE) range = HL_TILE;
-    if (range > (size_t)65536 * HL_TILE) range = (size_t)65536 * HL_TILE;
-    l->range = (uint32_t)range;
-    l->nranges = (uint32_t)((V + range - 1) / range);
-    const size_t vpad = (size_t)l->nranges * range, ncs = (size_t)l->nranges * (nc + 1);
+    l->nranges = cut_ranges(l, t, &l->range_start);
+    if (!l->nranges) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+    const size_t vpad = V ? l->range_start[l->nranges] : HL_TILE, ncs = (size_t)l->nranges * (nc + 1);
     uint32_t *cs = calloc(ncs, 4), *fill = malloc(ncs * 4), *last = malloc(nc * 4), *pos = malloc(nc * 4);
     uint32_t *p0 = calloc(vpad, 4), *p1 = calloc(vpad, 4), *col = NULL;
     const size_t stride = 1 + HL_TILE / 4; /* words per entry: head, codes */
@@ -561,8 +594,9 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
         for (size_t rg = 0; rg < l->nranges; rg++) {
             uint32_t *c = (pass == 0 ? cs : fill) + rg * (nc + 1);
             memset(last, 0xff, nc * 4);
-            for (size_t v = rg * range; v < V && v < (rg + 1) * range; v++) {
-                uint32_t tile = (uint32_t)((v % range) / HL_TILE), lane = (uint32_t)(v % HL_TILE);
+            const size_t v0 = l->range_start[rg];
+            for (size_t v = v0; v < V && v < l->range_start[rg + 1]; v++) {
+                uint32_t tile = (uint32_t)((v - v0) / HL_TILE), lane = (uint32_t)(v % HL_TILE);
                 uint64_t e = t->row_offset[v];
                 for (size_t b = 0; b < nb; b++)
                     for (uint32_t k = 0; k < t->block_counts[v * nb + b]; k++, e++) {
@@ -600,6 +634,7 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
     size_t n = (size_t)(l->col_entries ? l->col_entries : 1);
     if (r == HL_OK) r = light_big_buf(l, &l->col, n * stride * 4, col, &l->host[0], "transport columns");
     if (r == HL_OK) r = light_big_buf(l, &l->cols, ncs * 4, cs, &l->host[2], "column starts");
+    if (r == HL_OK) r = light_buf(l, &l->rstart, CL_MEM_READ_ONLY, ((size_t)l->nranges + 1) * 4, l->range_start, "ranges");
     if (r == HL_OK) r = light_big_buf(l, &l->p0, vpad * 4, p0, &l->host[3], "quantisation parameters");
     if (r == HL_OK) r = light_big_buf(l, &l->p1, vpad * 4, p1, &l->host[4], "quantisation parameters");
     l->col_start = cs;
@@ -643,7 +678,7 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
     if (r == HL_OK) r = build_columns(l, t);
     B(albedo, CL_MEM_READ_ONLY, V * 16, albedo4, "albedo");
     B(B, CL_MEM_READ_WRITE, V * 16, NULL, "vertex colours");
-    B(acc, CL_MEM_READ_WRITE, (size_t)3 * l->nranges * l->range * 4, NULL, "running sums");
+    B(acc, CL_MEM_READ_WRITE, (size_t)3 * (l->nranges && V ? l->range_start[l->nranges] : 1) * 4, NULL, "running sums");
 #undef B
     if (r != HL_OK) { hl_cl_light_destroy(l); return r; }
     *out = l;
@@ -715,10 +750,10 @@ static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
 static hl_result enq_relight(hl_cl_light *l)
 {
     cl_kernel k = l->cl->k[K_RELIGHT];
-    cl_uint sc = l->scheme, nc = l->g->ncoef, nv = l->nverts, range = l->range;
-    LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, range); LARG(k, 3, l->p0); LARG(k, 4, l->p1);
+    cl_uint sc = l->scheme, nc = l->g->ncoef, nv = l->nverts, nr = l->nranges;
+    LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rstart); LARG(k, 3, l->p0); LARG(k, 4, l->p1);
     LARG(k, 5, sc); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->bits); LARG(k, 9, l->albedo);
-    LARG(k, 10, l->acc); LARG(k, 11, l->B); LARG(k, 12, nv);
+    LARG(k, 10, l->acc); LARG(k, 11, l->B); LARG(k, 12, nv); LARG(k, 13, nr);
     return light_launch(l, K_RELIGHT, l->nranges);
 }
 
@@ -792,7 +827,7 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
        starts; per vertex slot its two parameters, three running sums
        (zeroed, then read once they leave the cache), albedo and colour */
     free(bits);
-    double vpad = (double)l->nranges * l->range;
+    double vpad = (double)l->range_start[l->nranges];
     *bytes = entries * (4.0 + HL_TILE) + kept * (double)l->nranges * 8.0 + vpad * (8.0 + 12.0 + 12.0) +
              (double)l->nverts * 32.0;
     return HL_OK;
