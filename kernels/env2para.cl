@@ -27,16 +27,18 @@ kernel void hl_turn(global const float4 *cells, uint wc, uint ncells, uint s0, f
     }
 }
 
-kernel void hl_env2para(global const float4 *turned, uint wc, global const uint *start,
-                        global const hl_env_tap *taps, uint ncoef, uint per, global float *L)
+/* taps: (cell index row * wc + col, weight bits) pairs, the device's
+ * compact copy of the hl_env_tap table */
+kernel void hl_env2para(global const float4 *turned, global const uint *start, global const uint2 *taps,
+                        uint ncoef, uint per, global float *L)
 {
     uint j0 = get_global_id(0) * per;
     uint j1 = min(j0 + per, ncoef);
     for (uint j = j0; j < j1; j++) {
         float4 acc = (float4)(0.0f);
         for (uint e = start[j]; e < start[j + 1]; e++) {
-            hl_env_tap tap = taps[e];
-            acc += tap.weight * turned[(size_t)tap.row * wc + tap.col];
+            uint2 tap = taps[e];
+            acc += as_float(tap.y) * turned[tap.x];
         }
         L[j] = acc.x;
         L[ncoef + j] = acc.y;

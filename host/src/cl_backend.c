@@ -486,6 +486,24 @@ hl_result hl_cl_pipe_quantize(hl_cl_pipe *p, uint32_t rows, const float *coef, c
     return HL_OK;
 }
 
+int hl_context_device_has_extension(const hl_context *ctx, const char *name)
+{
+    if (!ctx || !ctx->cl || !name || !*name) return 0;
+    size_t n = 0;
+    if (clGetDeviceInfo(ctx->cl->device, CL_DEVICE_EXTENSIONS, 0, NULL, &n) != CL_SUCCESS || !n) return 0;
+    char *ext = malloc(n + 1);
+    if (!ext) return 0;
+    int found = 0;
+    if (clGetDeviceInfo(ctx->cl->device, CL_DEVICE_EXTENSIONS, n, ext, NULL) == CL_SUCCESS) {
+        ext[n] = '\0';
+        size_t len = strlen(name);
+        for (const char *p = ext; (p = strstr(p, name)) != NULL; p += len)
+            if ((p == ext || p[-1] == ' ') && (p[len] == ' ' || p[len] == '\0')) { found = 1; break; }
+    }
+    free(ext);
+    return found;
+}
+
 /* ------------------------------------------------------------ lighting */
 
 struct hl_cl_light {
@@ -666,7 +684,15 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
     B(cells, CL_MEM_READ_ONLY, cells * 16, NULL, "environment cells");
     B(turned, CL_MEM_READ_WRITE, cells * 16, NULL, "environment cells");
     B(start, CL_MEM_READ_ONLY, (nc + 1) * 4, lg->tap_start, "environment runs");
-    B(runs, CL_MEM_READ_ONLY, (size_t)lg->ntaps * sizeof(hl_env_tap), lg->taps, "environment runs");
+    /* the taps as (cell index, weight bits): 8 bytes each */
+    uint32_t *taps2 = malloc(((size_t)lg->ntaps + 1) * 8);
+    if (!taps2) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the environment runs");
+    for (size_t e = 0; taps2 && e < lg->ntaps; e++) {
+        taps2[2 * e] = lg->taps[e].row * lg->wc + lg->taps[e].col;
+        memcpy(&taps2[2 * e + 1], &lg->taps[e].weight, 4);
+    }
+    B(runs, CL_MEM_READ_ONLY, ((size_t)lg->ntaps + 1) * 8, taps2, "environment runs");
+    free(taps2);
     B(slots, CL_MEM_READ_ONLY, (size_t)g->N * g->N * 4, g->slot_of_mallat, "the Haar slot order");
     B(weight, CL_MEM_READ_ONLY, nc * 4, lg->area, "selection weights");
     B(Lp, CL_MEM_READ_WRITE, 3 * nc * 4, NULL, "paraboloid lighting");
@@ -725,8 +751,8 @@ static hl_result enq_env2para(hl_cl_light *l, uint32_t s0, float f)
     TRY(light_launch(l, K_TURN, (ncell + per - 1) / per));
     k = l->cl->k[K_ENV2PARA];
     per = l->cl->wg == 1 ? (nc + 63) / 64 : 1;
-    LARG(k, 0, l->turned); LARG(k, 1, wc); LARG(k, 2, l->start); LARG(k, 3, l->runs); LARG(k, 4, nc);
-    LARG(k, 5, per); LARG(k, 6, l->Lp);
+    LARG(k, 0, l->turned); LARG(k, 1, l->start); LARG(k, 2, l->runs); LARG(k, 3, nc); LARG(k, 4, per);
+    LARG(k, 5, l->Lp);
     return light_launch(l, K_ENV2PARA, (nc + per - 1) / per);
 }
 
