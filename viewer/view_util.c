@@ -1,8 +1,8 @@
 /* view_util.c - the viewer's helpers that need neither OpenGL nor GLFW:
  * the tone-map table, camera maths, the colour feed decision, file names.
  *
- * Dependencies: haarlight.h (hl_tonemap_srgb8, hl_list_devices,
- * hl_context_*), libc, libm, POSIX (open_memstream, access).
+ * Dependencies: haarlight.h (hl_tonemap_srgb8,
+ * hl_context_*), libc, libm, POSIX (access).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -158,45 +158,15 @@ void vw_zoom(float eye[3], const float target[3], double factor, double min_dist
  * the viewer reads them back and uploads them. CL/GL sharing would let the
  * dot products write into the GL buffer directly, but only on a device
  * with cl_khr_gl_sharing and with a relighter entry point that takes a
- * GL buffer; this says which of the two is missing. The device's
- * extensions come from the project's own device list (hl_list_devices),
- * matched by platform and device name. */
+ * GL buffer, which does not exist yet; this says which is missing. */
 void vw_feed_mode(hl_context *ctx, char *buf, size_t size)
 {
-    if (hl_context_backend(ctx) == HL_BACKEND_REFERENCE) {
+    if (hl_context_backend(ctx) == HL_BACKEND_REFERENCE)
         snprintf(buf, size, "readback (reference backend: colours computed on the host)");
-        return;
-    }
-    const char *name = hl_context_device_name(ctx);
-    char *list = NULL;
-    size_t len = 0;
-    FILE *f = open_memstream(&list, &len);
-    char err[256];
-    int listed = f && hl_list_devices(f, err, sizeof err) == HL_OK;
-    if (f) fclose(f);
-    int found = 0, sharing = 0;
-    char platform[256] = "";
-    for (char *line = listed ? list : NULL; line && *line;) {
-        char *next = strchr(line, '\n');
-        if (next) *next++ = '\0';
-        if (!strncmp(line, "platform ", 9)) {
-            const char *p = strstr(line, ": "), *q = p ? strstr(p, " (") : NULL;
-            if (q) snprintf(platform, sizeof platform, "%.*s", (int)(q - (p + 2)), p + 2);
-        } else if (!strncmp(line, "  device ", 9)) {
-            const char *p = strstr(line, ": "), *q = p ? strstr(p, " [") : NULL;
-            char full[600] = "";
-            if (q) snprintf(full, sizeof full, "OpenCL: %s / %.*s", platform, (int)(q - (p + 2)), p + 2);
-            if (q && !strcmp(full, name)) {
-                found = 1;
-                sharing |= strstr(line, ", GL sharing") != NULL;
-            }
-        }
-        line = next;
-    }
-    free(list);
-    if (!found) snprintf(buf, size, "readback (device not found in the device list: cl_khr_gl_sharing unknown)");
-    else if (!sharing) snprintf(buf, size, "readback (device has no cl_khr_gl_sharing)");
-    else snprintf(buf, size, "readback (device has cl_khr_gl_sharing; the relighter returns host arrays)");
+    else if (!hl_context_device_has_extension(ctx, "cl_khr_gl_sharing"))
+        snprintf(buf, size, "readback (device has no cl_khr_gl_sharing)");
+    else
+        snprintf(buf, size, "readback (device has cl_khr_gl_sharing; GL interop is not built yet)");
 }
 
 /* ---------------------------------------------------------------- files */

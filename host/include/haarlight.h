@@ -86,6 +86,9 @@ const char *hl_context_last_error(const hl_context *ctx);
  * OpenCL platform and device names). */
 const char *hl_context_device_name(const hl_context *ctx);
 hl_backend hl_context_backend(const hl_context *ctx);
+/* 1 when the context's OpenCL device lists the extension (e.g.
+ * "cl_khr_gl_sharing"); 0 otherwise and on the reference backend. */
+int hl_context_device_has_extension(const hl_context *ctx, const char *name);
 int hl_context_threads(const hl_context *ctx);
 
 /* Prints the OpenCL platforms and devices to the given FILE* (void* to keep
