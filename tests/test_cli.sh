@@ -22,6 +22,7 @@ expect_error() {
   grep -q -- "$part" "$tmp/err.txt" || fail "$name: message lacks '$part'"
   [ -n "$out" ] && [ -e "$out" ] && fail "$name: $out was written"
   ls "$tmp" | grep -q '\.tmp\.' && fail "$name: a temporary file was left behind"
+  [ -z "${partial_expected:-}" ] && ls "$tmp" | grep -q '\.partial$' && fail "$name: a partial file was left behind"
   return 0
 }
 
@@ -86,8 +87,11 @@ info)
   expect_error truncated 1 "trunc.hlt" "" -- info "$tmp/trunc.hlt"
   ;;
 interrupt)
-  # SIGINT part-way leaves neither the output nor a temporary file
+  # SIGINT or SIGKILL part-way leaves no output, only SCENE.hlt.partial;
+  # --resume continues it (with other chunks, threads or device) and writes
+  # the same bytes as an unbroken run
   m="$data/bunny_lowres.obj"
+  "$bin" precompute "$m" --ground -o "$tmp/whole.hlt" -q --chunk 64 || fail "unbroken run"
   "$bin" precompute "$m" --ground -o "$tmp/int.hlt" -q --device ref --chunk 64 &
   pid=$!
   sleep 1.5
@@ -95,8 +99,24 @@ interrupt)
   wait $pid
   rc=$?
   echo "interrupted run: exit $rc"
-  [ "$rc" -ne 0 ] || fail "an interrupted run must fail"
+  [ "$rc" -eq 130 ] || fail "an interrupted run must exit 130"
   [ -e "$tmp/int.hlt" ] && fail "output written by an interrupted run"
+  [ -s "$tmp/int.hlt.partial" ] || fail "no partial file kept for --resume"
+  # other parameters: refused, and the partial file is kept
+  partial_expected=1 expect_error resume_other_params 1 "other parameters" "$tmp/int.hlt" -- precompute "$m" --ground -N 32 --resume -o "$tmp/int.hlt"
+  [ -s "$tmp/int.hlt.partial" ] || fail "a refused resume removed the partial file"
+  "$bin" precompute "$m" --ground -o "$tmp/int.hlt" -q --device ref --threads 1 --chunk 100 --resume &
+  pid=$!
+  sleep 1.5
+  kill -KILL $pid
+  wait $pid
+  echo "killed run: exit $?"
+  [ -e "$tmp/int.hlt" ] && fail "output written by a killed run"
+  "$bin" precompute "$m" --ground -o "$tmp/int.hlt" --chunk 300 --resume 2>"$tmp/resume.err" || fail "resume"
+  grep -E "resuming|no .*partial" "$tmp/resume.err"
+  cmp "$tmp/whole.hlt" "$tmp/int.hlt" || fail "a resumed run wrote other bytes than an unbroken one"
+  echo "resumed after SIGINT and SIGKILL: same bytes as the unbroken run ($(stat -c %s "$tmp/int.hlt") bytes)"
+  [ -e "$tmp/int.hlt.partial" ] && fail "partial file left after a complete run"
   ls "$tmp" | grep -q '\.tmp\.' && fail "temporary file left behind"
   ;;
 relight)

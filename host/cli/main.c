@@ -66,6 +66,9 @@ static const char *const usage_precompute =
     "  --device cl|ref|cl:P:D   OpenCL device (default: first), or the plain-C reference\n"
     "  --threads T          host threads for rays and the reference (default: all cores)\n"
     "  --chunk V            vertices per chunk; bounds memory (default 1024)\n"
+    "  --resume             continue an interrupted run from SCENE.hlt.partial (Ctrl-C,\n"
+    "                       or a killed process, leaves it); same mesh and options\n"
+    "                       required, and the result is the same bytes\n"
     "  -q, --quiet          no progress line\n";
 
 static void on_sigint(int sig)
@@ -166,7 +169,8 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
             NEED_ARG();
             if (!parse_u32(v, &o->pd.chunk) || o->pd.chunk < 1 || o->pd.chunk > (1u << 20))
                 return usage_error(usage, "--chunk %s: expected 1 to 1048576", v);
-        } else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) o->cd.quiet = 1;
+        } else if (!strcmp(a, "--resume")) o->pd.resume = 1;
+        else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) o->cd.quiet = 1;
         else if (a[0] == '-' && a[1]) return usage_error(usage, "unknown option %s", a);
         else if (!o->mesh) o->mesh = a;
         else return usage_error(usage, "unexpected argument %s", a);
@@ -294,6 +298,7 @@ static int cmd_bench_precompute(int argc, char **argv)
     pre_opts o;
     int u = parse_pre(argc, argv, usage_precompute, &o);
     if (u) return u;
+    if (o.pd.resume) return usage_error(usage_precompute, "%s", "--resume: bench-precompute times a whole run");
     char tmp[256];
     if (!o.out) {
         snprintf(tmp, sizeof tmp, "/tmp/haarlight-bench-%d.hlt", (int)getpid());

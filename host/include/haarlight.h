@@ -182,6 +182,9 @@ void hl_mesh_destroy(hl_mesh *mesh);
  *   quant         HL_QUANT_DEFAULT: the scheme the bench measured best
  *   ray_offset    0: 1e-3 of the bounding-box diagonal
  *   chunk         0: 1024 vertices per chunk
+ *   resume        0: start afresh; 1: continue from out_path + ".partial",
+ *                 which an interrupted run leaves (same parameters and mesh
+ *                 required; the result is the same bytes as an unbroken run)
  */
 typedef struct hl_precompute_desc {
     uint32_t N;
@@ -193,12 +196,13 @@ typedef struct hl_precompute_desc {
     uint32_t quant;
     float ray_offset;
     uint32_t chunk;
+    int resume;
 } hl_precompute_desc;
 
 /* Counters and timings of one precompute. */
 typedef struct hl_precompute_stats {
-    uint64_t rays_cast;       /* occlusion rays traced */
-    uint64_t rays_culled;     /* directions skipped: below the horizon */
+    uint64_t rays_cast;       /* occlusion rays traced (by this run, when resumed) */
+    uint64_t rays_culled;     /* directions skipped: below the horizon (same) */
     uint64_t coefficients_kept;
     double seconds_rays;      /* wall time inside ray casting */
     double seconds_kernels;   /* wall time waiting for the kernel stages */
@@ -240,8 +244,10 @@ typedef struct hl_transport {
 } hl_transport;
 
 /* Runs the whole precomputation on the context's device and writes the
- * transport file atomically (temporary name, then rename). The mesh must
- * already carry any ground plane. stats may be NULL. */
+ * transport file atomically: rows go to out_path + ".partial", renamed onto
+ * out_path when complete. An interrupted run (HL_ERR_INTERRUPTED) keeps the
+ * partial file for desc->resume; any other failure removes it. The mesh
+ * must already carry any ground plane. stats may be NULL. */
 hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh,
                         const hl_precompute_desc *desc, const char *out_path,
                         hl_precompute_stats *stats);

@@ -172,11 +172,13 @@ hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precomput
     hl_tfile_writer *w = NULL;
     hl_chunk_buf buf[2] = {{0}};
     const uint32_t V = mesh->vertex_count, R = d.chunk < V ? d.chunk : V;
-    const uint32_t nchunks = (V + R - 1) / R;
+    uint32_t start = 0; /* vertices already written (resume) */
+    uint32_t nchunks = (V + R - 1) / R;
     const float offset = d.ray_offset * hl_mesh_query_diagonal(mesh);
     const float vis_scale = (float)(1.0 / (HL_PI * d.supersample * d.supersample));
     const hl_trunc_params tp = hl_precompute_trunc_params(&d);
-    hl_vis_counts vc = {0, 0};
+    hl_vis_counts vc = {0, 0}, vc_done = {0, 0}; /* vc_done: rays of the vertices appended */
+    hl_vis_counts vc_resumed = {0, 0};              /* rays of a resumed file's earlier runs */
     hl_transport_info info = {0};
 
     r = hl_geom_create(ctx, d.N, d.C, &g);
@@ -197,13 +199,30 @@ hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precomput
         info.object_vertex_count = mesh->object_vertex_count;
         info.triangle_count = mesh->triangle_count;
         info.block_count = g->nblocks;
-        r = hl_tfile_writer_open(ctx, out_path, &info, mesh, &w);
+        if (d.resume) {
+            hl_tfile_progress done;
+            r = hl_tfile_writer_resume(ctx, out_path, &info, mesh, &w, &done);
+            if (r == HL_OK && w) {
+                start = done.appended;
+                st.coefficients_kept = done.coefficients;
+                vc.rays_cast = vc_done.rays_cast = done.rays_cast;
+                vc.rays_culled = vc_done.rays_culled = done.rays_culled;
+                vc_resumed = vc;
+                nchunks = (V - start + R - 1) / R;
+                if (!ctx->quiet)
+                    fprintf(stderr, "precompute: resuming %s.partial at vertex %u of %u\n", out_path, start, V);
+            } else if (r == HL_OK && !ctx->quiet) {
+                fprintf(stderr, "precompute: no %s.partial to resume; starting from the beginning\n", out_path);
+            }
+        }
+        if (r == HL_OK && !w) r = hl_tfile_writer_open(ctx, out_path, &info, mesh, &w);
     }
 
     /* chunk k's rays are cast while the device runs chunk k-1 */
     for (uint32_t k = 0; r == HL_OK && k <= nchunks; k++) {
         int s = (int)(k & 1u);
-        uint32_t first = k * R, count = k < nchunks ? (V - first < R ? V - first : R) : 0;
+        uint32_t first = start + k * R, count = k < nchunks ? (V - first < R ? V - first : R) : 0;
+        hl_vis_counts vc_before = vc;
         if (k < nchunks) {
             double t0 = hl_now();
             fill_normals(mesh, first, count, buf[s].normals4);
@@ -216,10 +235,13 @@ hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precomput
             r = hl_cl_pipe_wait(pipe, 1 - s);
             st.seconds_kernels += hl_now() - t0;
             if (r != HL_OK) break;
-            uint32_t pf = (k - 1) * R, pc = V - pf < R ? V - pf : R;
+            uint32_t pf = start + (k - 1) * R, pc = V - pf < R ? V - pf : R;
             r = hl_tfile_writer_append(w, pc, buf[1 - s].rq, buf[1 - s].bc, buf[1 - s].entries, (size_t)g->ncoef * 2,
                                        buf[1 - s].nnz);
             for (uint32_t i = 0; i < pc; i++) st.coefficients_kept += buf[1 - s].nnz[i];
+            /* the rays of chunk k are cast but its rows are not written */
+            vc_done = vc_before;
+            if (r == HL_OK) r = hl_tfile_writer_checkpoint(w, vc_done.rays_cast, vc_done.rays_culled);
             if (r != HL_OK) break;
             progress(ctx, pf + pc, V, vc.rays_cast, st.seconds_rays, t_start);
         }
@@ -234,10 +256,17 @@ hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precomput
                 r = hl_tfile_writer_append(w, count, buf[s].rq, buf[s].bc, buf[s].entries, (size_t)g->ncoef * 2,
                                            buf[s].nnz);
             for (uint32_t i = 0; i < count; i++) st.coefficients_kept += buf[s].nnz[i];
+            vc_done = vc;
+            if (r == HL_OK) r = hl_tfile_writer_checkpoint(w, vc_done.rays_cast, vc_done.rays_culled);
             progress(ctx, first + count, V, vc.rays_cast, st.seconds_rays, t_start);
         }
-        if (r == HL_OK && hl_interrupt_requested) r = hl_fail(ctx, HL_ERR_INTERRUPTED, "interrupted; no output written");
+        if (r == HL_OK && hl_interrupt_requested) r = HL_ERR_INTERRUPTED;
     }
+    if (r == HL_ERR_INTERRUPTED && w)
+        hl_fail(ctx, HL_ERR_INTERRUPTED,
+                "interrupted: %s not written; %u of %u vertices are kept in %s.partial (run again with --resume "
+                "to continue)",
+                out_path, hl_tfile_writer_appended(w), V, out_path);
     if (r == HL_OK) {
         info.coefficients_kept = st.coefficients_kept;
         info.rays_cast = vc.rays_cast;
@@ -245,14 +274,17 @@ hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precomput
         r = hl_tfile_writer_finish(w, &info);
         w = NULL;
     }
-    if (w) hl_tfile_writer_abort(w);
+    /* an interrupted run keeps its partial file for --resume; any other
+       failure removes it */
+    if (w && r == HL_ERR_INTERRUPTED) hl_tfile_writer_keep(w);
+    else if (w) hl_tfile_writer_abort(w);
     hl_cl_pipe_destroy(pipe);
     hl_chunk_buf_free(&buf[0]);
     hl_chunk_buf_free(&buf[1]);
     hl_rt_destroy(rt);
     hl_geom_destroy(g);
-    st.rays_cast = vc.rays_cast;
-    st.rays_culled = vc.rays_culled;
+    st.rays_cast = vc.rays_cast - vc_resumed.rays_cast; /* by this run */
+    st.rays_culled = vc.rays_culled - vc_resumed.rays_culled;
     st.seconds_total = hl_now() - t_start;
     if (stats) *stats = st;
     return r;

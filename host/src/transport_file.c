@@ -9,9 +9,9 @@
  * with a message naming the vertex or triangle.
  *
  * Depends on: hl_internal.h (hl_fail, allocation), hl_mesh_destroy (mesh.c),
- * POSIX open/pread/pwrite/fsync/rename.
+ * POSIX open/pread/pwrite/fsync/rename/ftruncate, flock.
  */
-#define _POSIX_C_SOURCE 200809L
+#define _DEFAULT_SOURCE /* flock */
 #define _FILE_OFFSET_BITS 64
 #include <errno.h>
 #include <fcntl.h>
@@ -20,6 +20,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <sys/types.h>
 #include <unistd.h>
@@ -29,6 +30,10 @@
 /* ---------------------------------------------------------------- format */
 
 #define TF_MAGIC "HLTRANS1"
+/* An unfinished file (path + ".partial"), resumable: the header area holds
+ * a checkpoint in the same layout, with the sections' sizes and checksums
+ * so far and the vertices appended so far in the first reserved word. */
+#define TF_PARTIAL_MAGIC "HLTPART1"
 #define TF_VERSION HL_TRANSPORT_VERSION
 #define TF_HEADER_SIZE 192u
 #define TF_ALIGN 64u /* section alignment: lets a later reader mmap them */
@@ -57,6 +62,7 @@ enum {
     H_SECTIONS = 96, /* 3 x (u64 offset, u64 size) */
     H_SECTION_CRCS = 144, /* 3 x u32 */
     H_RESERVED = 156,
+    H_APPENDED = 156, /* partial files only */
     H_HEADER_CRC = 188
 };
 
@@ -168,11 +174,15 @@ static uint32_t crc_update(const tf_crc *c, uint32_t crc, const void *data, size
 
 /* ---------------------------------------------------------------- header */
 
-static void header_encode(const tf_header *h, const tf_crc *crc, uint8_t out[TF_HEADER_SIZE])
+/* magic: TF_MAGIC, or TF_PARTIAL_MAGIC for the checkpoint of an unfinished
+ * file, which also records the vertices appended so far (H_APPENDED). */
+static void header_encode(const tf_header *h, const tf_crc *crc, const char *magic, uint32_t appended,
+                          uint8_t out[TF_HEADER_SIZE])
 {
     const hl_transport_info *i = &h->info;
     memset(out, 0, TF_HEADER_SIZE);
-    memcpy(out + H_MAGIC, TF_MAGIC, 8);
+    memcpy(out + H_MAGIC, magic, 8);
+    if (appended) put_u32(out + H_APPENDED, appended);
     put_u32(out + H_VERSION, TF_VERSION);
     put_u32(out + H_HEADER_SIZE, TF_HEADER_SIZE);
     put_u32(out + H_N, i->N);
@@ -498,12 +508,22 @@ static char *dup_string(hl_context *ctx, const char *s, const char *suffix)
     return p;
 }
 
-hl_result hl_tfile_writer_open(hl_context *ctx, const char *path, const hl_transport_info *info,
-                               const hl_mesh *mesh, hl_tfile_writer **out)
+static int info_params_differ(const hl_transport_info *a, const hl_transport_info *b)
+{
+    return a->N != b->N || a->C != b->C || a->supersample != b->supersample || a->rule != b->rule ||
+           a->K != b->K || HL_AS_U32(a->eps) != HL_AS_U32(b->eps) || a->quant != b->quant ||
+           HL_AS_U32(a->ray_offset) != HL_AS_U32(b->ray_offset) || a->vertex_count != b->vertex_count ||
+           a->object_vertex_count != b->object_vertex_count || a->triangle_count != b->triangle_count ||
+           a->block_count != b->block_count;
+}
+
+/* Checks the arguments and plans the header; no file is touched. */
+static hl_result writer_new(hl_context *ctx, const char *path, const hl_transport_info *info, const hl_mesh *mesh,
+                            hl_tfile_writer **out)
 {
     char msg[256];
-    if (out) *out = NULL;
-    if (!path || !*path || !info || !mesh || !out)
+    *out = NULL;
+    if (!path || !*path || !info || !mesh)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "transport writer: path, info, mesh and out are required");
     if (info_problem(info, msg, sizeof msg))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: transport parameters: %s", path, msg);
@@ -523,10 +543,8 @@ hl_result hl_tfile_writer_open(hl_context *ctx, const char *path, const hl_trans
     if (!w) return HL_ERR_OUT_OF_MEMORY;
     w->ctx = ctx;
     w->fd = -1;
-    char suffix[32];
-    snprintf(suffix, sizeof suffix, ".tmp.%ld", (long)getpid());
     w->path = dup_string(ctx, path, NULL);
-    w->tmp_path = dup_string(ctx, path, suffix);
+    w->tmp_path = dup_string(ctx, path, ".partial");
     if (!w->path || !w->tmp_path) {
         writer_free(w);
         return HL_ERR_OUT_OF_MEMORY;
@@ -544,12 +562,61 @@ hl_result hl_tfile_writer_open(hl_context *ctx, const char *path, const hl_trans
     h->sec[SEC_ROWS].offset = align_up(h->sec[SEC_MESH].offset + h->sec[SEC_MESH].size);
     h->sec[SEC_ROWS].size = (uint64_t)info->vertex_count * row_record_bytes(info->block_count);
     h->sec[SEC_ENTRIES].offset = align_up(h->sec[SEC_ROWS].offset + h->sec[SEC_ROWS].size);
+    *out = w;
+    return HL_OK;
+}
 
-    w->fd = open(w->tmp_path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+/* One writer per partial file: a second precompute onto the same path
+ * would interleave its rows with ours. */
+static hl_result writer_lock(hl_tfile_writer *w)
+{
+    if (flock(w->fd, LOCK_EX | LOCK_NB) == 0) return HL_OK;
+    int e = errno;
+    return hl_fail(w->ctx, HL_ERR_IO, "%s: %s is in use by another precompute (%s)", w->path, w->tmp_path,
+                   e == EWOULDBLOCK ? "locked" : strerror(e));
+}
+
+/* CRC-32 of the mesh section as it would be written. */
+static uint32_t mesh_crc(const tf_crc *c, const hl_mesh *mesh)
+{
+    const void *parts[4] = {mesh->positions, mesh->normals, mesh->albedo, mesh->indices};
+    size_t words[4] = {3 * (size_t)mesh->vertex_count, 3 * (size_t)mesh->vertex_count,
+                       3 * (size_t)mesh->vertex_count, 3 * (size_t)mesh->triangle_count};
+    uint32_t crc = 0;
+    uint8_t tmp[4096];
+    for (int k = 0; k < 4; k++)
+        for (size_t i = 0; i < words[k];) {
+            size_t n = 0;
+            for (; n < sizeof tmp && i < words[k]; n += 4, i++) {
+                uint32_t u;
+                memcpy(&u, (const uint8_t *)parts[k] + 4 * i, 4);
+                put_u32(tmp + n, u);
+            }
+            crc = crc_update(c, crc, tmp, n);
+        }
+    return crc;
+}
+
+hl_result hl_tfile_writer_open(hl_context *ctx, const char *path, const hl_transport_info *info,
+                               const hl_mesh *mesh, hl_tfile_writer **out)
+{
+    if (out) *out = NULL;
+    if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "transport writer: path, info, mesh and out are required");
+    hl_tfile_writer *w;
+    hl_result r = writer_new(ctx, path, info, mesh, &w);
+    if (r != HL_OK) return r;
+    tf_header *h = &w->hdr;
+    w->fd = open(w->tmp_path, O_RDWR | O_CREAT | O_CLOEXEC, 0666);
     if (w->fd < 0) {
         int e = errno;
-        hl_result r = hl_fail(ctx, HL_ERR_IO, "%s: cannot create %s: %s", path, w->tmp_path, strerror(e));
+        r = hl_fail(ctx, HL_ERR_IO, "%s: cannot create %s: %s", path, w->tmp_path, strerror(e));
         writer_free(w);
+        return r;
+    }
+    r = writer_lock(w);
+    if (r == HL_OK && ftruncate(w->fd, 0) != 0) r = writer_io_error(w, "truncate");
+    if (r != HL_OK) {
+        writer_free(w); /* not ours to remove */
         return r;
     }
 
@@ -558,7 +625,7 @@ hl_result hl_tfile_writer_open(hl_context *ctx, const char *path, const hl_trans
     size_t v3 = 3 * (size_t)mesh->vertex_count;
     tf_stream *s = &w->rows;
     stream_start(s, h->sec[SEC_MESH].offset);
-    hl_result r = put_words(w, s, mesh->positions, v3);
+    r = put_words(w, s, mesh->positions, v3);
     if (r == HL_OK) r = put_words(w, s, mesh->normals, v3);
     if (r == HL_OK) r = put_words(w, s, mesh->albedo, v3);
     if (r == HL_OK) r = put_words(w, s, mesh->indices, 3 * (size_t)mesh->triangle_count);
@@ -571,6 +638,128 @@ hl_result hl_tfile_writer_open(hl_context *ctx, const char *path, const hl_trans
     h->sec[SEC_MESH].crc = s->crc;
     stream_start(&w->rows, h->sec[SEC_ROWS].offset);
     stream_start(&w->entries, h->sec[SEC_ENTRIES].offset);
+    /* resumable from the start: the mesh is in */
+    r = hl_tfile_writer_checkpoint(w, 0, 0);
+    if (r != HL_OK) {
+        hl_tfile_writer_abort(w);
+        return r;
+    }
+    *out = w;
+    return HL_OK;
+}
+
+hl_result hl_tfile_writer_checkpoint(hl_tfile_writer *w, uint64_t rays_cast, uint64_t rays_culled)
+{
+    if (!w) return HL_ERR_INVALID_ARGUMENT;
+    if (w->failed) return hl_fail(w->ctx, HL_ERR_IO, "%s: the writer failed earlier", w->path);
+    hl_result r = stream_flush(w, &w->rows);
+    if (r == HL_OK) r = stream_flush(w, &w->entries);
+    if (r != HL_OK) return r;
+    tf_header p = w->hdr;
+    p.info.coefficients_kept = w->coefficients;
+    p.info.rays_cast = rays_cast;
+    p.info.rays_culled = rays_culled;
+    p.sec[SEC_ROWS].size = (uint64_t)w->appended * row_record_bytes(p.info.block_count);
+    p.sec[SEC_ROWS].crc = w->rows.crc;
+    p.sec[SEC_ENTRIES].size = 2 * w->coefficients;
+    p.sec[SEC_ENTRIES].crc = w->entries.crc;
+    p.file_size = p.sec[SEC_ENTRIES].offset + p.sec[SEC_ENTRIES].size;
+    uint8_t bytes[TF_HEADER_SIZE];
+    header_encode(&p, &w->crc, TF_PARTIAL_MAGIC, w->appended, bytes);
+    if (pwrite_all(w->fd, bytes, sizeof bytes, 0) != 0) return writer_io_error(w, "write");
+    return HL_OK;
+}
+
+/* The CRC-32 of bytes [off, off + n) of the partial file. */
+static int file_crc(hl_tfile_writer *w, uint64_t off, uint64_t n, uint32_t *crc)
+{
+    uint8_t *buf = malloc(1u << 20);
+    if (!buf) return -1;
+    uint32_t c = 0;
+    while (n > 0) {
+        size_t k = n < (1u << 20) ? (size_t)n : (1u << 20);
+        if (pread_all(w->fd, buf, k, off) != 0) {
+            free(buf);
+            return -1;
+        }
+        c = crc_update(&w->crc, c, buf, k);
+        off += k;
+        n -= k;
+    }
+    free(buf);
+    *crc = c;
+    return 0;
+}
+
+hl_result hl_tfile_writer_resume(hl_context *ctx, const char *path, const hl_transport_info *info,
+                                 const hl_mesh *mesh, hl_tfile_writer **out, hl_tfile_progress *done)
+{
+    if (out) *out = NULL;
+    memset(done, 0, sizeof *done);
+    if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "transport writer: path, info, mesh and out are required");
+    hl_tfile_writer *w;
+    hl_result r = writer_new(ctx, path, info, mesh, &w);
+    if (r != HL_OK) return r;
+    w->fd = open(w->tmp_path, O_RDWR | O_CLOEXEC);
+    if (w->fd < 0) {
+        int e = errno;
+        r = e == ENOENT ? HL_OK : hl_fail(ctx, HL_ERR_IO, "%s: cannot open %s: %s", path, w->tmp_path, strerror(e));
+        writer_free(w);
+        return r;
+    }
+    r = writer_lock(w);
+    uint8_t bytes[TF_HEADER_SIZE];
+    tf_header p;
+    const tf_header *h = &w->hdr;
+    const char *why = NULL;
+    if (r == HL_OK && pread_all(w->fd, bytes, sizeof bytes, 0) != 0) why = "too short to hold a checkpoint";
+    if (r == HL_OK && !why) {
+        header_decode(bytes, &p);
+        uint32_t appended = get_u32(bytes + H_APPENDED);
+        uint64_t rows = (uint64_t)appended * row_record_bytes(h->info.block_count);
+        if (memcmp(bytes, TF_PARTIAL_MAGIC, 8) != 0) why = "not a partial transport file";
+        else if (get_u32(bytes + H_HEADER_CRC) != crc_update(&w->crc, 0, bytes, H_HEADER_CRC)) why = "its checkpoint is corrupt";
+        else if (get_u32(bytes + H_VERSION) != TF_VERSION) why = "written by another format version";
+        else if (info_params_differ(&p.info, &h->info)) why = "made with other parameters or another mesh";
+        else if (p.sec[SEC_MESH].offset != h->sec[SEC_MESH].offset || p.sec[SEC_MESH].size != h->sec[SEC_MESH].size ||
+                 p.sec[SEC_MESH].crc != mesh_crc(&w->crc, mesh))
+            why = "made from another mesh";
+        else if (appended > h->info.vertex_count || p.sec[SEC_ROWS].offset != h->sec[SEC_ROWS].offset ||
+                 p.sec[SEC_ROWS].size != rows || p.sec[SEC_ENTRIES].offset != h->sec[SEC_ENTRIES].offset ||
+                 p.sec[SEC_ENTRIES].size != 2 * p.info.coefficients_kept)
+            why = "its checkpoint is inconsistent";
+        else {
+            uint32_t c[SEC_COUNT];
+            for (int k = 0; k < SEC_COUNT && !why; k++)
+                if (file_crc(w, p.sec[k].offset, p.sec[k].size, &c[k]) != 0 || c[k] != p.sec[k].crc)
+                    why = "its data do not match its checkpoint (cut short or changed)";
+            if (!why) {
+                w->hdr.sec[SEC_MESH].crc = p.sec[SEC_MESH].crc;
+                w->appended = appended;
+                w->coefficients = p.info.coefficients_kept;
+                stream_start(&w->rows, p.sec[SEC_ROWS].offset + p.sec[SEC_ROWS].size);
+                w->rows.crc = p.sec[SEC_ROWS].crc;
+                w->rows.written = p.sec[SEC_ROWS].size;
+                stream_start(&w->entries, p.sec[SEC_ENTRIES].offset + p.sec[SEC_ENTRIES].size);
+                w->entries.crc = p.sec[SEC_ENTRIES].crc;
+                w->entries.written = p.sec[SEC_ENTRIES].size;
+                if (ftruncate(w->fd, (off_t)(p.sec[SEC_ENTRIES].offset + p.sec[SEC_ENTRIES].size)) != 0)
+                    r = writer_io_error(w, "truncate");
+                done->appended = appended;
+                done->coefficients = p.info.coefficients_kept;
+                done->rays_cast = p.info.rays_cast;
+                done->rays_culled = p.info.rays_culled;
+            }
+        }
+    }
+    if (r == HL_OK && why)
+        r = hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot resume from %s: %s; remove it or run without --resume", path,
+                    w->tmp_path, why);
+    if (r != HL_OK) {
+        memset(done, 0, sizeof *done);
+        writer_free(w);
+        return r;
+    }
     *out = w;
     return HL_OK;
 }
@@ -628,14 +817,6 @@ hl_result hl_tfile_writer_append(hl_tfile_writer *w, uint32_t vertex_count, cons
     return HL_OK;
 }
 
-static int info_params_differ(const hl_transport_info *a, const hl_transport_info *b)
-{
-    return a->N != b->N || a->C != b->C || a->supersample != b->supersample || a->rule != b->rule ||
-           a->K != b->K || HL_AS_U32(a->eps) != HL_AS_U32(b->eps) || a->quant != b->quant ||
-           HL_AS_U32(a->ray_offset) != HL_AS_U32(b->ray_offset) || a->vertex_count != b->vertex_count ||
-           a->object_vertex_count != b->object_vertex_count || a->triangle_count != b->triangle_count ||
-           a->block_count != b->block_count;
-}
 
 /* Makes the rename durable; failure here only weakens crash safety. */
 static void sync_parent_dir(const char *path)
@@ -687,7 +868,7 @@ hl_result hl_tfile_writer_finish(hl_tfile_writer *w, const hl_transport_info *fi
         h->sec[SEC_ENTRIES].crc = w->entries.crc;
         h->file_size = h->sec[SEC_ENTRIES].offset + h->sec[SEC_ENTRIES].size;
         uint8_t bytes[TF_HEADER_SIZE];
-        header_encode(h, &w->crc, bytes);
+        header_encode(h, &w->crc, TF_MAGIC, 0, bytes);
         r = write_padding(w, h->sec[SEC_ROWS].offset + h->sec[SEC_ROWS].size, h->sec[SEC_ENTRIES].offset);
         if (r == HL_OK && pwrite_all(w->fd, bytes, sizeof bytes, 0) != 0) r = writer_io_error(w, "write");
         if (r == HL_OK && fsync(w->fd) != 0) r = writer_io_error(w, "sync");
@@ -708,6 +889,13 @@ hl_result hl_tfile_writer_finish(hl_tfile_writer *w, const hl_transport_info *fi
     sync_parent_dir(w->path);
     writer_free(w);
     return HL_OK;
+}
+
+uint32_t hl_tfile_writer_appended(const hl_tfile_writer *w) { return w ? w->appended : 0; }
+
+void hl_tfile_writer_keep(hl_tfile_writer *w)
+{
+    writer_free(w);
 }
 
 void hl_tfile_writer_abort(hl_tfile_writer *w)

@@ -4,8 +4,11 @@
  * hl_transport_load. The precompute pipeline opens a writer, appends vertex
  * rows in order as chunks finish, and finishes it. Memory stays bounded: the
  * mesh is written at open, rows and entries are streamed straight to their
- * final positions in a temporary file (path + ".tmp.<pid>"), and only the
- * header is written at finish, just before the file is renamed onto path.
+ * final positions in a partial file (path + ".partial", locked while a
+ * writer has it), and only the header is written at finish, just before the
+ * file is renamed onto path. A checkpoint records in the partial file's
+ * header area what has been appended so far, so that a run that was
+ * interrupted or killed can resume there and still write the same bytes.
  *
  * Errors: HL_ERR_INVALID_ARGUMENT for bad parameters or appended data (the
  * writer is left as it was, so the caller may still abort or continue),
@@ -56,8 +59,36 @@ hl_result hl_tfile_writer_append(hl_tfile_writer *w, uint32_t vertex_count,
 hl_result hl_tfile_writer_finish(hl_tfile_writer *w,
                                  const hl_transport_info *final_info);
 
-/* Removes the temporary file and frees the writer. NULL does nothing. */
+/* Removes the partial file and frees the writer. NULL does nothing. */
 void hl_tfile_writer_abort(hl_tfile_writer *w);
+
+/* Makes what has been appended so far resumable: flushes the rows and
+ * entries and writes a checkpoint (counts, sizes and running checksums,
+ * and the ray counters given) in the partial file's header area. Survives
+ * the process being killed; a checkpoint whose data did not reach the disk
+ * (a power loss) is refused on resume by its checksums. */
+hl_result hl_tfile_writer_checkpoint(hl_tfile_writer *w, uint64_t rays_cast, uint64_t rays_culled);
+
+/* Closes the writer and leaves its partial file (and last checkpoint) for a
+ * later resume. */
+void hl_tfile_writer_keep(hl_tfile_writer *w);
+
+/* Vertices appended so far. */
+uint32_t hl_tfile_writer_appended(const hl_tfile_writer *w);
+
+typedef struct hl_tfile_progress {
+    uint32_t appended;      /* vertices already in the file */
+    uint64_t coefficients;  /* their entries */
+    uint64_t rays_cast, rays_culled;
+} hl_tfile_progress;
+
+/* Reopens path + ".partial" at its last checkpoint, after checking that it
+ * was made with the same parameters (info, as for open) and the same mesh
+ * and that every byte it covers matches its checksums; data past the
+ * checkpoint are dropped. With no partial file, returns HL_OK with *out
+ * NULL (the caller opens a new one). done gets what is already written. */
+hl_result hl_tfile_writer_resume(hl_context *ctx, const char *path, const hl_transport_info *info,
+                                 const hl_mesh *mesh, hl_tfile_writer **out, hl_tfile_progress *done);
 
 /* Human report of a loaded transport for `haarlight info`: parameters,
  * counts, per-vertex statistics, ray counters and sizes. path is only
