@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # test_cli.sh CASE - end-to-end checks of the haarlight command.
-# Env: HL_BIN (the binary), HL_TMP (scratch), HL_REPO_DATA (data/).
+# Env: HL_BIN (the binary), HL_TMP (scratch), HL_REPO_DATA (data/), HL_SRC
+# (the source tree, for kernels).
 set -u
 bin="${HL_BIN:?}"
+src="${HL_SRC:-$(cd "$(dirname "$0")/.." && pwd)}"
 tmp="${HL_TMP:-/tmp}/cli.$$"
 data="${HL_REPO_DATA:?}"
 mkdir -p "$tmp"
@@ -119,6 +121,20 @@ interrupt)
   [ -e "$tmp/int.hlt.partial" ] && fail "partial file left after a complete run"
   ls "$tmp" | grep -q '\.tmp\.' && fail "temporary file left behind"
   ;;
+opencl_faults)
+  # each OpenCL fault names its cause and suggests the plain-C reference
+  m="$data/bunny_lowres.obj"
+  mkdir -p "$tmp/no_icds" "$tmp/k/kernels" "$tmp/k/host/include"
+  OCL_ICD_VENDORS="$tmp/no_icds" expect_error no_platform 1 "no platform found.*--device ref" "$tmp/f1.hlt" -- precompute "$m" -o "$tmp/f1.hlt" "${small[@]}"
+  cp "$src/kernels/"*.cl "$tmp/k/kernels/"
+  cp "$src/host/include/hl_shared.h" "$tmp/k/host/include/"
+  echo "kernel void broken( { }" >>"$tmp/k/kernels/haar.cl"
+  HL_KERNEL_DIR="$tmp/k/kernels" expect_error build_failure 1 "kernel build failed" "$tmp/f2.hlt" -- precompute "$m" -o "$tmp/f2.hlt" "${small[@]}"
+  grep -q "build log" "$tmp/err.txt" || fail "build_failure: no build log"
+  grep -q "error:" "$tmp/err.txt" || fail "build_failure: the log lacks the compiler's error"
+  grep -q -- "--device ref" "$tmp/err.txt" || fail "build_failure: no suggestion of --device ref"
+  expect_error device_memory 1 "largest allocation.*--device ref" "$tmp/f3.hlt" -- precompute "$m" --ground -N 256 -C 8 --chunk 65536 -o "$tmp/f3.hlt" -q
+  ;;
 relight)
   # every output kind, from the sky and from a map, on both devices
   m="$data/bunny_lowres.obj"
@@ -158,7 +174,7 @@ relight_bad)
   expect_error env_and_sky 2 "contradict" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$data/city.exr" --sun-size 3 -o "$tmp/o.ply"
   expect_error unwritable 1 "no/dir" "" -- relight "$tmp/b.hlt" --sky -o "$tmp/no/dir/o.png"
   ;;
-*) echo "usage: $0 bad_input|bad_options|cl_equals_ref|info|interrupt|relight|relight_bad"; exit 2 ;;
+*) echo "usage: $0 bad_input|bad_options|cl_equals_ref|info|interrupt|opencl_faults|relight|relight_bad"; exit 2 ;;
 esac
 echo "$((fails == 0 ? 1 : 0)) passed, $fails failed" >/dev/null
 [ "$fails" -eq 0 ] && echo "${1}: passed" || echo "${1}: FAILED ($fails)"
