@@ -5,7 +5,8 @@
 #   ./setup.sh demo    the built-in default scene (bunny on a ground plane):
 #                      precompute, then relight under the procedural sun and
 #                      sky and under data/city.exr, writing build/demo-*.png
-#   ./setup.sh test    run the test suite (ctest, on PoCL's CPU device)
+#   ./setup.sh test    run the test suite (ctest, on PoCL's CPU device), then
+#                      the same under ASan + UBSan (build-asan/)
 #   ./setup.sh build   only install and build
 #
 # Packages are installed with apt-get only when missing (as root, or through
@@ -19,7 +20,7 @@ case "$what" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exi
 packages=(build-essential cmake pkg-config
           pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
           libembree-dev libopenexr-dev libglfw3-dev libassimp-dev gnuplot-nox
-          libgl1-mesa-dev libgl1-mesa-dri xvfb xauth)
+          libgl1-mesa-dev libgl1-mesa-dri xvfb xauth valgrind)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -47,7 +48,12 @@ case "$what" in
     echo "demo: wrote build/demo-sky.png, build/demo-city.png and build/demo-sky.ply"
     ;;
   test)
-    cd build
-    ctest --output-on-failure
+    # 1. the suite (valgrind memcheck of a small scene included)
+    (cd build && ctest --output-on-failure)
+    # 2. the suite again under AddressSanitizer and UndefinedBehaviorSanitizer
+    #    (the viewer's tests are left out: Mesa's own allocations are not ours)
+    cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHL_SANITIZE=ON -DHL_WITH_VIEWER=OFF
+    cmake --build build-asan -j"$jobs"
+    (cd build-asan && ctest --output-on-failure -j"$jobs")
     ;;
 esac

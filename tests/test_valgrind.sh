@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# test_valgrind.sh - memcheck over a small scene: precompute and relight on
+# the OpenCL device (PoCL) and on the plain-C reference. Any error in the
+# project's code, or any definite leak, fails; tests/valgrind.supp lists
+# the one false positive outside it (glibc's loader).
+# Env: HL_BIN, HL_TMP, HL_SRC. Exit 77 (skip) without valgrind.
+set -u
+bin="${HL_BIN:?}"
+src="${HL_SRC:?}"
+tmp="${HL_TMP:-/tmp}/valgrind.$$"
+command -v valgrind >/dev/null || { echo "SKIP: valgrind is not installed"; exit 77; }
+mkdir -p "$tmp"
+trap 'rm -rf "$tmp"' EXIT
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n' >"$tmp/tet.obj"
+vg=(valgrind --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite
+    --show-leak-kinds=definite --suppressions="$src/tests/valgrind.supp" -q)
+fails=0
+run() {
+  local name="$1"; shift
+  "${vg[@]}" "$bin" "$@" -q 2>"$tmp/$name.log"
+  local rc=$?
+  echo "$name: exit $rc, $(grep -c '^==[0-9]*== [A-Z]' "$tmp/$name.log") memcheck lines"
+  if [ "$rc" -ne 0 ]; then cat "$tmp/$name.log"; fails=$((fails + 1)); fi
+}
+for dev in cl ref; do
+  run "precompute_$dev" precompute "$tmp/tet.obj" --ground --ground-res 8 -N 16 -C 16 --device "$dev" -o "$tmp/$dev.hlt"
+  run "relight_png_$dev" relight "$tmp/$dev.hlt" --sky --device "$dev" --size 64x48 -o "$tmp/$dev.png"
+  run "relight_ply_$dev" relight "$tmp/$dev.hlt" --sky --terms all --device "$dev" -o "$tmp/$dev.ply"
+done
+cmp "$tmp/cl.hlt" "$tmp/ref.hlt" || { echo "FAIL: OpenCL and reference files differ under valgrind"; fails=$((fails + 1)); }
+[ "$fails" -eq 0 ] && echo "valgrind: 6 runs clean" && exit 0
+echo "valgrind: $fails runs failed"
+exit 1
