@@ -4,7 +4,8 @@
  * priority's bit pattern, ties to the lower slot. One work-item: the
  * vector is small. Writes the kept terms densely (zeros elsewhere) as
  * float4 RGB, a flag per 256-block, a bit per slot, and the energies for
- * the error bound.
+ * the error bound (the dropped energy summed on its own: total - kept
+ * cancels in float when a bright sun dominates).
  * A block's flag counts only its detail slots 1..255: slot 0 holds a
  * coarse coefficient (kept almost always), which the dot products handle
  * apart, so that blocks still skip.
@@ -45,7 +46,7 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
     }
     for (uint b = 0; b < nblocks; b++) block_used[b] = 0;
     for (uint w = 0; w < ncoef / 32u; w++) kept_bits[w] = 0;
-    float et = 0.0f, ek = 0.0f;
+    float et = 0.0f, ek = 0.0f, ed = 0.0f;
     uint kept = 0, seen = 0;
     for (uint i = 0; i < ncoef; i++) {
         float r = L[i], g = L[ncoef + i], b = L[2 * ncoef + i];
@@ -59,6 +60,8 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
             kept++;
             if (i & 255u) block_used[i >> 8] = 1;
             kept_bits[i >> 5] |= 1u << (i & 31u);
+        } else {
+            ed += y * y;
         }
     }
     uint used = 0;
@@ -68,5 +71,7 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
     s.energy_kept = ek;
     s.kept = kept;
     s.blocks_used = used;
+    s.energy_dropped = ed;
+    s.pad_[0] = s.pad_[1] = s.pad_[2] = 0u;
     *res = s;
 }

@@ -123,6 +123,10 @@ typedef struct hl_select_result {
     float energy_kept;  /* ... over the kept ones */
     HL_U32 kept;
     HL_U32 blocks_used; /* 256-blocks holding a kept term */
+    float energy_dropped; /* ... over the others, summed apart: with a
+                             bright sun total - kept cancels to nothing
+                             in float, and the error bound needs this */
+    HL_U32 pad_[3];
 } hl_select_result;
 
 /* Luminance of linear Rec.709 RGB. */

@@ -11,4 +11,4 @@ _Static_assert(sizeof(hl_trunc_params) == 16, "hl_trunc_params must be 16 bytes"
 _Static_assert(sizeof(float) == 4, "float must be 32-bit IEEE");
 _Static_assert(sizeof(hl_env_tap) == 16, "hl_env_tap must be 16 bytes");
 _Static_assert(sizeof(hl_select_params) == 16, "hl_select_params must be 16 bytes");
-_Static_assert(sizeof(hl_select_result) == 16, "hl_select_result must be 16 bytes");
+_Static_assert(sizeof(hl_select_result) == 32, "hl_select_result must be 32 bytes");

@@ -465,7 +465,7 @@ hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *
         double et = sr.energy_total, ek = sr.energy_kept;
         st.terms_kept = sr.kept;
         st.energy_kept = et > 0 ? ek / et : 1.0;
-        st.error_bound = r->max_row_norm * sqrt(et > ek ? et - ek : 0.0);
+        st.error_bound = r->max_row_norm * sqrt((double)sr.energy_dropped);
         st.blocks_skipped = 1.0 - (double)sr.blocks_used / r->g->nblocks;
         r->have_last = 1;
         r->last = d;

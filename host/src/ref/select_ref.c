@@ -17,7 +17,7 @@ static int by_key_desc(const void *pa, const void *pb)
 hl_select_result hl_ref_select(const float *L, uint32_t n, const float *weight, hl_select_params p,
                                float *out, uint8_t *block_used, uint32_t *kept_bits, uint32_t nblocks)
 {
-    hl_select_result res = {0.0f, 0.0f, 0u, 0u};
+    hl_select_result res = {0.0f, 0.0f, 0u, 0u, 0.0f, {0u, 0u, 0u}};
     prio *k = malloc((size_t)n * sizeof *k);
     uint8_t *keep = calloc(n, 1);
     if (!k || !keep) abort();
@@ -44,6 +44,8 @@ hl_select_result hl_ref_select(const float *L, uint32_t n, const float *weight, 
             res.kept++;
             if (i % HL_BLOCK) block_used[i / HL_BLOCK] = 1; /* detail slots only */
             kept_bits[i / 32] |= 1u << (i % 32);
+        } else {
+            res.energy_dropped += y * y;
         }
     }
     for (uint32_t b = 0; b < nblocks; b++) res.blocks_used += block_used[b];
