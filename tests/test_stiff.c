@@ -1260,7 +1260,8 @@ static void case_truncation(void)
             fclose(f);
         }
         struct stat sb;
-        printf("--terms 0: exit %d, message: %s", rc, msg);
+        msg[strcspn(msg, "\n")] = '\0';
+        printf("--terms 0: exit %d, message: %s\n", rc, msg);
         HL_CHECK(rc != 0 && strstr(msg, "--terms") && stat(out, &sb) != 0,
                  "the CLI must refuse --terms 0, name the option and write nothing");
         remove(obj);
