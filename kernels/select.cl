@@ -21,12 +21,17 @@ static float priority(global const float *L, uint n, uint i, global const float 
 
 kernel void hl_select(global const float *L, uint ncoef, global const float *weight,
                       hl_select_params p, global float4 *out, global uchar *block_used,
-                      global uint *kept_bits, uint nblocks, global hl_select_result *res)
+                      global uint *kept_bits, uint nblocks, global hl_select_result *res,
+                      global uint *keys)
 {
     if (get_global_id(0) != 0) return;
     uint hist[256];
     uint nnz = 0;
-    for (uint i = 0; i < ncoef; i++) nnz += hl_key(priority(L, ncoef, i, weight)) != 0u;
+    /* the priorities' keys, once (the passes below read them 5 times) */
+    for (uint i = 0; i < ncoef; i++) {
+        keys[i] = hl_key(priority(L, ncoef, i, weight));
+        nnz += keys[i] != 0u;
+    }
     uint need = min(p.M, nnz);
     uint thresh = 0xffffffffu, ties = 0;
     if (need > 0) {
@@ -34,7 +39,7 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
         for (int shift = 24; shift >= 0; shift -= 8) {
             for (int b = 0; b < 256; b++) hist[b] = 0;
             for (uint i = 0; i < ncoef; i++) {
-                uint k = hl_key(priority(L, ncoef, i, weight));
+                uint k = keys[i];
                 if (k && (k & mask) == prefix) hist[(k >> shift) & 255u]++;
             }
             uint b = hl_radix_bin(hist, &need);
@@ -52,7 +57,7 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
         float r = L[i], g = L[ncoef + i], b = L[2 * ncoef + i];
         float y = hl_luminance(r, g, b);
         et += y * y;
-        uint k = hl_key(priority(L, ncoef, i, weight));
+        uint k = keys[i];
         int keep = k > thresh || (k == thresh && k != 0u && seen++ < ties);
         out[i] = keep ? (float4)(r, g, b, 0.0f) : (float4)(0.0f);
         if (keep) {

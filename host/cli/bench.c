@@ -141,7 +141,7 @@ static hl_result continuous(hl_context *ctx, hl_rt *rt, const hl_mesh *m, const 
                 float d[3] = {(float)(sin(th) * cos(ph)), (float)cos(th), (float)(sin(th) * sin(ph))};
                 if (d[0] * n[0] + d[1] * n[1] + d[2] * n[2] <= 0.0f) continue;
                 for (int c = 0; c < 3; c++) {
-                    org[3 * (size_t)cnt + c] = p[c] + n[c] * off;
+                    org[3 * (size_t)cnt + c] = hl_rt_origin_coord(p[c], n[c], off);
                     dir[3 * (size_t)cnt + c] = d[c];
                 }
                 pix[cnt++] = y * W + x;

@@ -513,7 +513,7 @@ struct hl_cl_light {
     const hl_light_geom *lg;
     uint32_t nverts, scheme;
     cl_mem cells, turned, start, runs, slots, weight; /* tables and inputs */
-    cl_mem Lp, Lw, Lsel, used, bits, res;          /* lighting stages */
+    cl_mem Lp, Lw, Lsel, used, bits, res, keys;    /* lighting stages */
     cl_mem col, cols, rstart, p0, p1, albedo, B, acc; /* transport, by column */
     void *host[5];                                  /* CPU devices: their memory */
     uint32_t nranges, *range_start;                 /* vertices of each work-item */
@@ -526,7 +526,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (!l) return;
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
-                     &l->bits, &l->res, &l->col, &l->cols, &l->rstart, &l->p0, &l->p1, &l->albedo, &l->B, &l->acc};
+                     &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rstart, &l->p0, &l->p1, &l->albedo, &l->B, &l->acc};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
         if (*all[i]) clReleaseMemObject(*all[i]);
     for (int i = 0; i < 5; i++) hl_free_big(l->host[i]);
@@ -701,6 +701,7 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
     B(used, CL_MEM_READ_WRITE, g->nblocks, NULL, "block flags");
     B(bits, CL_MEM_READ_WRITE, nc / 8, NULL, "kept-slot bits");
     B(res, CL_MEM_READ_WRITE, sizeof(hl_select_result), NULL, "selection result");
+    B(keys, CL_MEM_READ_WRITE, nc * 4, NULL, "selection keys");
     if (r == HL_OK) r = build_columns(l, t);
     B(albedo, CL_MEM_READ_ONLY, V * 16, albedo4, "albedo");
     B(B, CL_MEM_READ_WRITE, V * 16, NULL, "vertex colours");
@@ -769,7 +770,7 @@ static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
     cl_kernel k = l->cl->k[K_SELECT];
     cl_uint nc = l->g->ncoef, nb = l->g->nblocks;
     LARG(k, 0, l->Lw); LARG(k, 1, nc); LARG(k, 2, l->weight); LARG(k, 3, sp); LARG(k, 4, l->Lsel);
-    LARG(k, 5, l->used); LARG(k, 6, l->bits); LARG(k, 7, nb); LARG(k, 8, l->res);
+    LARG(k, 5, l->used); LARG(k, 6, l->bits); LARG(k, 7, nb); LARG(k, 8, l->res); LARG(k, 9, l->keys);
     return light_launch(l, K_SELECT, 1);
 }
 

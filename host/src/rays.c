@@ -138,7 +138,7 @@ static void packet_init(packet *pk)
  * the coordinates (1/16 at 1e6, against 1e-3 of a unit scene's diagonal),
  * and rounding to nearest would put the origin back on the surface,
  * where its rays hit the surface itself. */
-static float origin_coord(float p, float n, float offset)
+float hl_rt_origin_coord(float p, float n, float offset)
 {
     float o = p + n * offset;
     double want = (double)p + (double)n * offset;
@@ -152,8 +152,8 @@ static void trace_vertex(vis_job *job, uint32_t v, packet *pk, const float *off)
     const hl_geom *g = job->g;
     const uint32_t C = g->C, S = job->S;
     const float *p = job->mesh->positions + 3 * (size_t)v, *n = job->mesh->normals + 3 * (size_t)v;
-    const float o[3] = {origin_coord(p[0], n[0], job->offset), origin_coord(p[1], n[1], job->offset),
-                        origin_coord(p[2], n[2], job->offset)};
+    const float o[3] = {hl_rt_origin_coord(p[0], n[0], job->offset), hl_rt_origin_coord(p[1], n[1], job->offset),
+                        hl_rt_origin_coord(p[2], n[2], job->offset)};
     const float margin = -HL_HORIZON_MARGIN / (float)C;
     uint8_t *row = job->vis ? job->vis + (size_t)(v - job->first) * g->ncube : NULL;
     if (row) memset(row, 0, g->ncube);

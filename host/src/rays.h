@@ -35,6 +35,12 @@ hl_result hl_rt_visibility(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, uin
 hl_result hl_rt_raw_rate(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, const uint32_t *verts,
                          uint32_t nverts, uint32_t S, float offset, double *rays_per_s);
 
+/* One coordinate of a ray origin offset from a surface point p along its
+ * normal n: p + n offset, rounded away from the surface, so that far from
+ * the origin (where the offset is below the coordinates' spacing) it never
+ * lands back on the surface. */
+float hl_rt_origin_coord(float p, float n, float offset);
+
 /* Closest hits of `count` rays (origins and directions, 3 floats each,
  * directions need not be unit): prim[i] = triangle index or UINT32_MAX
  * for a miss, (u[i], v[i]) = barycentrics of vertices 1 and 2 of that
