@@ -6,7 +6,8 @@
 #                      precompute, then relight under the procedural sun and
 #                      sky and under data/city.exr, writing build/demo-*.png
 #   ./setup.sh test    run the test suite (ctest, on PoCL's CPU device), then
-#                      the same under ASan + UBSan (build-asan/)
+#                      the same under ASan + UBSan (build-asan/), then a short
+#                      libFuzzer pass (build-fuzz/)
 #   ./setup.sh build   only install and build
 #
 # Packages are installed with apt-get only when missing (as root, or through
@@ -20,7 +21,8 @@ case "$what" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exi
 packages=(build-essential cmake pkg-config
           pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
           libembree-dev libopenexr-dev libglfw3-dev libassimp-dev gnuplot-nox
-          libgl1-mesa-dev libgl1-mesa-dri xvfb xauth valgrind)
+          libgl1-mesa-dev libgl1-mesa-dri xvfb xauth valgrind
+          clang libclang-rt-14-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -55,5 +57,10 @@ case "$what" in
     cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHL_SANITIZE=ON -DHL_WITH_VIEWER=OFF
     cmake --build build-asan -j"$jobs"
     (cd build-asan && ctest --output-on-failure -j"$jobs")
+    # 3. a short fuzz pass (20 s a target, fixed seed) and the crash
+    #    regressions; tests/fuzz/run_long.sh runs a long one
+    CC=clang cmake -S . -B build-fuzz -DHL_FUZZ=ON -DHL_WITH_VIEWER=OFF -DCMAKE_BUILD_TYPE=RelWithDebInfo
+    cmake --build build-fuzz -j"$jobs" --target fuzz_transport fuzz_mesh fuzz_env
+    (cd build-fuzz && ctest -L fuzz --output-on-failure)
     ;;
 esac
