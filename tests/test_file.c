@@ -169,6 +169,12 @@ static void synth_make(synth *s, uint32_t N, uint32_t quant, uint32_t V, uint32_
         m->normals[k] = rng_float(-1, 1);
         m->albedo[k] = rng_float(0, 1);
     }
+    for (uint32_t v = 0; v < V; v++) { /* unit normals, as the mesh layer makes them */
+        float *q = m->normals + 3 * (size_t)v;
+        float len = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+        if (len < 1e-3f) q[0] = 1.0f, q[1] = q[2] = 0.0f, len = 1.0f;
+        for (int k = 0; k < 3; k++) q[k] /= len;
+    }
     for (uint32_t k = 0; k < 3 * T; k++) m->indices[k] = rng_below(V);
 
     uint32_t B = i->block_count;
@@ -601,6 +607,14 @@ static void case_corrupt(void)
     wr32(f + mo + 24 * V + 12 * 4, 0x7F800000u); /* vertex 4 albedo r = +Inf */
     fix_section_crc(f, F_MESH_OFFSET, F_MESH_CRC);
     expect_refused(ctx, bad, f, size, "Inf albedo", "vertex 4");
+    memcpy(f, data, size);
+    wr32(f + mo + 24 * V + 12 * 2 + 4, 0x40000000u); /* vertex 2 albedo g = 2 */
+    fix_section_crc(f, F_MESH_OFFSET, F_MESH_CRC);
+    expect_refused(ctx, bad, f, size, "albedo above 1", "vertex 2: albedo");
+    memcpy(f, data, size);
+    wr32(f + mo + 12 * V + 12 * 3, 0x40000000u); /* vertex 3 normal x = 2 */
+    fix_section_crc(f, F_MESH_OFFSET, F_MESH_CRC);
+    expect_refused(ctx, bad, f, size, "normal not of unit length", "vertex 3: normal");
     (void)T;
 
     /* row records: 8 + 2 bytes for N = 8 */

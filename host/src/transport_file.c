@@ -295,6 +295,14 @@ static int mesh_problem(uint32_t vertices, uint32_t triangles, const float *pos,
         if (!finite3(pos + 3 * (size_t)v)) return snprintf(msg, n, "vertex %u: position is not finite", v), 1;
         if (!finite3(nrm + 3 * (size_t)v)) return snprintf(msg, n, "vertex %u: normal is not finite", v), 1;
         if (!finite3(alb + 3 * (size_t)v)) return snprintf(msg, n, "vertex %u: albedo is not finite", v), 1;
+        /* what the mesh layer guarantees (mesh.c): unit normals, albedo in
+           [0, 1]; anything else is a forged or damaged file */
+        const float *q = nrm + 3 * (size_t)v, *c = alb + 3 * (size_t)v;
+        double len = sqrt((double)q[0] * q[0] + (double)q[1] * q[1] + (double)q[2] * q[2]);
+        if (fabs(len - 1.0) > 1e-3) return snprintf(msg, n, "vertex %u: normal is not of unit length (%g)", v, len), 1;
+        for (int k = 0; k < 3; k++)
+            if (!(c[k] >= 0.0f && c[k] <= 1.0f))
+                return snprintf(msg, n, "vertex %u: albedo %g is outside [0, 1]", v, (double)c[k]), 1;
     }
     for (uint32_t t = 0; t < triangles; t++)
         for (int k = 0; k < 3; k++)
@@ -313,6 +321,10 @@ static int row_quant_problem(uint32_t quant, hl_row_quant rq, char *msg, size_t 
      * the dequantised values meaningless. */
     if (quant == HL_QUANT_LOG8 && ((HL_AS_U32(rq.a) | HL_AS_U32(rq.b)) >> 31))
         return snprintf(msg, n, "log8 magnitudes (%g, %g) are negative", (double)rq.a, (double)rq.b), 1;
+    if (rq.a > rq.b)
+        return snprintf(msg, n, "quantisation range (%g, %g) is reversed", (double)rq.a, (double)rq.b), 1;
+    if (quant == HL_QUANT_LINEAR8 && !isfinite(rq.b - rq.a))
+        return snprintf(msg, n, "linear8 range (%g, %g) overflows", (double)rq.a, (double)rq.b), 1;
     return 0;
 }
 
