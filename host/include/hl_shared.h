@@ -191,11 +191,13 @@ HL_INLINE HL_U32 hl_quant_linear8(float v, float lo, float hi)
     return (HL_U32)(x + 0.5f);
 }
 
+/* linear8's step between codes: a multiply, not a division, and computed
+ * once per vertex where the dot products decode (hl_dequant_params). */
+HL_INLINE float hl_linear8_step(float lo, float hi) { return (hi - lo) * (1.0f / 255.0f); }
+
 HL_INLINE float hl_dequant_linear8(HL_U32 q, float lo, float hi)
 {
-    /* a multiply, not a division: this runs once per term in the dot
-       products */
-    return lo + (float)q * ((hi - lo) * (1.0f / 255.0f));
+    return lo + (float)q * hl_linear8_step(lo, hi);
 }
 
 /* log8: the magnitude's float bit pattern on a grid of 128 points from
@@ -233,17 +235,12 @@ HL_INLINE float hl_dequant_log8(HL_U32 code, float mn, float mx)
 }
 
 /* The per-vertex decoding parameters (bit patterns) of either scheme:
- * LOG8 as above; LINEAR8 p0 = lo, p1 = (hi - lo) / 255 as hl_dequant_linear8
+ * LOG8 as above; LINEAR8 p0 = lo, p1 = hl_linear8_step(lo, hi) as hl_dequant_linear8
  * computes it. */
 HL_INLINE void hl_dequant_params(HL_U32 scheme, float a, float b, HL_U32 *p0, HL_U32 *p1)
 {
-    if (scheme == HL_QUANT_LOG8) {
-        *p0 = HL_AS_U32(a);
-        *p1 = hl_log8_step(a, b);
-    } else {
-        *p0 = HL_AS_U32(a);
-        *p1 = HL_AS_U32((b - a) * (1.0f / 255.0f));
-    }
+    *p0 = HL_AS_U32(a);
+    *p1 = scheme == HL_QUANT_LOG8 ? hl_log8_step(a, b) : HL_AS_U32(hl_linear8_step(a, b));
 }
 
 HL_INLINE float hl_dequant(HL_U32 scheme, HL_U32 code, float a, float b)
