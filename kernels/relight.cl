@@ -25,8 +25,6 @@
 #define AS_FV HL_CAT(as_float, HL_TILE)
 #define TO_UV HL_CAT(convert_uint, HL_TILE)
 #define TO_FV HL_CAT(convert_float, HL_TILE)
-#define VLOAD HL_CAT(vload, HL_TILE)
-#define VSTORE HL_CAT(vstore, HL_TILE)
 #define CODE_WORDS (HL_TILE / 4)
 
 #if HL_TILE == 8
@@ -39,13 +37,16 @@
 #error "HL_TILE must be 8 or 16"
 #endif
 
-/* Adds d times the light to a tile's running sums, each term with one
- * rounding (an explicit fused multiply-add; the twin calls fmaf). */
-#define ADD_TILE(d)                                      \
-    do {                                                 \
-        VSTORE(fma((d), lr, VLOAD(0, ar + t)), 0, ar + t); \
-        VSTORE(fma((d), lg, VLOAD(0, ag + t)), 0, ag + t); \
-        VSTORE(fma((d), lb, VLOAD(0, ab + t)), 0, ab + t); \
+/* Adds d times the light to tile tq's running sums, each term with one
+ * rounding (an explicit fused multiply-add; the twin calls fmaf). The sums
+ * and parameters are addressed as whole aligned vectors (every range
+ * starts on a tile, and tiles are HL_TILE floats), so each is one aligned
+ * load and store rather than a split unaligned one. */
+#define ADD_TILE(d)                          \
+    do {                                     \
+        vr[tq] = fma((d), lr, vr[tq]);       \
+        vg[tq] = fma((d), lg, vg[tq]);       \
+        vb[tq] = fma((d), lb, vb[tq]);       \
     } while (0)
 
 kernel void hl_relight(global const uint *col, global const uint *col_start, global const uint *range_start,
@@ -58,8 +59,9 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
     uint v0 = range_start[w], range = range_start[w + 1] - v0;
     uint v1 = min(v0 + range, nverts);
     global float *ar = acc + (size_t)3 * v0, *ag = ar + range, *ab = ag + range;
-    for (uint i = 0; i < range; i++) ar[i] = ag[i] = ab[i] = 0.0f;
-    global const uint *q0 = p0 + v0, *q1 = p1 + v0;
+    global FV *vr = (global FV *)ar, *vg = (global FV *)ag, *vb = (global FV *)ab;
+    for (uint i = 0; i < range / HL_TILE; i++) vr[i] = vg[i] = vb[i] = (FV)(0.0f);
+    global const UV *q0 = (global const UV *)(p0 + v0), *q1 = (global const UV *)(p1 + v0);
     global const uint *cs = col_start + (size_t)w * (ncoef + 1);
     const uint stride = 1u + CODE_WORDS;
     for (uint word = 0; word < ncoef / 32u; word++) {
@@ -72,18 +74,18 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
             global const uint *e = col + (size_t)cs[slot] * stride, *end = col + (size_t)cs[slot + 1] * stride;
             if (scheme == HL_QUANT_LOG8) {
                 for (; e < end; e += stride) {
-                    uint head = e[0], t = (head & 0xffffu) * HL_TILE;
+                    uint head = e[0], tq = head & 0xffffu;
                     UV keep = AS_UV(((UV)(head >> 16) & LANE_BITS) != (UV)(0u));
                     UV c = TO_UV(CODES(e));
-                    FV d = AS_FV(((VLOAD(0, q0 + t) + (c & 127u) * VLOAD(0, q1 + t)) | ((c & 128u) << 24)) & keep);
+                    FV d = AS_FV(((q0[tq] + (c & 127u) * q1[tq]) | ((c & 128u) << 24)) & keep);
                     ADD_TILE(d);
                 }
             } else {
                 for (; e < end; e += stride) {
-                    uint head = e[0], t = (head & 0xffffu) * HL_TILE;
+                    uint head = e[0], tq = head & 0xffffu;
                     UV keep = AS_UV(((UV)(head >> 16) & LANE_BITS) != (UV)(0u));
                     FV c = TO_FV(CODES(e));
-                    FV d = AS_FV(VLOAD(0, q0 + t)) + c * AS_FV(VLOAD(0, q1 + t));
+                    FV d = AS_FV(q0[tq]) + c * AS_FV(q1[tq]);
                     d = AS_FV(AS_UV(d) & keep);
                     ADD_TILE(d);
                 }
