@@ -318,6 +318,80 @@ static void case_relighter(void)
     }
 }
 
+/* Colours left on the device (the viewer's GL interop path, here with a
+ * plain buffer, since PoCL shares no GL buffers): bit-identical to the
+ * read-back path, which still works after; a short buffer and the
+ * reference backend are refused by name. */
+static void case_into(void)
+{
+    const char *path = make_transport("light_i.hlt", "");
+    hl_context *ctx = ctx_of(HL_BACKEND_OPENCL), *ref = ctx_of(HL_BACKEND_REFERENCE);
+    hl_transport *t = NULL;
+    HL_CHECK(path && ctx && hl_transport_load(ctx, path, &t) == HL_OK, "transport");
+    if (!t) return;
+    const uint32_t V = t->info.vertex_count;
+    hl_relighter *r = NULL, *rr = NULL;
+    HL_CHECK(hl_relighter_create(ctx, t, &r) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(hl_relighter_create(ref, t, &rr) == HL_OK, "%s", hl_context_last_error(ref));
+    hl_env *env = make_env(ctx, 256, 70, 30, 2e3f);
+    HL_CHECK(hl_relighter_set_env(r, env) == HL_OK && hl_relighter_set_env(rr, env) == HL_OK, "set env");
+    float *rgb = malloc((size_t)V * 12), *rgb2 = malloc((size_t)V * 12), *b4 = malloc((size_t)V * 16);
+    void *buf = NULL, *small = NULL;
+    HL_CHECK(hl_cl_buffer(ctx, (size_t)V * 16, &buf) == HL_OK && hl_cl_buffer(ctx, (size_t)V * 16 - 16, &small) == HL_OK,
+             "buffers");
+    hl_relight_stats st, st2;
+    uint32_t diff = 0;
+    for (int k = 0; k < 3; k++) {
+        hl_relight_desc d = {.terms = 60u + 70u * (uint32_t)k, .rotate_deg = 10.0f + 41.0f * (float)k};
+        HL_CHECK(hl_relighter_run(r, &d, rgb, &st) == HL_OK, "%s", hl_context_last_error(ctx));
+        memset(b4, 0xff, (size_t)V * 16);
+        HL_CHECK(hl_relighter_run_into(r, &d, buf, 0, &st2) == HL_OK, "%s", hl_context_last_error(ctx));
+        HL_CHECK(!st2.reused, "a new target must be written, not reused");
+        HL_CHECK(hl_cl_buffer_read(ctx, buf, (size_t)V * 16, b4) == HL_OK, "read");
+        HL_CHECK(st.terms_kept == st2.terms_kept && st.energy_kept == st2.energy_kept, "same statistics");
+        for (uint32_t v = 0; v < V; v++) {
+            diff += b4[4 * (size_t)v + 3] != 0.0f;
+            for (int c = 0; c < 3; c++) diff += memcmp(&b4[4 * (size_t)v + c], &rgb[3 * (size_t)v + c], 4) != 0;
+        }
+        /* the read-back path again, on new settings: the kernel's output
+           argument must be its own buffer once more */
+        d.rotate_deg += 5.0f;
+        HL_CHECK(hl_relighter_run(r, &d, rgb, &st) == HL_OK && hl_relighter_run(rr, &d, rgb2, &st2) == HL_OK, "runs");
+        for (size_t i = 0; i < (size_t)V * 3; i++) diff += memcmp(&rgb[i], &rgb2[i], 4) != 0;
+    }
+    printf("into: %u vertices x 3 settings, %u words differ (tolerance 0: bit-identical)\n", V, diff);
+    HL_CHECK(diff == 0, "%u words differ between the device buffer, the read-back and the reference", diff);
+    hl_relight_desc d = {.terms = 77};
+    HL_CHECK(hl_relighter_run_into(r, &d, small, 0, &st) == HL_ERR_INVALID_ARGUMENT &&
+                 strstr(hl_context_last_error(ctx), "colour buffer holds"),
+             "a short buffer must be refused: %s", hl_context_last_error(ctx));
+    HL_CHECK(hl_relighter_run_into(rr, &d, buf, 0, &st) == HL_ERR_INVALID_ARGUMENT &&
+                 strstr(hl_context_last_error(ref), "OpenCL backend"),
+             "the reference must refuse: %s", hl_context_last_error(ref));
+    /* sharing properties a device may refuse: then a clear error, no context */
+    intptr_t props[] = {0x2008 /* CL_GL_CONTEXT_KHR */, 1, 0x200A /* CL_GLX_DISPLAY_KHR */, 1, 0};
+    hl_context_desc cd = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .cl_properties = props};
+    hl_context *gc = NULL;
+    char err[4096] = "";
+    hl_result gr = hl_context_create(&cd, &gc, err, sizeof err);
+    printf("into: a context with bogus GL sharing properties: %s\n", gr == HL_OK ? "accepted" : err);
+    HL_CHECK(gr != HL_OK ? gc == NULL && strstr(err, "sharing properties") != NULL : gc != NULL,
+             "refused properties must fail with the reason: %s", err);
+    /* PoCL accepts them; it must then never be asked to wrap a GL buffer
+       (its clCreateFromGLBuffer aborts the process), which is why the
+       viewer tries interop only on devices listing cl_khr_gl_sharing */
+    hl_context_destroy(gc);
+    hl_cl_mem_release(buf);
+    hl_cl_mem_release(small);
+    free(rgb); free(rgb2); free(b4);
+    hl_env_destroy(env);
+    hl_relighter_destroy(r);
+    hl_relighter_destroy(rr);
+    hl_transport_destroy(t);
+    hl_context_destroy(ctx);
+    hl_context_destroy(ref);
+}
+
 /* An open, upward-facing vertex under a white sky of radiance 1: B =
  * albedo. A flat quad has no occlusion at all. */
 static void case_furnace(void)
@@ -360,7 +434,7 @@ int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"env2para", case_env2para}, {"energy", case_energy},   {"stages", case_stages},
-        {"relighter", case_relighter}, {"furnace", case_furnace}, {NULL, NULL},
+        {"relighter", case_relighter}, {"furnace", case_furnace}, {"into", case_into}, {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);
 }

@@ -14,15 +14,20 @@
  */
 #define _POSIX_C_SOURCE 200809L
 #define GLFW_INCLUDE_NONE
+#define GLFW_EXPOSE_NATIVE_X11
+#define GLFW_EXPOSE_NATIVE_GLX
 #include <GLFW/glfw3.h>
+#include <GLFW/glfw3native.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "cl_backend.h"
 #include "cli.h"
 #include "hl_internal.h"
+#include "lighting.h"
 #include "viewer.h"
 
 #define VW_KEYS                                                                              \
@@ -65,6 +70,8 @@ static const char *const usage_view =
     "  --exposure EV        scale by 2^EV before the sRGB curve (default: automatic,\n"
     "                       as relight's: the 90th percentile of vertex luminance to 0.8)\n"
     "  --no-glare           start with the glare filter off\n"
+    "  --readback           read the colours back to the host even where the device\n"
+    "                       could write them into OpenGL's buffer (cl_khr_gl_sharing)\n"
     CLI_USAGE_CAMERA
     "capture (headless):\n"
     "  --frames N           draw N frames, print the timings and exit\n"
@@ -116,6 +123,10 @@ typedef struct viewer {
     hl_context *ctx;
     hl_transport *t;
     hl_relighter *rl;
+    hl_context *lctx;  /* the relighter's context: ctx, or gctx */
+    hl_context *gctx;  /* shares buffers with the window's GL context (interop) */
+    void *glmem;       /* the GL colour buffer as an OpenCL buffer (interop) */
+    int interop, readback_asked;
     float *rgb;
     env_slot envs[VW_MAX_ENVS];
     int n_envs, cur, loaded, sky_slot;
@@ -148,6 +159,8 @@ typedef struct viewer {
 } viewer;
 
 /* ---------------------------------------------------------------- messages */
+
+static void interop_off(viewer *v, const char *why);
 
 /* A line in the HUD for a while, and on stderr (errors always, the rest
  * unless quiet). */
@@ -309,7 +322,7 @@ static void update_lighting(viewer *v)
         /* the texture first: it fails before the relighter is touched */
         int gl_ok = vw_gl_set_env(v->gl, env, err, sizeof err);
         int cl_ok = gl_ok && hl_relighter_set_env(v->rl, env) == HL_OK;
-        if (gl_ok && !cl_ok) snprintf(err, sizeof err, "%s", hl_context_last_error(v->ctx));
+        if (gl_ok && !cl_ok) snprintf(err, sizeof err, "%s", hl_context_last_error(v->lctx));
         if (!cl_ok) {
             say(v, 1, "%s: %s (keeping the current lighting)", v->envs[v->cur].label, err);
             if (v->loaded < 0) {
@@ -328,17 +341,28 @@ static void update_lighting(viewer *v)
         v->light_dirty = 0;
         double t0 = glfwGetTime();
         hl_relight_stats st;
-        if (hl_relighter_run(v->rl, &v->rd, v->rgb, &st) != HL_OK) {
-            say(v, 1, "relight: %s", hl_context_last_error(v->ctx));
+        int on_device = 0;
+        if (v->glmem) {
+            vw_gl_finish(); /* OpenGL is done with the buffer before OpenCL acquires it */
+            if (hl_relighter_run_into(v->rl, &v->rd, v->glmem, 1, &st) == HL_OK) on_device = 1;
+            else interop_off(v, hl_context_last_error(v->lctx));
+        }
+        if (!on_device && hl_relighter_run(v->rl, &v->rd, v->rgb, &st) != HL_OK) {
+            say(v, 1, "relight: %s", hl_context_last_error(v->lctx));
             return;
         }
         double t1 = glfwGetTime();
         v->st = st;
         if (v->auto_requested) {
             v->auto_requested = 0;
-            v->exposure = hl_exposure_auto(v->t->mesh, v->rgb);
+            /* automatic exposure looks at the colours: on the host once */
+            if (!on_device || hl_relighter_run(v->rl, &v->rd, v->rgb, NULL) == HL_OK)
+                v->exposure = hl_exposure_auto(v->t->mesh, v->rgb);
+            else
+                say(v, 1, "automatic exposure: %s", hl_context_last_error(v->lctx));
         }
-        vw_gl_upload_colours(v->gl, v->rgb);
+        if (on_device) vw_gl_colours_written(v->gl);
+        else vw_gl_upload_colours(v->gl, v->rgb);
         v->t_relight = t1 - t0;
         v->t_upload = glfwGetTime() - t1;
     }
@@ -718,6 +742,10 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
             v->glare = 0;
             continue;
         }
+        if (!strcmp(a, "--readback")) {
+            v->readback_asked = 1;
+            continue;
+        }
         int takes = !strcmp(a, "--env") || !strcmp(a, "--frames") || !strcmp(a, "--screenshot") ||
                     !strcmp(a, "--spin") || !strcmp(a, "--drop");
         if (takes && i + 1 >= argc) return usage_error(usage, "option %s needs a value", a);
@@ -801,11 +829,63 @@ static int load(viewer *v, const char **env_args, int n_env_args)
         fprintf(stderr, "haarlight: out of memory for %u vertex colours\n", v->t->info.vertex_count);
         return 0;
     }
+    v->lctx = v->ctx;
+    v->interop = vw_feed_mode(v->ctx, v->readback_asked, v->feed, sizeof v->feed);
+    if (v->interop) return 1; /* the relighter waits for the window's GL context (setup_interop) */
     if (hl_relighter_create(v->ctx, v->t, &v->rl) != HL_OK) {
         cli_fail(v->ctx, HL_ERR_OPENCL);
         return 0;
     }
-    vw_feed_mode(v->ctx, v->feed, sizeof v->feed);
+    return 1;
+}
+
+/* Gives up CL/GL interop (setup failed, or a relight into the GL buffer
+ * did) and says why; the colours are read back from then on. */
+static void interop_off(viewer *v, const char *why)
+{
+    snprintf(v->feed, sizeof v->feed, "readback (GL interop failed: %.100s)", why);
+    say(v, 1, "%s", v->feed);
+    hl_cl_mem_release(v->glmem);
+    v->glmem = NULL;
+}
+
+/* With a device that lists cl_khr_gl_sharing: a second context on the same
+ * device that shares the window's GLX context, the relighter on it, and
+ * the GL colour buffer wrapped for the dot products to write. On any
+ * failure the relighter is made on the first context and the colours are
+ * read back. Needs the window's context current. */
+static int setup_interop(viewer *v)
+{
+    if (!v->interop) return 1;
+    char why[4096] = "";
+    void *glx = (void *)glfwGetGLXContext(v->win), *dpy = (void *)glfwGetX11Display();
+    if (!glx || !dpy) {
+        snprintf(why, sizeof why, "the window's OpenGL context is not a GLX context");
+    } else {
+        intptr_t props[5];
+        hl_cl_glx_properties(glx, dpy, props);
+        hl_context_desc cd = v->o.cd;
+        cd.cl_properties = props;
+        if (hl_context_create(&cd, &v->gctx, why, sizeof why) == HL_OK) {
+            if (hl_relighter_create(v->gctx, v->t, &v->rl) != HL_OK ||
+                hl_cl_gl_buffer(v->gctx, vw_gl_colour_buffer(v->gl), &v->glmem) != HL_OK)
+                snprintf(why, sizeof why, "%s", hl_context_last_error(v->gctx));
+        }
+    }
+    if (!why[0]) {
+        v->lctx = v->gctx;
+        return 1;
+    }
+    interop_off(v, why);
+    hl_relighter_destroy(v->rl);
+    v->rl = NULL;
+    hl_context_destroy(v->gctx);
+    v->gctx = NULL;
+    v->lctx = v->ctx;
+    if (hl_relighter_create(v->ctx, v->t, &v->rl) != HL_OK) {
+        cli_fail(v->ctx, HL_ERR_OPENCL);
+        return 0;
+    }
     return 1;
 }
 
@@ -823,6 +903,7 @@ int cmd_view(int argc, char **argv)
     int n_env_args = 0, rc = parse(v, argc, argv, env_args, &n_env_args);
     if (rc < 0) rc = load(v, env_args, n_env_args) ? -1 : 1;
     if (rc < 0) rc = open_window(v) ? -1 : 3;
+    if (rc < 0) rc = setup_interop(v) ? -1 : 1;
     if (rc < 0) {
         v->rd = v->o.rd;
         if (v->rd.terms == 0) v->rd.terms = VW_DEFAULT_TERMS;
@@ -846,11 +927,14 @@ int cmd_view(int argc, char **argv)
         rc = run_loop(v);
         print_times(v);
     }
+    hl_cl_mem_release(v->glmem); /* before the GL buffer goes */
+    hl_relighter_destroy(v->rl);
+    v->rl = NULL;
     vw_gl_destroy(v->gl);
     if (v->win) glfwDestroyWindow(v->win);
     glfwTerminate();
     for (int i = 0; i < v->n_envs; i++) hl_env_destroy(v->envs[i].env);
-    hl_relighter_destroy(v->rl);
+    hl_context_destroy(v->gctx);
     free(v->rgb);
     hl_transport_destroy(v->t);
     hl_context_destroy(v->ctx);

@@ -154,19 +154,24 @@ void vw_zoom(float eye[3], const float target[3], double factor, double min_dist
 
 /* ---------------------------------------------------------------- colour feed */
 
-/* The relighter hands colours back in host memory (hl_relighter_run), so
- * the viewer reads them back and uploads them. CL/GL sharing would let the
- * dot products write into the GL buffer directly, but only on a device
- * with cl_khr_gl_sharing and with a relighter entry point that takes a
- * GL buffer, which does not exist yet; this says which is missing. */
-void vw_feed_mode(hl_context *ctx, char *buf, size_t size)
+/* With cl_khr_gl_sharing the dot products write straight into the GL
+ * colour buffer (view.c sets that up once the window exists); otherwise
+ * the colours are read back to the host and uploaded. Only a device that
+ * lists the extension is ever asked to share: PoCL's clCreateFromGLBuffer,
+ * for one, aborts the process. */
+int vw_feed_mode(hl_context *ctx, int readback_asked, char *buf, size_t size)
 {
     if (hl_context_backend(ctx) == HL_BACKEND_REFERENCE)
         snprintf(buf, size, "readback (reference backend: colours computed on the host)");
     else if (!hl_context_device_has_extension(ctx, "cl_khr_gl_sharing"))
         snprintf(buf, size, "readback (device has no cl_khr_gl_sharing)");
-    else
-        snprintf(buf, size, "readback (device has cl_khr_gl_sharing; GL interop is not built yet)");
+    else if (readback_asked)
+        snprintf(buf, size, "readback (--readback given)");
+    else {
+        snprintf(buf, size, "GL interop (cl_khr_gl_sharing)");
+        return 1;
+    }
+    return 0;
 }
 
 /* ---------------------------------------------------------------- files */

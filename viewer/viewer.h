@@ -45,8 +45,14 @@ const char *vw_gl_renderer(const vw_gl *g);
 int vw_gl_resize(vw_gl *g, uint32_t w, uint32_t h, char *err, size_t err_size);
 /* Uploads the environment drawn as background. */
 int vw_gl_set_env(vw_gl *g, const hl_env *env, char *err, size_t err_size);
-/* Copies 3 floats per vertex into the colour buffer. */
+/* Copies 3 floats per vertex into the colour buffer (which holds 4 per
+ * vertex, the dot products' layout). */
 void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgb);
+/* The colour buffer object, for OpenCL to write into (clCreateFromGLBuffer);
+ * vw_gl_finish before OpenCL acquires it, vw_gl_colours_written after. */
+unsigned vw_gl_colour_buffer(const vw_gl *g);
+void vw_gl_finish(void);
+void vw_gl_colours_written(vw_gl *g);
 /* Scene into the float target, optional glare, tone map onto the window's
  * back buffer. Returns when the GPU has finished (so it can be timed). */
 void vw_gl_draw(vw_gl *g, const vw_frame *f);
@@ -73,9 +79,10 @@ void vw_orbit(float eye[3], const float target[3], const float up[3], double yaw
 /* Moves eye towards target by the factor (> 0), keeping a minimum distance. */
 void vw_zoom(float eye[3], const float target[3], double factor, double min_distance);
 
-/* How vertex colours reach OpenGL, decided at run time for ctx's device,
- * as a line for the HUD ("readback (...)"). */
-void vw_feed_mode(hl_context *ctx, char *buf, size_t size);
+/* How vertex colours reach OpenGL, decided at run time for ctx's device:
+ * 1 to try CL/GL interop (the device lists cl_khr_gl_sharing and
+ * readback_asked is 0), else 0; buf gets the line for the HUD. */
+int vw_feed_mode(hl_context *ctx, int readback_asked, char *buf, size_t size);
 
 /* "haarlight-view-NNN.png" in the current folder, the first not taken. */
 void vw_screenshot_name(char *buf, size_t size);

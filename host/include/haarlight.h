@@ -62,6 +62,11 @@ typedef enum hl_backend {
  *                  holds the .cl files (the HL_KERNEL_DIR environment
  *                  variable has the same effect)
  *   quiet          0: progress on stderr when it is a terminal
+ *   cl_properties  NULL; else extra OpenCL context properties, name/value
+ *                  pairs ending in 0, added after CL_CONTEXT_PLATFORM (the
+ *                  viewer passes CL_GL_CONTEXT_KHR and CL_GLX_DISPLAY_KHR
+ *                  to share buffers with its OpenGL context). A device that
+ *                  refuses them fails hl_context_create with the reason.
  */
 typedef struct hl_context_desc {
     hl_backend backend;
@@ -70,6 +75,7 @@ typedef struct hl_context_desc {
     int threads;
     const char *kernel_dir;
     int quiet;
+    const intptr_t *cl_properties;
 } hl_context_desc;
 
 typedef struct hl_context hl_context;

@@ -8,6 +8,7 @@
 #define _POSIX_C_SOURCE 200809L
 #define CL_TARGET_OPENCL_VERSION 120
 #include <CL/cl.h>
+#include <CL/cl_gl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -174,7 +175,7 @@ static hl_result build_program(hl_context *ctx, struct hl_cl *cl)
     return HL_OK;
 }
 
-hl_result hl_cl_create(hl_context *ctx, int platform, int device)
+hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t *properties)
 {
     cl_uint np = 0;
     cl_int e = clGetPlatformIDs(0, NULL, &np);
@@ -219,7 +220,19 @@ hl_result hl_cl_create(hl_context *ctx, int platform, int device)
     cl->units = 1;
     clGetDeviceInfo(cl->device, CL_DEVICE_MAX_COMPUTE_UNITS, sizeof cl->units, &cl->units, NULL);
     if (cl->units < 1) cl->units = 1;
-    cl->context = clCreateContext(NULL, 1, &cl->device, NULL, NULL, &e);
+    cl_context_properties props[34] = {CL_CONTEXT_PLATFORM, (cl_context_properties)cl->platform};
+    size_t np_ = 2;
+    for (size_t i = 0; properties && properties[i]; i += 2) {
+        if (np_ + 3 > sizeof props / sizeof props[0])
+            return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "OpenCL: more than 15 extra context properties");
+        props[np_++] = (cl_context_properties)properties[i];
+        props[np_++] = (cl_context_properties)properties[i + 1];
+    }
+    props[np_] = 0;
+    cl->context = clCreateContext(props, 1, &cl->device, NULL, NULL, &e);
+    if (e != CL_SUCCESS && properties && properties[0])
+        return hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: %s refused a context with the given sharing properties (%s)", dname,
+                       cl_err_name(e));
     CL_TRY(ctx, e, "clCreateContext");
     cl->queue = clCreateCommandQueue(cl->context, cl->device, 0, &e);
     CL_TRY(ctx, e, "clCreateCommandQueue");
@@ -774,15 +787,17 @@ static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
     return light_launch(l, K_SELECT, 1);
 }
 
-static hl_result enq_relight(hl_cl_light *l)
+static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
 {
     cl_kernel k = l->cl->k[K_RELIGHT];
     cl_uint sc = l->scheme, nc = l->g->ncoef, nv = l->nverts, nr = l->nranges;
     LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rstart); LARG(k, 3, l->p0); LARG(k, 4, l->p1);
     LARG(k, 5, sc); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->bits); LARG(k, 9, l->albedo);
-    LARG(k, 10, l->acc); LARG(k, 11, l->B); LARG(k, 12, nv); LARG(k, 13, nr);
+    LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr);
     return light_launch(l, K_RELIGHT, l->nranges);
 }
+
+static hl_result enq_relight(hl_cl_light *l) { return enq_relight_to(l, l->B); }
 
 hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, float *B4, hl_select_result *res)
 {
@@ -794,6 +809,74 @@ hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params
     LREAD(l->res, sizeof *res, res, CL_FALSE);
     LREAD(l->B, (size_t)l->nverts * 16, B4, CL_TRUE);
     return HL_OK;
+}
+
+hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, void *out, int gl,
+                               hl_select_result *res)
+{
+    cl_mem m = (cl_mem)out;
+    size_t have = 0, need = (size_t)l->nverts * 16;
+    CL_TRY(l->ctx, clGetMemObjectInfo(m, CL_MEM_SIZE, sizeof have, &have, NULL), "the colour buffer");
+    if (have < need)
+        return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "the colour buffer holds %zu bytes; %u vertices need %zu", have,
+                       l->nverts, need);
+    TRY(enq_env2para(l, s0, f));
+    TRY(enq_haar3(l));
+    TRY(enq_select(l, sp));
+    if (gl) CL_TRY(l->ctx, clEnqueueAcquireGLObjects(l->cl->queue, 1, &m, 0, NULL, NULL), "clEnqueueAcquireGLObjects");
+    hl_result r = enq_relight_to(l, m);
+    if (gl) {
+        cl_int e = clEnqueueReleaseGLObjects(l->cl->queue, 1, &m, 0, NULL, NULL);
+        if (r == HL_OK && e != CL_SUCCESS)
+            r = hl_fail(l->ctx, HL_ERR_OPENCL, "OpenCL: clEnqueueReleaseGLObjects failed (%s)", cl_err_name(e));
+    }
+    /* the blocking read of the result also waits for the release: OpenGL
+       may draw from the buffer once this returns */
+    if (r == HL_OK) LREAD(l->res, sizeof *res, res, CL_TRUE);
+    else clFinish(l->cl->queue);
+    return r;
+}
+
+hl_result hl_cl_gl_buffer(hl_context *ctx, unsigned gl_buffer, void **out)
+{
+    *out = NULL;
+    if (!ctx->cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the context has no OpenCL device");
+    cl_int e;
+    cl_mem m = clCreateFromGLBuffer(ctx->cl->context, CL_MEM_WRITE_ONLY, (cl_GLuint)gl_buffer, &e);
+    CL_TRY(ctx, e, "clCreateFromGLBuffer");
+    *out = m;
+    return HL_OK;
+}
+
+void hl_cl_glx_properties(void *glx_context, void *x_display, intptr_t props[5])
+{
+    props[0] = CL_GL_CONTEXT_KHR;
+    props[1] = (intptr_t)glx_context;
+    props[2] = CL_GLX_DISPLAY_KHR;
+    props[3] = (intptr_t)x_display;
+    props[4] = 0;
+}
+
+hl_result hl_cl_buffer(hl_context *ctx, size_t bytes, void **out)
+{
+    *out = NULL;
+    if (!ctx->cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the context has no OpenCL device");
+    cl_int e;
+    cl_mem m = clCreateBuffer(ctx->cl->context, CL_MEM_READ_WRITE, bytes ? bytes : 1, NULL, &e);
+    CL_TRY(ctx, e, "clCreateBuffer");
+    *out = m;
+    return HL_OK;
+}
+
+hl_result hl_cl_buffer_read(hl_context *ctx, void *mem, size_t bytes, void *dst)
+{
+    CL_TRY(ctx, clEnqueueReadBuffer(ctx->cl->queue, (cl_mem)mem, CL_TRUE, 0, bytes, dst, 0, NULL, NULL), "read-back");
+    return HL_OK;
+}
+
+void hl_cl_mem_release(void *mem)
+{
+    if (mem) clReleaseMemObject((cl_mem)mem);
 }
 
 hl_result hl_cl_light_stage_env2para(hl_cl_light *l, uint32_t s0, float f, float *Lp)

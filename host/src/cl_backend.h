@@ -12,7 +12,7 @@
 
 struct hl_geom;
 
-hl_result hl_cl_create(hl_context *ctx, int platform, int device);
+hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t *properties);
 void hl_cl_destroy(struct hl_cl *cl);
 
 
@@ -72,6 +72,25 @@ hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight);
  * selection, dot products; B4 gets 4 floats per vertex. */
 hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, float *B4,
                           hl_select_result *res);
+/* As hl_cl_light_run, but the colours (4 floats per vertex) go to out, a
+ * cl_mem of this context holding at least that many bytes, and nothing is
+ * read back but the selection's result. With gl set, out came from
+ * hl_cl_gl_buffer and is acquired from OpenGL around the dot products and
+ * released after them (the caller has finished its GL work on it: glFinish). */
+hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, void *out, int gl,
+                               hl_select_result *res);
+/* A cl_mem (returned as void *) over the OpenGL buffer object gl_buffer
+ * (clCreateFromGLBuffer, write only); needs a context created with the GL
+ * context's properties. hl_cl_mem_release frees such handles. */
+hl_result hl_cl_gl_buffer(hl_context *ctx, unsigned gl_buffer, void **out);
+/* The context properties that share buffers with a GLX context (for
+ * hl_context_desc.cl_properties): CL_GL_CONTEXT_KHR, CL_GLX_DISPLAY_KHR,
+ * then 0. */
+void hl_cl_glx_properties(void *glx_context, void *x_display, intptr_t props[5]);
+/* A plain device buffer of bytes (tests of hl_cl_light_run_into). */
+hl_result hl_cl_buffer(hl_context *ctx, size_t bytes, void **out);
+hl_result hl_cl_buffer_read(hl_context *ctx, void *mem, size_t bytes, void *dst);
+void hl_cl_mem_release(void *mem);
 /* Single stages, blocking (tests and `haarlight check`). */
 hl_result hl_cl_light_stage_env2para(hl_cl_light *l, uint32_t s0, float f, float *Lp);
 hl_result hl_cl_light_stage_haar(hl_cl_light *l, const float *Lp, float *Lw);

@@ -121,7 +121,7 @@ hl_result hl_context_create(const hl_context_desc *desc, hl_context **out,
 
     hl_result r = HL_OK;
     if (ctx->backend == HL_BACKEND_OPENCL) {
-        r = hl_cl_create(ctx, d.cl_platform, d.cl_device);
+        r = hl_cl_create(ctx, d.cl_platform, d.cl_device, d.cl_properties);
     } else if (ctx->backend == HL_BACKEND_REFERENCE) {
         snprintf(ctx->device_name, sizeof ctx->device_name, "reference (plain C, %d threads)", ctx->threads);
     } else {

@@ -296,6 +296,7 @@ struct hl_relighter {
     uint8_t *used;
     uint32_t *bits;
     int have_last;
+    void *last_out;         /* where the last colours went: NULL for B4 */
     hl_relight_desc last;
     uint64_t last_serial;
     hl_relight_stats last_stats;
@@ -427,7 +428,10 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
     return HL_OK;
 }
 
-hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb, hl_relight_stats *stats)
+/* A lighting change, its colours into vertex_rgb (by way of B4) or, with
+ * out set, into that device buffer (hl_cl_light_run_into). */
+static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb, void *out, int gl,
+                     hl_relight_stats *stats)
 {
     hl_relight_desc d = {0};
     if (desc) d = *desc;
@@ -439,8 +443,10 @@ hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *
     const uint32_t V = r->t->info.vertex_count;
     hl_relight_stats st = {0};
     double t0 = hl_now();
-    if (r->have_last && r->last_serial == r->env_serial && r->last.terms == d.terms && r->last.select == d.select &&
-        r->last.rotate_deg == d.rotate_deg) {
+    if (out && !r->cl)
+        return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "colours into a device buffer need the OpenCL backend");
+    if (r->have_last && r->last_out == out && r->last_serial == r->env_serial && r->last.terms == d.terms &&
+        r->last.select == d.select && r->last.rotate_deg == d.rotate_deg) {
         st = r->last_stats;
         st.reused = 1;
     } else {
@@ -460,7 +466,10 @@ hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *
         hl_rotation_to_shift(d.rotate_deg, r->lg->wc, &s0, &f);
         hl_select_params sp = {d.terms, d.select, {0, 0}};
         hl_select_result sr;
-        if (res == HL_OK) res = r->cl ? hl_cl_light_run(r->cl, s0, f, sp, r->B4, &sr) : run_reference(r, s0, f, sp, weight, &sr);
+        r->have_last = 0; /* B4 or out may be half written on failure */
+        if (res == HL_OK && out) res = hl_cl_light_run_into(r->cl, s0, f, sp, out, gl, &sr);
+        else if (res == HL_OK)
+            res = r->cl ? hl_cl_light_run(r->cl, s0, f, sp, r->B4, &sr) : run_reference(r, s0, f, sp, weight, &sr);
         if (res != HL_OK) return res;
         double et = sr.energy_total, ek = sr.energy_kept;
         st.terms_kept = sr.kept;
@@ -468,15 +477,29 @@ hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *
         st.error_bound = r->max_row_norm * sqrt((double)sr.energy_dropped);
         st.blocks_skipped = 1.0 - (double)sr.blocks_used / r->g->nblocks;
         r->have_last = 1;
+        r->last_out = out;
         r->last = d;
         r->last_serial = r->env_serial;
         r->last_stats = st;
     }
-    for (uint32_t v = 0; v < V; v++)
-        for (int c = 0; c < 3; c++) vertex_rgb[3 * (size_t)v + c] = r->B4[4 * (size_t)v + c];
+    if (!out)
+        for (uint32_t v = 0; v < V; v++)
+            for (int c = 0; c < 3; c++) vertex_rgb[3 * (size_t)v + c] = r->B4[4 * (size_t)v + c];
     st.seconds = hl_now() - t0;
     if (stats) *stats = st;
     return HL_OK;
+}
+
+hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb, hl_relight_stats *stats)
+{
+    return run(r, desc, vertex_rgb, NULL, 0, stats);
+}
+
+hl_result hl_relighter_run_into(hl_relighter *r, const hl_relight_desc *desc, void *cl_out, int gl,
+                                hl_relight_stats *stats)
+{
+    if (!cl_out) return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "no colour buffer given");
+    return run(r, desc, NULL, cl_out, gl, stats);
 }
 
 struct hl_cl_light *hl_relighter_device(hl_relighter *r) { return r ? r->cl : NULL; }

@@ -29,6 +29,14 @@ hl_result hl_env_to_cells(hl_context *ctx, const hl_env *env, uint32_t wc, uint3
 /* Rotation to a cell offset: s0 whole cells plus a fraction f. */
 void hl_rotation_to_shift(float rotate_deg, uint32_t wc, uint32_t *s0, float *f);
 
+/* hl_relighter_run with the colours left on the device: 4 floats per
+ * vertex (the fourth 0) written into cl_out, a cl_mem of the relighter's
+ * context (see hl_cl_light_run_into; gl: it wraps an OpenGL buffer, which
+ * is acquired and released around the dot products). Nothing is copied to
+ * the host. OpenCL backend only. */
+hl_result hl_relighter_run_into(hl_relighter *r, const hl_relight_desc *desc, void *cl_out, int gl,
+                                hl_relight_stats *stats);
+
 /* The relighter's device stages (NULL on the reference backend) and
  * tables, for the benchmark. */
 struct hl_cl_light *hl_relighter_device(hl_relighter *r);
