@@ -927,14 +927,13 @@ int cmd_view(int argc, char **argv)
         rc = run_loop(v);
         print_times(v);
     }
-    hl_cl_mem_release(v->glmem); /* before the GL buffer goes */
+    hl_cl_mem_release(v->glmem); /* the sharing objects before the GL buffer and context go */
     hl_relighter_destroy(v->rl);
-    v->rl = NULL;
+    hl_context_destroy(v->gctx);
     vw_gl_destroy(v->gl);
     if (v->win) glfwDestroyWindow(v->win);
     glfwTerminate();
     for (int i = 0; i < v->n_envs; i++) hl_env_destroy(v->envs[i].env);
-    hl_context_destroy(v->gctx);
     free(v->rgb);
     hl_transport_destroy(v->t);
     hl_context_destroy(v->ctx);
