@@ -151,6 +151,13 @@ relight)
   head -c 600 "$tmp/r8.ply" | grep -a -q "property uchar red" || fail "PLY8 without uchar colours"
   "$bin" check "$tmp/r.hlt" --env "$data/city.exr" --vertices 8 >"$tmp/check.txt" || fail "check found differences"
   grep -c "| ok |" "$tmp/check.txt" | grep -q 9 || fail "check did not report 9 stages ok"
+  grep -q "(transport selection" "$tmp/check.txt" || fail "check did not use relight's default selection"
+  # each scheme's own weights on both sides: they keep different blocks
+  for s in area unweighted; do
+    "$bin" check "$tmp/r.hlt" --env "$data/city.exr" --vertices 2 --select $s >"$tmp/check_$s.txt" || fail "check --select $s found differences"
+    grep -q "($s selection" "$tmp/check_$s.txt" || fail "check --select $s did not say so"
+  done
+  "$bin" check "$tmp/r.hlt" --select nope >/dev/null 2>&1 && fail "check --select nope accepted"
   "$bin" bench "$tmp/r.hlt" --sky --terms 10,all --select area --reps 2 --vertices 16 --continuous 2 -o "$tmp/bench" >/dev/null 2>&1 || fail "bench"
   for f in bench.md bench.csv; do [ -s "$tmp/bench/$f" ] || fail "bench wrote no $f"; done
   [ "$(wc -l <"$tmp/bench/bench.csv")" -eq 3 ] || fail "bench.csv should hold a header and 2 rows"

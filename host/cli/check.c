@@ -27,6 +27,8 @@ static const char *const usage_check =
     "  --env ENV.exr      environment (default: the procedural sky)\n"
     "  --sky              the procedural sky\n"
     "  --terms M|all      lighting terms (default 200)\n"
+    "  --select S         selection weights: transport (default, as relight), area\n"
+    "                     or unweighted\n"
     "  --rotate DEG       environment rotation (default 0)\n"
     "  --vertices K       precompute stages on K vertices spread over the mesh (default 64)\n"
     "  --device cl:P:D    OpenCL device to check (default: the first)\n";
@@ -65,6 +67,12 @@ int cmd_check(int argc, char **argv)
             NEED();
             if (!strcmp(v, "all")) rd.terms = HL_TERMS_ALL;
             else if (!parse_u32(v, &rd.terms) || rd.terms < 1) return usage_error(usage, "--terms %s: expected M >= 1 or `all`", v);
+        } else if (!strcmp(a, "--select")) {
+            NEED();
+            if (!strcmp(v, "area")) rd.select = HL_SELECT_AREA;
+            else if (!strcmp(v, "unweighted")) rd.select = HL_SELECT_UNWEIGHTED;
+            else if (!strcmp(v, "transport")) rd.select = HL_SELECT_TRANSPORT;
+            else return usage_error(usage, "--select %s: expected transport, area or unweighted", v);
         } else if (!strcmp(a, "--rotate")) { NEED(); if (!parse_float(v, &rd.rotate_deg)) return usage_error(usage, "--rotate %s: expected degrees", v); }
         else if (!strcmp(a, "--vertices")) { NEED(); if (!parse_u32(v, &K) || K < 1 || K > 100000) return usage_error(usage, "--vertices %s: expected 1 to 100000", v); }
         else if (!strcmp(a, "--device")) {
@@ -77,6 +85,7 @@ int cmd_check(int argc, char **argv)
     }
     if (!scene) return usage_error(usage, "%s", "no SCENE.hlt given");
     if (!rd.terms) rd.terms = 200;
+    if (!rd.select) rd.select = HL_SELECT_TRANSPORT;
     hl_context *cl = NULL, *ref = NULL;
     if (!cli_context_pair(&cd, &cl, &ref)) return 1;
     hl_transport *t = NULL;
@@ -173,13 +182,15 @@ int cmd_check(int argc, char **argv)
     /* lighting stages */
     float *cells = NULL, *alb = malloc((size_t)V * 16), *La = malloc((size_t)nc * 12), *Lb = malloc((size_t)nc * 12);
     float *wa = malloc((size_t)nc * 12), *wb = malloc((size_t)nc * 12), *sa = malloc((size_t)nc * 16), *sb = malloc((size_t)nc * 16);
-    float *Ba = malloc((size_t)V * 16), *Bb = malloc((size_t)V * 16);
+    float *Ba = malloc((size_t)V * 16), *Bb = malloc((size_t)V * 16), *wsel = malloc((size_t)nc * 4);
     uint8_t *ua = malloc(nb), *ub = malloc(nb);
     uint32_t *ka = malloc((size_t)nc / 8), *kb = malloc((size_t)nc / 8);
     for (uint32_t v = 0; v < V; v++) { memcpy(alb + 4 * (size_t)v, t->mesh->albedo + 3 * (size_t)v, 12); alb[4 * (size_t)v + 3] = 0.0f; }
     if (r == HL_OK) r = hl_env_to_cells(ref, env, lg->wc, lg->hc, &cells);
     if (r == HL_OK) r = hl_cl_light_create(cl, g, lg, t, alb, &light);
     if (r == HL_OK) r = hl_cl_light_set_cells(light, cells);
+    if (r == HL_OK) r = wsel ? hl_selection_weights(ref, t, lg, rd.select, wsel) : HL_ERR_OUT_OF_MEMORY;
+    if (r == HL_OK) r = hl_cl_light_set_weights(light, wsel);
     uint32_t s0 = 0;
     float f = 0.0f;
     hl_rotation_to_shift(rd.rotate_deg, lg->wc, &s0, &f);
@@ -193,11 +204,11 @@ int cmd_check(int argc, char **argv)
         r = hl_cl_light_stage_haar(light, Lb, wb);
         for (int c = 0; c < 3; c++) hl_ref_haar(g, La + (size_t)c * nc, wa + (size_t)c * nc);
     }
-    hl_select_params sp = {rd.terms, HL_SELECT_AREA, {0, 0}};
+    hl_select_params sp = {rd.terms, rd.select, {0, 0}};
     hl_select_result sra, srb;
     if (r == HL_OK) {
         all_ok &= report(&(row_report){"haar of the lighting", rel_worst(wa, wb, (size_t)nc * 3), 1e-5, 0, (uint64_t)nc * 3});
-        sra = hl_ref_select(wa, nc, lg->area, sp, sa, ua, ka, nb);
+        sra = hl_ref_select(wa, nc, wsel, sp, sa, ua, ka, nb);
         r = hl_cl_light_stage_select(light, wa, sp, sb, ub, kb, &srb);
     }
     if (r == HL_OK) {
@@ -218,15 +229,16 @@ int cmd_check(int argc, char **argv)
                 w = fmax(w, fabs((double)Ba[4 * (size_t)v + c] - Bb[4 * (size_t)v + c]));
             }
         all_ok &= report(&(row_report){"relight dot products", s > 0 ? w / s : w, 1e-5, 0, (uint64_t)V * 3});
-        printf("\n%u of %u lighting terms kept (%.4f%% of the energy), %u of %u blocks used; %u vertices checked in the\n"
-               "precompute stages, all %u in the lighting stages.\n",
-               sra.kept, nc, sra.energy_total > 0 ? 100.0 * sra.energy_kept / sra.energy_total : 100.0, sra.blocks_used, nb, K, V);
+        printf("\n%u of %u lighting terms kept (%s selection, %.4f%% of the energy), %u of %u blocks used; %u vertices\n"
+               "checked in the precompute stages, all %u in the lighting stages.\n",
+               sra.kept, nc,
+               rd.select == HL_SELECT_AREA ? "area" : rd.select == HL_SELECT_UNWEIGHTED ? "unweighted" : "transport", sra.energy_total > 0 ? 100.0 * sra.energy_kept / sra.energy_total : 100.0, sra.blocks_used, nb, K, V);
     }
     int rc = r != HL_OK ? cli_fail(r == HL_OK ? NULL : (hl_context_last_error(cl)[0] ? cl : ref), r) : (all_ok ? 0 : 1);
     if (r == HL_OK && !all_ok) fprintf(stderr, "haarlight: the OpenCL device and the reference differ\n");
     hl_cl_light_destroy(light);
     hl_free_big(cells);
-    free(alb); free(La); free(Lb); free(wa); free(wb); free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub); free(ka); free(kb);
+    free(alb); free(La); free(Lb); free(wa); free(wb); free(sa); free(sb); free(Ba); free(Bb); free(wsel); free(ua); free(ub); free(ka); free(kb);
     free(vis); free(n4); free(Ta); free(Tb); free(Tc); free(ca); free(cb); free(tra); free(trb); free(rqa); free(rqb);
     free(bca); free(bcb); free(ea); free(eb); free(na); free(nbb); free(idx);
     hl_rt_destroy(rt);

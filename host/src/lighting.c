@@ -391,15 +391,22 @@ hl_result hl_relighter_set_env(hl_relighter *r, const hl_env *env)
     return HL_OK;
 }
 
-/* Mean |T_i| over the vertices, for transport-weighted selection. */
-static hl_result transport_weights(hl_relighter *r)
+hl_result hl_selection_weights(hl_context *ctx, const hl_transport *t, const hl_light_geom *lg, uint32_t scheme,
+                               float *w)
 {
-    if (r->w_transport) return HL_OK;
-    const hl_transport *t = r->t;
-    const uint32_t nb = r->g->nblocks, nc = r->g->ncoef, V = t->info.vertex_count;
-    double *acc = hl_calloc(r->ctx, nc, sizeof(double), "transport weights");
-    r->w_transport = hl_malloc(r->ctx, (size_t)nc * 4, "transport weights");
-    if (!acc || !r->w_transport) { free(acc); return HL_ERR_OUT_OF_MEMORY; }
+    const uint32_t nc = lg->ncoef, nb = lg->nblocks, V = t->info.vertex_count;
+    if (scheme == HL_SELECT_AREA) {
+        memcpy(w, lg->area, (size_t)nc * 4);
+        return HL_OK;
+    }
+    if (scheme == HL_SELECT_UNWEIGHTED) {
+        for (uint32_t i = 0; i < nc; i++) w[i] = 1.0f;
+        return HL_OK;
+    }
+    if (scheme != HL_SELECT_TRANSPORT) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "unknown selection scheme %u", scheme);
+    /* mean |T_i| over the vertices */
+    double *acc = hl_calloc(ctx, nc, sizeof(double), "transport weights");
+    if (!acc) return HL_ERR_OUT_OF_MEMORY;
     for (uint32_t v = 0; v < V; v++) {
         uint64_t e = t->row_offset[v];
         const hl_row_quant q = t->row_quant[v];
@@ -407,9 +414,20 @@ static hl_result transport_weights(hl_relighter *r)
             for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++)
                 acc[b * HL_BLOCK + t->entries[2 * e]] += fabs(hl_dequant(t->info.quant, t->entries[2 * e + 1], q.a, q.b));
     }
-    for (uint32_t i = 0; i < nc; i++) r->w_transport[i] = (float)(acc[i] / (V ? V : 1));
+    for (uint32_t i = 0; i < nc; i++) w[i] = (float)(acc[i] / (V ? V : 1));
     free(acc);
     return HL_OK;
+}
+
+static hl_result transport_weights(hl_relighter *r)
+{
+    if (r->w_transport) return HL_OK;
+    float *w = hl_malloc(r->ctx, (size_t)r->g->ncoef * 4, "transport weights");
+    if (!w) return HL_ERR_OUT_OF_MEMORY;
+    hl_result res = hl_selection_weights(r->ctx, r->t, r->lg, HL_SELECT_TRANSPORT, w);
+    if (res == HL_OK) r->w_transport = w;
+    else free(w);
+    return res;
 }
 
 static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_params sp, const float *weight,

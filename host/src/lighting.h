@@ -19,6 +19,10 @@ typedef struct hl_light_geom {
 } hl_light_geom;
 
 hl_result hl_light_geom_create(hl_context *ctx, const hl_geom *g, hl_light_geom **out);
+/* The selection weights of a scheme (HL_SELECT_AREA, _UNWEIGHTED or
+ * _TRANSPORT: the mean |T_i| over t's vertices) into w (lg->ncoef floats). */
+hl_result hl_selection_weights(hl_context *ctx, const hl_transport *t, const hl_light_geom *lg, uint32_t scheme,
+                               float *w);
 void hl_light_geom_destroy(hl_light_geom *lg);
 
 /* Area-weighted box resampling of env onto the wc x hc cell grid (4 floats
