@@ -123,8 +123,8 @@ typedef struct viewer {
     hl_context *ctx;
     hl_transport *t;
     hl_relighter *rl;
-    hl_context *lctx;  /* the relighter's context: ctx, or gctx */
-    hl_context *gctx;  /* shares buffers with the window's GL context (interop) */
+    hl_context *gctx;  /* shares buffers with the window's GL context (interop);
+                          the relighter lives on it when set, else on ctx */
     void *glmem;       /* the GL colour buffer as an OpenCL buffer (interop) */
     int interop, readback_asked;
     float *rgb;
@@ -161,6 +161,9 @@ typedef struct viewer {
 /* ---------------------------------------------------------------- messages */
 
 static void interop_off(viewer *v, const char *why);
+
+/* The last error of the relighter's context. */
+static const char *rl_error(const viewer *v) { return hl_context_last_error(v->gctx ? v->gctx : v->ctx); }
 
 /* A line in the HUD for a while, and on stderr (errors always, the rest
  * unless quiet). */
@@ -322,7 +325,7 @@ static void update_lighting(viewer *v)
         /* the texture first: it fails before the relighter is touched */
         int gl_ok = vw_gl_set_env(v->gl, env, err, sizeof err);
         int cl_ok = gl_ok && hl_relighter_set_env(v->rl, env) == HL_OK;
-        if (gl_ok && !cl_ok) snprintf(err, sizeof err, "%s", hl_context_last_error(v->lctx));
+        if (gl_ok && !cl_ok) snprintf(err, sizeof err, "%s", rl_error(v));
         if (!cl_ok) {
             say(v, 1, "%s: %s (keeping the current lighting)", v->envs[v->cur].label, err);
             if (v->loaded < 0) {
@@ -345,10 +348,10 @@ static void update_lighting(viewer *v)
         if (v->glmem) {
             vw_gl_finish(); /* OpenGL is done with the buffer before OpenCL acquires it */
             if (hl_relighter_run_into(v->rl, &v->rd, v->glmem, 1, &st) == HL_OK) on_device = 1;
-            else interop_off(v, hl_context_last_error(v->lctx));
+            else interop_off(v, rl_error(v));
         }
         if (!on_device && hl_relighter_run(v->rl, &v->rd, v->rgb, &st) != HL_OK) {
-            say(v, 1, "relight: %s", hl_context_last_error(v->lctx));
+            say(v, 1, "relight: %s", rl_error(v));
             return;
         }
         double t1 = glfwGetTime();
@@ -359,7 +362,7 @@ static void update_lighting(viewer *v)
             if (!on_device || hl_relighter_run(v->rl, &v->rd, v->rgb, NULL) == HL_OK)
                 v->exposure = hl_exposure_auto(v->t->mesh, v->rgb);
             else
-                say(v, 1, "automatic exposure: %s", hl_context_last_error(v->lctx));
+                say(v, 1, "automatic exposure: %s", rl_error(v));
         }
         if (on_device) vw_gl_colours_written(v->gl);
         else vw_gl_upload_colours(v->gl, v->rgb);
@@ -829,7 +832,6 @@ static int load(viewer *v, const char **env_args, int n_env_args)
         fprintf(stderr, "haarlight: out of memory for %u vertex colours\n", v->t->info.vertex_count);
         return 0;
     }
-    v->lctx = v->ctx;
     v->interop = vw_feed_mode(v->ctx, v->readback_asked, v->feed, sizeof v->feed);
     if (v->interop) return 1; /* the relighter waits for the window's GL context (setup_interop) */
     if (hl_relighter_create(v->ctx, v->t, &v->rl) != HL_OK) {
@@ -872,16 +874,12 @@ static int setup_interop(viewer *v)
                 snprintf(why, sizeof why, "%s", hl_context_last_error(v->gctx));
         }
     }
-    if (!why[0]) {
-        v->lctx = v->gctx;
-        return 1;
-    }
+    if (!why[0]) return 1;
     interop_off(v, why);
     hl_relighter_destroy(v->rl);
     v->rl = NULL;
     hl_context_destroy(v->gctx);
     v->gctx = NULL;
-    v->lctx = v->ctx;
     if (hl_relighter_create(v->ctx, v->t, &v->rl) != HL_OK) {
         cli_fail(v->ctx, HL_ERR_OPENCL);
         return 0;

@@ -94,11 +94,6 @@ static const char *base_name(const char *p)
     return s ? s + 1 : p;
 }
 
-static const char *select_name(uint32_t s)
-{
-    return s == HL_SELECT_AREA ? "area" : s == HL_SELECT_UNWEIGHTED ? "unweighted" : "transport";
-}
-
 /* Untruncated lighting of env at rotation 0: R, G, B planes of Haar
  * coefficients in slot order. */
 static hl_result full_lighting(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_env *env, float *Lw)
@@ -202,10 +197,7 @@ int cmd_bench(int argc, char **argv)
             char buf[256];
             snprintf(buf, sizeof buf, "%s", v);
             for (char *tok = strtok(buf, ","); tok && nsel < 3; tok = strtok(NULL, ",")) {
-                if (!strcmp(tok, "area")) selects[nsel++] = HL_SELECT_AREA;
-                else if (!strcmp(tok, "unweighted")) selects[nsel++] = HL_SELECT_UNWEIGHTED;
-                else if (!strcmp(tok, "transport")) selects[nsel++] = HL_SELECT_TRANSPORT;
-                else return usage_error(usage, "--select: unknown scheme %s", tok);
+                if (!parse_select(tok, &selects[nsel++])) return usage_error(usage, "--select: unknown scheme %s", tok);
             }
             if (!nsel) return usage_error(usage, "--select %s: no values", v);
         } else if (!strcmp(a, "--vertices")) { NEED(); if (!parse_u32(v, &K) || K < 1 || K > 65536) return usage_error(usage, "--vertices %s: expected 1 to 65536", v); }

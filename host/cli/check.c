@@ -69,10 +69,8 @@ int cmd_check(int argc, char **argv)
             else if (!parse_u32(v, &rd.terms) || rd.terms < 1) return usage_error(usage, "--terms %s: expected M >= 1 or `all`", v);
         } else if (!strcmp(a, "--select")) {
             NEED();
-            if (!strcmp(v, "area")) rd.select = HL_SELECT_AREA;
-            else if (!strcmp(v, "unweighted")) rd.select = HL_SELECT_UNWEIGHTED;
-            else if (!strcmp(v, "transport")) rd.select = HL_SELECT_TRANSPORT;
-            else return usage_error(usage, "--select %s: expected transport, area or unweighted", v);
+            if (!parse_select(v, &rd.select))
+                return usage_error(usage, "--select %s: expected transport, area or unweighted", v);
         } else if (!strcmp(a, "--rotate")) { NEED(); if (!parse_float(v, &rd.rotate_deg)) return usage_error(usage, "--rotate %s: expected degrees", v); }
         else if (!strcmp(a, "--vertices")) { NEED(); if (!parse_u32(v, &K) || K < 1 || K > 100000) return usage_error(usage, "--vertices %s: expected 1 to 100000", v); }
         else if (!strcmp(a, "--device")) {
@@ -232,7 +230,7 @@ int cmd_check(int argc, char **argv)
         printf("\n%u of %u lighting terms kept (%s selection, %.4f%% of the energy), %u of %u blocks used; %u vertices\n"
                "checked in the precompute stages, all %u in the lighting stages.\n",
                sra.kept, nc,
-               rd.select == HL_SELECT_AREA ? "area" : rd.select == HL_SELECT_UNWEIGHTED ? "unweighted" : "transport", sra.energy_total > 0 ? 100.0 * sra.energy_kept / sra.energy_total : 100.0, sra.blocks_used, nb, K, V);
+               select_name(rd.select), sra.energy_total > 0 ? 100.0 * sra.energy_kept / sra.energy_total : 100.0, sra.blocks_used, nb, K, V);
     }
     int rc = r != HL_OK ? cli_fail(r == HL_OK ? NULL : (hl_context_last_error(cl)[0] ? cl : ref), r) : (all_ok ? 0 : 1);
     if (r == HL_OK && !all_ok) fprintf(stderr, "haarlight: the OpenCL device and the reference differ\n");

@@ -14,6 +14,10 @@ int parse_float(const char *s, float *out);
 int parse_device(const char *s, hl_context_desc *cd);
 /* "x,y,z" of finite numbers. */
 int parse_vec3(const char *s, float v[3]);
+/* "transport", "area" or "unweighted" to HL_SELECT_*; 0 when none. */
+int parse_select(const char *s, uint32_t *out);
+/* HL_SELECT_* to its name (HL_SELECT_DEFAULT: "transport"). */
+const char *select_name(uint32_t scheme);
 /* An OpenCL context from cl_desc and a reference context beside it (for
  * comparing the two); prints the error and returns 0 on failure. */
 int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context **ref);

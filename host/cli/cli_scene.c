@@ -54,10 +54,8 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
         else if (!parse_u32(v, &o->rd.terms) || o->rd.terms < 1)
             return -usage_error(usage, "--terms %s: expected M >= 1 or `all`", v);
     } else if (!strcmp(a, "--select")) {
-        if (!strcmp(v, "area")) o->rd.select = HL_SELECT_AREA;
-        else if (!strcmp(v, "unweighted")) o->rd.select = HL_SELECT_UNWEIGHTED;
-        else if (!strcmp(v, "transport")) o->rd.select = HL_SELECT_TRANSPORT;
-        else return -usage_error(usage, "--select %s: expected area, unweighted or transport", v);
+        if (!parse_select(v, &o->rd.select))
+            return -usage_error(usage, "--select %s: expected area, unweighted or transport", v);
     } else if (!strcmp(a, "--exposure")) {
         if (!parse_float(v, &o->exposure) || fabsf(o->exposure) > 64.0f)
             return -usage_error(usage, "--exposure %s: expected EV in [-64, 64]", v);

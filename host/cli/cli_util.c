@@ -52,6 +52,20 @@ int parse_device(const char *s, hl_context_desc *cd)
 }
 
 
+int parse_select(const char *s, uint32_t *out)
+{
+    if (!strcmp(s, "transport")) *out = HL_SELECT_TRANSPORT;
+    else if (!strcmp(s, "area")) *out = HL_SELECT_AREA;
+    else if (!strcmp(s, "unweighted")) *out = HL_SELECT_UNWEIGHTED;
+    else return 0;
+    return 1;
+}
+
+const char *select_name(uint32_t scheme)
+{
+    return scheme == HL_SELECT_AREA ? "area" : scheme == HL_SELECT_UNWEIGHTED ? "unweighted" : "transport";
+}
+
 int parse_vec3(const char *s, float v[3])
 {
     char tail;
