@@ -2,10 +2,13 @@
  * kept lighting terms.
  *
  * The transport is held by column on the device (built on load from the
- * file's rows, see build_columns in host/src/cl_backend.c). Vertices are
- * grouped in tiles of HL_TILE consecutive vertices and tiles in ranges, one
- * range per work-item (range_start: vertex boundaries, whole tiles). For each range and slot, the column lists the tiles
- * in which at least one vertex stores that slot, each as one entry of
+ * file's rows, see build_columns in host/src/cl_backend.c). The device
+ * holds the vertices in its own order (order[p]: the vertex at position p;
+ * see vertex_order), positions grouped in tiles of HL_TILE and tiles in
+ * ranges, one range per work-item (range_start: position boundaries, whole
+ * tiles); albedo is in position order, colours go to their vertices. For
+ * each range and slot, the column lists the tiles in which at least one
+ * vertex stores that slot, each as one entry of
  * 1 + HL_TILE / 4 words: a head (tile in range | lane mask << 16) and the
  * tile's HL_TILE codes (zero in lanes the mask leaves out). A work-item
  * walks only the kept slots' columns, in ascending slot order, and decodes
@@ -52,7 +55,7 @@
 kernel void hl_relight(global const uint *col, global const uint *col_start, global const uint *range_start,
                        global const uint *p0, global const uint *p1, uint scheme, uint ncoef,
                        global const float4 *light, global const uint *kept_bits, global const float4 *albedo,
-                       global float *acc, global float4 *out, uint nverts, uint nranges)
+                       global float *acc, global float4 *out, uint nverts, uint nranges, global const uint *order)
 {
     uint w = get_global_id(0);
     if (w >= nranges) return;
@@ -94,6 +97,6 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
     }
     for (uint v = v0; v < v1; v++) {
         uint i = v - v0;
-        out[v] = (float4)(ar[i], ag[i], ab[i], 0.0f) * albedo[v];
+        out[order[v]] = (float4)(ar[i], ag[i], ab[i], 0.0f) * albedo[v];
     }
 }

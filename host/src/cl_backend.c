@@ -528,10 +528,12 @@ struct hl_cl_light {
     cl_mem cells, turned, start, runs, slots, weight; /* tables and inputs */
     cl_mem Lp, Lw, Lsel, used, bits, res, keys;    /* lighting stages */
     cl_mem col, cols, rstart, p0, p1, albedo, B, acc; /* transport, by column */
+    cl_mem ord;                                     /* vertex at each position */
     void *host[5];                                  /* CPU devices: their memory */
     uint32_t nranges, *range_start;                 /* vertices of each work-item */
     uint64_t col_entries;                           /* tile entries in all columns */
     uint32_t *col_start;                            /* host copy, for counting bytes */
+    uint32_t *order;                                /* vertex at each position */
 };
 
 void hl_cl_light_destroy(hl_cl_light *l)
@@ -539,12 +541,14 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (!l) return;
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
-                     &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rstart, &l->p0, &l->p1, &l->albedo, &l->B, &l->acc};
+                     &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rstart, &l->p0, &l->p1, &l->albedo, &l->B, &l->acc,
+                     &l->ord};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
         if (*all[i]) clReleaseMemObject(*all[i]);
     for (int i = 0; i < 5; i++) hl_free_big(l->host[i]);
     free(l->col_start);
     free(l->range_start);
+    free(l->order);
     free(l);
 }
 
@@ -567,6 +571,66 @@ static hl_result light_big_buf(hl_cl_light *l, cl_mem *m, size_t bytes, const vo
     return light_buf(l, m, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, *keep, what);
 }
 
+typedef struct { uint64_t key; uint32_t v; } order_key;
+
+static int order_cmp(const void *a, const void *b)
+{
+    const order_key *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
+    return x->v < y->v ? -1 : x->v > y->v;
+}
+
+/* 7-bit grid coordinate of x in [lo, hi] (0 for NaN or an empty span) */
+static uint32_t grid7(float x, float lo, float hi)
+{
+    double f = hi > lo ? ((double)x - lo) / ((double)hi - lo) * 128.0 : 0.0;
+    if (!(f > 0.0)) return 0;
+    return f >= 127.0 ? 127u : (uint32_t)f;
+}
+
+/* The order in which the device holds the vertices (l->order: the vertex
+ * at each position): object before ground, then along a Z-order curve
+ * through position and normal, 7 bits of each of the six coordinates
+ * interleaved. Neighbours on that curve see alike and so store alike
+ * slots, so a tile's vertices share their columns' entries: on the bunny
+ * with ground at M = 200 the kept columns hold a fifth fewer entries than
+ * in the file's order (376k against 476k), and 76% of them fill every
+ * lane (34% in file order). The sums are the same in any order. */
+static hl_result vertex_order(hl_cl_light *l, const hl_transport *t)
+{
+    const size_t V = l->nverts;
+    const hl_mesh *m = t->mesh;
+    l->order = malloc((V ? V : 1) * 4);
+    order_key *k = malloc((V ? V : 1) * sizeof *k);
+    if (!l->order || !k) {
+        free(k);
+        return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the vertex order");
+    }
+    float lo[3] = {0.0f, 0.0f, 0.0f}, hi[3] = {0.0f, 0.0f, 0.0f};
+    for (size_t v = 0; m && v < V; v++)
+        for (int a = 0; a < 3; a++) {
+            float x = m->positions[3 * v + a];
+            if (v == 0 || x < lo[a]) lo[a] = x;
+            if (v == 0 || x > hi[a]) hi[a] = x;
+        }
+    for (size_t v = 0; v < V; v++) {
+        uint32_t q[6] = {0};
+        for (int a = 0; m && a < 3; a++) {
+            q[a] = grid7(m->positions[3 * v + a], lo[a], hi[a]);
+            q[3 + a] = grid7(m->normals[3 * v + a], -1.0f, 1.0f);
+        }
+        uint64_t key = v >= t->info.object_vertex_count;
+        for (int bit = 6; bit >= 0; bit--)
+            for (int a = 0; a < 6; a++) key = key << 1 | ((q[a] >> bit) & 1u);
+        k[v].key = key;
+        k[v].v = (uint32_t)v;
+    }
+    qsort(k, V, sizeof *k, order_cmp);
+    for (size_t i = 0; i < V; i++) l->order[i] = k[i].v;
+    free(k);
+    return HL_OK;
+}
+
 /* Range boundaries, in whole tiles. On a CPU device, one range per core,
  * cut so that each holds about the same number of stored terms (the work
  * follows them): long columns, so each kept slot's entries stream, and no
@@ -583,6 +647,7 @@ static uint32_t cut_ranges(const hl_cl_light *l, const hl_transport *t, uint32_t
     if (!rs) return 0;
     /* work of a tile: its stored terms, plus a little per vertex */
     double total = 0.0;
+    const uint32_t *o = l->order;
     for (size_t v = 0; v < V; v++) total += (double)(t->row_offset[v + 1] - t->row_offset[v]) + 16.0;
     uint32_t n = 0;
     rs[n++] = 0;
@@ -590,7 +655,7 @@ static uint32_t cut_ranges(const hl_cl_light *l, const hl_transport *t, uint32_t
     size_t first = 0; /* first tile of the open range */
     for (size_t tile = 0; tile < tiles; tile++) {
         for (size_t v = tile * HL_TILE; v < V && v < (tile + 1) * HL_TILE; v++)
-            done += (double)(t->row_offset[v + 1] - t->row_offset[v]) + 16.0;
+            done += (double)(t->row_offset[o[v] + 1] - t->row_offset[o[v]]) + 16.0;
         int full = l->cl->wg == 1 ? done >= total * (double)n / (double)want : tile + 1 - first >= per_gpu;
         if (tile + 1 < tiles && (full || tile + 1 - first >= max_tiles)) {
             rs[n++] = (uint32_t)((tile + 1) * HL_TILE);
@@ -611,6 +676,7 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
 {
     hl_context *ctx = l->ctx;
     const size_t nc = l->g->ncoef, V = l->nverts, nb = l->g->nblocks;
+    TRY(vertex_order(l, t));
     l->nranges = cut_ranges(l, t, &l->range_start);
     if (!l->nranges) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
     const size_t vpad = V ? l->range_start[l->nranges] : HL_TILE, ncs = (size_t)l->nranges * (nc + 1);
@@ -628,9 +694,10 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
             const size_t v0 = l->range_start[rg];
             for (size_t v = v0; v < V && v < l->range_start[rg + 1]; v++) {
                 uint32_t tile = (uint32_t)((v - v0) / HL_TILE), lane = (uint32_t)(v % HL_TILE);
-                uint64_t e = t->row_offset[v];
+                const size_t u = l->order[v]; /* the vertex at position v */
+                uint64_t e = t->row_offset[u];
                 for (size_t b = 0; b < nb; b++)
-                    for (uint32_t k = 0; k < t->block_counts[v * nb + b]; k++, e++) {
+                    for (uint32_t k = 0; k < t->block_counts[u * nb + b]; k++, e++) {
                         size_t s = b * HL_BLOCK + t->entries[2 * e];
                         if (pass == 0) {
                             if (last[s] != tile) { last[s] = tile; c[s + 1]++; }
@@ -661,7 +728,7 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
         else memset(col, 0, (size_t)(run ? run : 1) * stride * 4);
     }
     for (size_t v = 0; v < V && r == HL_OK; v++)
-        hl_dequant_params(l->scheme, t->row_quant[v].a, t->row_quant[v].b, &p0[v], &p1[v]);
+        hl_dequant_params(l->scheme, t->row_quant[l->order[v]].a, t->row_quant[l->order[v]].b, &p0[v], &p1[v]);
     size_t n = (size_t)(l->col_entries ? l->col_entries : 1);
     if (r == HL_OK) r = light_big_buf(l, &l->col, n * stride * 4, col, &l->host[0], "transport columns");
     if (r == HL_OK) r = light_big_buf(l, &l->cols, ncs * 4, cs, &l->host[2], "column starts");
@@ -716,7 +783,13 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
     B(res, CL_MEM_READ_WRITE, sizeof(hl_select_result), NULL, "selection result");
     B(keys, CL_MEM_READ_WRITE, nc * 4, NULL, "selection keys");
     if (r == HL_OK) r = build_columns(l, t);
-    B(albedo, CL_MEM_READ_ONLY, V * 16, albedo4, "albedo");
+    /* albedo in the device's vertex order */
+    float *alb = r == HL_OK ? malloc((V ? V : 1) * 16) : NULL;
+    if (r == HL_OK && !alb) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the albedo");
+    for (size_t i = 0; alb && i < V; i++) memcpy(alb + 4 * i, albedo4 + 4 * (size_t)l->order[i], 16);
+    B(albedo, CL_MEM_READ_ONLY, V * 16, alb, "albedo");
+    free(alb);
+    B(ord, CL_MEM_READ_ONLY, V * 4, l->order, "vertex order");
     B(B, CL_MEM_READ_WRITE, V * 16, NULL, "vertex colours");
     B(acc, CL_MEM_READ_WRITE, (size_t)3 * (l->nranges && V ? l->range_start[l->nranges] : 1) * 4, NULL, "running sums");
 #undef B
@@ -793,7 +866,7 @@ static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
     cl_uint sc = l->scheme, nc = l->g->ncoef, nv = l->nverts, nr = l->nranges;
     LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rstart); LARG(k, 3, l->p0); LARG(k, 4, l->p1);
     LARG(k, 5, sc); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->bits); LARG(k, 9, l->albedo);
-    LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr);
+    LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
     return light_launch(l, K_RELIGHT, l->nranges);
 }
 
@@ -935,11 +1008,12 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
     }
     /* per tile entry its head word and codes; per kept slot and range two
        starts; per vertex slot its two parameters, three running sums
-       (zeroed, then read once they leave the cache), albedo and colour */
+       (zeroed, then read once they leave the cache), albedo, vertex and
+       colour */
     free(bits);
     double vpad = (double)l->range_start[l->nranges];
     *bytes = entries * (4.0 + HL_TILE) + kept * (double)l->nranges * 8.0 + vpad * (8.0 + 12.0 + 12.0) +
-             (double)l->nverts * 32.0;
+             (double)l->nverts * 36.0;
     return HL_OK;
 }
 
