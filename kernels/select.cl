@@ -5,19 +5,14 @@
  * vector is small. Writes the kept terms densely (zeros elsewhere) as
  * float4 RGB, a flag per 256-block, a bit per slot, and the energies for
  * the error bound (the dropped energy summed on its own: total - kept
- * cancels in float when a bright sun dominates).
+ * cancels in float when a bright sun dominates), scaled by a power of two
+ * (hl_light_energy_scale) so that they stay finite and non-zero.
  * A block's flag counts only its detail slots 1..255: slot 0 holds a
  * coarse coefficient (kept almost always), which the dot products handle
  * apart, so that blocks still skip.
  * Twin: host/src/ref/select_ref.c.
  */
 #pragma OPENCL FP_CONTRACT OFF
-
-static float priority(global const float *L, uint n, uint i, global const float *w)
-{
-    float y = hl_luminance(L[i], L[n + i], L[2 * n + i]);
-    return fabs(y) * w[i];
-}
 
 kernel void hl_select(global const float *L, uint ncoef, global const float *weight,
                       hl_select_params p, global float4 *out, global uchar *block_used,
@@ -27,11 +22,16 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
     if (get_global_id(0) != 0) return;
     uint hist[256];
     uint nnz = 0;
+    float ymax = 0.0f;
     /* the priorities' keys, once (the passes below read them 5 times) */
     for (uint i = 0; i < ncoef; i++) {
-        keys[i] = hl_key(priority(L, ncoef, i, weight));
+        float y = hl_luminance(L[i], L[ncoef + i], L[2 * ncoef + i]);
+        keys[i] = hl_key(fabs(y) * weight[i]);
         nnz += keys[i] != 0u;
+        ymax = fmax(ymax, fabs(y));
     }
+    uint eb;
+    float es = hl_light_energy_scale(ymax, &eb);
     uint need = min(p.M, nnz);
     uint thresh = 0xffffffffu, ties = 0;
     if (need > 0) {
@@ -55,7 +55,7 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
     uint kept = 0, seen = 0;
     for (uint i = 0; i < ncoef; i++) {
         float r = L[i], g = L[ncoef + i], b = L[2 * ncoef + i];
-        float y = hl_luminance(r, g, b);
+        float y = hl_luminance(r, g, b) * es;
         et += y * y;
         uint k = keys[i];
         int keep = k > thresh || (k == thresh && k != 0u && seen++ < ties);
@@ -77,6 +77,7 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
     s.kept = kept;
     s.blocks_used = used;
     s.energy_dropped = ed;
-    s.pad_[0] = s.pad_[1] = s.pad_[2] = 0u;
+    s.energy_exp = eb;
+    s.pad_[0] = s.pad_[1] = 0u;
     *res = s;
 }

@@ -37,7 +37,15 @@ static const char *make_transport(const char *name, const char *extra)
 }
 
 /* A 2:1 environment: a soft gradient plus an optional one-pixel sun. */
+static hl_env *make_env_scaled(hl_context *ctx, uint32_t W, int sun_x, int sun_y, float sun, float scale);
+
 static hl_env *make_env(hl_context *ctx, uint32_t W, int sun_x, int sun_y, float sun)
+{
+    return make_env_scaled(ctx, W, sun_x, sun_y, sun, 1.0f);
+}
+
+/* A smooth sky with a one-pixel sun, every pixel times scale. */
+static hl_env *make_env_scaled(hl_context *ctx, uint32_t W, int sun_x, int sun_y, float sun, float scale)
 {
     uint32_t H = W / 2;
     float *rgb = malloc((size_t)W * H * 12);
@@ -49,6 +57,7 @@ static hl_env *make_env(hl_context *ctx, uint32_t W, int sun_x, int sun_y, float
             p[2] = 0.9f - 0.6f * (float)y / (float)H;
         }
     if (sun > 0) for (int c = 0; c < 3; c++) rgb[3 * ((size_t)sun_y * W + sun_x) + c] = sun;
+    for (size_t i = 0; i < (size_t)W * H * 3; i++) rgb[i] *= scale;
     hl_env *e = NULL;
     if (hl_env_create(ctx, W, H, rgb, &e, NULL) != HL_OK) fprintf(stderr, "%s\n", hl_context_last_error(ctx));
     free(rgb);
@@ -430,11 +439,71 @@ static void case_furnace(void)
     hl_context_destroy(ctx);
 }
 
+/* Lighting far brighter or dimmer than usual: the energy kept and the
+ * error bound stay finite and scale as they should (the squared
+ * luminances overflowed float above about 1.8e19 and underflowed below
+ * 1e-19 before the energies were summed at a power-of-two scale), and
+ * the colours scale with the light. */
+static void case_extreme(void)
+{
+    const char *path = make_transport("light_x.hlt", "");
+    static const float scales[] = {1e21f, 1e-25f};
+    for (int backend = 0; backend < 2; backend++) {
+        hl_context *ctx = ctx_of(backend ? HL_BACKEND_REFERENCE : HL_BACKEND_OPENCL);
+        hl_transport *t = NULL;
+        HL_CHECK(path && ctx && hl_transport_load(ctx, path, &t) == HL_OK, "transport");
+        if (!t) return;
+        const uint32_t V = t->info.vertex_count;
+        hl_relighter *r = NULL;
+        HL_CHECK(hl_relighter_create(ctx, t, &r) == HL_OK, "%s", hl_context_last_error(ctx));
+        float *rgb1 = malloc((size_t)V * 12), *rgb = malloc((size_t)V * 12);
+        hl_relight_desc d = {.terms = 60, .rotate_deg = 20.0f};
+        hl_relight_stats st1, st;
+        hl_env *env = make_env_scaled(ctx, 256, 70, 30, 2e3f, 1.0f);
+        HL_CHECK(r && env && hl_relighter_set_env(r, env) == HL_OK && hl_relighter_run(r, &d, rgb1, &st1) == HL_OK,
+                 "unit lighting: %s", hl_context_last_error(ctx));
+        hl_env_destroy(env);
+        double bmax = 0.0;
+        for (size_t i = 0; i < (size_t)V * 3; i++) bmax = fmax(bmax, fabs((double)rgb1[i]));
+        printf("%s, unit lighting, M=60: energy kept %.6f, bound %.4g\n", backend ? "reference" : "OpenCL",
+               st1.energy_kept, st1.error_bound);
+        HL_CHECK(st1.energy_kept > 0.0 && st1.energy_kept < 1.0, "energy kept %g: M = 60 should drop some", st1.energy_kept);
+        for (int k = 0; k < 2; k++) {
+            const double S = scales[k];
+            env = make_env_scaled(ctx, 256, 70, 30, 2e3f, scales[k]);
+            HL_CHECK(env && hl_relighter_set_env(r, env) == HL_OK && hl_relighter_run(r, &d, rgb, &st) == HL_OK,
+                     "lighting x %g: %s", S, hl_context_last_error(ctx));
+            hl_env_destroy(env);
+            double worst = 0.0;
+            for (size_t i = 0; i < (size_t)V * 3; i++) {
+                double e = fabs((double)rgb[i] / S - rgb1[i]) / bmax;
+                if (!(e <= worst)) worst = e;
+            }
+            printf("lighting x %g: energy kept %.6f, bound %.4g\n", S, st.energy_kept, st.error_bound);
+            char what[160];
+            snprintf(what, sizeof what, "%s, lighting x %g: energy kept against unit lighting's",
+                     backend ? "reference" : "OpenCL", S);
+            hl_check_error(what, fabs(st.energy_kept - st1.energy_kept), 1e-5);
+            snprintf(what, sizeof what, "%s, lighting x %g: error bound / scale against unit lighting's (relative)",
+                     backend ? "reference" : "OpenCL", S);
+            hl_check_error(what, fabs(st.error_bound / S - st1.error_bound) / st1.error_bound, 1e-4);
+            snprintf(what, sizeof what, "%s, lighting x %g: colours / scale against unit lighting's (relative to max)",
+                     backend ? "reference" : "OpenCL", S);
+            hl_check_error(what, worst, 1e-4);
+        }
+        free(rgb1);
+        free(rgb);
+        hl_relighter_destroy(r);
+        hl_transport_destroy(t);
+    }
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"env2para", case_env2para}, {"energy", case_energy},   {"stages", case_stages},
-        {"relighter", case_relighter}, {"furnace", case_furnace}, {"into", case_into}, {NULL, NULL},
+        {"relighter", case_relighter}, {"furnace", case_furnace}, {"into", case_into},
+        {"extreme", case_extreme}, {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);
 }

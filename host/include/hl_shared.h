@@ -119,15 +119,32 @@ typedef struct hl_select_params {
 } hl_select_params;
 
 typedef struct hl_select_result {
-    float energy_total; /* sum of Y_i^2 over all coefficients */
+    float energy_total; /* sum of (Y_i 2^-energy_exp)^2 over all coefficients */
     float energy_kept;  /* ... over the kept ones */
     HL_U32 kept;
     HL_U32 blocks_used; /* 256-blocks holding a kept term */
     float energy_dropped; /* ... over the others, summed apart: with a
                              bright sun total - kept cancels to nothing
                              in float, and the error bound needs this */
-    HL_U32 pad_[3];
+    HL_U32 energy_exp;  /* e + 127, see hl_light_energy_scale */
+    HL_U32 pad_[2];
 } hl_select_result;
+
+/* The energies are sums of squares of Y_i s, where s = 2^-e brings the
+ * largest |Y_i| into [1, 2) (e clamped to [-126, 126], so that s is a
+ * normal float). Unscaled, Y^2 overflows float above |Y| = 1.8e19 and
+ * underflows below 1e-19; scaled, neither happens for any finite
+ * lighting, and a power-of-two scale rounds nothing, so in between the
+ * sums are those of Y^2 times s^2 exactly. Returns s; *biased = e + 127. */
+HL_INLINE float hl_light_energy_scale(float ymax, HL_U32 *biased)
+{
+    HL_U32 b = (HL_AS_U32(ymax) >> 23) & 255u; /* e + 127 for a normal ymax */
+    if (b == 255u) b = 127u;                    /* not finite: no scale */
+    if (b < 1u) b = 1u;                         /* zero or subnormal */
+    if (b > 253u) b = 253u;
+    *biased = b;
+    return HL_AS_F32((254u - b) << 23);         /* 2^(127 - b) = 2^-e */
+}
 
 /* Luminance of linear Rec.709 RGB. */
 HL_INLINE float hl_luminance(float r, float g, float b)

@@ -492,7 +492,8 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         double et = sr.energy_total, ek = sr.energy_kept;
         st.terms_kept = sr.kept;
         st.energy_kept = et > 0 ? ek / et : 1.0;
-        st.error_bound = r->max_row_norm * sqrt((double)sr.energy_dropped);
+        /* the energies are of Y 2^-e (hl_light_energy_scale) */
+        st.error_bound = r->max_row_norm * sqrt((double)sr.energy_dropped) * ldexp(1.0, (int)sr.energy_exp - 127);
         st.blocks_skipped = 1.0 - (double)sr.blocks_used / r->g->nblocks;
         r->have_last = 1;
         r->last_out = out;
