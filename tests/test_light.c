@@ -496,6 +496,25 @@ static void case_extreme(void)
         hl_relighter_destroy(r);
         hl_transport_destroy(t);
     }
+    /* brighter than HL_MAX_RADIANCE: refused by name, not relit to Inf/NaN */
+    hl_context *ref = ctx_of(HL_BACKEND_REFERENCE);
+    float px[8 * 4 * 3];
+    for (int i = 0; i < 8 * 4 * 3; i++) px[i] = HL_MAX_RADIANCE;
+    hl_env *env = NULL;
+    HL_CHECK(hl_env_create(ref, 8, 4, px, &env, NULL) == HL_OK, "a map at the limit is accepted: %s",
+             hl_context_last_error(ref));
+    hl_env_destroy(env);
+    env = NULL;
+    px[13] = 2e30f;
+    hl_result res = hl_env_create(ref, 8, 4, px, &env, NULL);
+    printf("a map with one channel at 2e30: %s\n", hl_context_last_error(ref));
+    HL_CHECK(res == HL_ERR_FORMAT && !env && strstr(hl_context_last_error(ref), "1 pixel is brighter than"),
+             "a map above the limit must be refused by name");
+    hl_sky_desc sky = {.sun_irradiance = 1e35f, .width = 64};
+    res = hl_env_create_sky(ref, &sky, &env);
+    printf("a sky with sun irradiance 1e35: %s\n", hl_context_last_error(ref));
+    HL_CHECK(res == HL_ERR_FORMAT && !env && strstr(hl_context_last_error(ref), "sky:"),
+             "a sky above the limit must be refused by name");
 }
 
 int main(int argc, char **argv)

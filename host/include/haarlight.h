@@ -279,15 +279,22 @@ typedef struct hl_env {
 } hl_env;
 
 /* What loading repaired. */
+/* The largest radiance an environment may hold. The transforms sum and
+ * scale it (a Haar coefficient reaches N times a texel, up to 256x), so
+ * far larger values would overflow float; maps with a channel above this
+ * are refused (HL_ERR_FORMAT) rather than relit to Inf or NaN. */
+#define HL_MAX_RADIANCE 1e30f
+
 typedef struct hl_env_stats {
     uint64_t nonfinite_pixels; /* pixels with a NaN or Inf channel, set to 0 */
     uint64_t negative_pixels;  /* pixels with a channel < 0, clamped to 0 */
 } hl_env_stats;
 
 /* Reads an equirectangular OpenEXR (any compression the OpenEXR library
- * reads, DWAB included). Refuses files that are not 2:1 (HL_ERR_FORMAT);
- * NaN/Inf channels are set to 0 and negative ones clamped, and stats says
- * how many pixels were affected. Errors name the file. */
+ * reads, DWAB included). Refuses files that are not 2:1 or that hold a
+ * channel above HL_MAX_RADIANCE (HL_ERR_FORMAT); NaN/Inf channels are set
+ * to 0 and negative ones clamped, and stats says how many pixels were
+ * affected. Errors name the file. */
 hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_stats *stats);
 
 /* hl_sky_desc fields and defaults (a procedural sun and sky):

@@ -3,8 +3,9 @@
  *
  * The mapping is that of ENVMAP.md (shared with the team): a direction w
  * reads u = 0.5 + atan2(w.z, w.x) / 2pi, v = acos(w.y) / pi, row 0 = +Y.
- * Every pixel that leaves this file is finite and >= 0: NaN/Inf channels
- * become 0 and negative ones are clamped, and the counts are reported.
+ * Every pixel that leaves this file is finite, >= 0 and <= HL_MAX_RADIANCE:
+ * NaN/Inf channels become 0 and negative ones are clamped, and the counts
+ * are reported; maps brighter than that are refused.
  * Depends on: exr_io.c for the file format.
  */
 #include <math.h>
@@ -14,12 +15,14 @@
 #include "exr_io.h"
 #include "hl_internal.h"
 
-/* Sets NaN/Inf and negative channels to 0 and counts the pixels touched. */
-static void repair(float *rgb, size_t pixels, hl_env_stats *stats)
+/* Sets NaN/Inf and negative channels to 0 and counts the pixels touched;
+ * refuses a map with a channel above HL_MAX_RADIANCE (what names it). */
+static hl_result repair(hl_context *ctx, const char *what, float *rgb, size_t pixels, hl_env_stats *stats)
 {
-    uint64_t nonfinite = 0, negative = 0;
+    uint64_t nonfinite = 0, negative = 0, bright = 0;
+    float brightest = 0.0f;
     for (size_t i = 0; i < pixels; i++) {
-        int bad = 0, neg = 0;
+        int bad = 0, neg = 0, big = 0;
         for (int c = 0; c < 3; c++) {
             float x = rgb[3 * i + (size_t)c];
             if (!isfinite(x)) {
@@ -28,15 +31,25 @@ static void repair(float *rgb, size_t pixels, hl_env_stats *stats)
             } else if (x < 0.0f) {
                 rgb[3 * i + (size_t)c] = 0.0f;
                 neg = 1;
+            } else if (x > HL_MAX_RADIANCE) {
+                big = 1;
+                if (x > brightest) brightest = x;
             }
         }
         nonfinite += (uint64_t)bad;
         negative += (uint64_t)neg;
+        bright += (uint64_t)big;
     }
     if (stats) {
         stats->nonfinite_pixels = nonfinite;
         stats->negative_pixels = negative;
     }
+    if (bright)
+        return hl_fail(ctx, HL_ERR_FORMAT,
+                       "%s: %llu pixel%s brighter than %g (up to %g); the transforms would overflow float: "
+                       "scale the lighting down", what, (unsigned long long)bright, bright == 1 ? " is" : "s are",
+                       (double)HL_MAX_RADIANCE, (double)brightest);
+    return HL_OK;
 }
 
 static hl_result wrap(hl_context *ctx, uint32_t width, uint32_t height, float *rgb, hl_env **out)
@@ -63,7 +76,11 @@ hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_st
     float *rgb;
     hl_result r = hl_exr_read_rgb_(ctx, path, HL_EXR_REQUIRE_2TO1, &w, &h, &rgb);
     if (r != HL_OK) return r;
-    repair(rgb, (size_t)w * h, stats);
+    r = repair(ctx, path, rgb, (size_t)w * h, stats);
+    if (r != HL_OK) {
+        free(rgb);
+        return r;
+    }
     return wrap(ctx, w, h, rgb, out);
 }
 
@@ -83,7 +100,11 @@ hl_result hl_env_create(hl_context *ctx, uint32_t width, uint32_t height, const 
     float *copy = hl_malloc(ctx, n * sizeof(float), "environment pixels");
     if (!copy) return HL_ERR_OUT_OF_MEMORY;
     memcpy(copy, rgb, n * sizeof(float));
-    repair(copy, (size_t)width * height, stats);
+    hl_result r = repair(ctx, "environment", copy, (size_t)width * height, stats);
+    if (r != HL_OK) {
+        free(copy);
+        return r;
+    }
     return wrap(ctx, width, height, copy, out);
 }
 
@@ -336,6 +357,7 @@ hl_result hl_env_create_sky(hl_context *ctx, const hl_sky_desc *desc, hl_env **o
     double Ls = (double)d.sun_irradiance / (HL_PI * sin(rad) * sin(rad));
     double L[3] = {Ls, Ls, Ls};
     hl_result r = add_sun(ctx, rgb, W, H, s, rad, L);
+    if (r == HL_OK) r = repair(ctx, "sky", rgb, (size_t)W * H, NULL); /* too bright a sun or sky */
     if (r != HL_OK) {
         free(rgb);
         return r;
