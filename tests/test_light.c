@@ -452,7 +452,10 @@ static void case_extreme(void)
         hl_context *ctx = ctx_of(backend ? HL_BACKEND_REFERENCE : HL_BACKEND_OPENCL);
         hl_transport *t = NULL;
         HL_CHECK(path && ctx && hl_transport_load(ctx, path, &t) == HL_OK, "transport");
-        if (!t) return;
+        if (!t) {
+            hl_context_destroy(ctx);
+            return;
+        }
         const uint32_t V = t->info.vertex_count;
         hl_relighter *r = NULL;
         HL_CHECK(hl_relighter_create(ctx, t, &r) == HL_OK, "%s", hl_context_last_error(ctx));
@@ -495,6 +498,7 @@ static void case_extreme(void)
         free(rgb);
         hl_relighter_destroy(r);
         hl_transport_destroy(t);
+        hl_context_destroy(ctx);
     }
     /* brighter than HL_MAX_RADIANCE: refused by name, not relit to Inf/NaN */
     hl_context *ref = ctx_of(HL_BACKEND_REFERENCE);
@@ -515,6 +519,7 @@ static void case_extreme(void)
     printf("a sky with sun irradiance 1e35: %s\n", hl_context_last_error(ref));
     HL_CHECK(res == HL_ERR_FORMAT && !env && strstr(hl_context_last_error(ref), "sky:"),
              "a sky above the limit must be refused by name");
+    hl_context_destroy(ref);
 }
 
 int main(int argc, char **argv)
