@@ -60,14 +60,17 @@ static const char *cl_err_name(cl_int e)
     }
 }
 
+/* Out of device memory or resources: a smaller precompute chunk may fit;
+ * any other failure: only the reference backend is sure to help. */
 #define CL_TRY(ctx, call, what)                                                            \
     do {                                                                                   \
         cl_int e_ = (call);                                                                \
-        if (e_ != CL_SUCCESS)                                                              \
-            return hl_fail((ctx), e_ == CL_MEM_OBJECT_ALLOCATION_FAILURE || e_ == CL_OUT_OF_RESOURCES \
-                                   ? HL_ERR_OUT_OF_MEMORY : HL_ERR_OPENCL,                 \
-                           "OpenCL: %s failed: %s (%d); try a smaller --chunk or --device ref", \
-                           what, cl_err_name(e_), (int)e_);                                \
+        if (e_ != CL_SUCCESS) {                                                            \
+            int mem_ = e_ == CL_MEM_OBJECT_ALLOCATION_FAILURE || e_ == CL_OUT_OF_RESOURCES; \
+            return hl_fail((ctx), mem_ ? HL_ERR_OUT_OF_MEMORY : HL_ERR_OPENCL, "OpenCL: %s failed: %s (%d); %s", \
+                           what, cl_err_name(e_), (int)e_,                                 \
+                           mem_ ? "try a smaller --chunk (precompute) or --device ref" : "try --device ref"); \
+        }                                                                                  \
     } while (0)
 
 static char *read_text_file(const char *path)
