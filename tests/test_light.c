@@ -36,15 +36,8 @@ static const char *make_transport(const char *name, const char *extra)
     return path;
 }
 
-/* A 2:1 environment: a soft gradient plus an optional one-pixel sun. */
-static hl_env *make_env_scaled(hl_context *ctx, uint32_t W, int sun_x, int sun_y, float sun, float scale);
-
-static hl_env *make_env(hl_context *ctx, uint32_t W, int sun_x, int sun_y, float sun)
-{
-    return make_env_scaled(ctx, W, sun_x, sun_y, sun, 1.0f);
-}
-
-/* A smooth sky with a one-pixel sun, every pixel times scale. */
+/* A 2:1 environment: a soft gradient plus an optional one-pixel sun, every
+ * pixel times scale. */
 static hl_env *make_env_scaled(hl_context *ctx, uint32_t W, int sun_x, int sun_y, float sun, float scale)
 {
     uint32_t H = W / 2;
@@ -62,6 +55,11 @@ static hl_env *make_env_scaled(hl_context *ctx, uint32_t W, int sun_x, int sun_y
     if (hl_env_create(ctx, W, H, rgb, &e, NULL) != HL_OK) fprintf(stderr, "%s\n", hl_context_last_error(ctx));
     free(rgb);
     return e;
+}
+
+static hl_env *make_env(hl_context *ctx, uint32_t W, int sun_x, int sun_y, float sun)
+{
+    return make_env_scaled(ctx, W, sun_x, sun_y, sun, 1.0f);
 }
 
 static void case_env2para(void)

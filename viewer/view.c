@@ -789,6 +789,15 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
     return -1;
 }
 
+/* The relighter on the first context, its colours read back; prints the
+ * error and returns 0 on failure. */
+static int readback_relighter(viewer *v)
+{
+    hl_result r = hl_relighter_create(v->ctx, v->t, &v->rl);
+    if (r != HL_OK) cli_fail(v->ctx, r);
+    return r == HL_OK;
+}
+
 /* Context, transport, environments, relighter: everything that can fail
  * on bad input, before any window opens. */
 static int load(viewer *v, const char **env_args, int n_env_args)
@@ -834,11 +843,7 @@ static int load(viewer *v, const char **env_args, int n_env_args)
     }
     v->interop = vw_feed_mode(v->ctx, v->readback_asked, v->feed, sizeof v->feed);
     if (v->interop) return 1; /* the relighter waits for the window's GL context (setup_interop) */
-    if (hl_relighter_create(v->ctx, v->t, &v->rl) != HL_OK) {
-        cli_fail(v->ctx, HL_ERR_OPENCL);
-        return 0;
-    }
-    return 1;
+    return readback_relighter(v);
 }
 
 /* Gives up CL/GL interop (setup failed, or a relight into the GL buffer
@@ -880,11 +885,7 @@ static int setup_interop(viewer *v)
     v->rl = NULL;
     hl_context_destroy(v->gctx);
     v->gctx = NULL;
-    if (hl_relighter_create(v->ctx, v->t, &v->rl) != HL_OK) {
-        cli_fail(v->ctx, HL_ERR_OPENCL);
-        return 0;
-    }
-    return 1;
+    return readback_relighter(v);
 }
 
 int cmd_view(int argc, char **argv)

@@ -278,13 +278,13 @@ typedef struct hl_env {
     float *rgb; /* 3 * width * height, row-major, never NaN, Inf or < 0 */
 } hl_env;
 
-/* What loading repaired. */
 /* The largest radiance an environment may hold. The transforms sum and
  * scale it (a Haar coefficient reaches N times a texel, up to 256x), so
  * far larger values would overflow float; maps with a channel above this
  * are refused (HL_ERR_FORMAT) rather than relit to Inf or NaN. */
 #define HL_MAX_RADIANCE 1e30f
 
+/* What loading repaired. */
 typedef struct hl_env_stats {
     uint64_t nonfinite_pixels; /* pixels with a NaN or Inf channel, set to 0 */
     uint64_t negative_pixels;  /* pixels with a channel < 0, clamped to 0 */

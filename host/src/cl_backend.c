@@ -875,12 +875,18 @@ static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
 
 static hl_result enq_relight(hl_cl_light *l) { return enq_relight_to(l, l->B); }
 
+/* The lighting stages up to the kept terms: env2para, Haar, selection. */
+static hl_result enq_lighting(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp)
+{
+    TRY(enq_env2para(l, s0, f));
+    TRY(enq_haar3(l));
+    return enq_select(l, sp);
+}
+
 hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, float *B4, hl_select_result *res)
 {
     /* one submission, one wait: launches cost ~50 us each to finish */
-    TRY(enq_env2para(l, s0, f));
-    TRY(enq_haar3(l));
-    TRY(enq_select(l, sp));
+    TRY(enq_lighting(l, s0, f, sp));
     TRY(enq_relight(l));
     LREAD(l->res, sizeof *res, res, CL_FALSE);
     LREAD(l->B, (size_t)l->nverts * 16, B4, CL_TRUE);
@@ -896,9 +902,7 @@ hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_p
     if (have < need)
         return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "the colour buffer holds %zu bytes; %u vertices need %zu", have,
                        l->nverts, need);
-    TRY(enq_env2para(l, s0, f));
-    TRY(enq_haar3(l));
-    TRY(enq_select(l, sp));
+    TRY(enq_lighting(l, s0, f, sp));
     if (gl) CL_TRY(l->ctx, clEnqueueAcquireGLObjects(l->cl->queue, 1, &m, 0, NULL, NULL), "clEnqueueAcquireGLObjects");
     hl_result r = enq_relight_to(l, m);
     if (gl) {

@@ -288,7 +288,7 @@ struct hl_relighter {
     float *cells;           /* current environment, 4 floats per cell */
     uint64_t env_serial;
     float *albedo4;
-    float *w_unweighted, *w_transport;
+    float *weights[HL_SELECT_TRANSPORT + 1]; /* per scheme, made when first asked */
     uint32_t uploaded_weights;
     double max_row_norm;    /* max over vertices of |T_v| */
     float *B4;
@@ -310,8 +310,7 @@ void hl_relighter_destroy(hl_relighter *r)
     hl_geom_destroy(r->g);
     hl_free_big(r->cells);
     free(r->albedo4);
-    free(r->w_unweighted);
-    free(r->w_transport);
+    for (int i = 0; i <= (int)HL_SELECT_TRANSPORT; i++) free(r->weights[i]);
     free(r->B4);
     free(r->Lp);
     free(r->Lw);
@@ -336,13 +335,12 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
     if (res == HL_OK) {
         r->albedo4 = hl_malloc(ctx, (size_t)V * 16, "albedo");
         r->B4 = hl_malloc(ctx, (size_t)V * 16, "vertex colours");
-        r->w_unweighted = hl_malloc(ctx, (size_t)nc * 4, "selection weights");
         r->Lp = hl_malloc(ctx, (size_t)nc * 12, "lighting");
         r->Lw = hl_malloc(ctx, (size_t)nc * 12, "lighting");
         r->Lsel = hl_malloc(ctx, (size_t)nc * 16, "lighting");
         r->used = hl_malloc(ctx, r->g->nblocks, "block flags");
         r->bits = hl_malloc(ctx, (size_t)nc / 8, "kept-slot bits");
-        if (!r->albedo4 || !r->B4 || !r->w_unweighted || !r->Lp || !r->Lw || !r->Lsel || !r->used || !r->bits)
+        if (!r->albedo4 || !r->B4 || !r->Lp || !r->Lw || !r->Lsel || !r->used || !r->bits)
             res = HL_ERR_OUT_OF_MEMORY;
     }
     if (res == HL_OK) {
@@ -350,7 +348,6 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
             memcpy(r->albedo4 + 4 * (size_t)v, t->mesh->albedo + 3 * (size_t)v, 12);
             r->albedo4[4 * (size_t)v + 3] = 0.0f;
         }
-        for (uint32_t i = 0; i < nc; i++) r->w_unweighted[i] = 1.0f;
         /* |T_v| for the error bound */
         for (uint32_t v = 0; v < V; v++) {
             double ss = 0.0;
@@ -419,15 +416,21 @@ hl_result hl_selection_weights(hl_context *ctx, const hl_transport *t, const hl_
     return HL_OK;
 }
 
-static hl_result transport_weights(hl_relighter *r)
+/* The weights of a scheme (1 to HL_SELECT_TRANSPORT), made once. */
+static hl_result scheme_weights(hl_relighter *r, uint32_t scheme, const float **out)
 {
-    if (r->w_transport) return HL_OK;
-    float *w = hl_malloc(r->ctx, (size_t)r->g->ncoef * 4, "transport weights");
-    if (!w) return HL_ERR_OUT_OF_MEMORY;
-    hl_result res = hl_selection_weights(r->ctx, r->t, r->lg, HL_SELECT_TRANSPORT, w);
-    if (res == HL_OK) r->w_transport = w;
-    else free(w);
-    return res;
+    if (!r->weights[scheme]) {
+        float *w = hl_malloc(r->ctx, (size_t)r->g->ncoef * 4, "selection weights");
+        if (!w) return HL_ERR_OUT_OF_MEMORY;
+        hl_result res = hl_selection_weights(r->ctx, r->t, r->lg, scheme, w);
+        if (res != HL_OK) {
+            free(w);
+            return res;
+        }
+        r->weights[scheme] = w;
+    }
+    *out = r->weights[scheme];
+    return HL_OK;
 }
 
 static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_params sp, const float *weight,
@@ -468,13 +471,8 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         st = r->last_stats;
         st.reused = 1;
     } else {
-        hl_result res = HL_OK;
-        const float *weight = r->lg->area;
-        if (d.select == HL_SELECT_UNWEIGHTED) weight = r->w_unweighted;
-        if (d.select == HL_SELECT_TRANSPORT) {
-            res = transport_weights(r);
-            weight = r->w_transport;
-        }
+        const float *weight = NULL;
+        hl_result res = scheme_weights(r, d.select, &weight);
         if (res == HL_OK && r->cl && r->uploaded_weights != d.select) {
             res = hl_cl_light_set_weights(r->cl, weight);
             if (res == HL_OK) r->uploaded_weights = d.select;
