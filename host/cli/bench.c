@@ -482,9 +482,10 @@ int cmd_bench(int argc, char **argv)
         fprintf(md, "\n## Speed at M = 200 (%s selection, the default), %s\n\n", select_name(HL_SELECT_TRANSPORT),
                 envs[0].name);
         fprintf(md, "Lighting changes per second: the median of %u full changes. Then %d rounds, each the device's read\n"
-                    "bandwidth (a kernel reading 256 MiB, median of 3 passes) and the dot products alone (mean of 20\n"
-                    "launches); the fraction is the bytes they read over their time over the bandwidth of the same\n"
-                    "round. Medians over the rounds, and the fraction's range.\n\n", reps, BENCH_ROUNDS);
+                    "bandwidth (a kernel reading 256 MiB, held as the transport columns are, with huge pages advised on\n"
+                    "a CPU device; median of 3 passes) and the dot products alone (mean of 20 launches); the fraction\n"
+                    "is the bytes they read over their time over the bandwidth of the same round. Medians over the\n"
+                    "rounds, and the fraction's range.\n\n", reps, BENCH_ROUNDS);
         fprintf(md, "| file | lighting changes per second | dot products alone | bytes they read | read bandwidth | "
                     "fraction of read bandwidth | range |\n|---|---|---|---|---|---|---|\n");
         for (int f = 0; f < nfiles; f++)
