@@ -962,8 +962,8 @@ static void case_negative(void)
 }
 
 /* Subnormal radiance: everywhere (1e-40, and the least subnormal), and as
- * noise on a sky of 1. Finite and within the bound (with the subnormal
- * floor). How much slower a subnormal map relights is measured by
+ * noise on a sky of 1: finite and within the bound (with the subnormal
+ * floor); and everywhere at N = 128: finite, OpenCL = reference. How much slower a subnormal map relights is measured by
  * `haarlight bench` (its subnormal lighting table), not asserted here. */
 static void case_denormal(void)
 {
@@ -994,6 +994,20 @@ static void case_denormal(void)
         case_end();
     }
     rig_close(&g);
+    /* at N = 128 (1.4 million stored terms, all of them lit): a 1024 x 512
+       map of subnormals */
+    case_begin("denormal: N=128");
+    hl_precompute_desc dt = {.N = 128, .C = 8, .rule = HL_TRUNC_ALL};
+    const uint32_t Wt = 1024;
+    float *ps = pixels_const(Wt, 3e-39f);
+    hl_env *es = env_of(Wt, ps);
+    if (es && rig_open(&g, precompute_both(m, &dt, "denormal_n128"))) {
+        rig_run(&g, es, HL_TERMS_ALL, "subnormal map at N=128");
+        rig_close(&g);
+    }
+    hl_env_destroy(es);
+    free(ps);
+    case_end();
     hl_mesh_destroy(m);
 }
 
