@@ -561,17 +561,25 @@ static hl_result light_buf(hl_cl_light *l, cl_mem *m, cl_mem_flags fl, size_t by
     return make_buf(&tmp, m, fl, bytes, init, what);
 }
 
-/* A large read-only buffer. On a CPU device it lives in our own memory,
- * allocated with huge pages advised (PoCL's allocations are not, and the
- * dot products' scattered reads then miss the TLB): PERF-NOTES measured
- * 1.5x the read rate with huge pages. */
+/* A large read-only buffer, filled from init when given. On a CPU device
+ * it lives in our own memory (*keep, to free after the buffer is
+ * released), allocated with huge pages advised (PoCL's allocations are
+ * not, and the dot products' scattered reads then miss the TLB):
+ * PERF-NOTES measured 1.5x the read rate with huge pages. */
+static hl_result big_buf(hl_context *ctx, struct hl_cl *cl, cl_mem *m, size_t bytes, const void *init, void **keep,
+                         const char *what)
+{
+    hl_cl_pipe tmp = {.ctx = ctx, .cl = cl};
+    if (cl->wg != 1 || !bytes) return make_buf(&tmp, m, CL_MEM_READ_ONLY, bytes, init, what);
+    *keep = hl_alloc_big(ctx, bytes, what);
+    if (!*keep) return HL_ERR_OUT_OF_MEMORY;
+    if (init) memcpy(*keep, init, bytes);
+    return make_buf(&tmp, m, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, *keep, what);
+}
+
 static hl_result light_big_buf(hl_cl_light *l, cl_mem *m, size_t bytes, const void *init, void **keep, const char *what)
 {
-    if (l->cl->wg != 1 || !init || !bytes) return light_buf(l, m, CL_MEM_READ_ONLY, bytes, init, what);
-    *keep = hl_alloc_big(l->ctx, bytes, what);
-    if (!*keep) return HL_ERR_OUT_OF_MEMORY;
-    memcpy(*keep, init, bytes);
-    return light_buf(l, m, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, *keep, what);
+    return big_buf(l->ctx, l->cl, m, bytes, init, keep, what);
 }
 
 typedef struct { uint64_t key; uint32_t v; } order_key;
@@ -1043,14 +1051,15 @@ hl_result hl_cl_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, dou
     if (!cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the context has no OpenCL device");
     const size_t items = 64, per = bytes / 128 / items * 2; /* float16s per item, even */
     cl_int e;
-    /* on a CPU device, memory of the kind the transport columns live in
-       (light_big_buf: huge pages advised), which reads faster than PoCL's own */
+    /* memory of the kind the transport columns live in (on a CPU device,
+       huge pages advised), which reads faster than PoCL's own */
     void *host = NULL;
-    if (cl->wg == 1 && !(host = hl_alloc_big(ctx, items * per * 64, "the bandwidth buffer"))) return HL_ERR_OUT_OF_MEMORY;
-    cl_mem buf = clCreateBuffer(cl->context, CL_MEM_READ_ONLY | (host ? CL_MEM_USE_HOST_PTR : 0), items * per * 64, host,
-                                &e);
-    if (e != CL_SUCCESS) hl_free_big(host);
-    CL_TRY(ctx, e, "bandwidth buffer");
+    cl_mem buf = NULL;
+    hl_result res = big_buf(ctx, cl, &buf, items * per * 64, NULL, &host, "the bandwidth buffer");
+    if (res != HL_OK) {
+        hl_free_big(host);
+        return res;
+    }
     cl_mem out = clCreateBuffer(cl->context, CL_MEM_WRITE_ONLY, items * 4, NULL, &e);
     if (e != CL_SUCCESS) { clReleaseMemObject(buf); hl_free_big(host); CL_TRY(ctx, e, "bandwidth buffer"); }
     const cl_uchar fill = 1; /* floats of 2.4e-38: normal, so no slow subnormal sums */
