@@ -35,7 +35,6 @@ struct vw_gl {
     GLsizei index_count;
     uint32_t vertex_count;
     int have_colours;
-    float *rgba; /* read-back colours widened to the buffer's 4 floats */
     GLuint env_tex, thr_tex;
     GLuint prog_mesh, prog_bg, prog_bright, prog_blur, prog_final;
     uint32_t w, h, qw, qh;
@@ -280,7 +279,7 @@ int vw_gl_create(const hl_mesh *mesh, const float thr[256], vw_gl **out, char *e
     glGenBuffers(1, &g->vbo_rgb);
     glBindBuffer(GL_ARRAY_BUFFER, g->vbo_rgb);
     /* 4 floats per vertex, the layout the dot products write, so that CL/GL
-       interop can fill this buffer directly; the read-back path widens */
+       interop and the read-back path (hl_relighter_run4) both fill it as is */
     glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(16 * (size_t)mesh->vertex_count), NULL, GL_STREAM_DRAW);
     glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 16, NULL);
     glEnableVertexAttribArray(1);
@@ -342,7 +341,6 @@ void vw_gl_destroy(vw_gl *g)
     glDeleteRenderbuffers(1, &g->rb_depth);
     GLuint fbos[] = {g->fbo_scene, g->fbo_q[0], g->fbo_q[1], g->fbo_lin};
     glDeleteFramebuffers(4, fbos);
-    free(g->rgba);
     free(g);
 }
 
@@ -376,14 +374,10 @@ int vw_gl_set_env(vw_gl *g, const hl_env *env, char *err, size_t err_size)
     return 1;
 }
 
-void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgb)
+void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgba)
 {
-    const size_t V = g->vertex_count;
-    if (!g->rgba) g->rgba = calloc(4 * (V ? V : 1), sizeof *g->rgba);
-    if (!g->rgba) return; /* out of memory: the previous colours stay */
-    for (size_t v = 0; v < V; v++) memcpy(g->rgba + 4 * v, vertex_rgb + 3 * v, 12);
     glBindBuffer(GL_ARRAY_BUFFER, g->vbo_rgb);
-    glBufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(16 * V), g->rgba);
+    glBufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(16 * (size_t)g->vertex_count), vertex_rgba);
     g->have_colours = 1;
 }
 

@@ -301,6 +301,14 @@ static void change_terms(viewer *v, int up)
     }
 }
 
+/* Automatic exposure from the current colours, brought to the host (no
+ * new relight where they are there already: same settings, read back). */
+static void auto_exposure(viewer *v)
+{
+    if (hl_relighter_run(v->rl, &v->rd, v->rgb, NULL) == HL_OK) v->exposure = hl_exposure_auto(v->t->mesh, v->rgb);
+    else say(v, 1, "automatic exposure: %s", rl_error(v));
+}
+
 /* The pending lighting work: a new sky, a new environment, a relight. */
 static void update_lighting(viewer *v)
 {
@@ -344,13 +352,14 @@ static void update_lighting(viewer *v)
         v->light_dirty = 0;
         double t0 = glfwGetTime();
         hl_relight_stats st;
+        const float *rgba = NULL;
         int on_device = 0;
         if (v->glmem) {
             vw_gl_finish(); /* OpenGL is done with the buffer before OpenCL acquires it */
             if (hl_relighter_run_into(v->rl, &v->rd, v->glmem, 1, &st) == HL_OK) on_device = 1;
             else interop_off(v, rl_error(v));
         }
-        if (!on_device && hl_relighter_run(v->rl, &v->rd, v->rgb, &st) != HL_OK) {
+        if (!on_device && hl_relighter_run4(v->rl, &v->rd, &rgba, &st) != HL_OK) {
             say(v, 1, "relight: %s", rl_error(v));
             return;
         }
@@ -358,14 +367,10 @@ static void update_lighting(viewer *v)
         v->st = st;
         if (v->auto_requested) {
             v->auto_requested = 0;
-            /* automatic exposure looks at the colours: on the host once */
-            if (!on_device || hl_relighter_run(v->rl, &v->rd, v->rgb, NULL) == HL_OK)
-                v->exposure = hl_exposure_auto(v->t->mesh, v->rgb);
-            else
-                say(v, 1, "automatic exposure: %s", rl_error(v));
+            auto_exposure(v);
         }
         if (on_device) vw_gl_colours_written(v->gl);
-        else vw_gl_upload_colours(v->gl, v->rgb);
+        else vw_gl_upload_colours(v->gl, rgba);
         v->t_relight = t1 - t0;
         v->t_upload = glfwGetTime() - t1;
     }
@@ -413,7 +418,7 @@ static void on_char(GLFWwindow *w, unsigned int c)
     case '[': v->exposure -= VW_EXPOSURE_STEP; v->exposure_auto = 0; v->redraw = 1; break;
     case 'a': case 'A':
         v->exposure_auto = 1;
-        v->exposure = hl_exposure_auto(v->t->mesh, v->rgb);
+        auto_exposure(v);
         v->redraw = 1;
         break;
     case 'g': case 'G': v->glare = !v->glare; v->redraw = 1; break;

@@ -45,9 +45,9 @@ const char *vw_gl_renderer(const vw_gl *g);
 int vw_gl_resize(vw_gl *g, uint32_t w, uint32_t h, char *err, size_t err_size);
 /* Uploads the environment drawn as background. */
 int vw_gl_set_env(vw_gl *g, const hl_env *env, char *err, size_t err_size);
-/* Copies 3 floats per vertex into the colour buffer (which holds 4 per
- * vertex, the dot products' layout). */
-void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgb);
+/* Copies 4 floats per vertex (the dot products' layout) into the colour
+ * buffer. */
+void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgba);
 /* The colour buffer object, for OpenCL to write into (clCreateFromGLBuffer);
  * vw_gl_finish before OpenCL acquires it, vw_gl_colours_written after. */
 unsigned vw_gl_colour_buffer(const vw_gl *g);

@@ -449,8 +449,9 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
     return HL_OK;
 }
 
-/* A lighting change, its colours into vertex_rgb (by way of B4) or, with
- * out set, into that device buffer (hl_cl_light_run_into). */
+/* A lighting change, its colours into B4 (and from there into vertex_rgb
+ * when given) or, with out set, into that device buffer
+ * (hl_cl_light_run_into). */
 static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb, void *out, int gl,
                      hl_relight_stats *stats)
 {
@@ -499,7 +500,7 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         r->last_serial = r->env_serial;
         r->last_stats = st;
     }
-    if (!out)
+    if (vertex_rgb)
         for (uint32_t v = 0; v < V; v++)
             for (int c = 0; c < 3; c++) vertex_rgb[3 * (size_t)v + c] = r->B4[4 * (size_t)v + c];
     st.seconds = hl_now() - t0;
@@ -510,6 +511,13 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
 hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb, hl_relight_stats *stats)
 {
     return run(r, desc, vertex_rgb, NULL, 0, stats);
+}
+
+hl_result hl_relighter_run4(hl_relighter *r, const hl_relight_desc *desc, const float **rgba, hl_relight_stats *stats)
+{
+    hl_result res = run(r, desc, NULL, NULL, 0, stats);
+    *rgba = res == HL_OK ? r->B4 : NULL;
+    return res;
 }
 
 hl_result hl_relighter_run_into(hl_relighter *r, const hl_relight_desc *desc, void *cl_out, int gl,
