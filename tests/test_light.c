@@ -176,6 +176,26 @@ static void case_energy(void)
 
 /* Haar of 3 rows, selection and dot products: OpenCL equals C exactly
  * given identical inputs. */
+/* The dot products' work-items share the kept column entries evenly (the
+ * kernel waits for the largest share): on a CPU device the tiles are dealt
+ * to one range per core. */
+static void check_balance(const hl_cl_light *l, const uint32_t *bits)
+{
+    uint32_t n = hl_cl_light_ranges(l);
+    double *per = malloc(n * sizeof *per), total = 0.0, most = 0.0;
+    if (!per) return;
+    hl_cl_light_kept_entries(l, bits, per);
+    for (uint32_t r = 0; r < n; r++) {
+        total += per[r];
+        most = fmax(most, per[r]);
+    }
+    if (n > 1 && n <= 64 && total > 0.0) {
+        printf("kept entries over %u ranges: largest %.0f, mean %.1f\n", n, most, total / n);
+        hl_check_error("largest range's kept entries over the mean, minus 1", most / (total / n) - 1.0, 0.03);
+    }
+    free(per);
+}
+
 static void case_stages(void)
 {
     hl_context *cl = ctx_of(HL_BACKEND_OPENCL), *ref = ctx_of(HL_BACKEND_REFERENCE);
@@ -234,6 +254,7 @@ static void case_stages(void)
                        scheme ? "linear8" : "log8", sel == HL_SELECT_AREA ? "area" : "unweighted", Ms[m], ra.kept,
                        ra.blocks_used, g->nblocks, ra.energy_total > 0 ? ra.energy_kept / ra.energy_total : 1.0, diff, V);
                 HL_CHECK(diff == 0, "dot products: OpenCL must equal C bit for bit");
+                if (Ms[m] == 200) check_balance(l, ka);
                 free(ones);
             }
         free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub); free(ka); free(kb);

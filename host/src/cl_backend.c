@@ -1023,22 +1023,43 @@ hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const ui
 
 /* ------------------------------------------------------------ measuring */
 
-hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
+uint32_t hl_cl_light_ranges(const hl_cl_light *l) { return l->nranges; }
+
+double hl_cl_light_kept_entries(const hl_cl_light *l, const uint32_t *bits, double *per_range)
 {
     const size_t nc = l->g->ncoef;
-    double entries = 0.0, kept = 0.0;
-    uint32_t *bits = malloc(nc / 8);
-    if (!bits) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
-    cl_int e = clEnqueueReadBuffer(l->cl->queue, l->bits, CL_TRUE, 0, nc / 8, bits, 0, NULL, NULL);
-    if (e != CL_SUCCESS) { free(bits); CL_TRY(l->ctx, e, "read-back"); }
+    double kept = 0.0;
+    for (size_t rg = 0; rg < l->nranges; rg++) per_range[rg] = 0.0;
     for (size_t s = 0; s < nc; s++) {
         if (!((bits[s / 32] >> (s % 32)) & 1u)) continue;
         kept += 1.0;
         for (size_t rg = 0; rg < l->nranges; rg++) {
             const uint32_t *c = l->col_start + rg * (nc + 1);
-            entries += (double)(c[s + 1] - c[s]);
+            per_range[rg] += (double)(c[s + 1] - c[s]);
         }
     }
+    return kept;
+}
+
+hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
+{
+    const size_t nc = l->g->ncoef;
+    uint32_t *bits = malloc(nc / 8);
+    double *per = malloc((l->nranges ? l->nranges : 1) * sizeof *per);
+    if (!bits || !per) {
+        free(bits);
+        free(per);
+        return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    }
+    cl_int e = clEnqueueReadBuffer(l->cl->queue, l->bits, CL_TRUE, 0, nc / 8, bits, 0, NULL, NULL);
+    if (e != CL_SUCCESS) {
+        free(bits);
+        free(per);
+        CL_TRY(l->ctx, e, "read-back");
+    }
+    double entries = 0.0, kept = hl_cl_light_kept_entries(l, bits, per);
+    for (size_t rg = 0; rg < l->nranges; rg++) entries += per[rg];
+    free(per);
     /* per tile entry its head word and codes; per kept slot and range two
        starts; per vertex slot its two parameters, three running sums
        (zeroed, then read once they leave the cache), albedo, vertex and

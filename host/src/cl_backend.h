@@ -101,6 +101,11 @@ hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const ui
 /* The dot-product kernel alone on the current lighting, mean of reps
  * launches queued together. */
 hl_result hl_cl_light_time_relight(hl_cl_light *l, uint32_t reps, double *seconds);
+/* The dot products' work-items (ranges of tiles), and the column entries
+ * each would walk for the kept slots in bits (per_range: one per range);
+ * returns the number of kept slots. */
+uint32_t hl_cl_light_ranges(const hl_cl_light *l);
+double hl_cl_light_kept_entries(const hl_cl_light *l, const uint32_t *bits, double *per_range);
 /* Bytes the dot-product kernel reads and writes for the last selection
  * (each byte once: what stays in cache is not counted twice). */
 hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes);
