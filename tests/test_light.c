@@ -178,8 +178,10 @@ static void case_energy(void)
  * given identical inputs. */
 /* The dot products' work-items share the kept column entries evenly (the
  * kernel waits for the largest share): on a CPU device the tiles are dealt
- * to one range per core. */
-static void check_balance(const hl_cl_light *l, const uint32_t *bits)
+ * to one range per core. Checked where every range gets at least 48 tiles
+ * (on this mesh: up to 2 ranges), since a few dealt tiles need not share
+ * evenly. */
+static void check_balance(const hl_cl_light *l, const uint32_t *bits, uint32_t nverts)
 {
     uint32_t n = hl_cl_light_ranges(l);
     double *per = malloc(n * sizeof *per), total = 0.0, most = 0.0;
@@ -189,9 +191,11 @@ static void check_balance(const hl_cl_light *l, const uint32_t *bits)
         total += per[r];
         most = fmax(most, per[r]);
     }
-    if (n > 1 && n <= 64 && total > 0.0) {
+    if (n > 1 && (nverts + 15) / 16 / n >= 48) {
         printf("kept entries over %u ranges: largest %.0f, mean %.1f\n", n, most, total / n);
         hl_check_error("largest range's kept entries over the mean, minus 1", most / (total / n) - 1.0, 0.03);
+    } else if (n > 1) {
+        printf("kept entries over %u ranges: balance not checked (fewer than 48 tiles a range)\n", n);
     }
     free(per);
 }
@@ -254,7 +258,7 @@ static void case_stages(void)
                        scheme ? "linear8" : "log8", sel == HL_SELECT_AREA ? "area" : "unweighted", Ms[m], ra.kept,
                        ra.blocks_used, g->nblocks, ra.energy_total > 0 ? ra.energy_kept / ra.energy_total : 1.0, diff, V);
                 HL_CHECK(diff == 0, "dot products: OpenCL must equal C bit for bit");
-                if (Ms[m] == 200) check_balance(l, ka);
+                if (Ms[m] == 200) check_balance(l, ka, V);
                 free(ones);
             }
         free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub); free(ka); free(kb);
