@@ -174,8 +174,6 @@ static void case_energy(void)
     hl_context_destroy(ref);
 }
 
-/* Haar of 3 rows, selection and dot products: OpenCL equals C exactly
- * given identical inputs. */
 /* The dot products' work-items share the kept column entries evenly (the
  * kernel waits for the largest share): on a CPU device the tiles are dealt
  * to one range per core. Checked where every range gets at least 48 tiles
@@ -200,6 +198,8 @@ static void check_balance(const hl_cl_light *l, const uint32_t *bits, uint32_t n
     free(per);
 }
 
+/* Haar of 3 rows, selection and dot products: OpenCL equals C exactly
+ * given identical inputs. */
 static void case_stages(void)
 {
     hl_context *cl = ctx_of(HL_BACKEND_OPENCL), *ref = ctx_of(HL_BACKEND_REFERENCE);

@@ -963,8 +963,9 @@ static void case_negative(void)
 
 /* Subnormal radiance: everywhere (1e-40, and the least subnormal), and as
  * noise on a sky of 1: finite and within the bound (with the subnormal
- * floor); and everywhere at N = 128: finite, OpenCL = reference. How much slower a subnormal map relights is measured by
- * `haarlight bench` (its subnormal lighting table), not asserted here. */
+ * floor); and everywhere at N = 128: finite, OpenCL = reference. How much
+ * slower a subnormal map relights is measured by `haarlight bench` (its
+ * subnormal lighting table), not asserted here. */
 static void case_denormal(void)
 {
     rig g;
