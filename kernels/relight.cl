@@ -6,37 +6,27 @@
  * holds the vertices in its own order (order[p]: the vertex at position p;
  * see vertex_order), positions grouped in tiles of HL_TILE and tiles in
  * ranges, one range per work-item (range_start: position boundaries, whole
- * tiles); albedo is in position order, colours go to their vertices. For
- * each range and slot, the column lists the tiles in which at least one
- * vertex stores that slot, each as one entry of
- * 1 + HL_TILE / 4 words: a head (tile in range | lane mask << 16) and the
- * tile's HL_TILE codes (zero in lanes the mask leaves out). A work-item
- * walks only the kept slots' columns, in ascending slot order, and decodes
- * and adds each entry's terms as one vector into the range's running sums
- * (red, green and blue planes in `acc`). Lanes outside the mask add exact
- * zeros (fma(0, l, s) = s), so every vertex sums its terms in the order
- * the twin does (host/src/ref/relight_ref.c walks whole rows) and rounds
- * alike.
+ * tiles); albedo and back are in position order, colours go to their
+ * vertices. For each range and slot, the column lists the tiles in which
+ * at least one vertex stores that slot, each as one entry of
+ * 1 + HL_TILE / 2 words: a head (the tile in the range) and the tile's
+ * HL_TILE terms as halves, decoded from the file's codes on load and scaled
+ * by 2^-e per vertex (host/src/half.h; zero in lanes whose vertex does not
+ * store the slot). A work-item walks only the kept slots' columns, in
+ * ascending slot order, and adds each entry's terms as one vector into the
+ * range's running sums (red, green and blue planes in `acc`), then scales
+ * each vertex's sums back by 2^e (back). Zero lanes add exact zeros
+ * (fma(0, l, s) = s), so every vertex sums its terms in the order the twin
+ * does (host/src/ref/relight_ref.c walks whole rows) and rounds alike.
  */
 #pragma OPENCL FP_CONTRACT OFF
 
 #define HL_CAT_(a, b) a##b
 #define HL_CAT(a, b) HL_CAT_(a, b)
-#define UV HL_CAT(uint, HL_TILE)             /* uint8 */
-#define FV HL_CAT(float, HL_TILE)            /* float8 */
-#define AS_UV HL_CAT(as_uint, HL_TILE)
-#define AS_FV HL_CAT(as_float, HL_TILE)
-#define TO_UV HL_CAT(convert_uint, HL_TILE)
-#define TO_FV HL_CAT(convert_float, HL_TILE)
-#define CODE_WORDS (HL_TILE / 4)
+#define FV HL_CAT(float, HL_TILE)            /* float16 */
+#define LOAD_TERMS HL_CAT(vload_half, HL_TILE)
 
-#if HL_TILE == 8
-#define CODES(e) as_uchar8(vload2(0, (e) + 1))
-#define LANE_BITS (UV)(1u, 2u, 4u, 8u, 16u, 32u, 64u, 128u)
-#elif HL_TILE == 16
-#define CODES(e) as_uchar16(vload4(0, (e) + 1))
-#define LANE_BITS (UV)(1u, 2u, 4u, 8u, 16u, 32u, 64u, 128u, 256u, 512u, 1024u, 2048u, 4096u, 8192u, 16384u, 32768u)
-#else
+#if HL_TILE != 8 && HL_TILE != 16
 #error "HL_TILE must be 8 or 16"
 #endif
 
@@ -53,9 +43,9 @@
     } while (0)
 
 kernel void hl_relight(global const uint *col, global const uint *col_start, global const uint *range_start,
-                       global const uint *p0, global const uint *p1, uint scheme, uint ncoef,
-                       global const float4 *light, global const uint *kept_bits, global const float4 *albedo,
-                       global float *acc, global float4 *out, uint nverts, uint nranges, global const uint *order)
+                       global const float *back, uint ncoef, global const float4 *light, global const uint *kept_bits,
+                       global const float4 *albedo, global float *acc, global float4 *out, uint nverts, uint nranges,
+                       global const uint *order)
 {
     uint w = get_global_id(0);
     if (w >= nranges) return;
@@ -64,9 +54,8 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
     global float *ar = acc + (size_t)3 * v0, *ag = ar + range, *ab = ag + range;
     global FV *vr = (global FV *)ar, *vg = (global FV *)ag, *vb = (global FV *)ab;
     for (uint i = 0; i < range / HL_TILE; i++) vr[i] = vg[i] = vb[i] = (FV)(0.0f);
-    global const UV *q0 = (global const UV *)(p0 + v0), *q1 = (global const UV *)(p1 + v0);
     global const uint *cs = col_start + (size_t)w * (ncoef + 1);
-    const uint stride = 1u + CODE_WORDS;
+    const uint stride = 1u + HL_TILE / 2u;
     for (uint word = 0; word < ncoef / 32u; word++) {
         uint bits = kept_bits[word];
         while (bits) {
@@ -75,28 +64,15 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
             float4 l = light[slot];
             FV lr = (FV)(l.x), lg = (FV)(l.y), lb = (FV)(l.z);
             global const uint *e = col + (size_t)cs[slot] * stride, *end = col + (size_t)cs[slot + 1] * stride;
-            if (scheme == HL_QUANT_LOG8) {
-                for (; e < end; e += stride) {
-                    uint head = e[0], tq = head & 0xffffu;
-                    UV keep = AS_UV(((UV)(head >> 16) & LANE_BITS) != (UV)(0u));
-                    UV c = TO_UV(CODES(e));
-                    FV d = AS_FV(((q0[tq] + (c & 127u) * q1[tq]) | ((c & 128u) << 24)) & keep);
-                    ADD_TILE(d);
-                }
-            } else {
-                for (; e < end; e += stride) {
-                    uint head = e[0], tq = head & 0xffffu;
-                    UV keep = AS_UV(((UV)(head >> 16) & LANE_BITS) != (UV)(0u));
-                    FV c = TO_FV(CODES(e));
-                    FV d = AS_FV(q0[tq]) + c * AS_FV(q1[tq]);
-                    d = AS_FV(AS_UV(d) & keep);
-                    ADD_TILE(d);
-                }
+            for (; e < end; e += stride) {
+                uint tq = e[0];
+                FV d = LOAD_TERMS(0, (global const half *)(e + 1));
+                ADD_TILE(d);
             }
         }
     }
     for (uint v = v0; v < v1; v++) {
         uint i = v - v0;
-        out[order[v]] = (float4)(ar[i], ag[i], ab[i], 0.0f) * albedo[v];
+        out[order[v]] = ((float4)(ar[i], ag[i], ab[i], 0.0f) * back[v]) * albedo[v];
     }
 }

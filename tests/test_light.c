@@ -8,6 +8,7 @@
 
 #include "cl_backend.h"
 #include "geom.h"
+#include "half.h"
 #include "hl_test.h"
 #include "lighting.h"
 #include "ref/ref.h"
@@ -306,9 +307,17 @@ static void case_relighter(void)
         hl_rotation_to_shift(33.0f, lg->wc, &s0, &f);
         hl_ref_env2para(cells, lg->wc, lg->tap_start, lg->taps, s0, f, nc, Lp);
         for (int c = 0; c < 3; c++) hl_ref_haar(g, Lp + (size_t)c * nc, Lw + (size_t)c * nc);
-        double worst = 0.0, scale = 0.0;
+        double worst = 0.0, scale = 0.0, worst_half = 0.0;
+        float *code = malloc((size_t)nc * 4);
         for (uint32_t v = 0; v < V; v++) {
-            hl_transport_query_row(t, v, row);
+            hl_transport_query_terms(t, v, row); /* the terms as the dot products add them */
+            /* each within 2^-11 of the dequantised term, or 2^-24 of the
+               row's largest magnitude (2^-25 of 2^e, half.h) */
+            hl_transport_query_row(t, v, code);
+            const int ex = hl_half_exponent(t->info.quant, t->row_quant[v].a, t->row_quant[v].b);
+            for (uint32_t i = 0; i < nc; i++)
+                worst_half = fmax(worst_half, fabs((double)row[i] - code[i]) /
+                                                  (ldexp(fabs((double)code[i]), -11) + ldexp(1.0, ex - 25)));
             for (int c = 0; c < 3; c++) {
                 double exact = 0.0;
                 for (uint32_t i = 0; i < nc; i++) exact += (double)row[i] * Lw[(size_t)c * nc + i];
@@ -317,6 +326,9 @@ static void case_relighter(void)
                 scale = fmax(scale, fabs(exact));
             }
         }
+        free(code);
+        hl_check_error("terms rounded to half: |term - dequantised| / (2^-11 |dequantised| + 2^(e-25))", worst_half,
+                       1.0);
         char what[128];
         snprintf(what, sizeof what, "%s, all terms: vs float64 sum over the stored rows (relative to max)",
                  backend ? "reference" : "OpenCL");

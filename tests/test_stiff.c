@@ -7,9 +7,10 @@
  * for bit), and, where one applies, that the colours are within a stated
  * bound of a float64 reference:
  *
- *   B_ref = albedo * sum_i T_i L_i in double, T_i the stored (dequantised)
- *   row of hl_transport_query_row, L_i the double Haar transform of the
- *   paraboloid lighting that the plain-C env2para stage makes.
+ *   B_ref = albedo * sum_i T_i L_i in double, T_i the row as the dot
+ *   products add it (hl_transport_query_terms: dequantised, then rounded to
+ *   half precision at a per-row scale), L_i the double Haar transform of
+ *   the paraboloid lighting that the plain-C env2para stage makes.
  *
  * With every lighting term kept the float result differs from B_ref by
  *   (a) the float Haar transform of the lighting, |sum_i T_i dL_i| <=
@@ -22,7 +23,9 @@
  *   with u = 2^-24. In the subnormal range each operation may add 2^-150
  *   more, absolute. Against the unquantised transport, recomputed from the
  *   rays with the plain-C stages as `haarlight bench` does, the 8-bit
- *   quantisation adds sum_i |L_i| q_i (quant_error below).
+ *   quantisation and the rounding to half add sum_i |L_i| (q_i + |D_i -
+ *   T_i|), D_i the dequantised term (hl_transport_query_row) and q_i its
+ *   quantisation error (quant_error below).
  *
  * Cases (ctest hl.stiff.<case>; `test_stiff all` runs them in turn):
  *   sun_sky        one-pixel sun at 1, 1e3, 1e5, 1e7 x a sky of 1: all
@@ -498,10 +501,11 @@ static sample *samples_make(const hl_transport *t, const lighting *L, const floa
 {
     const uint32_t V = t->info.vertex_count, nc = L->nc;
     sample *S = calloc((size_t)V * 3, sizeof *S);
-    float *row = need(malloc((size_t)nc * 4));
+    float *row = need(malloc((size_t)nc * 4)), *code = need(malloc((size_t)nc * 4));
     if (!S) exit(1);
     for (uint32_t v = 0; v < V; v++) {
-        hl_transport_query_row(t, v, row);
+        hl_transport_query_terms(t, v, row);
+        hl_transport_query_row(t, v, code);
         double t1 = 0.0, t2 = 0.0;
         uint32_t n = 0;
         for (uint32_t i = 0; i < nc; i++)
@@ -526,12 +530,14 @@ static sample *samples_make(const hl_transport *t, const lighting *L, const floa
                 if (raw) {
                     float x = raw[(size_t)v * nc + i];
                     s->ref_raw += (double)x * ld[i];
-                    s->quant += fabs(ld[i]) * quant_error(t->info.quant, t->row_quant[v], x, row[i]);
+                    s->quant += fabs(ld[i]) * (quant_error(t->info.quant, t->row_quant[v], x, code[i]) +
+                                                fabs((double)code[i] - row[i]));
                 }
             }
         }
     }
     free(row);
+    free(code);
     return S;
 }
 

@@ -268,6 +268,12 @@ void hl_transport_destroy(hl_transport *t);
  * floats (zero elsewhere). */
 void hl_transport_query_row(const hl_transport *t, uint32_t v, float *dense);
 
+/* The same row as the dot products add it (both backends): each term
+ * dequantised, then rounded to half precision at a per-row power-of-two
+ * scale (within 2^-11 of the term, or 2^-24 of the row's largest
+ * magnitude), and scaled back. */
+void hl_transport_query_terms(const hl_transport *t, uint32_t v, float *dense);
+
 /* ---------------------------------------------------------------- environments */
 
 /* An equirectangular environment: linear RGB radiance, width x height

@@ -220,7 +220,7 @@ HL_INLINE float hl_dequant_linear8(HL_U32 q, float lo, float hi)
 /* log8: the magnitude's float bit pattern on a grid of 128 points from
  * min |v| in whole steps of step = (bits(max) - bits(min)) / 127 (rounded
  * down, so the last point is at most 126 units below max). Decoding is one
- * integer multiply-add; the dot products run it per term. */
+ * integer multiply-add (the device decodes each term once, on load). */
 HL_INLINE HL_U32 hl_log8_step(float mn, float mx)
 {
     HL_U32 kmn = HL_AS_U32(mn), kmx = HL_AS_U32(mx);
@@ -239,8 +239,8 @@ HL_INLINE HL_U32 hl_quant_log8(float v, float mn, float mx)
     return sign | (q > 127u ? 127u : q);
 }
 
-/* Decoding from the per-vertex parameters the dot products keep:
- * p0 = bits(min |v|), p1 = step. */
+/* Decoding from the parameters as bit patterns: p0 = bits(min |v|),
+ * p1 = step. */
 HL_INLINE float hl_dequant_log8_p(HL_U32 code, HL_U32 p0, HL_U32 p1)
 {
     return HL_AS_F32((p0 + (code & 127u) * p1) | ((code & 128u) << 24));
@@ -249,15 +249,6 @@ HL_INLINE float hl_dequant_log8_p(HL_U32 code, HL_U32 p0, HL_U32 p1)
 HL_INLINE float hl_dequant_log8(HL_U32 code, float mn, float mx)
 {
     return hl_dequant_log8_p(code, HL_AS_U32(mn), hl_log8_step(mn, mx));
-}
-
-/* The per-vertex decoding parameters (bit patterns) of either scheme:
- * LOG8 as above; LINEAR8 p0 = lo, p1 = hl_linear8_step(lo, hi) as hl_dequant_linear8
- * computes it. */
-HL_INLINE void hl_dequant_params(HL_U32 scheme, float a, float b, HL_U32 *p0, HL_U32 *p1)
-{
-    *p0 = HL_AS_U32(a);
-    *p1 = scheme == HL_QUANT_LOG8 ? hl_log8_step(a, b) : HL_AS_U32(hl_linear8_step(a, b));
 }
 
 HL_INLINE float hl_dequant(HL_U32 scheme, HL_U32 code, float a, float b)

@@ -15,6 +15,7 @@
 
 #include "cl_backend.h"
 #include "geom.h"
+#include "half.h"
 #include "lighting.h"
 
 typedef struct { const char *name; const char *source; } hl_embedded_kernel;
@@ -530,7 +531,7 @@ struct hl_cl_light {
     uint32_t nverts, scheme;
     cl_mem cells, turned, start, runs, slots, weight; /* tables and inputs */
     cl_mem Lp, Lw, Lsel, used, bits, res, keys;    /* lighting stages */
-    cl_mem col, cols, rstart, p0, p1, albedo, B, acc; /* transport, by column */
+    cl_mem col, cols, rstart, back, albedo, B, acc; /* transport, by column */
     cl_mem ord;                                     /* vertex at each position */
     void *host[5];                                  /* CPU devices: their memory */
     uint32_t nranges, *range_start;                 /* vertices of each work-item */
@@ -544,7 +545,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (!l) return;
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
-                     &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rstart, &l->p0, &l->p1, &l->albedo, &l->B, &l->acc,
+                     &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rstart, &l->back, &l->albedo, &l->B, &l->acc,
                      &l->ord};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
         if (*all[i]) clReleaseMemObject(*all[i]);
@@ -699,8 +700,9 @@ static uint32_t cut_ranges(hl_cl_light *l, uint32_t **starts)
 /* The rows turned into columns (see kernels/relight.cl): vertices in tiles
  * of HL_TILE, tiles in ranges (one work-item each, cut_ranges); for each
  * range and slot, the tiles that store the slot, in tile order, each as one
- * entry: a head word (tile in range | lane mask << 16) and the HL_TILE
- * codes. Also the per-vertex decoding parameters, padded to whole tiles. */
+ * entry: a head word (the tile in the range) and the HL_TILE terms as
+ * halves (half.h; zero in lanes whose vertex does not store the slot).
+ * Also each position's 2^e, which scales its sums back (1 in the padding). */
 static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
 {
     hl_context *ctx = l->ctx;
@@ -710,11 +712,18 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
     if (!l->nranges) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
     const size_t vpad = V ? l->range_start[l->nranges] : HL_TILE, ncs = (size_t)l->nranges * (nc + 1);
     uint32_t *cs = calloc(ncs, 4), *fill = malloc(ncs * 4), *last = malloc(nc * 4), *pos = malloc(nc * 4);
-    uint32_t *p0 = calloc(vpad, 4), *p1 = calloc(vpad, 4), *col = NULL;
-    const size_t stride = 1 + HL_TILE / 4; /* words per entry: head, codes */
+    uint32_t *col = NULL;
+    float *back = malloc(vpad * 4);
+    int *ex = malloc((V ? V : 1) * sizeof *ex);
+    const size_t stride = 1 + HL_TILE / 2; /* words per entry: head, halves */
     hl_result r = HL_OK;
-    if (!cs || !fill || !last || !pos || !p0 || !p1)
+    if (!cs || !fill || !last || !pos || !back || !ex)
         r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+    for (size_t v = 0; v < vpad && r == HL_OK; v++) {
+        const hl_row_quant q = v < V ? t->row_quant[l->order[v]] : (hl_row_quant){0};
+        if (v < V) ex[v] = hl_half_exponent(l->scheme, q.a, q.b);
+        back[v] = v < V ? ldexpf(1.0f, ex[v]) : 1.0f;
+    }
     /* pass 0 counts the tile entries of each (range, slot); pass 1 fills */
     for (int pass = 0; pass < 2 && r == HL_OK; pass++) {
         for (size_t rg = 0; rg < l->nranges; rg++) {
@@ -733,9 +742,9 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
                             continue;
                         }
                         if (last[s] != tile) { last[s] = tile; pos[s] = c[s]++; col[pos[s] * stride] = tile; }
-                        uint32_t *entry = col + pos[s] * stride;
-                        entry[0] |= 1u << (16 + lane);
-                        ((uint8_t *)(entry + 1))[lane] = t->entries[2 * e + 1];
+                        const hl_row_quant q = t->row_quant[u];
+                        float term = ldexpf(hl_dequant(l->scheme, t->entries[2 * e + 1], q.a, q.b), -ex[v]);
+                        ((uint16_t *)(col + pos[s] * stride + 1))[lane] = hl_half_bits(term);
                     }
             }
         }
@@ -756,20 +765,17 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
         if (!col) r = HL_ERR_OUT_OF_MEMORY;
         else memset(col, 0, (size_t)(run ? run : 1) * stride * 4);
     }
-    for (size_t v = 0; v < V && r == HL_OK; v++)
-        hl_dequant_params(l->scheme, t->row_quant[l->order[v]].a, t->row_quant[l->order[v]].b, &p0[v], &p1[v]);
     size_t n = (size_t)(l->col_entries ? l->col_entries : 1);
     if (r == HL_OK) r = light_big_buf(l, &l->col, n * stride * 4, col, &l->host[0], "transport columns");
     if (r == HL_OK) r = light_big_buf(l, &l->cols, ncs * 4, cs, &l->host[2], "column starts");
     if (r == HL_OK) r = light_buf(l, &l->rstart, CL_MEM_READ_ONLY, ((size_t)l->nranges + 1) * 4, l->range_start, "ranges");
-    if (r == HL_OK) r = light_big_buf(l, &l->p0, vpad * 4, p0, &l->host[3], "quantisation parameters");
-    if (r == HL_OK) r = light_big_buf(l, &l->p1, vpad * 4, p1, &l->host[4], "quantisation parameters");
+    if (r == HL_OK) r = light_big_buf(l, &l->back, vpad * 4, back, &l->host[3], "the sums' scales");
     l->col_start = cs;
     free(fill);
     free(last);
     free(pos);
-    free(p0);
-    free(p1);
+    free(back);
+    free(ex);
     hl_free_big(col);
     return r;
 }
@@ -892,10 +898,10 @@ static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
 static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
 {
     cl_kernel k = l->cl->k[K_RELIGHT];
-    cl_uint sc = l->scheme, nc = l->g->ncoef, nv = l->nverts, nr = l->nranges;
-    LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rstart); LARG(k, 3, l->p0); LARG(k, 4, l->p1);
-    LARG(k, 5, sc); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->bits); LARG(k, 9, l->albedo);
-    LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
+    cl_uint nc = l->g->ncoef, nv = l->nverts, nr = l->nranges;
+    LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rstart); LARG(k, 3, l->back); LARG(k, 4, nc);
+    LARG(k, 5, l->Lsel); LARG(k, 6, l->bits); LARG(k, 7, l->albedo); LARG(k, 8, l->acc); LARG(k, 9, out);
+    LARG(k, 10, nv); LARG(k, 11, nr); LARG(k, 12, l->ord);
     return light_launch(l, K_RELIGHT, l->nranges);
 }
 
@@ -1060,13 +1066,12 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
     double entries = 0.0, kept = hl_cl_light_kept_entries(l, bits, per);
     for (size_t rg = 0; rg < l->nranges; rg++) entries += per[rg];
     free(per);
-    /* per tile entry its head word and codes; per kept slot and range two
-       starts; per vertex slot its two parameters, three running sums
-       (zeroed, then read once they leave the cache), albedo, vertex and
-       colour */
+    /* per tile entry its head word and halves; per kept slot and range two
+       starts; per vertex slot its scale, three running sums (zeroed, then
+       read once they leave the cache), albedo, vertex and colour */
     free(bits);
     double vpad = (double)l->range_start[l->nranges];
-    *bytes = entries * (4.0 + HL_TILE) + kept * (double)l->nranges * 8.0 + vpad * (8.0 + 12.0 + 12.0) +
+    *bytes = entries * (4.0 + 2.0 * HL_TILE) + kept * (double)l->nranges * 8.0 + vpad * (4.0 + 12.0 + 12.0) +
              (double)l->nverts * 36.0;
     return HL_OK;
 }

@@ -25,6 +25,7 @@
 #include <sys/types.h>
 #include <unistd.h>
 
+#include "half.h"
 #include "transport_file.h"
 
 /* ---------------------------------------------------------------- format */
@@ -1204,6 +1205,16 @@ void hl_transport_query_row(const hl_transport *t, uint32_t v, float *dense)
         float *base = dense + (size_t)b * HL_BLOCK;
         for (uint32_t j = 0; j < counts[b]; j++, e += 2) base[e[0]] = hl_dequant(i->quant, e[1], rq.a, rq.b);
     }
+}
+
+void hl_transport_query_terms(const hl_transport *t, uint32_t v, float *dense)
+{
+    hl_transport_query_row(t, v, dense);
+    if (!t || !dense || v >= t->info.vertex_count) return;
+    const hl_row_quant rq = t->row_quant[v];
+    const int ex = hl_half_exponent(t->info.quant, rq.a, rq.b);
+    for (uint32_t i = 0; i < slot_total(t->info.N); i++)
+        if (dense[i] != 0.0f) dense[i] = ldexpf(hl_half_term(dense[i], ex), ex);
 }
 
 /* ---------------------------------------------------------------- report */
