@@ -533,7 +533,7 @@ struct hl_cl_light {
     cl_mem Lp, Lw, Lsel, used, bits, res, keys;    /* lighting stages */
     cl_mem col, cols, rstart, back, albedo, B, acc; /* transport, by column */
     cl_mem ord;                                     /* vertex at each position */
-    void *host[5];                                  /* CPU devices: their memory */
+    void *host[3];                                  /* CPU devices: their memory */
     uint32_t nranges, *range_start;                 /* vertices of each work-item */
     uint64_t col_entries;                           /* tile entries in all columns */
     uint32_t *col_start;                            /* host copy, for counting bytes */
@@ -549,7 +549,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
                      &l->ord};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
         if (*all[i]) clReleaseMemObject(*all[i]);
-    for (int i = 0; i < 5; i++) hl_free_big(l->host[i]);
+    for (int i = 0; i < 3; i++) hl_free_big(l->host[i]);
     free(l->col_start);
     free(l->range_start);
     free(l->order);
@@ -720,9 +720,10 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
     if (!cs || !fill || !last || !pos || !back || !ex)
         r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
     for (size_t v = 0; v < vpad && r == HL_OK; v++) {
-        const hl_row_quant q = v < V ? t->row_quant[l->order[v]] : (hl_row_quant){0};
-        if (v < V) ex[v] = hl_half_exponent(l->scheme, q.a, q.b);
-        back[v] = v < V ? ldexpf(1.0f, ex[v]) : 1.0f;
+        if (v >= V) { back[v] = 1.0f; continue; } /* padding */
+        const hl_row_quant q = t->row_quant[l->order[v]];
+        ex[v] = hl_half_exponent(l->scheme, q.a, q.b);
+        back[v] = ldexpf(1.0f, ex[v]);
     }
     /* pass 0 counts the tile entries of each (range, slot); pass 1 fills */
     for (int pass = 0; pass < 2 && r == HL_OK; pass++) {
@@ -743,8 +744,8 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
                         }
                         if (last[s] != tile) { last[s] = tile; pos[s] = c[s]++; col[pos[s] * stride] = tile; }
                         const hl_row_quant q = t->row_quant[u];
-                        float term = ldexpf(hl_dequant(l->scheme, t->entries[2 * e + 1], q.a, q.b), -ex[v]);
-                        ((uint16_t *)(col + pos[s] * stride + 1))[lane] = hl_half_bits(term);
+                        float term = hl_dequant(l->scheme, t->entries[2 * e + 1], q.a, q.b);
+                        ((uint16_t *)(col + pos[s] * stride + 1))[lane] = hl_half_held(term, ex[v]);
                     }
             }
         }
@@ -767,9 +768,9 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
     }
     size_t n = (size_t)(l->col_entries ? l->col_entries : 1);
     if (r == HL_OK) r = light_big_buf(l, &l->col, n * stride * 4, col, &l->host[0], "transport columns");
-    if (r == HL_OK) r = light_big_buf(l, &l->cols, ncs * 4, cs, &l->host[2], "column starts");
+    if (r == HL_OK) r = light_big_buf(l, &l->cols, ncs * 4, cs, &l->host[1], "column starts");
     if (r == HL_OK) r = light_buf(l, &l->rstart, CL_MEM_READ_ONLY, ((size_t)l->nranges + 1) * 4, l->range_start, "ranges");
-    if (r == HL_OK) r = light_big_buf(l, &l->back, vpad * 4, back, &l->host[3], "the sums' scales");
+    if (r == HL_OK) r = light_big_buf(l, &l->back, vpad * 4, back, &l->host[2], "the sums' scales");
     l->col_start = cs;
     free(fill);
     free(last);

@@ -61,8 +61,9 @@ static inline float hl_half_value(uint16_t h)
     return (h & 0x8000u) ? -v : v;
 }
 
-/* The term the dot products add for a decoded value t of a row with
- * exponent e. */
-static inline float hl_half_term(float t, int e) { return hl_half_value(hl_half_bits(ldexpf(t, -e))); }
+/* A decoded value t of a row with exponent e as the device holds it (the
+ * half of t 2^-e), and as the dot products add it (that half's value). */
+static inline uint16_t hl_half_held(float t, int e) { return hl_half_bits(ldexpf(t, -e)); }
+static inline float hl_half_term(float t, int e) { return hl_half_value(hl_half_held(t, e)); }
 
 #endif
