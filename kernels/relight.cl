@@ -32,9 +32,9 @@
 
 /* Adds d times the light to tile tq's running sums, each term with one
  * rounding (an explicit fused multiply-add; the twin calls fmaf). The sums
- * and parameters are addressed as whole aligned vectors (every range
- * starts on a tile, and tiles are HL_TILE floats), so each is one aligned
- * load and store rather than a split unaligned one. */
+ * are addressed as whole aligned vectors (every range starts on a tile,
+ * and tiles are HL_TILE floats), so each is one aligned load and store
+ * rather than a split unaligned one. */
 #define ADD_TILE(d)                          \
     do {                                     \
         vr[tq] = fma((d), lr, vr[tq]);       \

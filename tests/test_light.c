@@ -294,8 +294,9 @@ static void case_relighter(void)
         hl_relight_stats st;
         hl_relight_desc d = {.terms = HL_TERMS_ALL, .rotate_deg = 33.0f};
         HL_CHECK(hl_relighter_run(r, &d, rgb, &st) == HL_OK, "%s", hl_context_last_error(ctx));
-        /* exact discrete result in float64: sum over the dequantised row
-           of T_i times the Haar lighting */
+        /* exact discrete result in float64: sum over the row as the dot
+           products add it (hl_transport_query_terms) of T_i times the Haar
+           lighting */
         hl_geom *g = NULL;
         hl_light_geom *lg = NULL;
         hl_geom_create(ctx, t->info.N, t->info.C, &g);

@@ -1,8 +1,8 @@
 /* half.h - the transport terms as the dot products hold them.
  *
  * The file keeps each term as an 8-bit code (log8 or linear8). The device
- * does not decode codes in its dot products: decoding is about half of
- * their instructions, and they are bound by instructions, not by memory.
+ * does not decode codes in its dot products: decoding was two thirds of
+ * their vector instructions, and the loop was bound by them, not by memory.
  * Instead the columns are built with each term already decoded, scaled by
  * 2^-e per vertex (e: the exponent of the row's largest magnitude, so its
  * terms fall below 1) and rounded to IEEE half precision (11 significant
