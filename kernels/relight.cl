@@ -7,17 +7,26 @@
  * see vertex_order), positions grouped in tiles of HL_TILE and tiles in
  * ranges, one range per work-item (range_start: position boundaries, whole
  * tiles); albedo and back are in position order, colours go to their
- * vertices. For each range and slot, the column lists the tiles in which
- * at least one vertex stores that slot, each as one entry of
- * 1 + HL_TILE / 2 words: a head (the tile in the range) and the tile's
- * HL_TILE terms as halves, decoded from the file's codes on load and scaled
- * by 2^-e per vertex (host/src/half.h; zero in lanes whose vertex does not
- * store the slot). A work-item walks only the kept slots' columns, in
- * ascending slot order, and adds each entry's terms as one vector into the
- * range's running sums (red, green and blue planes in `acc`), then scales
- * each vertex's sums back by 2^e (back). Zero lanes add exact zeros
- * (fma(0, l, s) = s), so every vertex sums its terms in the order the twin
- * does (host/src/ref/relight_ref.c walks whole rows) and rounds alike.
+ * vertices.
+ *
+ * For each range and slot the column lists the tiles in which at least one
+ * vertex stores that slot, in tile order, each as one entry of ENTRY
+ * words: a head (the tile in the range) and the tile's HL_TILE terms as
+ * halves, decoded from the file's codes on load and scaled by 2^-e per
+ * vertex (host/src/half.h; zero in lanes whose vertex does not store the
+ * slot). Column (w, s) holds entries col_start[w (ncoef + 1) + s] to the
+ * next start. Entry 0 is all zero. For each range, slot and tile, rel (16
+ * bits) says which entry of the column holds that tile: 1 for the first,
+ * 0 for none, which reads entry 0. kept: a count, then the kept slots in
+ * ascending order (written by hl_select).
+ *
+ * A work-item walks its range one of two ways (hl_tile_walk_pays in
+ * hl_shared.h): by column (walk_columns) or by tile (walk_tiles). Either
+ * way each vertex adds its kept terms in ascending slot order, one fused
+ * multiply-add per term and colour, as the twin does
+ * (host/src/ref/relight_ref.c walks whole rows), and so rounds alike: zero
+ * lanes and entry 0 add exact zeros (fma(0, l, s) = s). Then each
+ * vertex's sums are scaled back by 2^e (back) and times the albedo.
  */
 #pragma OPENCL FP_CONTRACT OFF
 
@@ -25,54 +34,106 @@
 #define HL_CAT(a, b) HL_CAT_(a, b)
 #define FV HL_CAT(float, HL_TILE)            /* float16 */
 #define LOAD_TERMS HL_CAT(vload_half, HL_TILE)
+#define ENTRY (1u + HL_TILE / 2u)             /* words per column entry */
 
 #if HL_TILE != 8 && HL_TILE != 16
 #error "HL_TILE must be 8 or 16"
 #endif
 
-/* Adds d times the light to tile tq's running sums, each term with one
- * rounding (an explicit fused multiply-add; the twin calls fmaf). The sums
- * are addressed as whole aligned vectors (every range starts on a tile,
- * and tiles are HL_TILE floats), so each is one aligned load and store
- * rather than a split unaligned one. */
-#define ADD_TILE(d)                          \
-    do {                                     \
-        vr[tq] = fma((d), lr, vr[tq]);       \
-        vg[tq] = fma((d), lg, vg[tq]);       \
-        vb[tq] = fma((d), lb, vb[tq]);       \
-    } while (0)
+/* The column walk: each kept slot's entries in turn, each added into the
+ * range's running sums in memory (planes of `range` floats). */
+static void walk_columns(global const uint *col, global const uint *cs, global const float4 *light,
+                         global const uint *kept, uint m, global float *acc, uint range)
+{
+    global FV *vr = (global FV *)acc, *vg = (global FV *)(acc + range), *vb = (global FV *)(acc + 2 * range);
+    for (uint i = 0; i < range / HL_TILE; i++) vr[i] = vg[i] = vb[i] = (FV)(0.0f);
+    for (uint j = 0; j < m; j++) {
+        uint slot = kept[1 + j];
+        float4 l = light[slot];
+        FV lr = (FV)(l.x), lg = (FV)(l.y), lb = (FV)(l.z);
+        global const uint *e = col + (size_t)cs[slot] * ENTRY, *end = col + (size_t)cs[slot + 1] * ENTRY;
+        for (; e < end; e += ENTRY) {
+            uint tq = e[0];
+            FV d = LOAD_TERMS(0, (global const half *)(e + 1));
+            vr[tq] = fma(d, lr, vr[tq]);
+            vg[tq] = fma(d, lg, vg[tq]);
+            vb[tq] = fma(d, lb, vb[tq]);
+        }
+    }
+}
 
-kernel void hl_relight(global const uint *col, global const uint *col_start, global const uint *range_start,
-                       global const float *back, uint ncoef, global const float4 *light, global const uint *kept_bits,
-                       global const float4 *albedo, global float *acc, global float4 *out, uint nverts, uint nranges,
-                       global const uint *order)
+/* The tile walk over tiles t0 .. t0 + tn - 1: the kept slots in groups of
+ * HL_GROUP, each group's terms added tile by tile into sums held in
+ * registers; between groups the sums wait in `acc` (planes of tn tiles,
+ * which stay in the cache). */
+static void walk_tiles(global const uint *col, global const uint *cs, global const ushort *rw, uint tstride,
+                       global const float4 *light, global const uint *kept, uint m, global float *acc, uint t0,
+                       uint tn)
+{
+    global FV *sr = (global FV *)acc, *sg = sr + tn, *sb = sg + tn;
+    for (uint j0 = 0; j0 < m; j0 += HL_GROUP) {
+        /* the group's slots; past the last kept one, the last again with
+           no light, adding exact zeros */
+        global const ushort *row[HL_GROUP];
+        global const uint *before[HL_GROUP];
+        float4 li[HL_GROUP];
+        for (uint g = 0; g < HL_GROUP; g++) {
+            uint s = kept[1 + min(j0 + g, m - 1)];
+            row[g] = rw + (size_t)s * tstride + t0;
+            before[g] = col + ((size_t)cs[s] - 1) * ENTRY + 1; /* entry r's halves at before + r ENTRY */
+            li[g] = j0 + g < m ? light[s] : (float4)(0.0f);
+        }
+        for (uint t = 0; t < tn; t++) {
+            FV r, gr, b;
+            if (j0 == 0) r = gr = b = (FV)(0.0f);
+            else { r = sr[t]; gr = sg[t]; b = sb[t]; }
+#pragma unroll
+            for (uint g = 0; g < HL_GROUP; g++) {
+                uint q = row[g][t];
+                global const uint *e = q ? before[g] + (size_t)q * ENTRY : col + 1;
+                FV d = LOAD_TERMS(0, (global const half *)e);
+                r = fma(d, (FV)(li[g].x), r);
+                gr = fma(d, (FV)(li[g].y), gr);
+                b = fma(d, (FV)(li[g].z), b);
+            }
+            sr[t] = r; sg[t] = gr; sb[t] = b;
+        }
+    }
+}
+
+/* The colours of positions p0 .. p1 - 1 from their sums (planes of n
+ * floats from position p0). */
+static void put_colours(global const float *sums, uint n, uint p0, uint p1, global const float *back,
+                        global const float4 *albedo, global const uint *order, global float4 *out)
+{
+    for (uint v = p0; v < p1; v++) {
+        uint i = v - p0;
+        out[order[v]] = ((float4)(sums[i], sums[n + i], sums[2 * n + i], 0.0f) * back[v]) * albedo[v];
+    }
+}
+
+kernel void hl_relight(global const uint *col, global const uint *col_start, global const ushort *rel, uint tstride,
+                       global const uint *range_start, global const float *back, uint ncoef,
+                       global const float4 *light, global const uint *kept, global const float4 *albedo,
+                       global float *acc, global float4 *out, uint nverts, uint nranges, global const uint *order)
 {
     uint w = get_global_id(0);
     if (w >= nranges) return;
-    uint v0 = range_start[w], range = range_start[w + 1] - v0;
-    uint v1 = min(v0 + range, nverts);
-    global float *ar = acc + (size_t)3 * v0, *ag = ar + range, *ab = ag + range;
-    global FV *vr = (global FV *)ar, *vg = (global FV *)ag, *vb = (global FV *)ab;
-    for (uint i = 0; i < range / HL_TILE; i++) vr[i] = vg[i] = vb[i] = (FV)(0.0f);
+    const uint v0 = range_start[w], range = range_start[w + 1] - v0, nt = range / HL_TILE;
+    const uint v1 = min(range_start[w + 1], nverts), m = kept[0];
     global const uint *cs = col_start + (size_t)w * (ncoef + 1);
-    const uint stride = 1u + HL_TILE / 2u;
-    for (uint word = 0; word < ncoef / 32u; word++) {
-        uint bits = kept_bits[word];
-        while (bits) {
-            uint low = bits & (0u - bits), slot = word * 32u + (31u - clz(low));
-            bits ^= low;
-            float4 l = light[slot];
-            FV lr = (FV)(l.x), lg = (FV)(l.y), lb = (FV)(l.z);
-            global const uint *e = col + (size_t)cs[slot] * stride, *end = col + (size_t)cs[slot + 1] * stride;
-            for (; e < end; e += stride) {
-                uint tq = e[0];
-                FV d = LOAD_TERMS(0, (global const half *)(e + 1));
-                ADD_TILE(d);
-            }
-        }
+    global float *ar = acc + (size_t)3 * v0;
+    ulong entries = 0;
+    for (uint j = 0; j < m; j++) entries += cs[kept[1 + j] + 1] - cs[kept[1 + j]];
+    if (!hl_tile_walk_pays(entries, m, nt)) {
+        walk_columns(col, cs, light, kept, m, ar, range);
+        put_colours(ar, range, v0, v1, back, albedo, order, out);
+        return;
     }
-    for (uint v = v0; v < v1; v++) {
-        uint i = v - v0;
-        out[order[v]] = ((float4)(ar[i], ag[i], ab[i], 0.0f) * back[v]) * albedo[v];
+    global const ushort *rw = rel + (size_t)w * ncoef * tstride;
+    for (uint t0 = 0; t0 < nt; t0 += HL_SUM_TILES) {
+        const uint tn = min((uint)HL_SUM_TILES, nt - t0), n = tn * HL_TILE, p0 = v0 + t0 * HL_TILE;
+        walk_tiles(col, cs, rw, tstride, light, kept, m, ar, t0, tn);
+        put_colours(ar, n, p0, min(p0 + n, v1), back, albedo, order, out);
     }
 }

@@ -3,13 +3,15 @@
  * coefficient; RGB share the index set), by exact radix select on the
  * priority's bit pattern, ties to the lower slot. One work-item: the
  * vector is small. Writes the kept terms densely (zeros elsewhere) as
- * float4 RGB, a flag per 256-block, a bit per slot, and the energies for
- * the error bound (the dropped energy summed on its own: total - kept
- * cancels in float when a bright sun dominates), scaled by a power of two
- * (hl_light_energy_scale) so that they stay finite and non-zero.
+ * float4 RGB, a flag per 256-block, a bit per slot, the kept slots in
+ * ascending order (kept_list: the count, then the slots; the dot products
+ * walk it), and the energies for the error bound (the dropped energy
+ * summed on its own: total - kept cancels in float when a bright sun
+ * dominates), scaled by a power of two (hl_light_energy_scale) so that
+ * they stay finite and non-zero.
  * A block's flag counts only its detail slots 1..255: slot 0 holds a
- * coarse coefficient (kept almost always), which the dot products handle
- * apart, so that blocks still skip.
+ * coarse coefficient (kept almost always), which would otherwise mark
+ * every block used.
  * Twin: host/src/ref/select_ref.c.
  */
 #pragma OPENCL FP_CONTRACT OFF
@@ -17,7 +19,7 @@
 kernel void hl_select(global const float *L, uint ncoef, global const float *weight,
                       hl_select_params p, global float4 *out, global uchar *block_used,
                       global uint *kept_bits, uint nblocks, global hl_select_result *res,
-                      global uint *keys)
+                      global uint *keys, global uint *kept_list)
 {
     if (get_global_id(0) != 0) return;
     uint hist[256];
@@ -65,10 +67,12 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
             kept++;
             if (i & 255u) block_used[i >> 8] = 1;
             kept_bits[i >> 5] |= 1u << (i & 31u);
+            kept_list[kept] = i;
         } else {
             ed += y * y;
         }
     }
+    kept_list[0] = kept;
     uint used = 0;
     for (uint b = 0; b < nblocks; b++) used += block_used[b];
     hl_select_result s;

@@ -199,6 +199,23 @@ static void check_balance(const hl_cl_light *l, const uint32_t *bits, uint32_t n
     free(per);
 }
 
+/* The ranges that take the tile walk for the kept slots in bits (the rest
+ * into *by_column). */
+static uint32_t count_walks(const hl_cl_light *l, const uint32_t *bits, uint32_t *by_column)
+{
+    uint32_t n = hl_cl_light_ranges(l), tiles = 0;
+    double *per = malloc(n * sizeof *per);
+    if (!per) return 0;
+    double kept = hl_cl_light_kept_entries(l, bits, per);
+    for (uint32_t r = 0; r < n; r++) {
+        int t = hl_cl_light_tile_walk(l, r, per[r], (uint32_t)kept);
+        tiles += t;
+        *by_column += !t;
+    }
+    free(per);
+    return tiles;
+}
+
 /* Haar of 3 rows, selection and dot products: OpenCL equals C exactly
  * given identical inputs. */
 static void case_stages(void)
@@ -233,6 +250,7 @@ static void case_stages(void)
         uint8_t *ua = malloc(g->nblocks), *ub = malloc(g->nblocks);
         uint32_t *ka = malloc((size_t)nc / 8), *kb = malloc((size_t)nc / 8);
         static const uint32_t Ms[] = {1, 25, 200, 1000, HL_TERMS_ALL};
+        uint32_t walks[2] = {0, 0}; /* ranges walked by tile, by column */
         for (uint32_t sel = HL_SELECT_AREA; sel <= HL_SELECT_UNWEIGHTED; sel++)
             for (size_t m = 0; m < 5; m++) {
                 hl_select_params sp = {Ms[m], sel, {0, 0}};
@@ -259,9 +277,13 @@ static void case_stages(void)
                        scheme ? "linear8" : "log8", sel == HL_SELECT_AREA ? "area" : "unweighted", Ms[m], ra.kept,
                        ra.blocks_used, g->nblocks, ra.energy_total > 0 ? ra.energy_kept / ra.energy_total : 1.0, diff, V);
                 HL_CHECK(diff == 0, "dot products: OpenCL must equal C bit for bit");
+                walks[0] += count_walks(l, ka, &walks[1]);
                 if (Ms[m] == 200) check_balance(l, ka, V);
                 free(ones);
             }
+        /* both of the kernel's walks were compared with the twin */
+        printf("ranges walked by tile: %u, by column: %u\n", walks[0], walks[1]);
+        HL_CHECK(walks[0] > 0 && walks[1] > 0, "both walks of the dot products tested");
         free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub); free(ka); free(kb);
         free(Lp); free(Lp2); free(wa); free(wb); free(alb);
         hl_free_big(cells);

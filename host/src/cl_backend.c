@@ -531,10 +531,11 @@ struct hl_cl_light {
     uint32_t nverts, scheme;
     cl_mem cells, turned, start, runs, slots, weight; /* tables and inputs */
     cl_mem Lp, Lw, Lsel, used, bits, res, keys;    /* lighting stages */
-    cl_mem col, cols, rstart, back, albedo, B, acc; /* transport, by column */
-    cl_mem ord;                                     /* vertex at each position */
-    void *host[3];                                  /* CPU devices: their memory */
+    cl_mem col, cols, rel, rstart, back, albedo, B, acc; /* transport, by column */
+    cl_mem ord, klist;                              /* vertex at each position; kept slots */
+    void *host[4];                                  /* CPU devices: their memory */
     uint32_t nranges, *range_start;                 /* vertices of each work-item */
+    uint32_t tstride;                               /* most tiles in a range */
     uint64_t col_entries;                           /* tile entries in all columns */
     uint32_t *col_start;                            /* host copy, for counting bytes */
     uint32_t *order;                                /* vertex at each position */
@@ -545,11 +546,11 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (!l) return;
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
-                     &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rstart, &l->back, &l->albedo, &l->B, &l->acc,
-                     &l->ord};
+                     &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rel, &l->rstart, &l->back, &l->albedo, &l->B,
+                     &l->acc, &l->ord, &l->klist};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
         if (*all[i]) clReleaseMemObject(*all[i]);
-    for (int i = 0; i < 3; i++) hl_free_big(l->host[i]);
+    for (int i = 0; i < 4; i++) hl_free_big(l->host[i]);
     free(l->col_start);
     free(l->range_start);
     free(l->order);
@@ -645,8 +646,8 @@ static hl_result vertex_order(hl_cl_light *l, const hl_transport *t)
 }
 
 /* Range boundaries, in whole tiles (HL_TILE positions), into *starts;
- * returns the count, or 0 when out of memory. A range holds at most 65536
- * tiles (the head word's tile field).
+ * returns the count, or 0 when out of memory. A range holds at most 65535
+ * tiles (a column's entries are numbered 1 to 65535 in 16 bits).
  *
  * On a GPU: 4 tiles (64 vertices) per work-item, in curve order.
  *
@@ -662,7 +663,7 @@ static hl_result vertex_order(hl_cl_light *l, const hl_transport *t)
  * larger. The tiles themselves are unchanged, so the entry count is too. */
 static uint32_t cut_ranges(hl_cl_light *l, uint32_t **starts)
 {
-    const size_t V = l->nverts, tiles = (V + HL_TILE - 1) / HL_TILE, max_tiles = 65536;
+    const size_t V = l->nverts, tiles = (V + HL_TILE - 1) / HL_TILE, max_tiles = 65535;
     if (l->cl->wg != 1) {
         const size_t per = 64 / HL_TILE, n = tiles ? (tiles + per - 1) / per : 1;
         uint32_t *rs = malloc((n + 1) * 4);
@@ -673,7 +674,7 @@ static uint32_t cut_ranges(hl_cl_light *l, uint32_t **starts)
         return (uint32_t)n;
     }
     size_t R = l->cl->units > 1 ? l->cl->units : 1;
-    if (R < (tiles + max_tiles - 1) / max_tiles) R = (tiles + max_tiles - 1) / max_tiles;
+    if (R < (tiles + max_tiles - 1) / max_tiles) R = (tiles + max_tiles - 1) / max_tiles; /* dealt: at most 65535 each */
     if (tiles && R > tiles) R = tiles;
     uint32_t *rs = malloc((R + 1) * 4), *o = malloc((V ? V : 1) * 4);
     if (!rs || !o) {
@@ -701,8 +702,11 @@ static uint32_t cut_ranges(hl_cl_light *l, uint32_t **starts)
  * of HL_TILE, tiles in ranges (one work-item each, cut_ranges); for each
  * range and slot, the tiles that store the slot, in tile order, each as one
  * entry: a head word (the tile in the range) and the HL_TILE terms as
- * halves (half.h; zero in lanes whose vertex does not store the slot).
- * Also each position's 2^e, which scales its sums back (1 in the padding). */
+ * halves (half.h; zero in lanes whose vertex does not store the slot),
+ * after an all-zero entry 0; and for each range, slot and tile the
+ * entry's number in its column (1 for the first, 0 for none), in 16 bits.
+ * Also each position's 2^e, which scales its sums back (1 in the
+ * padding). */
 static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
 {
     hl_context *ctx = l->ctx;
@@ -711,14 +715,24 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
     l->nranges = cut_ranges(l, &l->range_start);
     if (!l->nranges) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
     const size_t vpad = V ? l->range_start[l->nranges] : HL_TILE, ncs = (size_t)l->nranges * (nc + 1);
-    uint32_t *cs = calloc(ncs, 4), *fill = malloc(ncs * 4), *last = malloc(nc * 4), *pos = malloc(nc * 4);
+    size_t ts = 1;
+    for (size_t rg = 0; rg < l->nranges; rg++) {
+        size_t n = (l->range_start[rg + 1] - l->range_start[rg]) / HL_TILE;
+        if (n > ts) ts = n;
+    }
+    l->tstride = (uint32_t)ts;
+    const size_t nrel = (size_t)l->nranges * nc * ts;
+    uint32_t *cs = calloc(ncs, 4), *fill = malloc(ncs * 4), *last = malloc(nc * 4);
+    const size_t stride = 1 + HL_TILE / 2; /* words per entry: head, halves */
     uint32_t *col = NULL;
+    uint16_t *rel = hl_alloc_big(ctx, nrel * 2, "the transport columns' tile numbers");
     float *back = malloc(vpad * 4);
     int *ex = malloc((V ? V : 1) * sizeof *ex);
-    const size_t stride = 1 + HL_TILE / 2; /* words per entry: head, halves */
     hl_result r = HL_OK;
-    if (!cs || !fill || !last || !pos || !back || !ex)
+    if (!rel) r = HL_ERR_OUT_OF_MEMORY;
+    else if (!cs || !fill || !last || !back || !ex)
         r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+    else memset(rel, 0, nrel * 2);
     for (size_t v = 0; v < vpad && r == HL_OK; v++) {
         if (v >= V) { back[v] = 1.0f; continue; } /* padding */
         const hl_row_quant q = t->row_quant[l->order[v]];
@@ -729,6 +743,8 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
     for (int pass = 0; pass < 2 && r == HL_OK; pass++) {
         for (size_t rg = 0; rg < l->nranges; rg++) {
             uint32_t *c = (pass == 0 ? cs : fill) + rg * (nc + 1);
+            const uint32_t *c0 = cs + rg * (nc + 1);
+            uint16_t *rr = rel + rg * nc * ts;
             memset(last, 0xff, nc * 4);
             const size_t v0 = l->range_start[rg];
             for (size_t v = v0; v < V && v < l->range_start[rg + 1]; v++) {
@@ -738,19 +754,24 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
                 for (size_t b = 0; b < nb; b++)
                     for (uint32_t k = 0; k < t->block_counts[u * nb + b]; k++, e++) {
                         size_t s = b * HL_BLOCK + t->entries[2 * e];
+                        int fresh = last[s] != tile;
+                        last[s] = tile;
                         if (pass == 0) {
-                            if (last[s] != tile) { last[s] = tile; c[s + 1]++; }
+                            c[s + 1] += fresh;
                             continue;
                         }
-                        if (last[s] != tile) { last[s] = tile; pos[s] = c[s]++; col[pos[s] * stride] = tile; }
+                        if (fresh) {
+                            rr[s * ts + tile] = (uint16_t)(++c[s] - c0[s]); /* at most 65535: cut_ranges */
+                            col[(size_t)(c[s] - 1) * stride] = tile;
+                        }
                         const hl_row_quant q = t->row_quant[u];
                         float term = hl_dequant(l->scheme, t->entries[2 * e + 1], q.a, q.b);
-                        ((uint16_t *)(col + pos[s] * stride + 1))[lane] = hl_half_held(term, ex[v]);
+                        ((uint16_t *)(col + (size_t)(c[s] - 1) * stride + 1))[lane] = hl_half_held(term, ex[v]);
                     }
             }
         }
         if (pass == 1) break;
-        uint64_t run = 0; /* absolute starts, range after range */
+        uint64_t run = 1; /* absolute starts, range after range, after entry 0 */
         for (size_t i = 0; i < ncs; i++) {
             if (i % (nc + 1) == 0) cs[i] = (uint32_t)run;
             else { run += cs[i]; cs[i] = (uint32_t)(run < UINT32_MAX ? run : UINT32_MAX); }
@@ -760,24 +781,25 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
                         (unsigned long long)run);
             break;
         }
-        l->col_entries = run;
+        l->col_entries = run - 1;
         memcpy(fill, cs, ncs * 4);
-        col = hl_alloc_big(ctx, (size_t)(run ? run : 1) * stride * 4, "transport columns");
+        col = hl_alloc_big(ctx, (size_t)run * stride * 4, "transport columns");
         if (!col) r = HL_ERR_OUT_OF_MEMORY;
-        else memset(col, 0, (size_t)(run ? run : 1) * stride * 4);
+        else memset(col, 0, (size_t)run * stride * 4);
     }
-    size_t n = (size_t)(l->col_entries ? l->col_entries : 1);
-    if (r == HL_OK) r = light_big_buf(l, &l->col, n * stride * 4, col, &l->host[0], "transport columns");
+    if (r == HL_OK)
+        r = light_big_buf(l, &l->col, (l->col_entries + 1) * stride * 4, col, &l->host[0], "transport columns");
     if (r == HL_OK) r = light_big_buf(l, &l->cols, ncs * 4, cs, &l->host[1], "column starts");
+    if (r == HL_OK) r = light_big_buf(l, &l->rel, nrel * 2, rel, &l->host[3], "the columns' tile numbers");
     if (r == HL_OK) r = light_buf(l, &l->rstart, CL_MEM_READ_ONLY, ((size_t)l->nranges + 1) * 4, l->range_start, "ranges");
     if (r == HL_OK) r = light_big_buf(l, &l->back, vpad * 4, back, &l->host[2], "the sums' scales");
     l->col_start = cs;
     free(fill);
     free(last);
-    free(pos);
     free(back);
     free(ex);
     hl_free_big(col);
+    hl_free_big(rel);
     return r;
 }
 
@@ -818,6 +840,7 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
     B(bits, CL_MEM_READ_WRITE, nc / 8, NULL, "kept-slot bits");
     B(res, CL_MEM_READ_WRITE, sizeof(hl_select_result), NULL, "selection result");
     B(keys, CL_MEM_READ_WRITE, nc * 4, NULL, "selection keys");
+    B(klist, CL_MEM_READ_WRITE, (nc + 1) * 4, NULL, "kept slots");
     if (r == HL_OK) r = build_columns(l, t);
     /* albedo in the device's vertex order */
     float *alb = r == HL_OK ? malloc((V ? V : 1) * 16) : NULL;
@@ -893,16 +916,17 @@ static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
     cl_uint nc = l->g->ncoef, nb = l->g->nblocks;
     LARG(k, 0, l->Lw); LARG(k, 1, nc); LARG(k, 2, l->weight); LARG(k, 3, sp); LARG(k, 4, l->Lsel);
     LARG(k, 5, l->used); LARG(k, 6, l->bits); LARG(k, 7, nb); LARG(k, 8, l->res); LARG(k, 9, l->keys);
+    LARG(k, 10, l->klist);
     return light_launch(l, K_SELECT, 1);
 }
 
 static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
 {
     cl_kernel k = l->cl->k[K_RELIGHT];
-    cl_uint nc = l->g->ncoef, nv = l->nverts, nr = l->nranges;
-    LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rstart); LARG(k, 3, l->back); LARG(k, 4, nc);
-    LARG(k, 5, l->Lsel); LARG(k, 6, l->bits); LARG(k, 7, l->albedo); LARG(k, 8, l->acc); LARG(k, 9, out);
-    LARG(k, 10, nv); LARG(k, 11, nr); LARG(k, 12, l->ord);
+    cl_uint nc = l->g->ncoef, nv = l->nverts, nr = l->nranges, ts = l->tstride;
+    LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rel); LARG(k, 3, ts); LARG(k, 4, l->rstart);
+    LARG(k, 5, l->back); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->klist); LARG(k, 9, l->albedo);
+    LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
     return light_launch(l, K_RELIGHT, l->nranges);
 }
 
@@ -1021,8 +1045,17 @@ hl_result hl_cl_light_stage_select(hl_cl_light *l, const float *Lw, hl_select_pa
 
 hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint32_t *bits, float *B4)
 {
-    LWRITE(l->Lsel, (size_t)l->g->ncoef * 16, Lsel4);
-    LWRITE(l->bits, l->g->ncoef / 8, bits);
+    const size_t nc = l->g->ncoef;
+    uint32_t *list = malloc((nc + 1) * 4); /* as hl_select writes it */
+    if (!list) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    list[0] = 0;
+    for (size_t s = 0; s < nc; s++)
+        if ((bits[s / 32] >> (s % 32)) & 1u) list[++list[0]] = (uint32_t)s;
+    cl_int e = clEnqueueWriteBuffer(l->cl->queue, l->klist, CL_TRUE, 0, (nc + 1) * 4, list, 0, NULL, NULL);
+    free(list);
+    CL_TRY(l->ctx, e, "upload");
+    LWRITE(l->Lsel, nc * 16, Lsel4);
+    LWRITE(l->bits, nc / 8, bits);
     TRY(enq_relight(l));
     LREAD(l->B, (size_t)l->nverts * 16, B4, CL_TRUE);
     return HL_OK;
@@ -1048,6 +1081,12 @@ double hl_cl_light_kept_entries(const hl_cl_light *l, const uint32_t *bits, doub
     return kept;
 }
 
+int hl_cl_light_tile_walk(const hl_cl_light *l, uint32_t rg, double entries, uint32_t kept)
+{
+    const uint32_t nt = (l->range_start[rg + 1] - l->range_start[rg]) / HL_TILE;
+    return hl_tile_walk_pays((uint64_t)entries, kept, nt);
+}
+
 hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
 {
     const size_t nc = l->g->ncoef;
@@ -1064,16 +1103,26 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
         free(per);
         CL_TRY(l->ctx, e, "read-back");
     }
-    double entries = 0.0, kept = hl_cl_light_kept_entries(l, bits, per);
-    for (size_t rg = 0; rg < l->nranges; rg++) entries += per[rg];
-    free(per);
-    /* per tile entry its head word and halves; per kept slot and range two
-       starts; per vertex slot its scale, three running sums (zeroed, then
-       read once they leave the cache), albedo, vertex and colour */
+    const double kept = hl_cl_light_kept_entries(l, bits, per);
     free(bits);
-    double vpad = (double)l->range_start[l->nranges];
-    *bytes = entries * (4.0 + 2.0 * HL_TILE) + kept * (double)l->nranges * 8.0 + vpad * (4.0 + 12.0 + 12.0) +
-             (double)l->nverts * 36.0;
+    /* per kept slot its place in the list and, per range, its column's
+       start and end; per vertex slot its scale; per vertex its albedo,
+       place and colour. Then per range, by its walk (hl_tile_walk_pays):
+       the column walk reads each kept entry's head word and halves, and
+       its sums (zeroed, then read once they leave the cache); the tile
+       walk reads the halves and, per kept slot and tile, an entry number,
+       while its sums and entry 0 stay in the cache. */
+    double b = kept * (4.0 + (double)l->nranges * 8.0) + (double)l->range_start[l->nranges] * 4.0 +
+               (double)l->nverts * 36.0;
+    for (size_t rg = 0; rg < l->nranges; rg++) {
+        const uint32_t n = l->range_start[rg + 1] - l->range_start[rg], nt = n / HL_TILE;
+        if (hl_cl_light_tile_walk(l, (uint32_t)rg, per[rg], (uint32_t)kept))
+            b += per[rg] * 2.0 * HL_TILE + kept * nt * 2.0;
+        else
+            b += per[rg] * (4.0 + 2.0 * HL_TILE) + n * 24.0;
+    }
+    free(per);
+    *bytes = b;
     return HL_OK;
 }
 
