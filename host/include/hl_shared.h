@@ -35,25 +35,21 @@ static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return 
 #define HL_BLOCK 256
 
 /* Vertices per tile in the device's dot products: one tile's terms for one
- * slot are decoded and added as one 8-wide vector. */
+ * slot are added as one 16-wide vector. */
 #define HL_TILE 16
 
 /* The dot products (kernels/relight.cl) walk a range's tiles one of two
  * ways. The column walk adds each kept entry into sums in memory (per
  * 16-lane entry 6 vector loads and 6 stores of the sums besides the
- * multiply-adds). The tile walk takes the kept slots HL_GROUP at a time
- * and adds a group's terms tile by tile into sums held in registers,
- * HL_SUM_TILES tiles at a time (their sums, 3 x 16 x 4 bytes a tile, wait
- * in the L2 cache between groups), but reads an all-zero entry wherever a
- * tile lacks a slot, and draws on HL_GROUP columns at once. It is taken
+ * multiply-adds). The tile walk adds a few kept slots at a time, tile by
+ * tile, into sums held in registers, but reads an all-zero entry wherever
+ * a tile lacks a slot, and draws on several columns at once. It is taken
  * where the kept slots' entries fill at least 5/8 of the range's tiles
- * (entries: their count over the m kept slots; nt tiles). On the bunny
- * with ground under city.exr that is M up to about 500. At M = 200 it
- * took 0.79 to 0.87 of the column walk's time under city, forest and
- * interior (sunset: no clear difference); at M = 300 to 500 about the
- * same; at M = 1000 (58% filled) 1.33 times. */
-#define HL_SUM_TILES 512
-#define HL_GROUP 8
+ * (entries: their count over the m kept slots; nt tiles); the host counts
+ * bytes by the same rule. On the bunny with ground under city.exr that is
+ * M up to about 500. At M = 200 it took 0.79 to 0.87 of the column walk's
+ * time under city, forest and interior (sunset: no clear difference); at
+ * M = 300 to 500 about the same; at M = 1000 (58% filled) 1.33 times. */
 HL_INLINE int hl_tile_walk_pays(HL_U64 entries, HL_U32 m, HL_U32 nt)
 {
     return m > 0 && 8 * entries >= (HL_U64)5 * m * nt;

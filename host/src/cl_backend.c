@@ -652,7 +652,7 @@ static hl_result vertex_order(hl_cl_light *l, const hl_transport *t)
  * On a GPU: 4 tiles (64 vertices) per work-item, in curve order.
  *
  * On a CPU device: one range per core (more where a range would pass
- * 65536 tiles), and the tiles are dealt to the ranges in turn (tile c of
+ * 65535 tiles), and the tiles are dealt to the ranges in turn (tile c of
  * the curve to range c mod R), so l->order is rearranged here. Dealt
  * tiles give every range the same mix of the mesh (object and ground,
  * lit and shadowed sides), so each holds about the same share of the
