@@ -1,7 +1,8 @@
 # OpenEXR for host/src/exr_io.c (the only file that includes its headers).
 #
 # Defines the interface target hl_openexr: the C wrapper of the C++ library
-# (ImfCRgbaFile.h), which decodes DWAB where Debian 12's OpenEXRCore cannot.
+# (ImfCRgbaFile.h), which decodes DWAB where Debian 12's OpenEXRCore cannot,
+# and OpenEXRCore (openexr.h), which reads and writes 32-bit floats.
 # Found through pkg-config (OpenEXR.pc) when available, else from the
 # explicit Debian paths. When the haarlight_core target already exists it is
 # linked here, so the top level needs only include() after that target.
@@ -17,15 +18,18 @@ if(NOT TARGET hl_openexr)
     find_path(HL_OPENEXR_INCLUDE_DIR ImfCRgbaFile.h PATHS /usr/include/OpenEXR PATH_SUFFIXES OpenEXR)
     find_path(HL_IMATH_INCLUDE_DIR ImathConfig.h PATHS /usr/include/Imath PATH_SUFFIXES Imath)
     find_library(HL_OPENEXR_LIB NAMES OpenEXR-3_1 OpenEXR)
+    find_library(HL_OPENEXR_CORE_LIB NAMES OpenEXRCore-3_1 OpenEXRCore)
     find_library(HL_IEX_LIB NAMES Iex-3_1 Iex)
     find_library(HL_IMATH_LIB NAMES Imath-3_1 Imath)
     if(NOT HL_OPENEXR_INCLUDE_DIR OR NOT HL_IMATH_INCLUDE_DIR OR NOT HL_OPENEXR_LIB
-       OR NOT HL_IEX_LIB OR NOT HL_IMATH_LIB)
-      message(FATAL_ERROR "OpenEXR not found: need ImfCRgbaFile.h, ImathConfig.h and "
-                          "libOpenEXR-3_1, libIex-3_1, libImath-3_1 (Debian: libopenexr-dev)")
+       OR NOT HL_OPENEXR_CORE_LIB OR NOT HL_IEX_LIB OR NOT HL_IMATH_LIB)
+      message(FATAL_ERROR "OpenEXR not found: need ImfCRgbaFile.h, openexr.h, ImathConfig.h and "
+                          "libOpenEXR-3_1, libOpenEXRCore-3_1, libIex-3_1, libImath-3_1 "
+                          "(Debian: libopenexr-dev)")
     endif()
     target_include_directories(hl_openexr INTERFACE ${HL_OPENEXR_INCLUDE_DIR} ${HL_IMATH_INCLUDE_DIR})
-    target_link_libraries(hl_openexr INTERFACE ${HL_OPENEXR_LIB} ${HL_IEX_LIB} ${HL_IMATH_LIB})
+    target_link_libraries(hl_openexr INTERFACE ${HL_OPENEXR_LIB} ${HL_OPENEXR_CORE_LIB} ${HL_IEX_LIB}
+                          ${HL_IMATH_LIB})
   endif()
 endif()
 if(TARGET haarlight_core)

@@ -922,12 +922,12 @@ static void case_negative(void)
         if (src == 0) {
             HL_CHECK(hl_env_create(ref_ctx(), W, H, px, &env, &st) == HL_OK, "create");
         } else {
-            /* half-float file: -FLT_MAX becomes -65504, still negative */
+            /* a float file: -FLT_MAX stays as it is */
             const char *path = hl_test_tmp_path("stiff_negative.exr");
             HL_CHECK(hl_exr_write_rgb_(ref_ctx(), path, W, H, px) == HL_OK, "write: %s", hl_context_last_error(ref_ctx()));
             HL_CHECK(hl_env_load(ref_ctx(), path, &env, &st) == HL_OK, "load: %s", hl_context_last_error(ref_ctx()));
             remove(path);
-            /* the expected map: the written values as half, clamped */
+            /* the expected map: the written values as read back, clamped */
             float *back = NULL;
             uint32_t w2, h2;
             hl_exr_write_rgb_(ref_ctx(), path, W, H, clamped);

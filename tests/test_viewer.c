@@ -3,7 +3,7 @@
  *
  *   test_viewer compare VIEW.exr RELIGHT.exr EV
  *
- * Both files are linear half-float EXR written by hl_image_save; each
+ * Both files are linear float EXR written by hl_image_save; each
  * value is tone-mapped with hl_tonemap_srgb8 at EV, exactly as both
  * commands write their PNG, and the 8-bit codes are compared. Pixels on
  * silhouettes may legitimately differ (the rasteriser and Embree decide a

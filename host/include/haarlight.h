@@ -297,8 +297,11 @@ typedef struct hl_env_stats {
 } hl_env_stats;
 
 /* Reads an equirectangular OpenEXR (any compression the OpenEXR library
- * reads, DWAB included). Refuses files that are not 2:1 or that hold a
- * channel above HL_MAX_RADIANCE (HL_ERR_FORMAT); NaN/Inf channels are set
+ * reads, DWAB included; float channels at full precision where OpenEXRCore
+ * decodes the file, see host/src/exr_io.c). Refuses files that are not 2:1
+ * or that hold a channel above HL_MAX_RADIANCE, or a tiled or multi-part
+ * float file with a value that half floats cannot hold (HL_ERR_FORMAT);
+ * NaN/Inf channels are set
  * to 0 and negative ones clamped, and stats says how many pixels were
  * affected. Errors name the file. */
 hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_stats *stats);
@@ -399,10 +402,9 @@ typedef struct hl_image {
 hl_result hl_image_create(hl_context *ctx, uint32_t width, uint32_t height, hl_image **out);
 void hl_image_destroy(hl_image *img);
 
-/* Writes by extension: .exr linear half-float RGB (ZIP; the OpenEXR C API
- * writes half, so values above 65504 clamp), .png 8-bit tone-mapped
- * (scale by 2^exposure_ev, then the sRGB transfer curve). Atomic: written
- * to a temporary name and renamed. */
+/* Writes by extension: .exr linear 32-bit float RGB (ZIP), .png 8-bit
+ * tone-mapped (scale by 2^exposure_ev, then the sRGB transfer curve).
+ * Atomic: written to a temporary name and renamed. */
 hl_result hl_image_save(hl_context *ctx, const hl_image *img, const char *path, float exposure_ev);
 
 /* Linear radiance to an 8-bit sRGB code after scaling by 2^exposure_ev. */

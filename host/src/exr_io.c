@@ -1,13 +1,31 @@
 /* exr_io.c - OpenEXR reading and writing; the only file that includes
  * OpenEXR headers.
  *
- * Uses the C wrapper of the C++ library (ImfCRgbaFile.h): on Debian 12 the
- * OpenEXRCore C API cannot decode DWAB, which the shared environments use.
+ * Two of the library's C interfaces, because neither does everything on
+ * Debian 12 (OpenEXR 3.1.5):
+ * - OpenEXRCore (openexr.h) reads and writes 32-bit float channels, but
+ *   cannot decode DWAA/DWAB, which the shared environments use.
+ * - The C wrapper of the C++ library (ImfCRgbaFile.h) decodes every
+ *   compression, DWAB included, but only through half floats: a float
+ *   channel comes back rounded to 11 significant bits, and any value
+ *   beyond +-65504 as infinite.
+ * So a file whose R, G, B or Y channel is 32-bit float is read with
+ * OpenEXRCore wherever it can decode it (one scanline part, no DWA), and
+ * everything else with the wrapper. DWA loses nothing that way: its lossy
+ * coder stores float R, G, B and Y through halves already (a 1e5 written
+ * to a float DWAB file reads back as 64704, here and with OpenEXR 3.5's
+ * own Python reader). A float file
+ * that reaches the wrapper for another reason (tiled, several parts) could
+ * hold values the halves cannot, so any infinity in it is refused rather
+ * than passed on. Images are written with OpenEXRCore as 32-bit float RGB,
+ * ZIP-compressed.
  * The wrapper catches every C++ exception and returns 0, with the text in
- * ImfErrorMessage(). Sizes from the header are bounded before anything is
- * allocated, and pixels are read in strips so that the temporary half
- * buffer stays small.
- * Depends on: libOpenEXR-3_1 (through the hl_openexr CMake target).
+ * ImfErrorMessage(); OpenEXRCore's messages go to a handler that keeps the
+ * last one. Sizes from the header are bounded before anything is
+ * allocated, and the wrapper's pixels are read in strips so that its
+ * temporary half buffer stays small.
+ * Depends on: libOpenEXR-3_1 and libOpenEXRCore-3_1 (through the
+ * hl_openexr CMake target).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -18,6 +36,7 @@
 #include <sys/stat.h>
 
 #include <ImfCRgbaFile.h>
+#include <openexr.h>
 
 #include "exr_io.h"
 #include "hl_internal.h"
@@ -79,36 +98,188 @@ static hl_result check_file(hl_context *ctx, const char *path)
     return HL_OK;
 }
 
-hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
-                           uint32_t *width, uint32_t *height, float **rgb)
+/* The data window's size, bounded before anything is allocated. */
+static hl_result window_size(hl_context *ctx, const char *path, unsigned flags, int xmin, int ymin, int xmax,
+                             int ymax, uint32_t *width, uint32_t *height)
 {
-    *width = *height = 0;
-    *rgb = NULL;
-    hl_result r = check_file(ctx, path);
-    if (r != HL_OK) return r;
-
-    ImfInputFile *in = ImfOpenInputFile(path);
-    if (!in) return hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot read OpenEXR header: %s", path, imf_message());
-
-    int xmin = 0, ymin = 0, xmax = -1, ymax = -1;
-    ImfHeaderDataWindow(ImfInputHeader(in), &xmin, &ymin, &xmax, &ymax);
     int64_t w64 = (int64_t)xmax - (int64_t)xmin + 1;
     int64_t h64 = (int64_t)ymax - (int64_t)ymin + 1;
     if (w64 < 1 || h64 < 1 || w64 > (int64_t)HL_EXR_MAX_SIDE || h64 > (int64_t)HL_EXR_MAX_SIDE ||
-        (uint64_t)w64 * (uint64_t)h64 > HL_EXR_MAX_PIXELS) {
-        ImfCloseInputFile(in);
+        (uint64_t)w64 * (uint64_t)h64 > HL_EXR_MAX_PIXELS)
         return hl_fail(ctx, HL_ERR_FORMAT,
                        "%s: data window (%d,%d)-(%d,%d) gives a size of %lld x %lld pixels, "
                        "outside 1..%u per side and %llu pixels in all",
                        path, xmin, ymin, xmax, ymax, (long long)w64, (long long)h64,
                        HL_EXR_MAX_SIDE, (unsigned long long)HL_EXR_MAX_PIXELS);
-    }
     uint32_t w = (uint32_t)w64, h = (uint32_t)h64;
-    if ((flags & HL_EXR_REQUIRE_2TO1) && w != 2 * h) {
-        ImfCloseInputFile(in);
+    if ((flags & HL_EXR_REQUIRE_2TO1) && w != 2 * h)
         return hl_fail(ctx, HL_ERR_FORMAT,
                        "%s: %u x %u pixels is not an equirectangular map (width must be 2 x height)",
                        path, w, h);
+    *width = w;
+    *height = h;
+    return HL_OK;
+}
+
+/* OpenEXRCore reports through a handler: it keeps the last message in
+ * the context's user data. */
+typedef struct core_msg {
+    char text[256];
+} core_msg;
+
+static void core_error(exr_const_context_t f, exr_result_t code, const char *msg)
+{
+    void *ud = NULL;
+    if (exr_get_user_data(f, &ud) == EXR_ERR_SUCCESS && ud)
+        snprintf(((core_msg *)ud)->text, sizeof((core_msg *)ud)->text, "%s",
+                 msg ? msg : exr_get_default_error_message(code));
+}
+
+static const char *core_text(const core_msg *m, exr_result_t rv)
+{
+    return m->text[0] ? m->text : exr_get_default_error_message(rv);
+}
+
+/* The channels read: R, G and B (a missing one reads 0), or Y alone (grey). */
+enum { CH_R, CH_G, CH_B, CH_Y, CH_COUNT };
+
+static int channel_of(const char *name)
+{
+    static const char *const names[CH_COUNT] = {"R", "G", "B", "Y"};
+    for (int k = 0; name && k < CH_COUNT; k++)
+        if (strcmp(name, names[k]) == 0) return k;
+    return -1;
+}
+
+/* What OpenEXRCore's header parse (no decoding) says of the file. */
+typedef struct exr_layout {
+    int any_float;      /* an R, G, B or Y channel is 32-bit float */
+    int core_ok;        /* OpenEXRCore can decode it: one scanline part, no
+                           DWA, R/G/B/Y half or float, not subsampled, no
+                           chroma */
+    int dwa;            /* DWAA or DWAB compression */
+    const char *reason; /* why not core_ok, for messages */
+} exr_layout;
+
+static int probe(exr_context_t f, exr_layout *lay)
+{
+    int parts = 0;
+    exr_storage_t st;
+    exr_compression_t comp;
+    const exr_attr_chlist_t *cl = NULL;
+    memset(lay, 0, sizeof *lay);
+    if (exr_get_count(f, &parts) != EXR_ERR_SUCCESS || exr_get_storage(f, 0, &st) != EXR_ERR_SUCCESS ||
+        exr_get_compression(f, 0, &comp) != EXR_ERR_SUCCESS || exr_get_channels(f, 0, &cl) != EXR_ERR_SUCCESS ||
+        !cl)
+        return 0;
+    int found = 0, odd = 0;
+    for (int i = 0; i < cl->num_channels; i++) {
+        const exr_attr_chlist_entry_t *e = &cl->entries[i];
+        if (e->name.str && (strcmp(e->name.str, "RY") == 0 || strcmp(e->name.str, "BY") == 0)) odd = 1;
+        if (channel_of(e->name.str) < 0) continue;
+        found = 1;
+        if (e->pixel_type == EXR_PIXEL_FLOAT) lay->any_float = 1;
+        else if (e->pixel_type != EXR_PIXEL_HALF) odd = 1;
+        if (e->x_sampling != 1 || e->y_sampling != 1) odd = 1;
+    }
+    lay->dwa = comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB;
+    lay->reason = parts != 1                    ? "a file of several parts"
+                  : st != EXR_STORAGE_SCANLINE  ? "a tiled or deep file"
+                  : lay->dwa                    ? "DWA compression"
+                  : !found                      ? "no R, G, B or Y channel"
+                  : odd                         ? "subsampled, chroma or integer channels"
+                                                : NULL;
+    lay->core_ok = lay->reason == NULL;
+    return 1;
+}
+
+/* Reads a file that probe() passed, as float, chunk by chunk. */
+static hl_result read_core(hl_context *ctx, const char *path, unsigned flags, exr_context_t f, const core_msg *msg,
+                           uint32_t *width, uint32_t *height, float **rgb)
+{
+    exr_attr_box2i_t dw;
+    int32_t spc = 0;
+    exr_result_t rv = exr_get_data_window(f, 0, &dw);
+    if (rv == EXR_ERR_SUCCESS) rv = exr_get_scanlines_per_chunk(f, 0, &spc);
+    if (rv != EXR_ERR_SUCCESS || spc < 1)
+        return hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot read OpenEXR header: %s", path, core_text(msg, rv));
+    uint32_t w, h;
+    hl_result r = window_size(ctx, path, flags, dw.min.x, dw.min.y, dw.max.x, dw.max.y, &w, &h);
+    if (r != HL_OK) return r;
+    int grey = 1;
+    const exr_attr_chlist_t *cl = NULL;
+    exr_get_channels(f, 0, &cl);
+    for (int i = 0; cl && i < cl->num_channels; i++)
+        if (channel_of(cl->entries[i].name.str) >= 0 && channel_of(cl->entries[i].name.str) != CH_Y) grey = 0;
+    float *out = hl_calloc(ctx, 3 * (size_t)w * h, sizeof(float), "environment pixels");
+    if (!out) return HL_ERR_OUT_OF_MEMORY;
+
+    exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
+    int inited = 0, chosen = 0;
+    int64_t y = dw.min.y, first = 0, last = 0;
+    for (; r == HL_OK && y <= (int64_t)dw.max.y; y += spc) {
+        exr_chunk_info_t ci;
+        first = y - dw.min.y;
+        last = first + spc - 1 < (int64_t)h - 1 ? first + spc - 1 : (int64_t)h - 1;
+        rv = exr_read_scanline_chunk_info(f, 0, (int)y, &ci);
+        if (rv == EXR_ERR_SUCCESS) {
+            rv = inited ? exr_decoding_update(f, 0, &ci, &dec) : exr_decoding_initialize(f, 0, &ci, &dec);
+            if (rv == EXR_ERR_SUCCESS) inited = 1;
+        }
+        if (rv == EXR_ERR_SUCCESS &&
+            (ci.start_y < dw.min.y || (int64_t)ci.start_y - dw.min.y + ci.height > (int64_t)h || ci.width != (int32_t)w))
+            rv = EXR_ERR_CORRUPT_CHUNK;
+        for (int c = 0; rv == EXR_ERR_SUCCESS && c < dec.channel_count; c++) {
+            exr_coding_channel_info_t *ch = &dec.channels[c];
+            int k = channel_of(ch->channel_name);
+            int slot = k == CH_Y ? (grey ? 0 : -1) : k;
+            ch->decode_to_ptr =
+                slot < 0 ? NULL : (uint8_t *)(out + 3 * (size_t)(ci.start_y - dw.min.y) * w + (size_t)slot);
+            ch->user_pixel_stride = 3 * (int32_t)sizeof(float);
+            ch->user_line_stride = 3 * (int32_t)sizeof(float) * (int32_t)w;
+            ch->user_data_type = EXR_PIXEL_FLOAT;
+            ch->user_bytes_per_element = (int16_t)sizeof(float);
+        }
+        /* the routines suit every chunk: the channels' types and strides stay */
+        if (rv == EXR_ERR_SUCCESS && !chosen) {
+            rv = exr_decoding_choose_default_routines(f, 0, &dec);
+            chosen = 1;
+        }
+        if (rv == EXR_ERR_SUCCESS) rv = exr_decoding_run(f, 0, &dec);
+        if (rv != EXR_ERR_SUCCESS)
+            r = hl_fail(ctx, HL_ERR_FORMAT, "%s: corrupt or truncated pixel data in rows %lld..%lld: %s", path,
+                        (long long)first, (long long)last, core_text(msg, rv));
+    }
+    if (inited) exr_decoding_destroy(f, &dec);
+    if (r != HL_OK) {
+        free(out);
+        return r;
+    }
+    if (grey)
+        for (size_t i = 0; i < (size_t)w * h; i++) out[3 * i + 1] = out[3 * i + 2] = out[3 * i];
+    *width = w;
+    *height = h;
+    *rgb = out;
+    return HL_OK;
+}
+
+/* Reads any file the C++ library can, through half floats. A non-NULL
+ * float_why marks a file whose float channels may hold values the halves
+ * cannot (they come back infinite), and says why it is read this way: any
+ * infinity is then refused. */
+static hl_result read_wrapper(hl_context *ctx, const char *path, unsigned flags, const char *float_why,
+                              uint32_t *width, uint32_t *height, float **rgb)
+{
+    ImfInputFile *in = ImfOpenInputFile(path);
+    if (!in) return hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot read OpenEXR header: %s", path, imf_message());
+
+    int xmin = 0, ymin = 0, xmax = -1, ymax = -1;
+    ImfHeaderDataWindow(ImfInputHeader(in), &xmin, &ymin, &xmax, &ymax);
+    uint32_t w, h;
+    hl_result r = window_size(ctx, path, flags, xmin, ymin, xmax, ymax, &w, &h);
+    if (r != HL_OK) {
+        ImfCloseInputFile(in);
+        return r;
     }
     int channels = ImfInputChannels(in);
     if ((channels & (IMF_WRITE_RGB | IMF_WRITE_Y)) == 0) {
@@ -125,6 +296,7 @@ hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
         ImfCloseInputFile(in);
         return HL_ERR_OUT_OF_MEMORY;
     }
+    uint64_t infinite = 0;
     for (uint32_t y0 = 0; y0 < h; y0 += rows) {
         uint32_t n = h - y0 < rows ? h - y0 : rows;
         int first = (int)((int64_t)ymin + y0), last = (int)((int64_t)ymin + y0 + n - 1);
@@ -139,10 +311,17 @@ hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
             o[0] = ImfHalfToFloat(strip[i].r);
             o[1] = ImfHalfToFloat(strip[i].g);
             o[2] = ImfHalfToFloat(strip[i].b);
+            infinite += (uint64_t)(isinf(o[0]) || isinf(o[1]) || isinf(o[2]));
         }
     }
     free(strip);
     ImfCloseInputFile(in);
+    if (r == HL_OK && float_why && infinite)
+        r = hl_fail(ctx, HL_ERR_FORMAT,
+                    "%s: %llu pixel%s infinite or beyond +-65504 as read: its 32-bit float channels are in %s, "
+                    "which this build's OpenEXR (3.1) reads only through half floats, so such values are lost; "
+                    "save the map as one scanline part with ZIP or PIZ compression", path,
+                    (unsigned long long)infinite, infinite == 1 ? " is" : "s are", float_why);
     if (r != HL_OK) {
         free(out);
         return r;
@@ -153,13 +332,28 @@ hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
     return HL_OK;
 }
 
-static ImfHalf to_half(float f)
+hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
+                           uint32_t *width, uint32_t *height, float **rgb)
 {
-    ImfHalf h;
-    if (f > 65504.0f) f = 65504.0f;
-    if (f < -65504.0f) f = -65504.0f;
-    ImfFloatToHalf(f, &h);
-    return h;
+    *width = *height = 0;
+    *rgb = NULL;
+    hl_result r = check_file(ctx, path);
+    if (r != HL_OK) return r;
+
+    core_msg msg = {{0}};
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = core_error;
+    init.user_data = &msg;
+    exr_context_t f = NULL;
+    exr_layout lay = {0, 0, 0, NULL};
+    int parsed = exr_start_read(&f, path, &init) == EXR_ERR_SUCCESS && probe(f, &lay);
+    /* a header OpenEXRCore cannot parse goes to the wrapper, whose
+       messages are the library's own */
+    if (parsed && lay.any_float && lay.core_ok) r = read_core(ctx, path, flags, f, &msg, width, height, rgb);
+    if (f) exr_finish(&f);
+    if (parsed && lay.any_float && lay.core_ok) return r;
+    return read_wrapper(ctx, path, flags, parsed && lay.any_float && !lay.dwa ? lay.reason : NULL, width, height,
+                        rgb);
 }
 
 hl_result hl_exr_write_rgb_(hl_context *ctx, const char *path, uint32_t width,
@@ -169,43 +363,61 @@ hl_result hl_exr_write_rgb_(hl_context *ctx, const char *path, uint32_t width,
         (uint64_t)width * height > HL_EXR_MAX_PIXELS)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: cannot write a %u x %u OpenEXR image",
                        path, width, height);
-    ImfHeader *hdr = ImfNewHeader();
-    if (!hdr) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: cannot create an OpenEXR header: %s", path, imf_message());
-    ImfHeaderSetDisplayWindow(hdr, 0, 0, (int)width - 1, (int)height - 1);
-    ImfHeaderSetDataWindow(hdr, 0, 0, (int)width - 1, (int)height - 1);
-    ImfHeaderSetCompression(hdr, IMF_ZIP_COMPRESSION);
-    ImfHeaderSetLineOrder(hdr, IMF_INCREASING_Y);
-    ImfOutputFile *out = ImfOpenOutputFile(path, hdr, IMF_WRITE_RGB);
-    ImfDeleteHeader(hdr);
-    if (!out) return hl_fail(ctx, HL_ERR_IO, "%s: cannot create OpenEXR file: %s", path, imf_message());
-
-    uint32_t rows = strip_rows(width);
-    ImfRgba *strip = hl_malloc(ctx, sizeof(ImfRgba) * (size_t)width * rows, "OpenEXR scanline strip");
-    if (!strip) {
-        ImfCloseOutputFile(out);
-        return HL_ERR_OUT_OF_MEMORY;
-    }
+    core_msg msg = {{0}};
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = core_error;
+    init.user_data = &msg;
+    exr_context_t f = NULL;
+    int part = 0;
+    int32_t spc = 0;
+    exr_result_t rv = exr_start_write(&f, path, EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv == EXR_ERR_SUCCESS) rv = exr_add_part(f, NULL, EXR_STORAGE_SCANLINE, &part);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_initialize_required_attr_simple(f, part, (int32_t)width, (int32_t)height, EXR_COMPRESSION_ZIP);
+    static const char *const names[3] = {"R", "G", "B"};
+    for (int c = 0; rv == EXR_ERR_SUCCESS && c < 3; c++)
+        rv = exr_add_channel(f, part, names[c], EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+    if (rv == EXR_ERR_SUCCESS) rv = exr_write_header(f);
+    if (rv == EXR_ERR_SUCCESS) rv = exr_get_scanlines_per_chunk(f, part, &spc);
+    if (rv == EXR_ERR_SUCCESS && spc < 1) rv = EXR_ERR_INVALID_ARGUMENT;
     hl_result r = HL_OK;
-    ImfHalf one;
-    ImfFloatToHalf(1.0f, &one);
-    for (uint32_t y0 = 0; y0 < height; y0 += rows) {
-        uint32_t n = height - y0 < rows ? height - y0 : rows;
-        for (size_t i = 0; i < (size_t)n * width; i++) {
-            const float *p = rgb + 3 * ((size_t)y0 * width + i);
-            strip[i].r = to_half(p[0]);
-            strip[i].g = to_half(p[1]);
-            strip[i].b = to_half(p[2]);
-            strip[i].a = one;
+    if (rv != EXR_ERR_SUCCESS)
+        r = hl_fail(ctx, HL_ERR_IO, "%s: cannot create OpenEXR file: %s", path, core_text(&msg, rv));
+
+    exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+    int inited = 0, chosen = 0;
+    for (uint32_t y = 0; r == HL_OK && y < height; y += (uint32_t)spc) {
+        exr_chunk_info_t ci;
+        rv = exr_write_scanline_chunk_info(f, part, (int)y, &ci);
+        if (rv == EXR_ERR_SUCCESS) {
+            rv = inited ? exr_encoding_update(f, part, &ci, &enc) : exr_encoding_initialize(f, part, &ci, &enc);
+            if (rv == EXR_ERR_SUCCESS) inited = 1;
         }
-        if (!ImfOutputSetFrameBuffer(out, frame_base(strip, 0, y0, width), 1, width) ||
-            !ImfOutputWritePixels(out, (int)n)) {
-            r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write OpenEXR rows %u..%u: %s", path, y0,
-                        y0 + n - 1, imf_message());
-            break;
+        for (int c = 0; rv == EXR_ERR_SUCCESS && c < enc.channel_count; c++) {
+            exr_coding_channel_info_t *ch = &enc.channels[c];
+            int k = channel_of(ch->channel_name);
+            ch->encode_from_ptr = (const uint8_t *)(rgb + 3 * (size_t)y * width + (size_t)(k < 0 ? 0 : k));
+            ch->user_pixel_stride = 3 * (int32_t)sizeof(float);
+            ch->user_line_stride = 3 * (int32_t)sizeof(float) * (int32_t)width;
+            ch->user_data_type = EXR_PIXEL_FLOAT;
+            ch->user_bytes_per_element = (int16_t)sizeof(float);
+        }
+        if (rv == EXR_ERR_SUCCESS && !chosen) {
+            rv = exr_encoding_choose_default_routines(f, part, &enc);
+            chosen = 1;
+        }
+        if (rv == EXR_ERR_SUCCESS) rv = exr_encoding_run(f, part, &enc);
+        if (rv != EXR_ERR_SUCCESS) {
+            uint32_t last = y + (uint32_t)spc - 1 < height - 1 ? y + (uint32_t)spc - 1 : height - 1;
+            r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write OpenEXR rows %u..%u: %s", path, y, last,
+                        core_text(&msg, rv));
         }
     }
-    free(strip);
-    if (!ImfCloseOutputFile(out) && r == HL_OK)
-        r = hl_fail(ctx, HL_ERR_IO, "%s: cannot finish OpenEXR file: %s", path, imf_message());
+    if (inited) exr_encoding_destroy(f, &enc);
+    if (f) {
+        rv = exr_finish(&f);
+        if (rv != EXR_ERR_SUCCESS && r == HL_OK)
+            r = hl_fail(ctx, HL_ERR_IO, "%s: cannot finish OpenEXR file: %s", path, core_text(&msg, rv));
+    }
     return r;
 }

@@ -1,6 +1,6 @@
 /* fuzz_env.c - libFuzzer target for the environment loader (hl_env_load:
- * OpenEXR through the C wrapper of the C++ library, then the repair of
- * NaN, Inf and negative pixels).
+ * OpenEXR through OpenEXRCore or the C wrapper of the C++ library, then
+ * the repair of NaN, Inf and negative pixels).
  *
  * On success the map must keep what haarlight.h promises: 2:1, every
  * channel finite and >= 0, repair counts no larger than the pixel count,

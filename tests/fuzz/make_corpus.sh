@@ -9,7 +9,12 @@
 #                      '3' .stl, '4' .gltf, '5' .glb: see fuzz_mesh.c), then
 #                      the file's bytes
 #   corpus/transport/  transport files of tiny meshes (-N 8 -C 8)
-#   corpus/env/        small equirectangular OpenEXR maps (ZIP, half RGB)
+#   corpus/env/        small equirectangular OpenEXR maps: images written by
+#                      the haarlight command (ZIP, float RGB: read with
+#                      OpenEXRCore), a copy of tests/data/float_tiled.exr
+#                      (tiled float: read through half floats), and
+#                      cube_*_half.exr (ZIP, half RGB, written by the command
+#                      before it wrote floats; kept, not regenerated here)
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 bin="${1:-$here/../../build/haarlight}"
@@ -17,7 +22,8 @@ bin="${1:-$here/../../build/haarlight}"
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 out="$here/corpus"
-rm -rf "$out/mesh" "$out/transport" "$out/env"
+rm -rf "$out/mesh" "$out/transport"
+find "$out/env" -name '*.exr' ! -name '*_half.exr' -delete 2>/dev/null || true
 mkdir -p "$out/mesh" "$out/transport" "$out/env"
 
 # seed SELECTOR NAME FILE: the mesh seed is the selector byte then FILE.
@@ -195,5 +201,6 @@ seed 5 triangle_glb "$tmp/triangle.glb"
   --device ref -q --eye 3,2,3
 "$bin" relight "$out/transport/cube_log8_energy" --sky -o "$out/env/cube_2x1.exr" --size 2x1 \
   --device ref -q
+cp "$here/../data/float_tiled.exr" "$out/env/float_tiled.exr"
 
 ls -l "$out"/*/
