@@ -158,9 +158,15 @@ relight)
     grep -q "($s selection" "$tmp/check_$s.txt" || fail "check --select $s did not say so"
   done
   "$bin" check "$tmp/r.hlt" --select nope >/dev/null 2>&1 && fail "check --select nope accepted"
-  "$bin" bench "$tmp/r.hlt" --sky --terms 10,all --select area --reps 2 --vertices 16 --continuous 2 -o "$tmp/bench" >/dev/null 2>&1 || fail "bench"
-  for f in bench.md bench.csv; do [ -s "$tmp/bench/$f" ] || fail "bench wrote no $f"; done
-  [ "$(wc -l <"$tmp/bench/bench.csv")" -eq 3 ] || fail "bench.csv should hold a header and 2 rows"
+  # an output folder whose name holds a quote and a space
+  out="$tmp/it's bench"
+  "$bin" bench "$tmp/r.hlt" --sky --terms 10,all --select area --reps 2 --ref-reps 2 --vertices 16 --continuous 2 -o "$out" >/dev/null 2>&1 || fail "bench"
+  for f in bench.md bench.csv bench.gp; do [ -s "$out/$f" ] || fail "bench wrote no $f"; done
+  if command -v gnuplot >/dev/null; then [ -s "$out/bench.svg" ] || fail "bench drew no bench.svg"; fi
+  [ -z "$(find "$out" -name '*.tmp.*')" ] || fail "bench left temporary files: $(ls "$out")"
+  [ "$(wc -l <"$out/bench.csv")" -eq 3 ] || fail "bench.csv should hold a header and 2 rows"
+  grep -q "and of 2 on the reference" "$out/bench.md" || fail "bench.md does not give the reference's repetitions"
+  "$bin" bench "$tmp/r.hlt" --sky --ref-reps 0 -o "$out" >/dev/null 2>&1 && fail "bench --ref-reps 0 accepted"
   ;;
 relight_bad)
   m="$data/bunny_lowres.obj"

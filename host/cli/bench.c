@@ -22,6 +22,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/types.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "cl_backend.h"
@@ -39,27 +41,32 @@ static const char *const usage_bench =
     "transport and lighting, float64) and against a converged continuous result\n"
     "(the map integrated directly with Embree visibility), and the median time of\n"
     "a full lighting change (environment to paraboloid, Haar, selection, dot\n"
-    "products, read-back) on the OpenCL device and on the reference. All files\n"
+    "products, read-back) on the OpenCL device and on the reference (the latter\n"
+    "under the first environment: its time does not depend on the map). All files\n"
     "must come from the same mesh, N and C (e.g. different --quant or --energy).\n"
     "At M = 200 under the first environment it also gives each file's lighting\n"
-    "changes per second, and the dot products' time against the device's read\n"
+    "changes per second, the time of taking a new map (resampling it onto the cell\n"
+    "grid and uploading it), and the dot products' time against the device's read\n"
     "bandwidth (7 rounds of each, alternating; the fraction pairs each round's two),\n"
     "and the time of a change at M = all under the first map made subnormal against it.\n"
     "\n"
     "  --env ENV.exr        an environment (repeat for more); --sky adds the procedural sky\n"
-    "  -o, --output DIR     where bench.md, bench.csv and bench.svg go (default bench-out)\n"
+    "  -o, --output DIR     where bench.md, bench.csv, bench.gp and bench.svg go (default\n"
+    "                       bench-out; each is written whole or not at all)\n"
     "  --terms LIST         M values, comma-separated (default 25,50,100,200,500,1000,2000,all)\n"
     "  --select LIST        transport,area,unweighted (default all three; the plot shows\n"
     "                       the first)\n"
     "  --vertices K         vertices for the exact reference (default 1024; all if fewer)\n"
     "  --continuous K       vertices for the continuous reference (default 96)\n"
     "  --reps R             timed lighting changes per setting on OpenCL (default 15)\n"
+    "  --ref-reps R         timed lighting changes per setting on the reference (default 3)\n"
     "  --no-ref-timing      skip timing the plain-C reference\n"
     "  --device cl:P:D      OpenCL device\n";
 
 #define MAX_FILES 8
 #define MAX_ENVS 16
 #define MAX_TERMS 16
+#define MAX_REF_REPS 100
 
 typedef struct env_case {
     const char *name, *path;
@@ -212,6 +219,73 @@ static hl_result continuous(hl_context *ctx, hl_rt *rt, const hl_mesh *m, const 
     return r;
 }
 
+/* The outputs: written as NAME.tmp.PID, renamed when complete. */
+enum { OUT_CSV, OUT_MD, OUT_GP, OUT_COUNT };
+static const char *const out_names[OUT_COUNT] = {"bench.csv", "bench.md", "bench.gp"};
+
+static void out_path(char *buf, size_t n, const char *dir, const char *name, int tmp)
+{
+    if (tmp) snprintf(buf, n, "%s/%s.tmp.%ld", dir, name, (long)getpid());
+    else snprintf(buf, n, "%s/%s", dir, name);
+}
+
+/* A gnuplot string literal: single quotes, a quote inside doubled. */
+static void gp_string(FILE *gp, const char *s)
+{
+    fputc('\'', gp);
+    for (; *s; s++) {
+        if (*s == '\'') fputc('\'', gp);
+        fputc(*s, gp);
+    }
+    fputc('\'', gp);
+}
+
+/* Runs gnuplot on DIR/bench.gp in DIR (no shell, so any folder name
+ * works), its output to stderr, and renames the SVG into place when it
+ * succeeds. Returns the exit status for the command: 0 also when gnuplot
+ * is not installed (the tables stand without the plot), 1 when it fails. */
+static int plot(const char *dir, int *plotted)
+{
+    char tmp[64], set[96];
+    snprintf(tmp, sizeof tmp, "bench.svg.tmp.%ld", (long)getpid());
+    snprintf(set, sizeof set, "set output '%s'", tmp);
+    *plotted = 0;
+    fflush(stdout);
+    fflush(stderr);
+    pid_t pid = fork();
+    if (pid == 0) {
+        if (chdir(dir) != 0) _exit(126);
+        dup2(2, 1);
+        execlp("gnuplot", "gnuplot", "-e", set, "bench.gp", (char *)NULL);
+        _exit(127);
+    }
+    int status = 0;
+    if (pid < 0 || waitpid(pid, &status, 0) != pid) {
+        fprintf(stderr, "haarlight: bench: cannot run gnuplot: %s\n", strerror(errno));
+        return 1;
+    }
+    char from[1200], to[1200];
+    snprintf(from, sizeof from, "%s/%s", dir, tmp);
+    snprintf(to, sizeof to, "%s/bench.svg", dir);
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 127) {
+        fprintf(stderr, "bench: gnuplot is not installed (apt-get install gnuplot-nox): %s not drawn\n", to);
+        unlink(from);
+        return 0;
+    }
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+        fprintf(stderr, "haarlight: bench: gnuplot failed on %s/bench.gp: %s not drawn\n", dir, to);
+        unlink(from);
+        return 1;
+    }
+    if (rename(from, to) != 0) {
+        fprintf(stderr, "haarlight: bench: %s: cannot write: %s\n", to, strerror(errno));
+        unlink(from);
+        return 1;
+    }
+    *plotted = 1;
+    return 0;
+}
+
 int cmd_bench(int argc, char **argv)
 {
     const char *usage = usage_bench, *files[MAX_FILES], *outdir = "bench-out";
@@ -220,7 +294,7 @@ int cmd_bench(int argc, char **argv)
     memset(envs, 0, sizeof envs);
     uint32_t terms[MAX_TERMS] = {25, 50, 100, 200, 500, 1000, 2000, HL_TERMS_ALL}, nterms = 8;
     uint32_t selects[3] = {HL_SELECT_TRANSPORT, HL_SELECT_AREA, HL_SELECT_UNWEIGHTED}, nsel = 3;
-    uint32_t K = 1024, K2 = 96, reps = 15;
+    uint32_t K = 1024, K2 = 96, reps = 15, ref_reps = 3;
     hl_context_desc cd = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1};
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i], *v = NULL;
@@ -257,6 +331,7 @@ int cmd_bench(int argc, char **argv)
         } else if (!strcmp(a, "--vertices")) { NEED(); if (!parse_u32(v, &K) || K < 1 || K > 65536) return usage_error(usage, "--vertices %s: expected 1 to 65536", v); }
         else if (!strcmp(a, "--continuous")) { NEED(); if (!parse_u32(v, &K2) || K2 > 4096) return usage_error(usage, "--continuous %s: expected 0 to 4096", v); }
         else if (!strcmp(a, "--reps")) { NEED(); if (!parse_u32(v, &reps) || reps < 1 || reps > 1000) return usage_error(usage, "--reps %s: expected 1 to 1000", v); }
+        else if (!strcmp(a, "--ref-reps")) { NEED(); if (!parse_u32(v, &ref_reps) || ref_reps < 1 || ref_reps > MAX_REF_REPS) return usage_error(usage, "--ref-reps %s: expected 1 to 100", v); }
         else if (!strcmp(a, "--no-ref-timing")) ref_timing = 0;
         else if (!strcmp(a, "--device")) {
             NEED();
@@ -346,12 +421,13 @@ int cmd_bench(int argc, char **argv)
     }
     free(raw);
 
-    char path[1200];
-    snprintf(path, sizeof path, "%s/bench.csv", outdir);
-    FILE *csv = r == HL_OK ? fopen(path, "w") : NULL;
-    snprintf(path, sizeof path, "%s/bench.md", outdir);
-    FILE *md = r == HL_OK ? fopen(path, "w") : NULL;
-    if (r == HL_OK && (!csv || !md)) r = hl_fail(ref, HL_ERR_IO, "%s: cannot write: %s", path, strerror(errno));
+    /* the outputs, under temporary names until they are complete */
+    char tmp[OUT_COUNT][1200];
+    for (int o = 0; o < OUT_COUNT; o++) out_path(tmp[o], sizeof tmp[o], outdir, out_names[o], 1);
+    FILE *csv = r == HL_OK ? fopen(tmp[OUT_CSV], "w") : NULL;
+    if (r == HL_OK && !csv) r = hl_fail(ref, HL_ERR_IO, "%s: cannot write: %s", tmp[OUT_CSV], strerror(errno));
+    FILE *md = r == HL_OK ? fopen(tmp[OUT_MD], "w") : NULL;
+    if (r == HL_OK && !md) r = hl_fail(ref, HL_ERR_IO, "%s: cannot write: %s", tmp[OUT_MD], strerror(errno));
     if (r == HL_OK) {
         fprintf(csv, "file,quant,coef_per_vertex,transport_bytes,env,select,M,kept,energy_kept,error_bound,blocks_skipped,"
                      "l2_exact,max_exact,l2_continuous,max_continuous,cl_ms,ref_ms\n");
@@ -361,23 +437,25 @@ int cmd_bench(int argc, char **argv)
                     "lighting in float64) and %u of them (continuous: the map integrated directly, one Embree ray per\n"
                     "pixel). L2 is relative to the reference's L2 norm; max is the worst vertex relative to the\n"
                     "brightest. Times are the median of %u full lighting changes (environment to paraboloid, Haar,\n"
-                    "selection, dot products, read-back of all vertex colours); the reference is timed once.\n\n",
+                    "selection, dot products, read-back of all vertex colours) on OpenCL, and of %u on the reference\n"
+                    "(under the first map only: its time does not depend on the map).\n\n",
                 V, in->object_vertex_count, V - in->object_vertex_count, in->N, in->C, hl_context_device_name(cl), hl_context_threads(cl),
-                K, K2, reps);
+                K, K2, reps, ref_reps);
         fprintf(md, "| file | env | select | M | kept | energy kept | bound | blocks skipped | L2 exact | max exact | L2 cont. | max cont. | OpenCL ms | ref ms | MB |\n"
                     "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     }
     float *B = malloc((size_t)V * 12);
     double ref_ms[MAX_FILES][3][MAX_TERMS];
     double summary_rate[MAX_FILES], summary_dot[MAX_FILES], summary_bytes[MAX_FILES], summary_bw[MAX_FILES];
+    double summary_newmap[MAX_FILES];
     double summary_frac[MAX_FILES][3]; /* median, least, most */
     double sub_ms[MAX_FILES][2][2];     /* [file][OpenCL, reference][normal, subnormal] */
-    /* series for the plot: per file and environment, area selection */
+    /* series for the plot: per file and environment, the first selection scheme */
     FILE *gp = NULL;
     if (r == HL_OK) {
-        snprintf(path, sizeof path, "%s/bench.gp", outdir);
-        gp = fopen(path, "w");
-        if (!gp) r = hl_fail(ref, HL_ERR_IO, "%s: cannot write: %s", path, strerror(errno));
+        gp = fopen(tmp[OUT_GP], "w");
+        if (!gp) r = hl_fail(ref, HL_ERR_IO, "%s: cannot write: %s", tmp[OUT_GP], strerror(errno));
+        else fprintf(gp, "# in this folder: gnuplot -e \"set output 'bench.svg'\" bench.gp\n");
     }
     int nseries = 0;
     for (int f = 0; f < nfiles && r == HL_OK; f++) {
@@ -406,9 +484,13 @@ int cmd_bench(int argc, char **argv)
                     double cl_ms = 1e3 * median(times, (int)reps);
                     /* the reference's time does not depend on the map: timed on the first */
                     if (r == HL_OK && rr && e == 0) {
-                        d.rotate_deg = 0.5f;
-                        r = hl_relighter_run(rr, &d, B, &st);
-                        ref_ms[f][s][mi] = 1e3 * st.seconds;
+                        double ref_t[MAX_REF_REPS];
+                        for (uint32_t k = 0; k < ref_reps && r == HL_OK; k++) {
+                            d.rotate_deg = 0.5f + 1e-3f * (float)k;
+                            r = hl_relighter_run(rr, &d, B, &st);
+                            ref_t[k] = st.seconds;
+                        }
+                        if (r == HL_OK) ref_ms[f][s][mi] = 1e3 * median(ref_t, (int)ref_reps);
                     }
                     d.rotate_deg = 0.0f;
                     if (r == HL_OK) r = hl_relighter_run(rc, &d, B, &st);
@@ -437,9 +519,18 @@ int cmd_bench(int argc, char **argv)
             fprintf(gp, "EOD\n");
             nseries++;
         }
+        /* a new map: resampled onto the cell grid on the host and uploaded
+           (what a change of map costs before its lighting change) */
+        double newmap[15];
+        uint32_t nnew = reps < 15 ? reps : 15;
+        for (uint32_t k = 0; k < nnew && r == HL_OK; k++) {
+            double t0 = hl_now();
+            r = hl_relighter_set_env(rc, envs[0].env);
+            newmap[k] = hl_now() - t0;
+        }
+        summary_newmap[f] = r == HL_OK ? median(newmap, (int)nnew) : 0.0;
         /* full lighting changes, then the dot products alone, at M = 200 with
            the default selection, under the first environment */
-        if (r == HL_OK) r = hl_relighter_set_env(rc, envs[0].env);
         hl_relight_desc d = {.terms = 200, .select = HL_SELECT_DEFAULT, .rotate_deg = 0.25f};
         double times[1000];
         for (uint32_t k = 0; k < reps && r == HL_OK; k++) {
@@ -484,17 +575,19 @@ int cmd_bench(int argc, char **argv)
     if (r == HL_OK) {
         fprintf(md, "\n## Speed at M = 200 (%s selection, the default), %s\n\n", select_name(HL_SELECT_TRANSPORT),
                 envs[0].name);
-        fprintf(md, "Lighting changes per second: the median of %u full changes. Then %d rounds, each the device's read\n"
-                    "bandwidth (a kernel reading 256 MiB, held as the transport columns are, with huge pages advised on\n"
-                    "a CPU device; median of 3 passes) and the dot products alone (mean of 20 launches); the fraction\n"
-                    "is the bytes they read over their time over the bandwidth of the same round. Medians over the\n"
-                    "rounds, and the fraction's range.\n\n", reps, BENCH_ROUNDS);
-        fprintf(md, "| file | lighting changes per second | dot products alone | bytes they read | read bandwidth | "
-                    "fraction of read bandwidth | range |\n|---|---|---|---|---|---|---|\n");
+        fprintf(md, "Lighting changes per second: the median of %u full changes. A new map: resampling it onto the\n"
+                    "cell grid on the host and uploading it, before its lighting change (median of %u). Then %d\n"
+                    "rounds, each the device's read bandwidth (a kernel reading 256 MiB, held as the transport columns\n"
+                    "are, with huge pages advised on a CPU device; median of 3 passes) and the dot products alone (mean\n"
+                    "of 20 launches); the fraction is the bytes they read over their time over the bandwidth of the\n"
+                    "same round. Medians over the rounds, and the fraction's range.\n\n", reps, reps < 15 ? reps : 15, BENCH_ROUNDS);
+        fprintf(md, "| file | lighting changes per second | new map | dot products alone | bytes they read | read bandwidth | "
+                    "fraction of read bandwidth | range |\n|---|---|---|---|---|---|---|---|\n");
         for (int f = 0; f < nfiles; f++)
-            fprintf(md, "| %s | %.0f | %.3f ms | %.1f MB | %.1f GB/s | %.2f | %.2f to %.2f |\n", base_name(files[f]),
-                    summary_rate[f], 1e3 * summary_dot[f], summary_bytes[f] * 1e-6, summary_bw[f] * 1e-9,
-                    summary_frac[f][0], summary_frac[f][1], summary_frac[f][2]);
+            fprintf(md, "| %s | %.0f | %.2f ms | %.3f ms | %.1f MB | %.1f GB/s | %.2f | %.2f to %.2f |\n",
+                    base_name(files[f]), summary_rate[f], 1e3 * summary_newmap[f], 1e3 * summary_dot[f],
+                    summary_bytes[f] * 1e-6, summary_bw[f] * 1e-9, summary_frac[f][0], summary_frac[f][1],
+                    summary_frac[f][2]);
         fprintf(md, "\n## Subnormal lighting\n\n"
                     "A new map and a full lighting change at M = all under %s scaled so that its brightest channel is\n"
                     "1e-38 (every pixel subnormal in float, or zero), against the same under %s itself, alternating;\n"
@@ -517,10 +610,11 @@ int cmd_bench(int argc, char **argv)
                     "and reported 2.2%% error with 200 wavelet terms (13.4%% with 200 spherical-harmonic terms) on its hardest\n"
                     "scene; the seed report relit 40k vertices at 3 fps.\n");
         for (int f = 0; f < nfiles; f++)
-            printf("bench: %s: %.0f lighting changes/s at M = 200; dot products %.3f ms for %.1f MB = %.2f (%.2f to %.2f) "
-                   "of the read bandwidth (%.1f GB/s)\n",
-                   base_name(files[f]), summary_rate[f], 1e3 * summary_dot[f], summary_bytes[f] * 1e-6, summary_frac[f][0],
-                   summary_frac[f][1], summary_frac[f][2], summary_bw[f] * 1e-9);
+            printf("bench: %s: %.0f lighting changes/s at M = 200 (a new map first: %.2f ms); dot products %.3f ms for "
+                   "%.1f MB = %.2f (%.2f to %.2f) of the read bandwidth (%.1f GB/s)\n",
+                   base_name(files[f]), summary_rate[f], 1e3 * summary_newmap[f], 1e3 * summary_dot[f],
+                   summary_bytes[f] * 1e-6, summary_frac[f][0], summary_frac[f][1], summary_frac[f][2],
+                   summary_bw[f] * 1e-9);
         /* one panel per transport file, a line per environment */
         char mlist[48], m0[16], m1[16];
         snprintf(m0, sizeof m0, "%u", terms[0]);
@@ -528,36 +622,45 @@ int cmd_bench(int argc, char **argv)
         else snprintf(m1, sizeof m1, "%u", terms[nterms - 1]);
         if (nterms > 1) snprintf(mlist, sizeof mlist, "%s ... %s", m0, m1);
         else snprintf(mlist, sizeof mlist, "%s", m0);
-        fprintf(gp, "set terminal svg size %d,560 dynamic font 'sans,11' noenhanced\nset output '%s/bench.svg'\n",
-                420 * nfiles + 60, outdir);
+        /* no "set output": plot() names it, so that the SVG, too, is
+           written under a temporary name (the script's first line says how
+           to run it by hand) */
+        fprintf(gp, "set terminal svg size %d,560 dynamic font 'sans,11' noenhanced\n", 420 * nfiles + 60);
         fprintf(gp, "set logscale xy\nset grid\nset key bottom left font ',9'\n"
                     "set xlabel 'time per lighting change, OpenCL (ms)'\n"
                     "set ylabel 'relative L2 error vs exact discrete'\n"
                     "set multiplot layout 1,%d title 'Error against run time, %s selection, M = %s'\n",
                 nfiles, select_name(selects[0]), mlist);
         for (int f = 0; f < nfiles; f++) {
-            fprintf(gp, "set title '%s'\nplot ", base_name(files[f]));
-            for (int e = 0; e < nenvs; e++)
-                fprintf(gp, "%s$s%d using 1:2 with linespoints pt 7 ps 0.5 title '%s'", e ? ", \\\n     " : "", f * nenvs + e,
-                        envs[e].name);
+            fprintf(gp, "set title ");
+            gp_string(gp, base_name(files[f]));
+            fprintf(gp, "\nplot ");
+            for (int e = 0; e < nenvs; e++) {
+                fprintf(gp, "%s$s%d using 1:2 with linespoints pt 7 ps 0.5 title ", e ? ", \\\n     " : "", f * nenvs + e);
+                gp_string(gp, envs[e].name);
+            }
             fprintf(gp, "\n");
         }
         fprintf(gp, "unset multiplot\n");
         fprintf(gp, "\n");
     }
-    if (csv) fclose(csv);
-    if (md) fclose(md);
-    if (gp) fclose(gp);
-    int rc = 0;
-    if (r != HL_OK) rc = cli_fail(hl_context_last_error(cl)[0] ? cl : ref, r);
-    else {
-        char cmd[2600];
-        snprintf(cmd, sizeof cmd, "gnuplot '%s/bench.gp' 2>&1", outdir);
-        if (system("command -v gnuplot >/dev/null 2>&1") != 0)
-            fprintf(stderr, "bench: gnuplot is not installed (apt-get install gnuplot-nox): %s/bench.svg not drawn\n", outdir);
-        else if (system(cmd) != 0)
-            fprintf(stderr, "bench: gnuplot failed on %s/bench.gp\n", outdir);
-        printf("bench: wrote %s/bench.md, %s/bench.csv and %s/bench.svg\n", outdir, outdir, outdir);
+    FILE *outs[OUT_COUNT] = {csv, md, gp};
+    for (int o = 0; o < OUT_COUNT; o++)
+        if (outs[o] && fclose(outs[o]) != 0 && r == HL_OK)
+            r = hl_fail(ref, HL_ERR_IO, "%s: cannot write: %s", tmp[o], strerror(errno));
+    int rc = 0, plotted = 0;
+    char final[1200];
+    for (int o = 0; o < OUT_COUNT && r == HL_OK; o++) {
+        out_path(final, sizeof final, outdir, out_names[o], 0);
+        if (rename(tmp[o], final) != 0) r = hl_fail(ref, HL_ERR_IO, "%s: cannot write: %s", final, strerror(errno));
+    }
+    if (r != HL_OK) {
+        for (int o = 0; o < OUT_COUNT; o++) unlink(tmp[o]);
+        rc = cli_fail(hl_context_last_error(cl)[0] ? cl : ref, r);
+    } else {
+        rc = plot(outdir, &plotted);
+        if (plotted) printf("bench: wrote %s/bench.md, %s/bench.csv and %s/bench.svg\n", outdir, outdir, outdir);
+        else printf("bench: wrote %s/bench.md and %s/bench.csv (no plot)\n", outdir, outdir);
     }
     free(B);
     free(Lw);
