@@ -2,7 +2,8 @@
  * selection, sparse dot products): OpenCL against the plain-C twins, and
  * the properties they must have (constant maps stay constant, a small sun
  * keeps its energy, an open vertex under a white sky gives its albedo,
- * untruncated lighting equals the exact discrete sum).
+ * untruncated lighting equals the exact discrete sum, the shading
+ * follows ENVMAP.md's directions and turn).
  */
 #include <stdint.h>
 
@@ -497,6 +498,124 @@ static void case_furnace(void)
     hl_context_destroy(ctx);
 }
 
+/* The lighting follows ENVMAP.md end to end. Small triangles facing +-X,
+ * +-Y, +-Z and two oblique ways, far apart (nothing shadows them), albedo
+ * 1, are relit with every term under a lobe max(0, w.d)^8 about an
+ * oblique d, turned by 0, 90 and 200 degrees. Each colour must match the
+ * same map integrated here over its pixels, with directions and the turn
+ * written out from ENVMAP.md (not taken from env.c): B = 1/pi sum_p L_p
+ * max(0, n . R_y(deg) w_p) omega_p. A mirrored axis, or a turn the wrong
+ * way round, swaps bright and dark faces. Tolerance: 0.05 of the
+ * brightest face; N = C = 32 and the cell grid give 0.009 to 0.018, while
+ * the expectation turned the wrong way gave 0.49 to 1.0, and with z
+ * mirrored 0.90 to 1.0. */
+#define ORI_FACES 8
+static void case_orientation(void)
+{
+    static const float nrm[ORI_FACES][3] = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},         {0, -1, 0},
+                                            {0, 0, 1},  {0, 0, -1}, {0.6f, 0.48f, 0.64f}, {-0.48f, 0.6f, -0.64f}};
+    float P[ORI_FACES * 9], Nv[ORI_FACES * 9], A[ORI_FACES * 9];
+    uint32_t I[ORI_FACES * 3];
+    for (int f = 0; f < ORI_FACES; f++) {
+        /* a triangle of side 0.02 about (20 f, 0, 0), in the plane normal to n */
+        const float *n = nrm[f];
+        float t[3] = {n[1] - n[2], n[2] - n[0], n[0] - n[1]}; /* orthogonal to n */
+        float tl = sqrtf(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+        float b[3] = {n[1] * t[2] - n[2] * t[1], n[2] * t[0] - n[0] * t[2], n[0] * t[1] - n[1] * t[0]};
+        for (int c = 0; c < 3; c++) {
+            t[c] /= tl;
+            b[c] /= tl;
+        }
+        static const float corner[3][2] = {{0, 0}, {0.02f, 0}, {0, 0.02f}};
+        for (int k = 0; k < 3; k++) {
+            for (int c = 0; c < 3; c++) {
+                P[9 * f + 3 * k + c] = (c == 0 ? 20.0f * (float)f : 0.0f) + corner[k][0] * t[c] + corner[k][1] * b[c];
+                Nv[9 * f + 3 * k + c] = n[c];
+                A[9 * f + 3 * k + c] = 1.0f;
+            }
+            I[3 * f + k] = (uint32_t)(3 * f + k);
+        }
+    }
+    /* the lobe, on a 256 x 128 map */
+    const uint32_t W = 256, H = 128;
+    const double d[3] = {0.3, 0.5, 0.81};
+    double dl = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    float *px = malloc((size_t)W * H * 12);
+    double *wdir = malloc((size_t)W * H * 3 * sizeof(double)), *om = malloc((size_t)H * sizeof(double));
+    for (uint32_t y = 0; y < H; y++) {
+        om[y] = 2.0 * HL_PI / W * (cos(HL_PI * y / H) - cos(HL_PI * (y + 1) / H));
+        for (uint32_t x = 0; x < W; x++) {
+            double phi = 2.0 * HL_PI * ((x + 0.5) / W - 0.5), th = HL_PI * (y + 0.5) / H;
+            double *w = wdir + 3 * ((size_t)y * W + x);
+            w[0] = sin(th) * cos(phi);
+            w[1] = cos(th);
+            w[2] = sin(th) * sin(phi);
+            double c = (w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) / dl;
+            float L = c > 0 ? (float)pow(c, 8.0) : 0.0f;
+            for (int k = 0; k < 3; k++) px[3 * ((size_t)y * W + x) + k] = L;
+        }
+    }
+    for (int backend = 0; backend < 2; backend++) {
+        hl_context *ctx = ctx_of(backend ? HL_BACKEND_REFERENCE : HL_BACKEND_OPENCL);
+        hl_mesh *m = NULL;
+        hl_transport *t = NULL;
+        hl_relighter *r = NULL;
+        hl_env *env = NULL;
+        char hlt[1024];
+        snprintf(hlt, sizeof hlt, "%s/light_orientation_%d.hlt", hl_test_env("HL_TMP", "/tmp"), backend);
+        hl_precompute_desc pd = {.N = 32, .C = 32, .rule = HL_TRUNC_ALL};
+        hl_result res = hl_mesh_create(ctx, 3 * ORI_FACES, P, Nv, A, ORI_FACES, I, &m);
+        if (res == HL_OK) res = hl_precompute(ctx, m, &pd, hlt, NULL);
+        if (res == HL_OK) res = hl_transport_load(ctx, hlt, &t);
+        if (res == HL_OK) res = hl_relighter_create(ctx, t, &r);
+        if (res == HL_OK) res = hl_env_create(ctx, W, H, px, &env, NULL);
+        if (res == HL_OK) res = hl_relighter_set_env(r, env);
+        HL_CHECK(res == HL_OK, "orientation scene: %s", hl_context_last_error(ctx));
+        static const float turns[] = {0.0f, 90.0f, 200.0f};
+        for (size_t k = 0; res == HL_OK && k < sizeof turns / sizeof turns[0]; k++) {
+            float rgb[3 * 3 * ORI_FACES];
+            hl_relight_desc rd = {.terms = HL_TERMS_ALL, .rotate_deg = turns[k]};
+            res = hl_relighter_run(r, &rd, rgb, NULL);
+            HL_CHECK(res == HL_OK, "relight: %s", hl_context_last_error(ctx));
+            if (res != HL_OK) break;
+            double cs = cos(turns[k] * HL_PI / 180.0), sn = sin(turns[k] * HL_PI / 180.0);
+            double want[ORI_FACES], top = 0.0, worst = 0.0;
+            for (int f = 0; f < ORI_FACES; f++) {
+                double acc = 0.0;
+                for (size_t p = 0; p < (size_t)W * H; p++) {
+                    const double *w = wdir + 3 * p;
+                    /* R_y(deg) w, right-handed: +Z goes to +X at 90 */
+                    double rw[3] = {w[0] * cs + w[2] * sn, w[1], -w[0] * sn + w[2] * cs};
+                    double c = nrm[f][0] * rw[0] + nrm[f][1] * rw[1] + nrm[f][2] * rw[2];
+                    if (c > 0) acc += px[3 * p] * c * om[p / W];
+                }
+                want[f] = acc / HL_PI;
+                top = fmax(top, want[f]);
+            }
+            printf("%s, turned %g:", backend ? "reference" : "OpenCL", (double)turns[k]);
+            for (int f = 0; f < ORI_FACES; f++) {
+                printf(" %.4f/%.4f", (double)rgb[9 * f], want[f]);
+                for (int v = 0; v < 3; v++)
+                    for (int c = 0; c < 3; c++) worst = fmax(worst, fabs(rgb[9 * f + 3 * v + c] - want[f]) / top);
+            }
+            printf(" (relit/integrated)\n");
+            char what[160];
+            snprintf(what, sizeof what, "%s, lobe turned %g: |B - integral| / brightest face",
+                     backend ? "reference" : "OpenCL", (double)turns[k]);
+            hl_check_error(what, worst, 0.05);
+        }
+        hl_env_destroy(env);
+        hl_relighter_destroy(r);
+        hl_transport_destroy(t);
+        hl_mesh_destroy(m);
+        remove(hlt);
+        hl_context_destroy(ctx);
+    }
+    free(px);
+    free(wdir);
+    free(om);
+}
+
 /* Lighting far brighter or dimmer than usual: the energy kept and the
  * error bound stay finite and scale as they should (the squared
  * luminances overflowed float above about 1.8e19 and underflowed below
@@ -585,7 +704,7 @@ int main(int argc, char **argv)
     static const hl_test_case cases[] = {
         {"env2para", case_env2para}, {"energy", case_energy},   {"stages", case_stages},
         {"relighter", case_relighter}, {"furnace", case_furnace}, {"into", case_into},
-        {"extreme", case_extreme}, {NULL, NULL},
+        {"extreme", case_extreme}, {"orientation", case_orientation}, {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);
 }
