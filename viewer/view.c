@@ -826,15 +826,11 @@ static int load(viewer *v, const char **env_args, int n_env_args)
     v->sky_slot = -1;
     for (int i = 0; i < n_env_args; i++) {
         hl_env *env = NULL;
-        hl_env_stats es = {0, 0};
-        hl_result r = env_args[i] ? hl_env_load(v->ctx, env_args[i], &env, &es) : make_sky(v, &env);
+        hl_result r = env_args[i] ? cli_env_load(v->ctx, env_args[i], &env, 0) : make_sky(v, &env);
         if (r != HL_OK) {
             cli_fail(v->ctx, r);
             return 0;
         }
-        if (es.nonfinite_pixels || es.negative_pixels)
-            fprintf(stderr, "%s: %llu pixels with NaN or Inf set to 0, %llu pixels with negative values clamped to 0\n",
-                    env_args[i], (unsigned long long)es.nonfinite_pixels, (unsigned long long)es.negative_pixels);
         int k = add_env(v, env, env_args[i] ? base_name(env_args[i]) : "");
         if (!env_args[i]) {
             v->sky_slot = k;

@@ -368,7 +368,7 @@ int cmd_bench(int argc, char **argv)
     }
     for (int e = 0; e < nenvs && r == HL_OK; e++) {
         hl_sky_desc sky = {0};
-        r = envs[e].path ? hl_env_load(ref, envs[e].path, &envs[e].env, NULL) : hl_env_create_sky(ref, &sky, &envs[e].env);
+        r = envs[e].path ? cli_env_load(ref, envs[e].path, &envs[e].env, 0) : hl_env_create_sky(ref, &sky, &envs[e].env);
     }
     if (r == HL_OK) r = hl_geom_create(ref, t[0]->info.N, t[0]->info.C, &g);
     if (r == HL_OK) r = hl_light_geom_create(ref, g, &lg);

@@ -95,7 +95,7 @@ int cmd_check(int argc, char **argv)
     hl_cl_light *light = NULL;
     hl_sky_desc sky = {0};
     hl_result r = hl_transport_load(ref, scene, &t);
-    if (r == HL_OK) r = env_path ? hl_env_load(ref, env_path, &env, NULL) : hl_env_create_sky(ref, &sky, &env);
+    if (r == HL_OK) r = env_path ? cli_env_load(ref, env_path, &env, 0) : hl_env_create_sky(ref, &sky, &env);
     if (r == HL_OK) r = hl_geom_create(ref, t->info.N, t->info.C, &g);
     if (r == HL_OK) r = hl_light_geom_create(ref, g, &lg);
     if (r != HL_OK) {
@@ -129,7 +129,11 @@ int cmd_check(int argc, char **argv)
     uint16_t *bca = malloc((size_t)K * nb * 2), *bcb = malloc((size_t)K * nb * 2);
     uint8_t *ea = calloc((size_t)K * nc, 2), *eb = calloc((size_t)K * nc, 2);
     uint32_t *na = malloc(K * 4), *nbb = malloc(K * 4), *idx = malloc(K * 4);
-    r = hl_rt_create(ref, t->mesh, &rt);
+    if (!vis || !n4 || !Ta || !Tb || !Tc || !ca || !cb || !tra || !trb || !rqa || !rqb || !bca || !bcb || !ea || !eb ||
+        !na || !nbb || !idx)
+        r = hl_fail(ref, HL_ERR_OUT_OF_MEMORY, "out of memory for %u vertices' precompute stages (%.1f GB); "
+                    "try fewer --vertices", K, 5.0 * 4.0 * (double)K * nc / 1e9);
+    if (r == HL_OK) r = hl_rt_create(ref, t->mesh, &rt);
     if (r == HL_OK) r = hl_cl_pipe_create(cl, g, K, &pipe);
     for (uint32_t i = 0; r == HL_OK && i < K; i++) {
         idx[i] = (uint32_t)((uint64_t)i * V / K);
@@ -183,11 +187,16 @@ int cmd_check(int argc, char **argv)
     float *Ba = malloc((size_t)V * 16), *Bb = malloc((size_t)V * 16), *wsel = malloc((size_t)nc * 4);
     uint8_t *ua = malloc(nb), *ub = malloc(nb);
     uint32_t *ka = malloc((size_t)nc / 8), *kb = malloc((size_t)nc / 8);
-    for (uint32_t v = 0; v < V; v++) { memcpy(alb + 4 * (size_t)v, t->mesh->albedo + 3 * (size_t)v, 12); alb[4 * (size_t)v + 3] = 0.0f; }
+    if (r == HL_OK && (!alb || !La || !Lb || !wa || !wb || !sa || !sb || !Ba || !Bb || !wsel || !ua || !ub || !ka || !kb))
+        r = hl_fail(ref, HL_ERR_OUT_OF_MEMORY, "out of memory for the lighting stages");
+    for (uint32_t v = 0; r == HL_OK && v < V; v++) {
+        memcpy(alb + 4 * (size_t)v, t->mesh->albedo + 3 * (size_t)v, 12);
+        alb[4 * (size_t)v + 3] = 0.0f;
+    }
     if (r == HL_OK) r = hl_env_to_cells(ref, env, lg->wc, lg->hc, &cells);
     if (r == HL_OK) r = hl_cl_light_create(cl, g, lg, t, alb, &light);
     if (r == HL_OK) r = hl_cl_light_set_cells(light, cells);
-    if (r == HL_OK) r = wsel ? hl_selection_weights(ref, t, lg, rd.select, wsel) : HL_ERR_OUT_OF_MEMORY;
+    if (r == HL_OK) r = hl_selection_weights(ref, t, lg, rd.select, wsel);
     if (r == HL_OK) r = hl_cl_light_set_weights(light, wsel);
     uint32_t s0 = 0;
     float f = 0.0f;

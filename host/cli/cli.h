@@ -23,6 +23,9 @@ const char *select_name(uint32_t scheme);
 int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context **ref);
 /* Prints the context's last error; returns the exit code for r. */
 int cli_fail(hl_context *ctx, hl_result r);
+/* hl_env_load, then (unless quiet) a line on stderr saying how many
+ * pixels were repaired, when any were. */
+hl_result cli_env_load(hl_context *ctx, const char *path, hl_env **out, int quiet);
 
 /* Options shared by `relight` and `view` (cli_scene.c). */
 typedef struct cli_scene_opts {

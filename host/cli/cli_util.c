@@ -78,6 +78,16 @@ int cli_fail(hl_context *ctx, hl_result r)
     return r == HL_ERR_INTERRUPTED ? 130 : 1;
 }
 
+hl_result cli_env_load(hl_context *ctx, const char *path, hl_env **out, int quiet)
+{
+    hl_env_stats es = {0, 0};
+    hl_result r = hl_env_load(ctx, path, out, &es);
+    if (r == HL_OK && !quiet && (es.nonfinite_pixels || es.negative_pixels))
+        fprintf(stderr, "%s: %llu pixels with NaN or Inf set to 0, %llu pixels with negative values clamped to 0\n", path,
+                (unsigned long long)es.nonfinite_pixels, (unsigned long long)es.negative_pixels);
+    return r;
+}
+
 int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context **ref)
 {
     char err[4096];

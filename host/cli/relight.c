@@ -81,13 +81,9 @@ int cmd_relight(int argc, char **argv)
     hl_relighter *rl = NULL;
     hl_image *img = NULL;
     float *rgb = NULL;
-    hl_env_stats es = {0, 0};
     hl_relight_stats st;
     hl_result r = hl_transport_load(ctx, scene, &t);
-    if (r == HL_OK) r = env_path ? hl_env_load(ctx, env_path, &env, &es) : hl_env_create_sky(ctx, &o.sky, &env);
-    if (r == HL_OK && !cd.quiet && (es.nonfinite_pixels || es.negative_pixels))
-        fprintf(stderr, "%s: %llu pixels with NaN or Inf set to 0, %llu pixels with negative values clamped to 0\n", env_path,
-                (unsigned long long)es.nonfinite_pixels, (unsigned long long)es.negative_pixels);
+    if (r == HL_OK) r = env_path ? cli_env_load(ctx, env_path, &env, cd.quiet) : hl_env_create_sky(ctx, &o.sky, &env);
     if (r == HL_OK) r = hl_relighter_create(ctx, t, &rl);
     if (r == HL_OK) r = hl_relighter_set_env(rl, env);
     if (r == HL_OK) {
