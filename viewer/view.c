@@ -817,7 +817,8 @@ static int load(viewer *v, const char **env_args, int n_env_args)
         return 0;
     }
     hl_camera_view cv; /* an impossible camera fails here, before any window */
-    if (hl_camera_query_view(v->ctx, v->t->mesh, &v->o.cam, &cv) != HL_OK) {
+    if (cli_camera_complete(v->ctx, v->t->mesh, &v->o) != HL_OK ||
+        hl_camera_query_view(v->ctx, v->t->mesh, &v->o.cam, &cv) != HL_OK) {
         cli_fail(v->ctx, HL_ERR_INVALID_ARGUMENT);
         return 0;
     }

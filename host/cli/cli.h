@@ -35,7 +35,9 @@ typedef struct cli_scene_opts {
     hl_camera_desc cam;
     float exposure;
     int exposure_set;
-    int sky_set; /* a --sun-* option was given */
+    int sky_set;    /* a --sun-* option was given */
+    int eye_set;    /* --eye was given */
+    int target_set; /* --target was given */
 } cli_scene_opts;
 
 void cli_scene_opts_init(cli_scene_opts *o);
@@ -43,6 +45,10 @@ void cli_scene_opts_init(cli_scene_opts *o);
  * and returns 1; returns 0 when it is not one, and -2 after printing the
  * usage error for a bad value (exit code 2). */
 int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_opts *o);
+/* Completes a camera given in part: --eye alone looks at the object's
+ * centre (the automatic framing's target), --target alone is seen from the
+ * automatic framing's offset. Fails like hl_camera_query_view. */
+hl_result cli_camera_complete(hl_context *ctx, const hl_mesh *mesh, cli_scene_opts *o);
 /* "WxH", each side 1 to 16384. */
 int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
 
@@ -61,7 +67,8 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
     "  --size WxH           image size (default 960x720)\n"                              \
     "  --fov DEG            vertical field of view (default 35)\n"                       \
     "  --eye X,Y,Z --target X,Y,Z --up X,Y,Z\n"                                          \
-    "                       camera (default: frames the object automatically)\n"
+    "                       camera (default: frames the object automatically; --eye\n"   \
+    "                       alone looks at the object's centre)\n"
 #define CLI_USAGE_RUNNING                                                                 \
     "  --device cl|ref|cl:P:D   OpenCL device (default: first), or the plain-C reference\n" \
     "  --threads T          host threads (rendering, reference)\n"                       \

@@ -17,6 +17,22 @@ void cli_scene_opts_init(cli_scene_opts *o)
     o->cd.cl_device = -1;
 }
 
+hl_result cli_camera_complete(hl_context *ctx, const hl_mesh *mesh, cli_scene_opts *o)
+{
+    if (o->eye_set == o->target_set) return HL_OK;
+    hl_camera_desc autod = o->cam;
+    memset(autod.eye, 0, sizeof autod.eye);
+    memset(autod.target, 0, sizeof autod.target);
+    hl_camera_view av;
+    hl_result r = hl_camera_query_view(ctx, mesh, &autod, &av);
+    if (r != HL_OK) return r;
+    for (int k = 0; k < 3; k++) {
+        if (o->eye_set) o->cam.target[k] = av.target[k];
+        else o->cam.eye[k] = o->cam.target[k] + (av.eye[k] - av.target[k]);
+    }
+    return HL_OK;
+}
+
 int cli_parse_size(const char *s, uint32_t *w, uint32_t *h)
 {
     char tail;
@@ -71,6 +87,8 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
         char fmt[64];
         snprintf(fmt, sizeof fmt, "%s %%s: expected X,Y,Z", a); /* a is one of the three names */
         if (!parse_vec3(v, dst)) return -usage_error(usage, fmt, v);
+        if (a[2] == 'e') o->eye_set = 1;
+        if (a[2] == 't') o->target_set = 1;
     } else if (!strcmp(a, "--device")) {
         if (!parse_device(v, &o->cd)) return -usage_error(usage, "--device %s: expected cl, ref or cl:PLATFORM:DEVICE", v);
     } else if (!strcmp(a, "--threads")) {

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "cli.h"
 
@@ -67,7 +68,7 @@ int cmd_relight(int argc, char **argv)
     if (!out) return usage_error(usage, "%s", "no output given (-o OUT.ply|.exr|.png)");
     if (env_path && want_sky) return usage_error(usage, "%s", "--env and the sky options contradict each other");
     const char *ext = ext_of(out);
-    int is_ply = !strcmp(ext, ".ply"), is_img = !strcmp(ext, ".exr") || !strcmp(ext, ".png");
+    int is_ply = !strcasecmp(ext, ".ply"), is_img = !strcasecmp(ext, ".exr") || !strcasecmp(ext, ".png");
     if (!is_ply && !is_img) return usage_error(usage, "output %s: expected a .ply, .exr or .png name", out);
 
     char err[4096];
@@ -99,9 +100,10 @@ int cmd_relight(int argc, char **argv)
                 100.0 * st.energy_kept, st.error_bound, 100.0 * st.blocks_skipped, 1e3 * st.seconds);
     if (r == HL_OK && !o.exposure_set) {
         exposure = hl_exposure_auto(t->mesh, rgb);
-        if (!cd.quiet && (ply8 || !strcmp(ext, ".png"))) fprintf(stderr, "exposure: %+.2f EV (automatic)\n", (double)exposure);
+        if (!cd.quiet && (ply8 || !strcasecmp(ext, ".png"))) fprintf(stderr, "exposure: %+.2f EV (automatic)\n", (double)exposure);
     }
     if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, t->mesh, rgb, out, ply8, exposure);
+    if (r == HL_OK && is_img) r = cli_camera_complete(ctx, t->mesh, &o);
     if (r == HL_OK && is_img) r = hl_render(ctx, t->mesh, rgb, no_bg ? NULL : env, rd.rotate_deg, &o.cam, &img);
     if (r == HL_OK && is_img) r = hl_image_save(ctx, img, out, exposure);
     if (r == HL_OK && !cd.quiet) fprintf(stderr, "wrote %s\n", out);
