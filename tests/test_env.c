@@ -533,6 +533,22 @@ static float fixture_value(uint32_t x, uint32_t y, int c, const float sun[3])
     return (float)(((double)x + 32.0 * y) * 0.001234567 * (c + 1.0));
 }
 
+/* Over the fixture's channels: the number not bit-equal to the written
+ * floats (*differ) and the worst |got - want| / (|want| + 2^-14). */
+static double fixture_worst(const hl_env *env, const float sun[3], size_t *differ)
+{
+    double worst = 0.0;
+    *differ = 0;
+    for (uint32_t y = 0; y < 16; y++)
+        for (uint32_t x = 0; x < 32; x++)
+            for (int c = 0; c < 3; c++) {
+                float want = fixture_value(x, y, c, sun), got = env->rgb[3 * ((size_t)y * 32 + x) + (size_t)c];
+                *differ += memcmp(&want, &got, sizeof want) != 0;
+                worst = fmax(worst, fabs((double)got - want) / (fabs((double)want) + 0x1p-14));
+            }
+    return worst;
+}
+
 static void test_float_files(void)
 {
     hl_context *ctx = make_ctx();
@@ -549,12 +565,7 @@ static void test_float_files(void)
     HL_CHECK(r == HL_OK, "%s: %s", path, hl_context_last_error(ctx));
     if (env) {
         size_t differ = 0;
-        for (uint32_t y = 0; y < 16; y++)
-            for (uint32_t x = 0; x < 32; x++)
-                for (int c = 0; c < 3; c++) {
-                    float want = fixture_value(x, y, c, big), got = env->rgb[3 * ((size_t)y * 32 + x) + (size_t)c];
-                    differ += memcmp(&want, &got, sizeof want) != 0;
-                }
+        fixture_worst(env, big, &differ);
         printf("float scanline file: sun read as (%g, %g, %g); %llu pixels repaired\n",
                (double)env->rgb[3 * (10 * 32 + 20)], (double)env->rgb[3 * (10 * 32 + 20) + 1],
                (double)env->rgb[3 * (10 * 32 + 20) + 2],
@@ -571,13 +582,8 @@ static void test_float_files(void)
     r = hl_env_load(ctx, path, &env, &st);
     HL_CHECK(r == HL_OK, "%s: %s", path, hl_context_last_error(ctx));
     if (env) {
-        double worst = 0.0;
-        for (uint32_t y = 0; y < 16; y++)
-            for (uint32_t x = 0; x < 32; x++)
-                for (int c = 0; c < 3; c++) {
-                    double want = fixture_value(x, y, c, mid), got = env->rgb[3 * ((size_t)y * 32 + x) + (size_t)c];
-                    worst = fmax(worst, fabs(got - want) / (fabs(want) + 0x1p-14));
-                }
+        size_t differ = 0;
+        double worst = fixture_worst(env, mid, &differ);
         hl_check_error("tiled float file, through half: |a - b| / (|a| + 2^-14)", worst, 0x1p-11);
         hl_env_destroy(env);
     }
