@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "haarlight.h"
+#include "hl_internal.h"
 #include "hl_test.h"
 
 /* ---------------------------------------------------------------- helpers */
@@ -736,6 +737,97 @@ static void test_bad_no_faces(void)
     hl_context_destroy(ctx);
 }
 
+/* PLY files whose elements or lists claim more than the file holds:
+ * assimp would make room for all of it first (gigabytes from a few hundred
+ * bytes, or minutes of filling in zeros), so they are refused before it
+ * reads them, quickly and with the reason. The same layouts with honest
+ * sizes, in both binary byte orders and with a blank line in ASCII, load. */
+static void put_u32(unsigned char *p, uint32_t v, int big)
+{
+    for (int k = 0; k < 4; k++) p[big ? 3 - k : k] = (unsigned char)(v >> (8 * k));
+}
+
+/* A binary PLY of one triangle; the face list's count is `count`. */
+static size_t binary_ply(unsigned char *buf, int big, uint32_t count)
+{
+    int n = snprintf((char *)buf, 512,
+                     "ply\nformat binary_%s_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                     "property float z\nelement face 1\nproperty list uint int vertex_indices\nend_header\n",
+                     big ? "big" : "little");
+    static const float xyz[9] = {0, 0, 0, 1, 0, 0, 0, 0, -1};
+    size_t at = (size_t)n;
+    for (int i = 0; i < 9; i++) {
+        uint32_t bits;
+        memcpy(&bits, &xyz[i], 4);
+        put_u32(buf + at, bits, big);
+        at += 4;
+    }
+    put_u32(buf + at, count, big);
+    at += 4;
+    for (uint32_t i = 0; i < 3; i++, at += 4) put_u32(buf + at, i, big);
+    return at;
+}
+
+static void test_bad_ply_sizes(void)
+{
+    hl_context *ctx = make_ctx();
+    static const char head[] = "ply\nformat ascii 1.0\nelement vertex %s\nproperty float x\nproperty float y\n"
+                               "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                               "0 0 0\n1 0 0\n0 0 -1\n%s\n";
+    const struct {
+        const char *name, *vertices, *face;
+        const char *why;
+    } ascii[] = {
+        {"mesh_ply_list.ply", "3", "300000000 0 1 2", "a list of 300000000 values"},
+        {"mesh_ply_list_digits.ply", "3", "34444444444444444444444444444444 0 1 2", "a list of"},
+        {"mesh_ply_elements.ply", "300000000", "3 0 1 2", "300000000 \"vertex\" elements"},
+        {"mesh_ply_short.ply", "5", "3 0 1 2", "the file ends after"},
+    };
+    char text[1024];
+    double slowest = 0.0;
+    for (size_t k = 0; k < sizeof ascii / sizeof ascii[0]; k++) {
+        snprintf(text, sizeof text, head, ascii[k].vertices, ascii[k].face);
+        const char *path = tmp_path(ascii[k].name);
+        write_text(path, text);
+        hl_mesh *m = NULL;
+        double t0 = hl_now();
+        hl_result r = hl_mesh_load(ctx, path, NULL, &m, NULL);
+        slowest = fmax(slowest, hl_now() - t0);
+        expect_failure(ctx, path, r, HL_ERR_FORMAT);
+        HL_CHECK(strstr(hl_context_last_error(ctx), ascii[k].why) != NULL, "%s: the message does not say \"%s\"",
+                 path, ascii[k].why);
+        hl_mesh_destroy(m);
+    }
+    unsigned char bin[1024];
+    for (int big = 0; big < 2; big++) {
+        const char *path = tmp_path(big ? "mesh_ply_list_be.ply" : "mesh_ply_list_le.ply");
+        write_file(path, bin, binary_ply(bin, big, 300000000u));
+        hl_mesh *m = NULL;
+        double t0 = hl_now();
+        hl_result r = hl_mesh_load(ctx, path, NULL, &m, NULL);
+        slowest = fmax(slowest, hl_now() - t0);
+        expect_failure(ctx, path, r, HL_ERR_FORMAT);
+        HL_CHECK(strstr(hl_context_last_error(ctx), "a list of 300000000 values") != NULL, "%s: wrong reason", path);
+        hl_mesh_destroy(m);
+        /* honest: loads */
+        write_file(path, bin, binary_ply(bin, big, 3u));
+        HL_CHECK(load(ctx, path, NULL, &m, NULL) == HL_OK && m && m->triangle_count == 1,
+                 "%s: an honest binary triangle must load", path);
+        hl_mesh_destroy(m);
+    }
+    /* honest ASCII, a blank line between the vertices and the face */
+    snprintf(text, sizeof text, head, "3", "\n3 0 1 2");
+    const char *path = tmp_path("mesh_ply_honest.ply");
+    write_text(path, text);
+    hl_mesh *m = NULL;
+    HL_CHECK(load(ctx, path, NULL, &m, NULL) == HL_OK && m && m->triangle_count == 1,
+             "an honest ASCII triangle must load");
+    hl_mesh_destroy(m);
+    /* not a time limit: assimp took seconds to minutes on these */
+    printf("slowest refusal: %.3f s\n", slowest);
+    hl_context_destroy(ctx);
+}
+
 static void test_bad_not_mesh(void)
 {
     hl_context *ctx = make_ctx();
@@ -849,6 +941,7 @@ int main(int argc, char **argv)
         {"bad_index", test_bad_index},
         {"bad_no_faces", test_bad_no_faces},
         {"bad_not_mesh", test_bad_not_mesh},
+        {"bad_ply_sizes", test_bad_ply_sizes},
         {"bad_missing", test_bad_missing},
         {"bad_empty", test_bad_empty},
         {"bad_args", test_bad_args},

@@ -7,9 +7,9 @@
  * face uses, so for OBJ the "merged" count includes that expansion and
  * unreferenced vertices of the file are not seen. Hostile files that
  * would hang, abort, corrupt or exhaust assimp 5.2 itself (a PLY header
- * without end_header or with an element declared twice, a binary glTF
- * whose lengths exceed the file, faces without indices) are refused
- * before it gets to them.
+ * without end_header or with an element declared twice, PLY elements or
+ * lists larger than the file can hold, a binary glTF whose lengths exceed
+ * the file, faces without indices) are refused before it gets to them.
  *
  * Dependencies: assimp C API (Debian libassimp-dev 5.2), POSIX (stat,
  * uselocale), hl_internal.h.
@@ -18,9 +18,11 @@
 #include <errno.h>
 #include <locale.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 
 #include <assimp/cimport.h>
@@ -55,46 +57,275 @@ static hl_result open_checked(hl_context *ctx, const char *path, FILE **out, siz
     return HL_OK;
 }
 
-/* Reads one line, ended by \n or \r, into buf (the rest of a longer line
- * is dropped). Returns 0 at the end of the file. */
-static int read_line(FILE *f, char *buf, size_t size)
+/* ---------------------------------------------------------------- PLY */
+
+/* A PLY file that assimp 5.2 mishandles badly enough to hang, corrupt
+ * memory or exhaust it, checked before it reads the file:
+ * - its reader never returns from a header without an end_header line (it
+ *   keeps asking for the next line at the end of the file);
+ * - it sizes its arrays from the first element of a name and overruns them
+ *   when the name is declared again;
+ * - it makes room for every element the header declares, and for every
+ *   value a list's count gives, before it reads them, filling in zeros
+ *   where the file has none: a 150-byte file whose face list claims 3e8
+ *   values took 4.7 GB, one that declares 3e8 vertices ran for minutes.
+ * So the header is read up to end_header, and the body walked as assimp
+ * reads it (ASCII: one element per line; binary: the declared types, in
+ * either byte order): every element must fit in what is left of the file,
+ * and every list in its line (ASCII) or in the bytes left (binary). Files
+ * that do not start with the PLY magic ("ply", any case, as assimp checks
+ * it) are left alone. */
+
+enum { PLY_MAX_ELEMENTS = 32, PLY_MAX_PROPS = 64 };
+
+/* Writes the problem into msg; returns 1. */
+static int problem(char *msg, size_t msg_size, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, msg_size, fmt, ap);
+    va_end(ap);
+    return 1;
+}
+
+typedef struct ply_prop {
+    uint8_t list;       /* a list: count_size bytes of count, then values */
+    uint8_t size;       /* bytes of one value */
+    uint8_t count_size; /* bytes of a list's count */
+} ply_prop;
+
+typedef struct ply_elem {
+    char name[64];
+    uint64_t count;
+    int nprops;
+    ply_prop props[PLY_MAX_PROPS];
+} ply_elem;
+
+/* Bytes of a PLY scalar type; 0 for a name assimp does not know (it
+ * drops such a property, and so does the walk). */
+static int ply_type_size(const char *t)
+{
+    static const struct {
+        const char *name;
+        int size;
+    } types[] = {{"char", 1},  {"int8", 1},  {"uchar", 1}, {"uint8", 1},   {"short", 2},  {"int16", 2},
+                 {"ushort", 2}, {"uint16", 2}, {"int", 4},   {"int32", 4},   {"uint", 4},   {"uint32", 4},
+                 {"float", 4},  {"float32", 4}, {"double", 8}, {"float64", 8}};
+    for (size_t i = 0; i < sizeof types / sizeof types[0]; i++)
+        if (strcmp(t, types[i].name) == 0) return types[i].size;
+    return 0;
+}
+
+/* A header line, ended by \n, \r or \r\n (the rest of a longer line is
+ * dropped), so that a binary body starts right after it. Returns 0 at the
+ * end of the file. */
+static int ply_header_line(FILE *f, char *buf, size_t size)
 {
     size_t n = 0;
     int c;
     while ((c = getc(f)) != EOF && c != '\n' && c != '\r')
         if (n + 1 < size) buf[n++] = (char)c;
     buf[n] = '\0';
+    if (c == '\r') {
+        int d = getc(f);
+        if (d != '\n' && d != EOF) ungetc(d, f);
+    }
     return c != EOF || n > 0;
 }
 
-/* A PLY header that assimp 5.2 mishandles badly enough to hang or corrupt
- * memory, checked before it reads the file: its reader never returns from
- * a header without an end_header line (it keeps asking for the next line
- * at the end of the file), and it sizes its arrays from the first element
- * of a name and overruns them when the name is declared again. A file that
- * starts with the PLY magic ("ply", any case, as assimp checks it) is
- * read up to its end_header line, which real files have within their
- * first kilobytes. Returns 0, or 1 with the problem in msg. */
-static int ply_header_problem(FILE *f, char *msg, size_t msg_size)
+/* The value of a count's leading digits, saturated; 0 without any (as
+ * assimp reads a count). */
+static uint64_t ply_digits(const char *s)
+{
+    uint64_t v = 0;
+    for (; *s >= '0' && *s <= '9'; s++) v = v > (UINT64_MAX - 9) / 10 ? UINT64_MAX : v * 10 + (uint64_t)(*s - '0');
+    return v;
+}
+
+/* The next token of an ASCII line: 1 with the value of its leading digits
+ * (saturated; 0 without any, as assimp's parse of a count gives), 0 at the
+ * end of the line (consumed), -1 at the end of the file. */
+static int ply_token(FILE *f, uint64_t *value)
+{
+    int c;
+    do c = getc(f);
+    while (c == ' ' || c == '\t' || c == '\v' || c == '\f');
+    if (c == EOF) return -1;
+    if (c == '\n' || c == '\r') {
+        if (c == '\r') {
+            int d = getc(f);
+            if (d != '\n' && d != EOF) ungetc(d, f);
+        }
+        return 0;
+    }
+    uint64_t v = 0;
+    int digits = 1;
+    for (; c != EOF && c != ' ' && c != '\t' && c != '\v' && c != '\f' && c != '\n' && c != '\r'; c = getc(f)) {
+        if (digits && c >= '0' && c <= '9') v = v > (UINT64_MAX - 9) / 10 ? UINT64_MAX : v * 10 + (uint64_t)(c - '0');
+        else digits = 0;
+    }
+    if (c != EOF) ungetc(c, f);
+    *value = v;
+    return 1;
+}
+
+static int ply_walk_ascii(FILE *f, const ply_elem *el, int nel, char *msg, size_t msg_size)
+{
+    for (int e = 0; e < nel; e++)
+        for (uint64_t i = 0; i < el[e].count; i++) {
+            uint64_t v = 0;
+            int t;
+            while ((t = ply_token(f, &v)) == 0) continue; /* blank lines */
+            if (t < 0)
+                return problem(msg, msg_size, "PLY header declares %llu \"%s\" elements, but the file ends after %llu",
+                                (unsigned long long)el[e].count, el[e].name, (unsigned long long)i);
+            /* v holds the line's first token */
+            for (int p = 0; p < el[e].nprops && t > 0; p++) {
+                if (p > 0) t = ply_token(f, &v);
+                if (t <= 0 || !el[e].props[p].list) continue;
+                uint64_t n = v, k = 0;
+                for (; k < n && (t = ply_token(f, &v)) > 0; k++) continue;
+                if (k < n)
+                    return problem(msg, msg_size, "PLY \"%s\" element %llu: a list of %llu values, but its line "
+                                    "holds only %llu", el[e].name, (unsigned long long)i, (unsigned long long)n,
+                                    (unsigned long long)k);
+            }
+            while (t > 0) t = ply_token(f, &v); /* the rest of the line */
+        }
+    return 0;
+}
+
+/* A little reader over the binary body that knows how many bytes are left. */
+typedef struct ply_reader {
+    FILE *f;
+    uint64_t left;
+} ply_reader;
+
+static int ply_skip(ply_reader *r, uint64_t n)
+{
+    if (n > r->left) return 0;
+    r->left -= n;
+    return n == 0 || fseeko(r->f, (off_t)n, SEEK_CUR) == 0;
+}
+
+static int ply_count(ply_reader *r, int size, int big_endian, uint64_t *out)
+{
+    unsigned char b[8];
+    if ((uint64_t)size > r->left || fread(b, 1, (size_t)size, r->f) != (size_t)size) return 0;
+    r->left -= (uint64_t)size;
+    uint64_t v = 0;
+    for (int k = 0; k < size; k++) v |= (uint64_t)b[big_endian ? size - 1 - k : k] << (8 * k);
+    *out = v; /* a negative count reads huge, as assimp's conversion makes it */
+    return 1;
+}
+
+static int ply_walk_binary(FILE *f, uint64_t left, int big_endian, const ply_elem *el, int nel, char *msg,
+                           size_t msg_size)
+{
+    ply_reader r = {f, left};
+    for (int e = 0; e < nel; e++) {
+        uint64_t fixed = 0;
+        int lists = 0;
+        for (int p = 0; p < el[e].nprops; p++) {
+            lists |= el[e].props[p].list;
+            fixed += el[e].props[p].size;
+        }
+        if (!lists) {
+            /* fixed-size elements: all at once (count <= file size, fixed <= 512) */
+            if (el[e].count * fixed > r.left || !ply_skip(&r, el[e].count * fixed))
+                return problem(msg, msg_size, "PLY header declares %llu \"%s\" elements of %llu bytes, but %llu "
+                                "bytes are left", (unsigned long long)el[e].count, el[e].name,
+                                (unsigned long long)fixed, (unsigned long long)r.left);
+            continue;
+        }
+        for (uint64_t i = 0; i < el[e].count; i++)
+            for (int p = 0; p < el[e].nprops; p++) {
+                const ply_prop *pp = &el[e].props[p];
+                uint64_t n = 1;
+                if (pp->list && !ply_count(&r, pp->count_size, big_endian, &n))
+                    return problem(msg, msg_size, "PLY \"%s\" element %llu: the file ends in it", el[e].name,
+                                    (unsigned long long)i);
+                if (n > r.left / pp->size || !ply_skip(&r, n * pp->size))
+                    return problem(msg, msg_size, "PLY \"%s\" element %llu: %s %llu values of %d bytes, but %llu "
+                                    "bytes are left", el[e].name, (unsigned long long)i,
+                                    pp->list ? "a list of" : "a value:", (unsigned long long)n, pp->size,
+                                    (unsigned long long)r.left);
+            }
+    }
+    return 0;
+}
+
+/* Returns 0, or 1 with the problem in msg. */
+static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
 {
     char line[256];
-    if (!read_line(f, line, sizeof line) || (line[0] | 0x20) != 'p' || (line[1] | 0x20) != 'l' ||
+    if (!ply_header_line(f, line, sizeof line) || (line[0] | 0x20) != 'p' || (line[1] | 0x20) != 'l' ||
         (line[2] | 0x20) != 'y')
         return 0;
-    enum { MAX_NAMES = 32 };
-    char names[MAX_NAMES][64];
-    int count = 0;
-    while (read_line(f, line, sizeof line)) {
-        char word[16], name[64];
-        int fields = sscanf(line, " %15s %63s", word, name);
-        if (fields >= 1 && strcmp(word, "end_header") == 0) return 0;
-        if (fields < 2 || strcmp(word, "element") != 0) continue;
-        for (int i = 0; i < count; i++)
-            if (strcmp(names[i], name) == 0)
-                return snprintf(msg, msg_size, "PLY header declares element \"%s\" twice", name), 1;
-        if (count < MAX_NAMES) memcpy(names[count++], name, sizeof name);
+    ply_elem *el = calloc(PLY_MAX_ELEMENTS, sizeof *el);
+    if (!el) return problem(msg, msg_size, "out of memory for the PLY header");
+    int nel = 0, format = -1, bad = 0, ended = 0; /* format: 0 ASCII, 1 little, 2 big endian */
+    while (!bad && ply_header_line(f, line, sizeof line)) {
+        char word[16], a[64], b[64], c[64], d[64];
+        int fields = sscanf(line, " %15s %63s %63s %63s %63s", word, a, b, c, d);
+        if (fields < 1) continue;
+        if (strcmp(word, "end_header") == 0) {
+            ended = 1;
+            break;
+        }
+        if (strcmp(word, "format") == 0 && fields >= 2) {
+            /* as assimp tells them: "binary_" then "big" in any case is big
+               endian, anything else after "binary_" little endian */
+            format = strcmp(a, "ascii") == 0            ? 0
+                     : strncmp(a, "binary_", 7) != 0    ? -1
+                     : strncasecmp(a + 7, "big", 3) == 0 ? 2
+                                                         : 1;
+        } else if (strcmp(word, "element") == 0 && fields >= 2) {
+            for (int i = 0; i < nel; i++)
+                if (strcmp(el[i].name, a) == 0)
+                    bad = problem(msg, msg_size, "PLY header declares element \"%s\" twice", a);
+            if (bad) break;
+            if (nel == PLY_MAX_ELEMENTS) {
+                bad = problem(msg, msg_size, "PLY header declares more than %d elements", PLY_MAX_ELEMENTS);
+                break;
+            }
+            unsigned long long n = fields >= 3 ? ply_digits(b) : 0;
+            if (n > file_size)
+                bad = problem(msg, msg_size, "PLY header declares %llu \"%s\" elements in a file of %llu bytes", n,
+                               a, (unsigned long long)file_size);
+            memcpy(el[nel].name, a, sizeof a);
+            el[nel++].count = n;
+        } else if (strcmp(word, "property") == 0 && fields >= 3) {
+            if (nel == 0) continue;
+            ply_elem *e = &el[nel - 1];
+            if (e->nprops == PLY_MAX_PROPS) {
+                bad = problem(msg, msg_size, "PLY element \"%s\" has more than %d properties", e->name,
+                               PLY_MAX_PROPS);
+                break;
+            }
+            ply_prop *p = &e->props[e->nprops];
+            if (strcmp(a, "list") == 0) {
+                p->list = 1;
+                p->count_size = (uint8_t)(fields >= 4 ? ply_type_size(b) : 0);
+                p->size = (uint8_t)(fields >= 4 ? ply_type_size(c) : 0);
+                if (p->count_size && p->size) e->nprops++;
+            } else {
+                p->list = 0;
+                p->size = (uint8_t)ply_type_size(a);
+                if (p->size) e->nprops++;
+            }
+        }
     }
-    return snprintf(msg, msg_size, "PLY header has no end_header line (truncated or corrupt)"), 1;
+    if (!bad && !ended) bad = problem(msg, msg_size, "PLY header has no end_header line (truncated or corrupt)");
+    /* a format assimp does not know: it refuses the header itself */
+    if (!bad && format == 0) bad = ply_walk_ascii(f, el, nel, msg, msg_size);
+    if (!bad && format > 0) {
+        off_t at = ftello(f);
+        if (at >= 0 && (uint64_t)at <= file_size)
+            bad = ply_walk_binary(f, file_size - (uint64_t)at, format == 2, el, nel, msg, msg_size);
+    }
+    free(el);
+    return bad;
 }
 
 /* Binary glTF (magic "glTF", versions 1 and 2): assimp 5.2 allocates and
@@ -111,10 +342,9 @@ static int glb_header_problem(FILE *f, uint64_t file_size, char *msg, size_t msg
         word[i] = (uint32_t)h[8 + 4 * i] | (uint32_t)h[9 + 4 * i] << 8 | (uint32_t)h[10 + 4 * i] << 16 |
                   (uint32_t)h[11 + 4 * i] << 24;
     if (word[0] > file_size || (uint64_t)word[1] + 20 > file_size)
-        return snprintf(msg, msg_size,
+        return problem(msg, msg_size,
                         "binary glTF header gives a length of %u bytes and a first chunk of %u bytes, "
-                        "but the file has %llu bytes", word[0], word[1], (unsigned long long)file_size),
-               1;
+                        "but the file has %llu bytes", word[0], word[1], (unsigned long long)file_size);
     return 0;
 }
 
@@ -277,7 +507,7 @@ hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_des
     hl_result r = open_checked(ctx, path, &f, &size);
     if (r != HL_OK) return r;
     char msg[160];
-    int bad = ply_header_problem(f, msg, sizeof msg);
+    int bad = ply_problem(f, size, msg, sizeof msg);
     if (!bad) {
         rewind(f);
         bad = glb_header_problem(f, size, msg, sizeof msg);
