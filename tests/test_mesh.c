@@ -737,11 +737,11 @@ static void test_bad_no_faces(void)
     hl_context_destroy(ctx);
 }
 
-/* PLY files whose elements or lists claim more than the file holds:
- * assimp would make room for all of it first (gigabytes from a few hundred
- * bytes, or minutes of filling in zeros), so they are refused before it
- * reads them, quickly and with the reason. The same layouts with honest
- * sizes, in both binary byte orders and with a blank line in ASCII, load. */
+/* PLY and OFF files whose counts claim more than the file holds: assimp
+ * would make room for all of it first (gigabytes from a few hundred bytes,
+ * or minutes of filling in zeros), so they are refused before it reads
+ * them, quickly and with the reason. The same layouts with honest counts,
+ * in both binary byte orders and with a blank line in ASCII, load. */
 static void put_u32(unsigned char *p, uint32_t v, int big)
 {
     for (int k = 0; k < 4; k++) p[big ? 3 - k : k] = (unsigned char)(v >> (8 * k));
@@ -768,7 +768,7 @@ static size_t binary_ply(unsigned char *buf, int big, uint32_t count)
     return at;
 }
 
-static void test_bad_ply_sizes(void)
+static void test_bad_counts(void)
 {
     hl_context *ctx = make_ctx();
     static const char head[] = "ply\nformat ascii 1.0\nelement vertex %s\nproperty float x\nproperty float y\n"
@@ -822,6 +822,27 @@ static void test_bad_ply_sizes(void)
     hl_mesh *m = NULL;
     HL_CHECK(load(ctx, path, NULL, &m, NULL) == HL_OK && m && m->triangle_count == 1,
              "an honest ASCII triangle must load");
+    hl_mesh_destroy(m);
+    /* OFF: vertex and face counts beyond the lines that follow */
+    static const char *const off[][2] = {{"mesh_off_vertices.off", "OFF\n300000000 1 0\n0 0 0\n1 0 0\n0 0 -1\n3 0 1 2\n"},
+                                         {"mesh_off_faces.off", "# a comment\nOFF\n3 300000000 0\n0 0 0\n1 0 0\n0 0 -1\n3 0 1 2\n"},
+                                         {"mesh_off_headerless.off", "3000000000 1 0\n0 0 0\n1 0 0\n0 0 -1\n3 0 1 2\n"}};
+    for (size_t k = 0; k < sizeof off / sizeof off[0]; k++) {
+        const char *opath = tmp_path(off[k][0]);
+        write_text(opath, off[k][1]);
+        m = NULL;
+        double t0 = hl_now();
+        hl_result r = hl_mesh_load(ctx, opath, NULL, &m, NULL);
+        slowest = fmax(slowest, hl_now() - t0);
+        expect_failure(ctx, opath, r, HL_ERR_FORMAT);
+        HL_CHECK(strstr(hl_context_last_error(ctx), "lines follow") != NULL, "%s: wrong reason", opath);
+        hl_mesh_destroy(m);
+    }
+    const char *opath = tmp_path("mesh_off_honest.off");
+    write_text(opath, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 0 -1\n3 0 1 2");
+    m = NULL;
+    HL_CHECK(load(ctx, opath, NULL, &m, NULL) == HL_OK && m && m->triangle_count == 1,
+             "an honest OFF triangle (no final line end) must load");
     hl_mesh_destroy(m);
     /* not a time limit: assimp took seconds to minutes on these */
     printf("slowest refusal: %.3f s\n", slowest);
@@ -941,7 +962,7 @@ int main(int argc, char **argv)
         {"bad_index", test_bad_index},
         {"bad_no_faces", test_bad_no_faces},
         {"bad_not_mesh", test_bad_not_mesh},
-        {"bad_ply_sizes", test_bad_ply_sizes},
+        {"bad_counts", test_bad_counts},
         {"bad_missing", test_bad_missing},
         {"bad_empty", test_bad_empty},
         {"bad_args", test_bad_args},

@@ -8,8 +8,9 @@
  * unreferenced vertices of the file are not seen. Hostile files that
  * would hang, abort, corrupt or exhaust assimp 5.2 itself (a PLY header
  * without end_header or with an element declared twice, PLY elements or
- * lists larger than the file can hold, a binary glTF whose lengths exceed
- * the file, faces without indices) are refused before it gets to them.
+ * lists, or OFF counts, larger than the file can hold, a binary glTF whose
+ * lengths exceed the file, faces without indices) are refused before it
+ * gets to them.
  *
  * Dependencies: assimp C API (Debian libassimp-dev 5.2), POSIX (stat,
  * uselocale), hl_internal.h.
@@ -269,7 +270,10 @@ static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
         char word[16], a[64], b[64], c[64], d[64];
         int fields = sscanf(line, " %15s %63s %63s %63s %63s", word, a, b, c, d);
         if (fields < 1) continue;
-        if (strcmp(word, "end_header") == 0) {
+        /* as assimp matches it: then a space, a tab, a form feed or the
+           line's end (a vertical tab, say, and it reads on for ever) */
+        const char *w = line + strspn(line, " \t");
+        if (strncmp(w, "end_header", 10) == 0 && (w[10] == '\0' || w[10] == ' ' || w[10] == '\t' || w[10] == '\f')) {
             ended = 1;
             break;
         }
@@ -326,6 +330,72 @@ static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
     }
     free(el);
     return bad;
+}
+
+/* ---------------------------------------------------------------- OFF */
+
+/* assimp 5.2's OFF reader allocates the vertex and face arrays at the
+ * counts its header gives before it reads a line: a few bytes declaring
+ * 3e8 vertices or faces took 3.5 to 4.7 GB and 15 s before it failed.
+ * Its header is read here as assimp reads it (comment lines skipped, the
+ * prefixes ST, C, N, 4 and n, then "OFF", which may be missing, then an
+ * optional dimension, the vertex and face counts as 32-bit counts), and
+ * each count must fit in the lines that follow. Applies to names ending
+ * in .off (any case), which assimp gives to that reader. */
+
+/* assimp's NextToken: skips spaces, line ends and lines starting with #. */
+static const char *off_next(const char *c, const char *end)
+{
+    for (;;) {
+        while (c < end && (*c == ' ' || *c == '\t' || *c == '\n' || *c == '\r' || *c == '\f' || *c == '\v')) c++;
+        if (c >= end || *c != '#') return c;
+        while (c < end && *c != '\n' && *c != '\r') c++;
+    }
+}
+
+/* assimp's strtoul10: leading digits, wrapping as an unsigned int. */
+static uint32_t off_count(const char **c, const char *end)
+{
+    uint32_t v = 0;
+    for (; *c < end && **c >= '0' && **c <= '9'; (*c)++) v = v * 10u + (uint32_t)(**c - '0');
+    return v;
+}
+
+static int off_problem(const char *path, FILE *f, char *msg, size_t msg_size)
+{
+    size_t n = strlen(path);
+    if (n < 4 || strcasecmp(path + n - 4, ".off") != 0) return 0;
+    char head[4096];
+    size_t got = fread(head, 1, sizeof head, f);
+    const char *c = off_next(head, head + got), *end = head + got;
+    int dimension = 0;
+    if (c < end - 2 && c[0] == 'S' && c[1] == 'T') c += 2;
+    if (c < end - 1 && c[0] == 'C') c++;
+    if (c < end - 1 && c[0] == 'N') c++;
+    if (c < end - 1 && c[0] == '4') c++;
+    if (c < end - 1 && c[0] == 'n') dimension = 1, c++;
+    if (c < end - 3 && c[0] == 'O' && c[1] == 'F' && c[2] == 'F') c += 3;
+    c = off_next(c, end);
+    if (dimension) {
+        off_count(&c, end);
+        c = off_next(c, end);
+    }
+    uint32_t nv = off_count(&c, end);
+    c = off_next(c, end);
+    uint32_t nf = off_count(&c, end);
+    if (c >= end && got == sizeof head) return 0; /* a header longer than 4 KB: assimp's own errors */
+    /* the lines after the counts */
+    uint64_t lines = 0;
+    for (const char *q = c; q < end; q++) lines += *q == '\n';
+    char buf[65536];
+    size_t k;
+    while ((k = fread(buf, 1, sizeof buf, f)) > 0)
+        for (size_t i = 0; i < k; i++) lines += buf[i] == '\n';
+    lines++; /* a last line without its line end */
+    if (nv > lines || nf > lines)
+        return problem(msg, msg_size, "OFF header declares %u vertices and %u faces, but only %llu lines follow", nv, nf,
+                       (unsigned long long)lines);
+    return 0;
 }
 
 /* Binary glTF (magic "glTF", versions 1 and 2): assimp 5.2 allocates and
@@ -511,6 +581,10 @@ hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_des
     if (!bad) {
         rewind(f);
         bad = glb_header_problem(f, size, msg, sizeof msg);
+    }
+    if (!bad) {
+        rewind(f);
+        bad = off_problem(path, f, msg, sizeof msg);
     }
     fclose(f);
     if (bad) return hl_fail(ctx, HL_ERR_FORMAT, "%s: %s", path, msg);
