@@ -265,7 +265,7 @@ static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
         return 0;
     ply_elem *el = calloc(PLY_MAX_ELEMENTS, sizeof *el);
     if (!el) return problem(msg, msg_size, "out of memory for the PLY header");
-    int nel = 0, format = -1, bad = 0, ended = 0; /* format: 0 ASCII, 1 little, 2 big endian */
+    int nel = 0, format = -1, bad = 0, ended = 0, open = 0; /* format: 0 ASCII, 1 little, 2 big endian */
     while (!bad && ply_header_line(f, line, sizeof line)) {
         char word[16], a[64], b[64], c[64], d[64];
         int fields = sscanf(line, " %15s %63s %63s %63s %63s", word, a, b, c, d);
@@ -299,12 +299,14 @@ static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
                                a, (unsigned long long)file_size);
             memcpy(el[nel].name, a, sizeof a);
             el[nel++].count = n;
-        } else if (strcmp(word, "property") == 0 && fields >= 3) {
-            if (nel == 0) continue;
+            open = 1;
+        } else if (strcmp(word, "comment") == 0 || strcmp(word, "obj_info") == 0) {
+            continue;
+        } else if (strcmp(word, "property") == 0 && fields >= 3 && open) {
             ply_elem *e = &el[nel - 1];
             if (e->nprops == PLY_MAX_PROPS) {
                 bad = problem(msg, msg_size, "PLY element \"%s\" has more than %d properties", e->name,
-                               PLY_MAX_PROPS);
+                              PLY_MAX_PROPS);
                 break;
             }
             ply_prop *p = &e->props[e->nprops];
@@ -312,13 +314,18 @@ static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
                 p->list = 1;
                 p->count_size = (uint8_t)(fields >= 4 ? ply_type_size(b) : 0);
                 p->size = (uint8_t)(fields >= 4 ? ply_type_size(c) : 0);
-                if (p->count_size && p->size) e->nprops++;
             } else {
                 p->list = 0;
+                p->count_size = 0;
                 p->size = (uint8_t)ply_type_size(a);
-                if (p->size) e->nprops++;
             }
+            if (p->size && (!p->list || p->count_size)) e->nprops++;
+            else open = 0; /* a type assimp does not know ends the list */
+            continue;
         }
+        /* as in assimp, an element's properties are the lines right after
+           it: any other line ends them */
+        if (strcmp(word, "element") != 0) open = 0;
     }
     if (!bad && !ended) bad = problem(msg, msg_size, "PLY header has no end_header line (truncated or corrupt)");
     /* a format assimp does not know: it refuses the header itself */
