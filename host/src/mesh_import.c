@@ -266,7 +266,7 @@ static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
     ply_elem *el = calloc(PLY_MAX_ELEMENTS, sizeof *el);
     if (!el) return problem(msg, msg_size, "out of memory for the PLY header");
     int nel = 0, format = -1, bad = 0, ended = 0, open = 0; /* format: 0 ASCII, 1 little, 2 big endian */
-    while (!bad && ply_header_line(f, line, sizeof line)) {
+    for (int lineno = 1; !bad && ply_header_line(f, line, sizeof line); lineno++) {
         char word[16], a[64], b[64], c[64], d[64];
         int fields = sscanf(line, " %15s %63s %63s %63s %63s", word, a, b, c, d);
         if (fields < 1) continue;
@@ -278,8 +278,10 @@ static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
             break;
         }
         if (strcmp(word, "format") == 0 && fields >= 2) {
-            /* as assimp tells them: "binary_" then "big" in any case is big
-               endian, anything else after "binary_" little endian */
+            /* as assimp tells them, from the line after the magic only:
+               "binary_" then "big" in any case is big endian, anything
+               else after "binary_" little endian */
+            if (lineno != 1) continue;
             format = strcmp(a, "ascii") == 0            ? 0
                      : strncmp(a, "binary_", 7) != 0    ? -1
                      : strncasecmp(a + 7, "big", 3) == 0 ? 2
