@@ -367,6 +367,15 @@ static hl_result expect_refused(hl_context *ctx, const char *path, hl_result wan
     return r;
 }
 
+/* Saves img to path and expects hl_env_load to refuse it, saying why. */
+static void save_and_refuse(hl_context *ctx, const hl_image *img, const char *path, const char *what, const char *why)
+{
+    HL_CHECK(hl_image_save(ctx, img, path, 0.0f) == HL_OK, "save %s: %s", path, hl_context_last_error(ctx));
+    expect_refused(ctx, path, HL_ERR_FORMAT, what);
+    HL_CHECK(strstr(hl_context_last_error(ctx), why) != NULL, "%s: the message does not say \"%s\": %s", what, why,
+             hl_context_last_error(ctx));
+}
+
 static void test_bad_files(void)
 {
     hl_context *ctx = make_ctx();
@@ -400,10 +409,7 @@ static void test_bad_files(void)
     HL_CHECK(hl_image_create(ctx, 6, 4, &img) == HL_OK, "hl_image_create 6x4");
     if (img) {
         snprintf(path, sizeof path, "%s/six_by_four.exr", dir);
-        HL_CHECK(hl_image_save(ctx, img, path, 0.0f) == HL_OK, "save %s: %s", path, hl_context_last_error(ctx));
-        expect_refused(ctx, path, HL_ERR_FORMAT, "valid EXR of 6 x 4");
-        HL_CHECK(strstr(hl_context_last_error(ctx), "6 x 4") != NULL, "the message does not give the size: %s",
-                 hl_context_last_error(ctx));
+        save_and_refuse(ctx, img, path, "valid EXR of 6 x 4", "6 x 4");
         hl_image_destroy(img);
     }
 
@@ -602,10 +608,7 @@ static void test_float_files(void)
     if (img) {
         img->rgb[4] = 1e31f;
         snprintf(path, sizeof path, "%s/too_bright.exr", scratch_dir);
-        HL_CHECK(hl_image_save(ctx, img, path, 0.0f) == HL_OK, "save %s: %s", path, hl_context_last_error(ctx));
-        expect_refused(ctx, path, HL_ERR_FORMAT, "a channel of 1e31 in a float file");
-        HL_CHECK(strstr(hl_context_last_error(ctx), "brighter than") != NULL, "refused for another reason: %s",
-                 hl_context_last_error(ctx));
+        save_and_refuse(ctx, img, path, "a channel of 1e31 in a float file", "brighter than");
         hl_image_destroy(img);
     }
     hl_context_destroy(ctx);

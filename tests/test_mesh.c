@@ -768,6 +768,28 @@ static size_t binary_ply(unsigned char *buf, int big, uint32_t count)
     return at;
 }
 
+/* Loads path, which must be refused (HL_ERR_FORMAT, naming the file) with
+ * why in the message; the time taken goes into *slowest. */
+static void refused_with(hl_context *ctx, const char *path, const char *why, double *slowest)
+{
+    hl_mesh *m = NULL;
+    double t0 = hl_now();
+    hl_result r = hl_mesh_load(ctx, path, NULL, &m, NULL);
+    *slowest = fmax(*slowest, hl_now() - t0);
+    expect_failure(ctx, path, r, HL_ERR_FORMAT);
+    HL_CHECK(strstr(hl_context_last_error(ctx), why) != NULL, "%s: the message does not say \"%s\"", path, why);
+    hl_mesh_destroy(m);
+}
+
+/* Loads path, which must give one triangle. */
+static void one_triangle(hl_context *ctx, const char *path)
+{
+    hl_mesh *m = NULL;
+    HL_CHECK(load(ctx, path, NULL, &m, NULL) == HL_OK && m && m->triangle_count == 1,
+             "%s: an honest triangle must load", path);
+    hl_mesh_destroy(m);
+}
+
 static void test_bad_counts(void)
 {
     hl_context *ctx = make_ctx();
@@ -789,40 +811,21 @@ static void test_bad_counts(void)
         snprintf(text, sizeof text, head, ascii[k].vertices, ascii[k].face);
         const char *path = tmp_path(ascii[k].name);
         write_text(path, text);
-        hl_mesh *m = NULL;
-        double t0 = hl_now();
-        hl_result r = hl_mesh_load(ctx, path, NULL, &m, NULL);
-        slowest = fmax(slowest, hl_now() - t0);
-        expect_failure(ctx, path, r, HL_ERR_FORMAT);
-        HL_CHECK(strstr(hl_context_last_error(ctx), ascii[k].why) != NULL, "%s: the message does not say \"%s\"",
-                 path, ascii[k].why);
-        hl_mesh_destroy(m);
+        refused_with(ctx, path, ascii[k].why, &slowest);
     }
     unsigned char bin[1024];
     for (int big = 0; big < 2; big++) {
         const char *path = tmp_path(big ? "mesh_ply_list_be.ply" : "mesh_ply_list_le.ply");
         write_file(path, bin, binary_ply(bin, big, 300000000u));
-        hl_mesh *m = NULL;
-        double t0 = hl_now();
-        hl_result r = hl_mesh_load(ctx, path, NULL, &m, NULL);
-        slowest = fmax(slowest, hl_now() - t0);
-        expect_failure(ctx, path, r, HL_ERR_FORMAT);
-        HL_CHECK(strstr(hl_context_last_error(ctx), "a list of 300000000 values") != NULL, "%s: wrong reason", path);
-        hl_mesh_destroy(m);
-        /* honest: loads */
-        write_file(path, bin, binary_ply(bin, big, 3u));
-        HL_CHECK(load(ctx, path, NULL, &m, NULL) == HL_OK && m && m->triangle_count == 1,
-                 "%s: an honest binary triangle must load", path);
-        hl_mesh_destroy(m);
+        refused_with(ctx, path, "a list of 300000000 values", &slowest);
+        write_file(path, bin, binary_ply(bin, big, 3u)); /* honest: loads */
+        one_triangle(ctx, path);
     }
     /* honest ASCII, a blank line between the vertices and the face */
     snprintf(text, sizeof text, head, "3", "\n3 0 1 2");
     const char *path = tmp_path("mesh_ply_honest.ply");
     write_text(path, text);
-    hl_mesh *m = NULL;
-    HL_CHECK(load(ctx, path, NULL, &m, NULL) == HL_OK && m && m->triangle_count == 1,
-             "an honest ASCII triangle must load");
-    hl_mesh_destroy(m);
+    one_triangle(ctx, path);
     /* OFF: vertex and face counts beyond the lines that follow */
     static const char *const off[][2] = {{"mesh_off_vertices.off", "OFF\n300000000 1 0\n0 0 0\n1 0 0\n0 0 -1\n3 0 1 2\n"},
                                          {"mesh_off_faces.off", "# a comment\nOFF\n3 300000000 0\n0 0 0\n1 0 0\n0 0 -1\n3 0 1 2\n"},
@@ -830,20 +833,11 @@ static void test_bad_counts(void)
     for (size_t k = 0; k < sizeof off / sizeof off[0]; k++) {
         const char *opath = tmp_path(off[k][0]);
         write_text(opath, off[k][1]);
-        m = NULL;
-        double t0 = hl_now();
-        hl_result r = hl_mesh_load(ctx, opath, NULL, &m, NULL);
-        slowest = fmax(slowest, hl_now() - t0);
-        expect_failure(ctx, opath, r, HL_ERR_FORMAT);
-        HL_CHECK(strstr(hl_context_last_error(ctx), "lines follow") != NULL, "%s: wrong reason", opath);
-        hl_mesh_destroy(m);
+        refused_with(ctx, opath, "lines follow", &slowest);
     }
     const char *opath = tmp_path("mesh_off_honest.off");
-    write_text(opath, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 0 -1\n3 0 1 2");
-    m = NULL;
-    HL_CHECK(load(ctx, opath, NULL, &m, NULL) == HL_OK && m && m->triangle_count == 1,
-             "an honest OFF triangle (no final line end) must load");
-    hl_mesh_destroy(m);
+    write_text(opath, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 0 -1\n3 0 1 2"); /* no final line end */
+    one_triangle(ctx, opath);
     /* not a time limit: assimp took seconds to minutes on these */
     printf("slowest refusal: %.3f s\n", slowest);
     hl_context_destroy(ctx);
