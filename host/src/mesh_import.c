@@ -350,7 +350,9 @@ static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
  * prefixes ST, C, N, 4 and n, then "OFF", which may be missing, then an
  * optional dimension, the vertex and face counts as 32-bit counts), and
  * each count must fit in the lines that follow. Applies to names ending
- * in .off (any case), which assimp gives to that reader. */
+ * in .off (any case), which assimp gives to that reader, and to any file
+ * that starts with the OFF magic, which it falls back to that reader for
+ * when the reader its name picks fails. */
 
 /* assimp's NextToken: skips spaces, line ends and lines starting with #. */
 static const char *off_next(const char *c, const char *end)
@@ -373,17 +375,20 @@ static uint32_t off_count(const char **c, const char *end)
 static int off_problem(const char *path, FILE *f, char *msg, size_t msg_size)
 {
     size_t n = strlen(path);
-    if (n < 4 || strcasecmp(path + n - 4, ".off") != 0) return 0;
+    int named = n >= 4 && strcasecmp(path + n - 4, ".off") == 0;
     char head[4096];
     size_t got = fread(head, 1, sizeof head, f);
     const char *c = off_next(head, head + got), *end = head + got;
-    int dimension = 0;
+    int dimension = 0, magic = 0;
     if (c < end - 2 && c[0] == 'S' && c[1] == 'T') c += 2;
     if (c < end - 1 && c[0] == 'C') c++;
     if (c < end - 1 && c[0] == 'N') c++;
     if (c < end - 1 && c[0] == '4') c++;
     if (c < end - 1 && c[0] == 'n') dimension = 1, c++;
-    if (c < end - 3 && c[0] == 'O' && c[1] == 'F' && c[2] == 'F') c += 3;
+    if (c < end - 3 && c[0] == 'O' && c[1] == 'F' && c[2] == 'F') c += 3, magic = 1;
+    /* under another name, assimp still falls back to this reader when the
+       file starts with the OFF magic */
+    if (!named && !magic) return 0;
     c = off_next(c, end);
     if (dimension) {
         off_count(&c, end);
