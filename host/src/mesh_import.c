@@ -9,8 +9,8 @@
  * would hang, abort, corrupt or exhaust assimp 5.2 itself (a PLY header
  * without end_header or with an element declared twice, PLY elements or
  * lists, or OFF counts, larger than the file can hold, a binary glTF whose
- * lengths exceed the file, faces without indices) are refused before it
- * gets to them.
+ * lengths exceed the file, a .glb or .gltf name on another kind of file,
+ * faces without indices) are refused before it gets to them.
  *
  * Dependencies: assimp C API (Debian libassimp-dev 5.2), POSIX (stat,
  * uselocale), hl_internal.h.
@@ -432,6 +432,28 @@ static int glb_header_problem(FILE *f, uint64_t file_size, char *msg, size_t msg
     return 0;
 }
 
+/* A .glb or .gltf name on a file that is not glTF: assimp's glTF reader
+ * turns it down, and assimp then offers the file to every reader it has by
+ * its content (an OFF header under a .glb name took 4.8 GB), so it is
+ * refused here. A .glb starts with the magic "glTF", a .gltf (JSON) with
+ * "{" after any spaces. Returns 0, or 1 with the problem in msg. */
+static int gltf_name_problem(const char *path, FILE *f, char *msg, size_t msg_size)
+{
+    size_t n = strlen(path);
+    int glb = n >= 4 && strcasecmp(path + n - 4, ".glb") == 0, gltf = n >= 5 && strcasecmp(path + n - 5, ".gltf") == 0;
+    if (!glb && !gltf) return 0;
+    unsigned char h[4] = {0};
+    if (glb) {
+        if (fread(h, 1, 4, f) == 4 && memcmp(h, "glTF", 4) == 0) return 0;
+        return problem(msg, msg_size, "not a binary glTF file (it does not start with \"glTF\")");
+    }
+    int c;
+    do c = getc(f);
+    while (c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == 0xEF || c == 0xBB || c == 0xBF); /* BOM */
+    if (c == '{') return 0;
+    return problem(msg, msg_size, "not a glTF file (JSON starting with \"{\")");
+}
+
 static void skipped_note(hl_context *ctx, const char *path, uint64_t skipped)
 {
     if (skipped && ctx && !ctx->quiet)
@@ -595,6 +617,10 @@ hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_des
     if (!bad) {
         rewind(f);
         bad = glb_header_problem(f, size, msg, sizeof msg);
+    }
+    if (!bad) {
+        rewind(f);
+        bad = gltf_name_problem(path, f, msg, sizeof msg);
     }
     if (!bad) {
         rewind(f);
