@@ -72,7 +72,8 @@ static hl_result open_checked(hl_context *ctx, const char *path, FILE **out, siz
  *   values took 4.7 GB, one that declares 3e8 vertices ran for minutes.
  * So the header is read up to end_header, and the body walked as assimp
  * reads it (ASCII: one element per line; binary: the declared types, in
- * either byte order): every element must fit in what is left of the file,
+ * either byte order; only elements whose names assimp knows have a count):
+ * every element must fit in what is left of the file,
  * and every list in its line (ASCII) or in the bytes left (binary). Files
  * that do not start with the PLY magic ("ply", any case, as assimp checks
  * it) are left alone. */
@@ -141,6 +142,17 @@ static uint64_t ply_digits(const char *s)
     uint64_t v = 0;
     for (; *s >= '0' && *s <= '9'; s++) v = v > (UINT64_MAX - 9) / 10 ? UINT64_MAX : v * 10 + (uint64_t)(*s - '0');
     return v;
+}
+
+/* assimp's TokenMatch: the token, then a space, a tab, a form feed or the
+ * line's end. Returns what follows it, or NULL. (A vertical tab after
+ * end_header, say, and assimp reads on for ever.) */
+static const char *ply_match(const char *s, const char *token)
+{
+    size_t n = strlen(token);
+    if (strncmp(s, token, n) != 0) return NULL;
+    char c = s[n];
+    return c == '\0' || c == ' ' || c == '\t' || c == '\f' ? s + n : NULL;
 }
 
 /* The next token of an ASCII line: 1 with the value of its leading digits
@@ -265,69 +277,80 @@ static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
         return 0;
     ply_elem *el = calloc(PLY_MAX_ELEMENTS, sizeof *el);
     if (!el) return problem(msg, msg_size, "out of memory for the PLY header");
-    int nel = 0, format = -1, bad = 0, ended = 0, open = 0; /* format: 0 ASCII, 1 little, 2 big endian */
+    /* format: 0 ASCII, 1 little, 2 big endian; open: the lines that follow
+       are properties of el[nel - 1] (1), of an element assimp counts as
+       empty (2), or not properties (0) */
+    int nel = 0, format = -1, bad = 0, ended = 0, open = 0;
     for (int lineno = 1; !bad && ply_header_line(f, line, sizeof line); lineno++) {
         char word[16], a[64], b[64], c[64], d[64];
         int fields = sscanf(line, " %15s %63s %63s %63s %63s", word, a, b, c, d);
         if (fields < 1) continue;
-        /* as assimp matches it: then a space, a tab, a form feed or the
-           line's end (a vertical tab, say, and it reads on for ever) */
-        const char *w = line + strspn(line, " \t");
-        if (strncmp(w, "end_header", 10) == 0 && (w[10] == '\0' || w[10] == ' ' || w[10] == '\t' || w[10] == '\f')) {
+        const char *w = line + strspn(line, " \t"), *r;
+        if (ply_match(w, "end_header")) {
             ended = 1;
             break;
         }
-        if (strcmp(word, "format") == 0 && fields >= 2) {
+        if (lineno == 1 && strcmp(word, "format") == 0 && fields >= 2) {
             /* as assimp tells them, from the line after the magic only:
                "binary_" then "big" in any case is big endian, anything
                else after "binary_" little endian */
-            if (lineno != 1) continue;
             format = strcmp(a, "ascii") == 0            ? 0
                      : strncmp(a, "binary_", 7) != 0    ? -1
                      : strncasecmp(a + 7, "big", 3) == 0 ? 2
                                                          : 1;
-        } else if (strcmp(word, "element") == 0 && fields >= 2) {
+        } else if ((r = ply_match(w, "element")) != NULL) {
+            /* assimp reads a count only after the names it knows; any
+               other element has none (its properties are still read) */
+            static const char *const known[] = {"vertex", "face", "tristrips", "edge", "material"};
+            r += strspn(r, " \t");
+            const char *name = NULL, *q = NULL;
+            for (size_t k = 0; !name && k < sizeof known / sizeof known[0]; k++)
+                if ((q = ply_match(r, known[k])) != NULL) name = known[k];
+            open = ply_match(r, "TextureFile") ? 0 : 2; /* a texture element has no properties */
+            if (!name) continue;
             for (int i = 0; i < nel; i++)
-                if (strcmp(el[i].name, a) == 0)
-                    bad = problem(msg, msg_size, "PLY header declares element \"%s\" twice", a);
+                if (strcmp(el[i].name, name) == 0)
+                    bad = problem(msg, msg_size, "PLY header declares element \"%s\" twice", name);
             if (bad) break;
             if (nel == PLY_MAX_ELEMENTS) {
                 bad = problem(msg, msg_size, "PLY header declares more than %d elements", PLY_MAX_ELEMENTS);
                 break;
             }
-            unsigned long long n = fields >= 3 ? ply_digits(b) : 0;
+            unsigned long long n = ply_digits(q + strspn(q, " \t"));
             if (n > file_size)
                 bad = problem(msg, msg_size, "PLY header declares %llu \"%s\" elements in a file of %llu bytes", n,
-                               a, (unsigned long long)file_size);
-            memcpy(el[nel].name, a, sizeof a);
+                              name, (unsigned long long)file_size);
+            snprintf(el[nel].name, sizeof el[nel].name, "%s", name);
             el[nel++].count = n;
             open = 1;
-        } else if (strcmp(word, "comment") == 0 || strcmp(word, "obj_info") == 0) {
-            continue;
-        } else if (strcmp(word, "property") == 0 && fields >= 3 && open) {
+        } else if (ply_match(w, "comment")) {
+            continue; /* skipped, inside an element's properties or not */
+        } else if (ply_match(w, "property") && fields >= 3 && open) {
+            ply_prop p = {0, 0, 0};
+            if (strcmp(a, "list") == 0) {
+                p.list = 1;
+                p.count_size = (uint8_t)(fields >= 4 ? ply_type_size(b) : 0);
+                p.size = (uint8_t)(fields >= 4 ? ply_type_size(c) : 0);
+            } else {
+                p.size = (uint8_t)ply_type_size(a);
+            }
+            if (!p.size || (p.list && !p.count_size)) {
+                open = 0; /* a type assimp does not know ends the list */
+                continue;
+            }
+            if (open == 2) continue; /* an element without a count */
             ply_elem *e = &el[nel - 1];
             if (e->nprops == PLY_MAX_PROPS) {
                 bad = problem(msg, msg_size, "PLY element \"%s\" has more than %d properties", e->name,
                               PLY_MAX_PROPS);
                 break;
             }
-            ply_prop *p = &e->props[e->nprops];
-            if (strcmp(a, "list") == 0) {
-                p->list = 1;
-                p->count_size = (uint8_t)(fields >= 4 ? ply_type_size(b) : 0);
-                p->size = (uint8_t)(fields >= 4 ? ply_type_size(c) : 0);
-            } else {
-                p->list = 0;
-                p->count_size = 0;
-                p->size = (uint8_t)ply_type_size(a);
-            }
-            if (p->size && (!p->list || p->count_size)) e->nprops++;
-            else open = 0; /* a type assimp does not know ends the list */
-            continue;
+            e->props[e->nprops++] = p;
+        } else {
+            /* as in assimp, an element's properties are the lines right
+               after it: any other line ends them */
+            open = 0;
         }
-        /* as in assimp, an element's properties are the lines right after
-           it: any other line ends them */
-        if (strcmp(word, "element") != 0) open = 0;
     }
     if (!bad && !ended) bad = problem(msg, msg_size, "PLY header has no end_header line (truncated or corrupt)");
     /* a format assimp does not know: it refuses the header itself */
