@@ -555,6 +555,26 @@ static void case_orientation(void)
             for (int k = 0; k < 3; k++) px[3 * ((size_t)y * W + x) + k] = L;
         }
     }
+    /* the expected colours, per turn and face, and the brightest per turn */
+    static const float turns[] = {0.0f, 90.0f, 200.0f};
+    enum { TURNS = sizeof turns / sizeof turns[0] };
+    double want[TURNS][ORI_FACES], top[TURNS];
+    for (size_t k = 0; k < TURNS; k++) {
+        double cs = cos(turns[k] * HL_PI / 180.0), sn = sin(turns[k] * HL_PI / 180.0);
+        top[k] = 0.0;
+        for (int f = 0; f < ORI_FACES; f++) {
+            double acc = 0.0;
+            for (size_t p = 0; p < (size_t)W * H; p++) {
+                const double *w = wdir + 3 * p;
+                /* R_y(deg) w, right-handed: +Z goes to +X at 90 */
+                double rw[3] = {w[0] * cs + w[2] * sn, w[1], -w[0] * sn + w[2] * cs};
+                double c = nrm[f][0] * rw[0] + nrm[f][1] * rw[1] + nrm[f][2] * rw[2];
+                if (c > 0) acc += px[3 * p] * c * om[p / W];
+            }
+            want[k][f] = acc / HL_PI;
+            top[k] = fmax(top[k], want[k][f]);
+        }
+    }
     for (int backend = 0; backend < 2; backend++) {
         hl_context *ctx = ctx_of(backend ? HL_BACKEND_REFERENCE : HL_BACKEND_OPENCL);
         hl_mesh *m = NULL;
@@ -571,32 +591,19 @@ static void case_orientation(void)
         if (res == HL_OK) res = hl_env_create(ctx, W, H, px, &env, NULL);
         if (res == HL_OK) res = hl_relighter_set_env(r, env);
         HL_CHECK(res == HL_OK, "orientation scene: %s", hl_context_last_error(ctx));
-        static const float turns[] = {0.0f, 90.0f, 200.0f};
-        for (size_t k = 0; res == HL_OK && k < sizeof turns / sizeof turns[0]; k++) {
+        for (size_t k = 0; res == HL_OK && k < TURNS; k++) {
             float rgb[3 * 3 * ORI_FACES];
             hl_relight_desc rd = {.terms = HL_TERMS_ALL, .rotate_deg = turns[k]};
             res = hl_relighter_run(r, &rd, rgb, NULL);
             HL_CHECK(res == HL_OK, "relight: %s", hl_context_last_error(ctx));
             if (res != HL_OK) break;
-            double cs = cos(turns[k] * HL_PI / 180.0), sn = sin(turns[k] * HL_PI / 180.0);
-            double want[ORI_FACES], top = 0.0, worst = 0.0;
-            for (int f = 0; f < ORI_FACES; f++) {
-                double acc = 0.0;
-                for (size_t p = 0; p < (size_t)W * H; p++) {
-                    const double *w = wdir + 3 * p;
-                    /* R_y(deg) w, right-handed: +Z goes to +X at 90 */
-                    double rw[3] = {w[0] * cs + w[2] * sn, w[1], -w[0] * sn + w[2] * cs};
-                    double c = nrm[f][0] * rw[0] + nrm[f][1] * rw[1] + nrm[f][2] * rw[2];
-                    if (c > 0) acc += px[3 * p] * c * om[p / W];
-                }
-                want[f] = acc / HL_PI;
-                top = fmax(top, want[f]);
-            }
+            double worst = 0.0;
             printf("%s, turned %g:", backend ? "reference" : "OpenCL", (double)turns[k]);
             for (int f = 0; f < ORI_FACES; f++) {
-                printf(" %.4f/%.4f", (double)rgb[9 * f], want[f]);
+                printf(" %.4f/%.4f", (double)rgb[9 * f], want[k][f]);
                 for (int v = 0; v < 3; v++)
-                    for (int c = 0; c < 3; c++) worst = fmax(worst, fabs(rgb[9 * f + 3 * v + c] - want[f]) / top);
+                    for (int c = 0; c < 3; c++)
+                        worst = fmax(worst, fabs(rgb[9 * f + 3 * v + c] - want[k][f]) / top[k]);
             }
             printf(" (relit/integrated)\n");
             char what[160];

@@ -904,7 +904,7 @@ static void case_negative(void)
     for (size_t p = 0; p < (size_t)W * H; p++) {
         int neg = 0;
         for (int c = 0; c < 3; c++) {
-            /* negatives at least 0.01 below zero, so that they stay negative in half */
+            /* negatives at least 0.01 below zero */
             float v = hl_rng_next() % 3 == 0 ? -(float)(0.01 + rng_unit()) : (float)(2.0 * rng_unit());
             if (p == 5) v = -FLT_MAX;
             px[3 * p + c] = v;
@@ -918,7 +918,7 @@ static void case_negative(void)
         hl_env *env = NULL, *ref = NULL;
         hl_env_stats st = {0, 0};
         uint64_t want = negative;
-        float *want_px = clamped;
+        const float *want_px = clamped; /* the file holds 32-bit floats: the same map */
         if (src == 0) {
             HL_CHECK(hl_env_create(ref_ctx(), W, H, px, &env, &st) == HL_OK, "create");
         } else {
@@ -927,15 +927,8 @@ static void case_negative(void)
             HL_CHECK(hl_exr_write_rgb_(ref_ctx(), path, W, H, px) == HL_OK, "write: %s", hl_context_last_error(ref_ctx()));
             HL_CHECK(hl_env_load(ref_ctx(), path, &env, &st) == HL_OK, "load: %s", hl_context_last_error(ref_ctx()));
             remove(path);
-            /* the expected map: the written values as read back, clamped */
-            float *back = NULL;
-            uint32_t w2, h2;
-            hl_exr_write_rgb_(ref_ctx(), path, W, H, clamped);
-            HL_CHECK(hl_exr_read_rgb_(ref_ctx(), path, 0, &w2, &h2, &back) == HL_OK, "read back");
-            remove(path);
-            want_px = back;
         }
-        if (env && want_px) {
+        if (env) {
             printf("negative pixels counted %llu, expected %llu\n", (unsigned long long)st.negative_pixels,
                    (unsigned long long)want);
             HL_CHECK(st.negative_pixels == want && st.nonfinite_pixels == 0, "negative pixels miscounted");
@@ -956,7 +949,6 @@ static void case_negative(void)
                 hl_check_error("colours of the negative map vs its clamped copy (bits)", (double)diff, 0.0);
             }
         }
-        if (src == 1) free(want_px);
         hl_env_destroy(env);
         hl_env_destroy(ref);
         case_end();

@@ -67,6 +67,7 @@ static const char *const usage_bench =
 #define MAX_ENVS 16
 #define MAX_TERMS 16
 #define MAX_REF_REPS 100
+#define NEWMAP_REPS 15 /* at most, for the time of taking a new map */
 
 typedef struct env_case {
     const char *name, *path;
@@ -521,8 +522,8 @@ int cmd_bench(int argc, char **argv)
         }
         /* a new map: resampled onto the cell grid on the host and uploaded
            (what a change of map costs before its lighting change) */
-        double newmap[15];
-        uint32_t nnew = reps < 15 ? reps : 15;
+        double newmap[NEWMAP_REPS];
+        const uint32_t nnew = reps < NEWMAP_REPS ? reps : NEWMAP_REPS;
         for (uint32_t k = 0; k < nnew && r == HL_OK; k++) {
             double t0 = hl_now();
             r = hl_relighter_set_env(rc, envs[0].env);
@@ -580,7 +581,8 @@ int cmd_bench(int argc, char **argv)
                     "rounds, each the device's read bandwidth (a kernel reading 256 MiB, held as the transport columns\n"
                     "are, with huge pages advised on a CPU device; median of 3 passes) and the dot products alone (mean\n"
                     "of 20 launches); the fraction is the bytes they read over their time over the bandwidth of the\n"
-                    "same round. Medians over the rounds, and the fraction's range.\n\n", reps, reps < 15 ? reps : 15, BENCH_ROUNDS);
+                    "same round. Medians over the rounds, and the fraction's range.\n\n", reps,
+                reps < NEWMAP_REPS ? reps : NEWMAP_REPS, BENCH_ROUNDS);
         fprintf(md, "| file | lighting changes per second | new map | dot products alone | bytes they read | read bandwidth | "
                     "fraction of read bandwidth | range |\n|---|---|---|---|---|---|---|---|\n");
         for (int f = 0; f < nfiles; f++)

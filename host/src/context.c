@@ -6,6 +6,7 @@
  */
 #define _POSIX_C_SOURCE 200809L
 #define _DEFAULT_SOURCE /* MADV_HUGEPAGE is a Linux extension */
+#include <errno.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -90,6 +91,13 @@ void hl_run_threads(int threads, void *(*fn)(void *), void *arg)
         if (pthread_create(&th[started], NULL, fn, arg) == 0) started++;
     fn(arg);
     for (int t = 0; t < started; t++) pthread_join(th[t], NULL);
+}
+
+int hl_sync_fd(int fd)
+{
+    errno = 0;
+    if (fsync(fd) == 0 || errno == EINVAL || errno == EROFS) return 0;
+    return errno ? errno : EIO;
 }
 
 double hl_now(void)

@@ -140,25 +140,34 @@ static const char *core_text(const core_msg *m, exr_result_t rv)
     return m->text[0] ? m->text : exr_get_default_error_message(rv);
 }
 
+/* A context initializer whose messages go to m. */
+static exr_context_initializer_t core_init(core_msg *m)
+{
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = core_error;
+    init.user_data = m;
+    return init;
+}
+
 /* The channels read: R, G and B (a missing one reads 0), or Y alone (grey). */
 enum { CH_R, CH_G, CH_B, CH_Y, CH_COUNT };
+static const char *const channel_names[CH_COUNT] = {"R", "G", "B", "Y"};
 
 static int channel_of(const char *name)
 {
-    static const char *const names[CH_COUNT] = {"R", "G", "B", "Y"};
     for (int k = 0; name && k < CH_COUNT; k++)
-        if (strcmp(name, names[k]) == 0) return k;
+        if (strcmp(name, channel_names[k]) == 0) return k;
     return -1;
 }
 
 /* What OpenEXRCore's header parse (no decoding) says of the file. */
 typedef struct exr_layout {
     int any_float;      /* an R, G, B or Y channel is 32-bit float */
-    int core_ok;        /* OpenEXRCore can decode it: one scanline part, no
-                           DWA, R/G/B/Y half or float, not subsampled, no
-                           chroma */
+    int grey;           /* Y and none of R, G, B */
     int dwa;            /* DWAA or DWAB compression */
-    const char *reason; /* why not core_ok, for messages */
+    const char *reason; /* why OpenEXRCore cannot decode it (NULL: it can:
+                           one scanline part, no DWA, R/G/B/Y half or float,
+                           not subsampled, no chroma) */
 } exr_layout;
 
 static int probe(exr_context_t f, exr_layout *lay)
@@ -173,11 +182,14 @@ static int probe(exr_context_t f, exr_layout *lay)
         !cl)
         return 0;
     int found = 0, odd = 0;
+    lay->grey = 1;
     for (int i = 0; i < cl->num_channels; i++) {
         const exr_attr_chlist_entry_t *e = &cl->entries[i];
         if (e->name.str && (strcmp(e->name.str, "RY") == 0 || strcmp(e->name.str, "BY") == 0)) odd = 1;
-        if (channel_of(e->name.str) < 0) continue;
+        int k = channel_of(e->name.str);
+        if (k < 0) continue;
         found = 1;
+        if (k != CH_Y) lay->grey = 0;
         if (e->pixel_type == EXR_PIXEL_FLOAT) lay->any_float = 1;
         else if (e->pixel_type != EXR_PIXEL_HALF) odd = 1;
         if (e->x_sampling != 1 || e->y_sampling != 1) odd = 1;
@@ -189,13 +201,12 @@ static int probe(exr_context_t f, exr_layout *lay)
                   : !found                      ? "no R, G, B or Y channel"
                   : odd                         ? "subsampled, chroma or integer channels"
                                                 : NULL;
-    lay->core_ok = lay->reason == NULL;
     return 1;
 }
 
 /* Reads a file that probe() passed, as float, chunk by chunk. */
 static hl_result read_core(hl_context *ctx, const char *path, unsigned flags, exr_context_t f, const core_msg *msg,
-                           uint32_t *width, uint32_t *height, float **rgb)
+                           int grey, uint32_t *width, uint32_t *height, float **rgb)
 {
     exr_attr_box2i_t dw;
     int32_t spc = 0;
@@ -206,11 +217,6 @@ static hl_result read_core(hl_context *ctx, const char *path, unsigned flags, ex
     uint32_t w, h;
     hl_result r = window_size(ctx, path, flags, dw.min.x, dw.min.y, dw.max.x, dw.max.y, &w, &h);
     if (r != HL_OK) return r;
-    int grey = 1;
-    const exr_attr_chlist_t *cl = NULL;
-    exr_get_channels(f, 0, &cl);
-    for (int i = 0; cl && i < cl->num_channels; i++)
-        if (channel_of(cl->entries[i].name.str) >= 0 && channel_of(cl->entries[i].name.str) != CH_Y) grey = 0;
     float *out = hl_calloc(ctx, 3 * (size_t)w * h, sizeof(float), "environment pixels");
     if (!out) return HL_ERR_OUT_OF_MEMORY;
 
@@ -341,17 +347,16 @@ hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
     if (r != HL_OK) return r;
 
     core_msg msg = {{0}};
-    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.error_handler_fn = core_error;
-    init.user_data = &msg;
+    exr_context_initializer_t init = core_init(&msg);
     exr_context_t f = NULL;
     exr_layout lay = {0, 0, 0, NULL};
     int parsed = exr_start_read(&f, path, &init) == EXR_ERR_SUCCESS && probe(f, &lay);
     /* a header OpenEXRCore cannot parse goes to the wrapper, whose
        messages are the library's own */
-    if (parsed && lay.any_float && lay.core_ok) r = read_core(ctx, path, flags, f, &msg, width, height, rgb);
+    const int core = parsed && lay.any_float && !lay.reason;
+    if (core) r = read_core(ctx, path, flags, f, &msg, lay.grey, width, height, rgb);
     if (f) exr_finish(&f);
-    if (parsed && lay.any_float && lay.core_ok) return r;
+    if (core) return r;
     return read_wrapper(ctx, path, flags, parsed && lay.any_float && !lay.dwa ? lay.reason : NULL, width, height,
                         rgb);
 }
@@ -364,9 +369,7 @@ hl_result hl_exr_write_rgb_(hl_context *ctx, const char *path, uint32_t width,
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: cannot write a %u x %u OpenEXR image",
                        path, width, height);
     core_msg msg = {{0}};
-    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.error_handler_fn = core_error;
-    init.user_data = &msg;
+    exr_context_initializer_t init = core_init(&msg);
     exr_context_t f = NULL;
     int part = 0;
     int32_t spc = 0;
@@ -374,9 +377,8 @@ hl_result hl_exr_write_rgb_(hl_context *ctx, const char *path, uint32_t width,
     if (rv == EXR_ERR_SUCCESS) rv = exr_add_part(f, NULL, EXR_STORAGE_SCANLINE, &part);
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_initialize_required_attr_simple(f, part, (int32_t)width, (int32_t)height, EXR_COMPRESSION_ZIP);
-    static const char *const names[3] = {"R", "G", "B"};
-    for (int c = 0; rv == EXR_ERR_SUCCESS && c < 3; c++)
-        rv = exr_add_channel(f, part, names[c], EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+    for (int c = CH_R; rv == EXR_ERR_SUCCESS && c <= CH_B; c++)
+        rv = exr_add_channel(f, part, channel_names[c], EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
     if (rv == EXR_ERR_SUCCESS) rv = exr_write_header(f);
     if (rv == EXR_ERR_SUCCESS) rv = exr_get_scanlines_per_chunk(f, part, &spc);
     if (rv == EXR_ERR_SUCCESS && spc < 1) rv = EXR_ERR_INVALID_ARGUMENT;

@@ -49,6 +49,10 @@ void hl_run_threads(int threads, void *(*fn)(void *), void *arg);
 /* Monotonic wall clock in seconds. */
 double hl_now(void);
 
+/* fsync(fd), for output about to be renamed into place: 0, or the errno.
+ * A file system that cannot sync (EINVAL, EROFS) counts as synced. */
+int hl_sync_fd(int fd);
+
 /* mesh.c: validates raw arrays (name appears in errors), welds equal
  * positions, drops degenerate triangles and unreferenced vertices, computes
  * missing normals, orients closed meshes. colors may be NULL. */

@@ -822,10 +822,8 @@ hl_result hl_image_save(hl_context *ctx, const hl_image *img, const char *path, 
     hl_result r = HL_OK;
     if (png) {
         r = png_write(ctx, img, f, exposure_ev, path);
-        if ((fflush(f) != 0 || (fsync(fileno(f)) != 0 && errno != EINVAL && errno != EROFS)) && r == HL_OK) {
-            int e = errno;
-            r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write %s: %s", path, tmp, strerror(e));
-        }
+        int e = fflush(f) != 0 ? errno : hl_sync_fd(fileno(f));
+        if (e && r == HL_OK) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write %s: %s", path, tmp, strerror(e));
         if (fclose(f) != 0 && r == HL_OK) {
             int e = errno;
             r = hl_fail(ctx, HL_ERR_IO, "%s: cannot close %s: %s", path, tmp, strerror(e));
@@ -835,10 +833,8 @@ hl_result hl_image_save(hl_context *ctx, const hl_image *img, const char *path, 
         r = hl_exr_write_rgb_(ctx, tmp, img->width, img->height, img->rgb);
         /* on disk before the rename, as the PNG and the PLY are */
         int fd = r == HL_OK ? open(tmp, O_RDONLY) : -1;
-        if (r == HL_OK && (fd < 0 || (fsync(fd) != 0 && errno != EINVAL && errno != EROFS))) {
-            int e = errno;
-            r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write %s: %s", path, tmp, strerror(e));
-        }
+        int e = r != HL_OK ? 0 : fd < 0 ? errno : hl_sync_fd(fd);
+        if (e) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write %s: %s", path, tmp, strerror(e));
         if (fd >= 0) close(fd);
     }
     if (r == HL_OK && rename(tmp, path) != 0) {

@@ -73,10 +73,10 @@ static hl_result open_checked(hl_context *ctx, const char *path, FILE **out, siz
  * So the header is read up to end_header, and the body walked as assimp
  * reads it (ASCII: one element per line; binary: the declared types, in
  * either byte order; only elements whose names assimp knows have a count):
- * every element must fit in what is left of the file,
- * and every list in its line (ASCII) or in the bytes left (binary). Files
- * that do not start with the PLY magic ("ply", any case, as assimp checks
- * it) are left alone. */
+ * every element must fit in what is left of the file, and every list in
+ * its line (ASCII) or in the bytes left (binary). Files that do not start
+ * with the PLY magic ("ply", any case, as assimp checks it) are left
+ * alone. */
 
 enum { PLY_MAX_ELEMENTS = 32, PLY_MAX_PROPS = 64 };
 
@@ -103,8 +103,8 @@ typedef struct ply_elem {
     ply_prop props[PLY_MAX_PROPS];
 } ply_elem;
 
-/* Bytes of a PLY scalar type; 0 for a name assimp does not know (it
- * drops such a property, and so does the walk). */
+/* Bytes of a PLY scalar type; 0 for a name assimp does not know (such a
+ * property ends its element's list of properties, in assimp and here). */
 static int ply_type_size(const char *t)
 {
     static const struct {
@@ -135,12 +135,18 @@ static int ply_header_line(FILE *f, char *buf, size_t size)
     return c != EOF || n > 0;
 }
 
+/* v with the decimal digit c appended, saturated. */
+static uint64_t ply_digit(uint64_t v, int c)
+{
+    return v > (UINT64_MAX - 9) / 10 ? UINT64_MAX : v * 10 + (uint64_t)(c - '0');
+}
+
 /* The value of a count's leading digits, saturated; 0 without any (as
  * assimp reads a count). */
 static uint64_t ply_digits(const char *s)
 {
     uint64_t v = 0;
-    for (; *s >= '0' && *s <= '9'; s++) v = v > (UINT64_MAX - 9) / 10 ? UINT64_MAX : v * 10 + (uint64_t)(*s - '0');
+    for (; *s >= '0' && *s <= '9'; s++) v = ply_digit(v, *s);
     return v;
 }
 
@@ -174,7 +180,7 @@ static int ply_token(FILE *f, uint64_t *value)
     uint64_t v = 0;
     int digits = 1;
     for (; c != EOF && c != ' ' && c != '\t' && c != '\v' && c != '\f' && c != '\n' && c != '\r'; c = getc(f)) {
-        if (digits && c >= '0' && c <= '9') v = v > (UINT64_MAX - 9) / 10 ? UINT64_MAX : v * 10 + (uint64_t)(c - '0');
+        if (digits && c >= '0' && c <= '9') v = ply_digit(v, c);
         else digits = 0;
     }
     if (c != EOF) ungetc(c, f);
@@ -366,6 +372,13 @@ static int ply_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
 
 /* ---------------------------------------------------------------- OFF */
 
+/* Whether path ends in ext (any case). */
+static int has_ext(const char *path, const char *ext)
+{
+    size_t n = strlen(path), k = strlen(ext);
+    return n >= k && strcasecmp(path + n - k, ext) == 0;
+}
+
 /* assimp 5.2's OFF reader allocates the vertex and face arrays at the
  * counts its header gives before it reads a line: a few bytes declaring
  * 3e8 vertices or faces took 3.5 to 4.7 GB and 15 s before it failed.
@@ -397,18 +410,18 @@ static uint32_t off_count(const char **c, const char *end)
 
 static int off_problem(const char *path, FILE *f, char *msg, size_t msg_size)
 {
-    size_t n = strlen(path);
-    int named = n >= 4 && strcasecmp(path + n - 4, ".off") == 0;
+    const int named = has_ext(path, ".off");
     char head[4096];
     size_t got = fread(head, 1, sizeof head, f);
     const char *c = off_next(head, head + got), *end = head + got;
     int dimension = 0, magic = 0;
-    if (c < end - 2 && c[0] == 'S' && c[1] == 'T') c += 2;
-    if (c < end - 1 && c[0] == 'C') c++;
-    if (c < end - 1 && c[0] == 'N') c++;
-    if (c < end - 1 && c[0] == '4') c++;
-    if (c < end - 1 && c[0] == 'n') dimension = 1, c++;
-    if (c < end - 3 && c[0] == 'O' && c[1] == 'F' && c[2] == 'F') c += 3, magic = 1;
+    /* assimp's tests, each asking for one more character than it reads */
+    if (end - c > 2 && c[0] == 'S' && c[1] == 'T') c += 2;
+    if (end - c > 1 && c[0] == 'C') c++;
+    if (end - c > 1 && c[0] == 'N') c++;
+    if (end - c > 1 && c[0] == '4') c++;
+    if (end - c > 1 && c[0] == 'n') dimension = 1, c++;
+    if (end - c > 3 && c[0] == 'O' && c[1] == 'F' && c[2] == 'F') c += 3, magic = 1;
     /* under another name, assimp still falls back to this reader when the
        file starts with the OFF magic */
     if (!named && !magic) return 0;
@@ -435,41 +448,35 @@ static int off_problem(const char *path, FILE *f, char *msg, size_t msg_size)
     return 0;
 }
 
-/* Binary glTF (magic "glTF", versions 1 and 2): assimp 5.2 allocates and
- * zero-fills the first chunk at the length its header gives before
- * reading it, so a file of a few hundred bytes could claim gigabytes. The
- * total length in the header and the first chunk (from byte 20) must fit
- * in the file. Returns 0, or 1 with the problem in msg. */
-static int glb_header_problem(FILE *f, uint64_t file_size, char *msg, size_t msg_size)
+/* glTF. A binary one (magic "glTF", versions 1 and 2): assimp 5.2
+ * allocates and zero-fills the first chunk at the length its header gives
+ * before reading it, so a file of a few hundred bytes could claim
+ * gigabytes; the total length in the header and the first chunk (from
+ * byte 20) must fit in the file. A .glb or .gltf name on a file that is
+ * not glTF: assimp's glTF reader turns it down, and assimp then offers the
+ * file to every reader it has by its content (an OFF header under a .glb
+ * name took 4.8 GB), so it is refused; a .glb must start with the magic, a
+ * .gltf (JSON) with "{" after any spaces. Returns 0, or 1 with the problem
+ * in msg. */
+static int gltf_problem(const char *path, FILE *f, uint64_t file_size, char *msg, size_t msg_size)
 {
     unsigned char h[16];
-    if (fread(h, 1, sizeof h, f) != sizeof h || memcmp(h, "glTF", 4) != 0) return 0;
-    uint32_t word[2];
-    for (int i = 0; i < 2; i++)
-        word[i] = (uint32_t)h[8 + 4 * i] | (uint32_t)h[9 + 4 * i] << 8 | (uint32_t)h[10 + 4 * i] << 16 |
-                  (uint32_t)h[11 + 4 * i] << 24;
-    if (word[0] > file_size || (uint64_t)word[1] + 20 > file_size)
-        return problem(msg, msg_size,
-                        "binary glTF header gives a length of %u bytes and a first chunk of %u bytes, "
-                        "but the file has %llu bytes", word[0], word[1], (unsigned long long)file_size);
-    return 0;
-}
-
-/* A .glb or .gltf name on a file that is not glTF: assimp's glTF reader
- * turns it down, and assimp then offers the file to every reader it has by
- * its content (an OFF header under a .glb name took 4.8 GB), so it is
- * refused here. A .glb starts with the magic "glTF", a .gltf (JSON) with
- * "{" after any spaces. Returns 0, or 1 with the problem in msg. */
-static int gltf_name_problem(const char *path, FILE *f, char *msg, size_t msg_size)
-{
-    size_t n = strlen(path);
-    int glb = n >= 4 && strcasecmp(path + n - 4, ".glb") == 0, gltf = n >= 5 && strcasecmp(path + n - 5, ".gltf") == 0;
-    if (!glb && !gltf) return 0;
-    unsigned char h[4] = {0};
-    if (glb) {
-        if (fread(h, 1, 4, f) == 4 && memcmp(h, "glTF", 4) == 0) return 0;
-        return problem(msg, msg_size, "not a binary glTF file (it does not start with \"glTF\")");
+    size_t got = fread(h, 1, sizeof h, f);
+    if (got >= 4 && memcmp(h, "glTF", 4) == 0) {
+        if (got < sizeof h) return 0; /* assimp's own error */
+        uint32_t word[2];
+        for (int i = 0; i < 2; i++)
+            word[i] = (uint32_t)h[8 + 4 * i] | (uint32_t)h[9 + 4 * i] << 8 | (uint32_t)h[10 + 4 * i] << 16 |
+                      (uint32_t)h[11 + 4 * i] << 24;
+        if (word[0] > file_size || (uint64_t)word[1] + 20 > file_size)
+            return problem(msg, msg_size,
+                           "binary glTF header gives a length of %u bytes and a first chunk of %u bytes, "
+                           "but the file has %llu bytes", word[0], word[1], (unsigned long long)file_size);
+        return 0;
     }
+    if (has_ext(path, ".glb")) return problem(msg, msg_size, "not a binary glTF file (it does not start with \"glTF\")");
+    if (!has_ext(path, ".gltf")) return 0;
+    rewind(f);
     int c;
     do c = getc(f);
     while (c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == 0xEF || c == 0xBB || c == 0xBF); /* BOM */
@@ -639,11 +646,7 @@ hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_des
     int bad = ply_problem(f, size, msg, sizeof msg);
     if (!bad) {
         rewind(f);
-        bad = glb_header_problem(f, size, msg, sizeof msg);
-    }
-    if (!bad) {
-        rewind(f);
-        bad = gltf_name_problem(path, f, msg, sizeof msg);
+        bad = gltf_problem(path, f, size, msg, sizeof msg);
     }
     if (!bad) {
         rewind(f);

@@ -8,7 +8,7 @@
  * into place only when complete; on failure the temporary is removed.
  *
  * Dependencies: hl_internal.h (errors, allocation), hl_tonemap_srgb8,
- * libc, POSIX (getpid, fsync).
+ * libc, POSIX (getpid; fsync through hl_sync_fd).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -164,10 +164,7 @@ hl_result hl_mesh_save_ply(hl_context *ctx, const hl_mesh *mesh, const float *ve
         errno = 0;
         if (fflush(w.f) != 0) w.err = errno ? errno : EIO;
     }
-    if (!w.err) {
-        errno = 0;
-        if (fsync(fileno(w.f)) != 0 && errno != EINVAL && errno != EROFS) w.err = errno ? errno : EIO;
-    }
+    if (!w.err) w.err = hl_sync_fd(fileno(w.f));
     errno = 0;
     if (fclose(w.f) != 0 && !w.err) w.err = errno ? errno : EIO;
     free(w.buf);
