@@ -133,7 +133,21 @@ opencl_faults)
   grep -q "build log" "$tmp/err.txt" || fail "build_failure: no build log"
   grep -q "error:" "$tmp/err.txt" || fail "build_failure: the log lacks the compiler's error"
   grep -q -- "--device ref" "$tmp/err.txt" || fail "build_failure: no suggestion of --device ref"
-  expect_error device_memory 1 "largest allocation.*--device ref" "$tmp/f3.hlt" -- precompute "$m" --ground -N 256 -C 8 --chunk 65536 -o "$tmp/f3.hlt" -q
+  # a job too big for the device memory granted is refused before any ray
+  # is cast, whatever the machine's own memory; the same job in smaller
+  # chunks fits the same limit and writes the same bytes as without it
+  job=(precompute "$m" --ground --ground-res 16 -C 16 -N 32 -q)
+  expect_error device_memory 1 "device memory limit of 16.0 MiB.*--device ref" "$tmp/f3.hlt" -- "${job[@]}" --chunk 2048 --device-memory 16M -o "$tmp/f3.hlt"
+  HL_DEVICE_MEMORY=16M expect_error device_memory_env 1 "device memory limit of 16.0 MiB" "$tmp/f3.hlt" -- "${job[@]}" --chunk 2048 -o "$tmp/f3.hlt"
+  "$bin" "${job[@]}" --chunk 256 --device-memory 16M -o "$tmp/capped.hlt" || fail "device_memory: the job in chunks of 256 did not fit 16 MiB"
+  "$bin" "${job[@]}" --chunk 256 -o "$tmp/free.hlt" || fail "device_memory: the job without a limit failed"
+  cmp -s "$tmp/capped.hlt" "$tmp/free.hlt" && echo "device_memory: chunks of 256 fit 16 MiB, same bytes as without the limit" ||
+    fail "device_memory: the limit changed the output"
+  expect_error device_memory_relight 1 "needs .* device memory limit of 1.0 MiB" "$tmp/f4.png" -- relight "$tmp/free.hlt" --sky --device-memory 1M -o "$tmp/f4.png" -q
+  for bad in 0 -5 12Q 1.5G 99999999999G; do
+    expect_error "device_memory_option_$bad" 2 "expected a byte count" "$tmp/f5.hlt" -- "${job[@]}" --device-memory "$bad" -o "$tmp/f5.hlt"
+  done
+  HL_DEVICE_MEMORY=lots expect_error device_memory_bad_env 1 "HL_DEVICE_MEMORY=lots" "$tmp/f5.hlt" -- "${job[@]}" -o "$tmp/f5.hlt"
   ;;
 relight)
   # every output kind, from the sky and from a map, on both devices

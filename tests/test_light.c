@@ -449,8 +449,8 @@ static void case_into(void)
        (its clCreateFromGLBuffer aborts the process), which is why the
        viewer tries interop only on devices listing cl_khr_gl_sharing */
     hl_context_destroy(gc);
-    hl_cl_mem_release(buf);
-    hl_cl_mem_release(small);
+    hl_cl_buffer_release(ctx, buf);
+    hl_cl_buffer_release(ctx, small);
     free(rgb); free(rgb2); free(b4);
     hl_env_destroy(env);
     hl_relighter_destroy(r);

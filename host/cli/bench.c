@@ -61,7 +61,9 @@ static const char *const usage_bench =
     "  --reps R             timed lighting changes per setting on OpenCL (default 15)\n"
     "  --ref-reps R         timed lighting changes per setting on the reference (default 3)\n"
     "  --no-ref-timing      skip timing the plain-C reference\n"
-    "  --device cl:P:D      OpenCL device\n";
+    "  --device cl:P:D      OpenCL device\n"
+    "  --device-memory SIZE most device memory to use, e.g. 512M (default: the device's;\n"
+    "                       also HL_DEVICE_MEMORY)\n";
 
 #define MAX_FILES 8
 #define MAX_ENVS 16
@@ -334,7 +336,10 @@ int cmd_bench(int argc, char **argv)
         else if (!strcmp(a, "--reps")) { NEED(); if (!parse_u32(v, &reps) || reps < 1 || reps > 1000) return usage_error(usage, "--reps %s: expected 1 to 1000", v); }
         else if (!strcmp(a, "--ref-reps")) { NEED(); if (!parse_u32(v, &ref_reps) || ref_reps < 1 || ref_reps > MAX_REF_REPS) return usage_error(usage, "--ref-reps %s: expected 1 to 100", v); }
         else if (!strcmp(a, "--no-ref-timing")) ref_timing = 0;
-        else if (!strcmp(a, "--device")) {
+        else if (!strcmp(a, "--device-memory")) {
+            NEED();
+            if (!parse_device_memory(v, &cd)) return usage_error(usage, "--device-memory %s: expected a byte count such as 512M or 2G", v);
+        } else if (!strcmp(a, "--device")) {
             NEED();
             if (!parse_device(v, &cd) || cd.backend != HL_BACKEND_OPENCL) return usage_error(usage, "--device %s: expected cl or cl:PLATFORM:DEVICE", v);
         } else if (a[0] == '-' && a[1]) return usage_error(usage, "unknown option %s", a);

@@ -31,7 +31,9 @@ static const char *const usage_check =
     "                     or unweighted\n"
     "  --rotate DEG       environment rotation (default 0)\n"
     "  --vertices K       precompute stages on K vertices spread over the mesh (default 64)\n"
-    "  --device cl:P:D    OpenCL device to check (default: the first)\n";
+    "  --device cl:P:D    OpenCL device to check (default: the first)\n"
+    "  --device-memory SIZE  most device memory to use, e.g. 512M (default: the device's;\n"
+    "                     also HL_DEVICE_MEMORY)\n";
 
 typedef struct row_report { const char *stage; double worst; double tol; uint64_t mismatches; uint64_t of; } row_report;
 
@@ -73,7 +75,10 @@ int cmd_check(int argc, char **argv)
                 return usage_error(usage, "--select %s: expected transport, area or unweighted", v);
         } else if (!strcmp(a, "--rotate")) { NEED(); if (!parse_float(v, &rd.rotate_deg)) return usage_error(usage, "--rotate %s: expected degrees", v); }
         else if (!strcmp(a, "--vertices")) { NEED(); if (!parse_u32(v, &K) || K < 1 || K > 100000) return usage_error(usage, "--vertices %s: expected 1 to 100000", v); }
-        else if (!strcmp(a, "--device")) {
+        else if (!strcmp(a, "--device-memory")) {
+            NEED();
+            if (!parse_device_memory(v, &cd)) return usage_error(usage, "--device-memory %s: expected a byte count such as 512M or 2G", v);
+        } else if (!strcmp(a, "--device")) {
             NEED();
             if (!parse_device(v, &cd) || cd.backend != HL_BACKEND_OPENCL) return usage_error(usage, "--device %s: expected cl or cl:PLATFORM:DEVICE", v);
         } else if (a[0] == '-' && a[1]) return usage_error(usage, "unknown option %s", a);

@@ -12,6 +12,8 @@ int usage_error(const char *usage, const char *fmt, const char *arg);
 int parse_u32(const char *s, uint32_t *out);
 int parse_float(const char *s, float *out);
 int parse_device(const char *s, hl_context_desc *cd);
+/* --device-memory SIZE: a byte count (hl_parse_bytes) into cd. */
+int parse_device_memory(const char *s, hl_context_desc *cd);
 /* "x,y,z" of finite numbers. */
 int parse_vec3(const char *s, float v[3]);
 /* "transport", "area" or "unweighted" to HL_SELECT_*; 0 when none. */
@@ -71,6 +73,8 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
     "                       alone looks at the object's centre)\n"
 #define CLI_USAGE_RUNNING                                                                 \
     "  --device cl|ref|cl:P:D   OpenCL device (default: first), or the plain-C reference\n" \
+    "  --device-memory SIZE most device memory to use, e.g. 512M or 2G (default: the\n"   \
+    "                       device's; also HL_DEVICE_MEMORY); a job needing more is refused\n" \
     "  --threads T          host threads (rendering, reference)\n"                       \
     "  -q, --quiet          print nothing but errors\n"
 

@@ -44,7 +44,7 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
     const char *a = argv[*i], *v = NULL;
     static const char *const with_value[] = {
         "--sun-elevation", "--sun-azimuth", "--sun-size", "--rotate", "--terms", "--select", "--exposure",
-        "--size", "--fov", "--eye", "--target", "--up", "--device", "--threads", NULL};
+        "--size", "--fov", "--eye", "--target", "--up", "--device", "--device-memory", "--threads", NULL};
     int known = 0;
     for (int k = 0; with_value[k]; k++) known |= !strcmp(a, with_value[k]);
     if (known) {
@@ -91,6 +91,8 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
         if (a[2] == 't') o->target_set = 1;
     } else if (!strcmp(a, "--device")) {
         if (!parse_device(v, &o->cd)) return -usage_error(usage, "--device %s: expected cl, ref or cl:PLATFORM:DEVICE", v);
+    } else if (!strcmp(a, "--device-memory")) {
+        if (!parse_device_memory(v, &o->cd)) return -usage_error(usage, "--device-memory %s: expected a byte count such as 512M or 2G", v);
     } else if (!strcmp(a, "--threads")) {
         uint32_t t;
         if (!parse_u32(v, &t) || t < 1 || t > 256) return -usage_error(usage, "--threads %s: expected 1 to 256", v);

@@ -36,6 +36,11 @@ int parse_float(const char *s, float *out)
     return 1;
 }
 
+int parse_device_memory(const char *s, hl_context_desc *cd)
+{
+    return hl_parse_bytes(s, &cd->device_memory);
+}
+
 int parse_device(const char *s, hl_context_desc *cd)
 {
     if (strcmp(s, "ref") == 0) { cd->backend = HL_BACKEND_REFERENCE; return 1; }

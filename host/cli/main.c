@@ -64,6 +64,8 @@ static const char *const usage_precompute =
     "                       linear8: linear between the row's min and max kept value)\n"
     "running:\n"
     "  --device cl|ref|cl:P:D   OpenCL device (default: first), or the plain-C reference\n"
+    "  --device-memory SIZE most device memory to use, e.g. 512M or 2G (default: the\n"
+    "                       device's; also HL_DEVICE_MEMORY); a job needing more is refused\n"
     "  --threads T          host threads for rays and the reference (default: all cores)\n"
     "  --chunk V            vertices per chunk; bounds memory (default 1024)\n"
     "  --resume             continue an interrupted run from SCENE.hlt.partial (Ctrl-C,\n"
@@ -160,6 +162,9 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
         } else if (!strcmp(a, "--device")) {
             NEED_ARG();
             if (!parse_device(v, &o->cd)) return usage_error(usage, "--device %s: expected cl, ref or cl:PLATFORM:DEVICE", v);
+        } else if (!strcmp(a, "--device-memory")) {
+            NEED_ARG();
+            if (!parse_device_memory(v, &o->cd)) return usage_error(usage, "--device-memory %s: expected a byte count such as 512M or 2G", v);
         } else if (!strcmp(a, "--threads")) {
             NEED_ARG();
             uint32_t t;

@@ -67,6 +67,12 @@ typedef enum hl_backend {
  *                  viewer passes CL_GL_CONTEXT_KHR and CL_GLX_DISPLAY_KHR
  *                  to share buffers with its OpenGL context). A device that
  *                  refuses them fails hl_context_create with the reason.
+ *   device_memory  0: the device's global memory; else the most device
+ *                  memory, in bytes, that the context's buffers may hold at
+ *                  once (the HL_DEVICE_MEMORY environment variable, a byte
+ *                  count with an optional K, M or G suffix, sets it when
+ *                  this is 0). A job that needs more is refused with
+ *                  HL_ERR_OUT_OF_MEMORY before the device is asked.
  */
 typedef struct hl_context_desc {
     hl_backend backend;
@@ -76,6 +82,7 @@ typedef struct hl_context_desc {
     const char *kernel_dir;
     int quiet;
     const intptr_t *cl_properties;
+    uint64_t device_memory;
 } hl_context_desc;
 
 typedef struct hl_context hl_context;
@@ -86,6 +93,10 @@ typedef struct hl_context hl_context;
 hl_result hl_context_create(const hl_context_desc *desc, hl_context **out,
                             char *err, size_t err_size);
 void hl_context_destroy(hl_context *ctx);
+/* Reads a byte count: digits with an optional K, M or G suffix (powers of
+ * 1024). Returns 1 and sets *out when the whole string is one, at least 1
+ * and below 2^63; 0 otherwise. */
+int hl_parse_bytes(const char *s, uint64_t *out);
 /* Message of the last failure on this context ("" when none). */
 const char *hl_context_last_error(const hl_context *ctx);
 /* Human-readable name of the compute device ("reference (plain C)" or the

@@ -34,6 +34,12 @@ struct hl_cl {
     cl_program program;
     cl_kernel k[K_COUNT];
     cl_ulong max_alloc;
+    /* The device memory this context may hold at once: the device's global
+       memory, or less (hl_context_desc.device_memory), so that a job too
+       big for the memory a user grants is refused up front whatever the
+       device; used counts the buffers made through make_buf. */
+    cl_ulong limit, used;
+    int limit_set; /* the limit came from the caller, not the device */
     size_t wg; /* work-group size: 1 on CPUs, where each work-item's long
                   row loop is the unit of work and PoCL would otherwise
                   put every row in one group on one core */
@@ -179,7 +185,8 @@ static hl_result build_program(hl_context *ctx, struct hl_cl *cl)
     return HL_OK;
 }
 
-hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t *properties)
+hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t *properties,
+                       uint64_t device_memory)
 {
     cl_uint np = 0;
     cl_int e = clGetPlatformIDs(0, NULL, &np);
@@ -217,6 +224,12 @@ hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t
     clGetPlatformInfo(cl->platform, CL_PLATFORM_NAME, sizeof pname, pname, NULL);
     clGetDeviceInfo(cl->device, CL_DEVICE_NAME, sizeof dname, dname, NULL);
     clGetDeviceInfo(cl->device, CL_DEVICE_MAX_MEM_ALLOC_SIZE, sizeof cl->max_alloc, &cl->max_alloc, NULL);
+    clGetDeviceInfo(cl->device, CL_DEVICE_GLOBAL_MEM_SIZE, sizeof cl->limit, &cl->limit, NULL);
+    if (device_memory && (!cl->limit || device_memory < cl->limit)) {
+        cl->limit = device_memory;
+        cl->limit_set = 1;
+    }
+    if (cl->limit && cl->max_alloc > cl->limit) cl->max_alloc = cl->limit;
     snprintf(ctx->device_name, sizeof ctx->device_name, "OpenCL: %s / %s", pname, dname);
     cl_device_type type = 0;
     clGetDeviceInfo(cl->device, CL_DEVICE_TYPE, sizeof type, &type, NULL);
@@ -310,17 +323,53 @@ struct hl_cl_pipe {
     cl_event done[2];
 };
 
+static void fmt_bytes(char *out, size_t n, uint64_t b)
+{
+    if (b >= (1ull << 30)) snprintf(out, n, "%.2f GiB", (double)b / (double)(1ull << 30));
+    else if (b >= (1ull << 20)) snprintf(out, n, "%.1f MiB", (double)b / (double)(1ull << 20));
+    else if (b >= (1ull << 10)) snprintf(out, n, "%.1f KiB", (double)b / (double)(1ull << 10));
+    else snprintf(out, n, "%llu bytes", (unsigned long long)b);
+}
+
+/* Allocates a buffer counted against the context's device memory limit. */
 static hl_result make_buf(hl_cl_pipe *p, cl_mem *m, cl_mem_flags fl, size_t bytes, const void *init, const char *what)
 {
     cl_int e;
-    if (bytes > p->cl->max_alloc)
+    struct hl_cl *cl = p->cl;
+    char need[32], lim[32], used[32];
+    fmt_bytes(need, sizeof need, bytes);
+    fmt_bytes(lim, sizeof lim, cl->limit);
+    fmt_bytes(used, sizeof used, cl->used);
+    if (cl->limit_set && bytes > cl->limit - cl->used)
+        return hl_fail(p->ctx, HL_ERR_OUT_OF_MEMORY,
+                       "OpenCL: %s needs %s, beyond the device memory limit of %s (--device-memory or "
+                       "HL_DEVICE_MEMORY; %s already in use); raise the limit, use --device ref, or for precompute "
+                       "a smaller --chunk",
+                       what, need, lim, used);
+    if (bytes > cl->max_alloc)
         return hl_fail(p->ctx, HL_ERR_OUT_OF_MEMORY,
                        "OpenCL: %s needs %zu bytes, more than the device's largest allocation (%llu); use a smaller --chunk or --device ref",
-                       what, bytes, (unsigned long long)p->cl->max_alloc);
+                       what, bytes, (unsigned long long)cl->max_alloc);
+    if (cl->limit && bytes > cl->limit - cl->used)
+        return hl_fail(p->ctx, HL_ERR_OUT_OF_MEMORY,
+                       "OpenCL: %s needs %s, beyond the device's %s of memory (%s already in use); "
+                       "use --device ref, or for precompute a smaller --chunk", what, need, lim, used);
     if (init && !(fl & CL_MEM_USE_HOST_PTR)) fl |= CL_MEM_COPY_HOST_PTR;
-    *m = clCreateBuffer(p->cl->context, fl, bytes ? bytes : 4, (void *)init, &e);
+    *m = clCreateBuffer(cl->context, fl, bytes ? bytes : 4, (void *)init, &e);
     CL_TRY(p->ctx, e, what);
+    cl->used += bytes ? bytes : 4;
     return HL_OK;
+}
+
+/* Releases a buffer made by make_buf and gives its bytes back. */
+static void release_buf(struct hl_cl *cl, cl_mem *m)
+{
+    if (!*m) return;
+    size_t bytes = 0;
+    if (clGetMemObjectInfo(*m, CL_MEM_SIZE, sizeof bytes, &bytes, NULL) == CL_SUCCESS)
+        cl->used = bytes < cl->used ? cl->used - bytes : 0;
+    clReleaseMemObject(*m);
+    *m = NULL;
 }
 
 hl_result hl_cl_pipe_create(hl_context *ctx, const hl_geom *g, uint32_t max_rows, hl_cl_pipe **out)
@@ -362,8 +411,7 @@ void hl_cl_pipe_destroy(hl_cl_pipe *p)
     if (p->cl && p->cl->queue) clFinish(p->cl->queue);
     cl_mem *all[] = {&p->start, &p->ent, &p->slots, &p->vis[0], &p->vis[1], &p->nrm[0], &p->nrm[1],
                      &p->T, &p->coef, &p->tr, &p->rq, &p->bc, &p->entries, &p->nnz};
-    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
-        if (*all[i]) clReleaseMemObject(*all[i]);
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) release_buf(p->cl, all[i]);
     for (int s = 0; s < 2; s++)
         if (p->done[s]) clReleaseEvent(p->done[s]);
     free(p);
@@ -548,8 +596,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
     cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
                      &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rel, &l->rstart, &l->back, &l->albedo, &l->B,
                      &l->acc, &l->ord, &l->klist};
-    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
-        if (*all[i]) clReleaseMemObject(*all[i]);
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) release_buf(l->cl, all[i]);
     for (int i = 0; i < 4; i++) hl_free_big(l->host[i]);
     free(l->col_start);
     free(l->range_start);
@@ -998,17 +1045,23 @@ hl_result hl_cl_buffer(hl_context *ctx, size_t bytes, void **out)
 {
     *out = NULL;
     if (!ctx->cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the context has no OpenCL device");
-    cl_int e;
-    cl_mem m = clCreateBuffer(ctx->cl->context, CL_MEM_READ_WRITE, bytes ? bytes : 1, NULL, &e);
-    CL_TRY(ctx, e, "clCreateBuffer");
+    hl_cl_pipe tmp = {.ctx = ctx, .cl = ctx->cl};
+    cl_mem m = NULL;
+    hl_result r = make_buf(&tmp, &m, CL_MEM_READ_WRITE, bytes, NULL, "the colour buffer");
     *out = m;
-    return HL_OK;
+    return r;
 }
 
 hl_result hl_cl_buffer_read(hl_context *ctx, void *mem, size_t bytes, void *dst)
 {
     CL_TRY(ctx, clEnqueueReadBuffer(ctx->cl->queue, (cl_mem)mem, CL_TRUE, 0, bytes, dst, 0, NULL, NULL), "read-back");
     return HL_OK;
+}
+
+void hl_cl_buffer_release(hl_context *ctx, void *mem)
+{
+    cl_mem m = mem;
+    if (ctx->cl) release_buf(ctx->cl, &m);
 }
 
 void hl_cl_mem_release(void *mem)
@@ -1154,8 +1207,14 @@ hl_result hl_cl_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, dou
         hl_free_big(host);
         return res;
     }
-    cl_mem out = clCreateBuffer(cl->context, CL_MEM_WRITE_ONLY, items * 4, NULL, &e);
-    if (e != CL_SUCCESS) { clReleaseMemObject(buf); hl_free_big(host); CL_TRY(ctx, e, "bandwidth buffer"); }
+    cl_mem out = NULL;
+    hl_cl_pipe tmp = {.ctx = ctx, .cl = cl};
+    res = make_buf(&tmp, &out, CL_MEM_WRITE_ONLY, items * 4, NULL, "the bandwidth sums");
+    if (res != HL_OK) {
+        release_buf(cl, &buf);
+        hl_free_big(host);
+        return res;
+    }
     const cl_uchar fill = 1; /* floats of 2.4e-38: normal, so no slow subnormal sums */
     e = clEnqueueFillBuffer(cl->queue, buf, &fill, 1, 0, items * per * 64, 0, NULL, NULL);
     cl_kernel k = cl->k[K_BANDWIDTH];
@@ -1172,8 +1231,8 @@ hl_result hl_cl_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, dou
         if (e == CL_SUCCESS) e = clFinish(cl->queue);
         if (r > 0) best[r - 1] = hl_now() - t0; /* the first run warms up */
     }
-    clReleaseMemObject(buf);
-    clReleaseMemObject(out);
+    release_buf(cl, &buf);
+    release_buf(cl, &out);
     hl_free_big(host); /* PoCL is done with it once the buffer is released */
     CL_TRY(ctx, e, "the bandwidth kernel");
     /* median */

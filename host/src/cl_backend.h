@@ -12,7 +12,10 @@
 
 struct hl_geom;
 
-hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t *properties);
+/* device_memory: the most device memory the context may hold (0: the
+ * device's global memory). */
+hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t *properties,
+                       uint64_t device_memory);
 void hl_cl_destroy(struct hl_cl *cl);
 
 
@@ -87,9 +90,11 @@ hl_result hl_cl_gl_buffer(hl_context *ctx, unsigned gl_buffer, void **out);
  * hl_context_desc.cl_properties): CL_GL_CONTEXT_KHR, CL_GLX_DISPLAY_KHR,
  * then 0. */
 void hl_cl_glx_properties(void *glx_context, void *x_display, intptr_t props[5]);
-/* A plain device buffer of bytes (tests of hl_cl_light_run_into). */
+/* A plain device buffer of bytes (tests of hl_cl_light_run_into), counted
+ * against the context's device memory limit; hl_cl_buffer_release frees it. */
 hl_result hl_cl_buffer(hl_context *ctx, size_t bytes, void **out);
 hl_result hl_cl_buffer_read(hl_context *ctx, void *mem, size_t bytes, void *dst);
+void hl_cl_buffer_release(hl_context *ctx, void *mem);
 void hl_cl_mem_release(void *mem);
 /* Single stages, blocking (tests and `haarlight check`). */
 hl_result hl_cl_light_stage_env2para(hl_cl_light *l, uint32_t s0, float f, float *Lp);

@@ -129,7 +129,12 @@ hl_result hl_context_create(const hl_context_desc *desc, hl_context **out,
 
     hl_result r = HL_OK;
     if (ctx->backend == HL_BACKEND_OPENCL) {
-        r = hl_cl_create(ctx, d.cl_platform, d.cl_device, d.cl_properties);
+        uint64_t limit = d.device_memory;
+        const char *env = getenv("HL_DEVICE_MEMORY");
+        if (!limit && env && *env && !hl_parse_bytes(env, &limit))
+            r = hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                        "HL_DEVICE_MEMORY=%s: expected a byte count such as 512M or 2G", env);
+        if (r == HL_OK) r = hl_cl_create(ctx, d.cl_platform, d.cl_device, d.cl_properties, limit);
     } else if (ctx->backend == HL_BACKEND_REFERENCE) {
         snprintf(ctx->device_name, sizeof ctx->device_name, "reference (plain C, %d threads)", ctx->threads);
     } else {
@@ -149,6 +154,24 @@ void hl_context_destroy(hl_context *ctx)
     if (!ctx) return;
     hl_cl_destroy(ctx->cl);
     free(ctx);
+}
+
+int hl_parse_bytes(const char *s, uint64_t *out)
+{
+    if (!s || *s < '0' || *s > '9') return 0;
+    uint64_t v = 0;
+    for (; *s >= '0' && *s <= '9'; s++) {
+        if (v > ((uint64_t)1 << 62) / 10) return 0;
+        v = v * 10 + (uint64_t)(*s - '0');
+    }
+    unsigned shift = 0;
+    if (*s == 'K' || *s == 'k') shift = 10;
+    else if (*s == 'M' || *s == 'm') shift = 20;
+    else if (*s == 'G' || *s == 'g') shift = 30;
+    if (shift) s++;
+    if (*s || v < 1 || v > (((uint64_t)1 << 62) >> shift)) return 0;
+    *out = v << shift;
+    return 1;
 }
 
 const char *hl_context_last_error(const hl_context *ctx) { return ctx ? ctx->err : ""; }
