@@ -7,7 +7,8 @@
 #                      sky and under data/city.exr, writing build/demo-*.png
 #   ./setup.sh test    run the test suite (ctest, on PoCL's CPU device), then
 #                      the same under ASan + UBSan (build-asan/), then a short
-#                      libFuzzer pass (build-fuzz/)
+#                      libFuzzer pass (build-fuzz/); also installs
+#                      assimp-testmodels, the model files one test loads
 #   ./setup.sh build   only install and build
 #
 # Packages are installed with apt-get only when missing (as root, or through
@@ -23,6 +24,10 @@ packages=(build-essential cmake pkg-config
           libembree-dev libopenexr-dev libglfw3-dev libxrandr-dev libassimp-dev gnuplot-nox
           libgl1-mesa-dev libgl1-mesa-dri xvfb xauth valgrind
           clang libclang-rt-14-dev)
+# only `./setup.sh test` needs these: the model files of assimp's own test
+# suite, which hl.mesh.assimp_testmodels loads one by one
+test_packages=(assimp-testmodels)
+if [ "$what" = test ]; then packages+=("${test_packages[@]}"); fi
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
