@@ -9,8 +9,11 @@
  * would hang, abort, corrupt or exhaust assimp 5.2 itself (a PLY header
  * without end_header or with an element declared twice, PLY elements or
  * lists, or OFF counts, larger than the file can hold, a binary glTF whose
- * lengths exceed the file, a .glb or .gltf name on another kind of file,
- * faces without indices) are refused before it gets to them.
+ * lengths exceed the file, a .glb or .gltf name on another kind of file)
+ * are refused before it gets to them, and scenes its post-processing
+ * would abort, throw or overrun on (faces without indices, no mesh placed
+ * by the node tree, counts past 32 bits once placed) before that runs;
+ * load_assimp gives the safe order of calls.
  *
  * Dependencies: assimp C API (Debian libassimp-dev 5.2), POSIX (stat,
  * uselocale), hl_internal.h.
@@ -492,8 +495,9 @@ static void skipped_note(hl_context *ctx, const char *path, uint64_t skipped)
 }
 
 /* After a failed import: assimp's validation reports a mesh without faces
- * or vertices, and a scene without meshes, like any other error, so they
- * are told apart by its message. (A second import without validation
+ * or vertices, and a scene without meshes, like any other error, and an
+ * allocation that failed inside it comes back as "std::bad_alloc", so
+ * they are told apart by its message. (A second import without validation
  * would count them, but assimp's scene preprocessing then walks the
  * unvalidated data and crashes on some corrupt files.) */
 static hl_result assimp_failure(hl_context *ctx, const char *path, const char *msg)
@@ -504,53 +508,188 @@ static hl_result assimp_failure(hl_context *ctx, const char *path, const char *m
         return hl_fail(ctx, HL_ERR_MESH, "%s: the mesh has no vertices (importer: %s)", path, msg);
     if (strstr(msg, "mNumMeshes is 0"))
         return hl_fail(ctx, HL_ERR_FORMAT, "%s: the file holds no mesh (importer: %s)", path, msg);
+    if (strstr(msg, "bad_alloc"))
+        return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: out of memory while importing the file (importer: %s)", path,
+                       msg);
     return hl_fail(ctx, HL_ERR_FORMAT, "%s: importer: %s", path, msg);
 }
 
-/* Faces that assimp's triangulation cannot take: it aborts the process
- * (ai_assert) on a face without indices, which some importers produce
- * from a corrupt file, and reads the positions of a polygon's indices
- * unchecked. Checked on the raw import, before that step runs. */
-static hl_result raw_faces_problem(hl_context *ctx, const char *path, const struct aiScene *s)
+/* What assimp 5.2's post-processing needs of the raw scene, read from its
+ * sources (TriangulateProcess.cpp, PretransformVertices.cpp, Assimp.cpp,
+ * BaseProcess.cpp) and checked on Debian's libassimp 5.2.5, which is built
+ * with its ai_asserts on. PretransformVertices runs before Triangulate.
+ * - A face without indices: the scene preprocessor flags it as a polygon,
+ *   and Triangulate then finds no polygon to split and aborts the process
+ *   (ai_assert numOut != mNumFaces). A polygon's indices are read
+ *   unchecked too.
+ * - No mesh placed in the scene: PretransformVertices makes one output
+ *   mesh per material and vertex format out of the meshes the node tree
+ *   (from mRootNode) references, those with faces and vertices, and throws
+ *   "No output meshes" when there is none. An AC3D object with vertices
+ *   and no surfaces gives such a scene (a mesh of points that no node
+ *   references), and so does a glTF mesh that only a node outside the
+ *   scene holds (the node loaded through a skin's joints).
+ * - Counts past 32 bits: PretransformVertices adds up the vertices and
+ *   faces of every node's meshes in unsigned int, and Triangulate its
+ *   output faces; a mesh placed by many nodes wraps the sum, the arrays
+ *   come out small and the copies run past them (a 2 MB glTF placing a
+ *   65535-vertex mesh 65538 times corrupts the heap).
+ * - A mesh with a vertex or face count but no array: the validation lets
+ *   it through when the scene has any flag set, and both steps copy from
+ *   the array.
+ * Cameras and lights are looked up by name in the node tree
+ * (PretransformVertices' ai_assert on FindNode); the validation of the raw
+ * import already refuses one without a node of its name ("has no
+ * corresponding node in the scene graph"), so that case never gets here.
+ * Returns HL_OK when the steps can run. */
+static hl_result raw_scene_problem(hl_context *ctx, const char *path, const struct aiScene *s)
 {
-    for (unsigned m = 0; m < s->mNumMeshes; m++) {
+    if (s->mNumMeshes == 0) return hl_fail(ctx, HL_ERR_FORMAT, "%s: the file holds no mesh", path);
+    /* per mesh: Triangulate's output faces (1 for a point, line or
+       triangle, n - 2 for an n-gon), and whether a node references it */
+    uint64_t *out_faces = calloc(s->mNumMeshes, sizeof *out_faces);
+    unsigned char *referenced = calloc(s->mNumMeshes, 1);
+    const struct aiNode **stack = NULL;
+    hl_result r = HL_OK;
+    if (!out_faces || !referenced) {
+        r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: out of memory checking the scene", path);
+        goto done;
+    }
+    for (unsigned m = 0; m < s->mNumMeshes && r == HL_OK; m++) {
         const struct aiMesh *am = s->mMeshes[m];
+        if ((am->mNumVertices && !am->mVertices) || (am->mNumFaces && !am->mFaces)) {
+            r = hl_fail(ctx, HL_ERR_FORMAT, "%s: mesh %u (counting from 0) has %u vertices and %u faces but "
+                        "not their arrays", path, m, am->mNumVertices, am->mNumFaces);
+            break;
+        }
         for (unsigned f = 0; f < am->mNumFaces; f++) {
             const struct aiFace *af = &am->mFaces[f];
-            if (af->mNumIndices == 0 || !af->mIndices)
-                return hl_fail(ctx, HL_ERR_FORMAT, "%s: mesh %u face %u (counting from 0) has no vertex indices",
-                               path, m, f);
+            if (af->mNumIndices == 0 || !af->mIndices) {
+                r = hl_fail(ctx, HL_ERR_FORMAT, "%s: mesh %u face %u (counting from 0) has no vertex indices",
+                            path, m, f);
+                break;
+            }
+            out_faces[m] += af->mNumIndices <= 3 ? 1 : af->mNumIndices - 2;
             if (af->mNumIndices <= 3) continue; /* the builder checks triangles' indices */
             for (unsigned k = 0; k < af->mNumIndices; k++)
-                if (af->mIndices[k] >= am->mNumVertices)
-                    return hl_fail(ctx, HL_ERR_MESH,
-                                   "%s: mesh %u face %u (counting from 0) refers to vertex %u, out of range "
-                                   "(%u vertices)", path, m, f, af->mIndices[k], am->mNumVertices);
+                if (af->mIndices[k] >= am->mNumVertices) {
+                    r = hl_fail(ctx, HL_ERR_MESH,
+                                "%s: mesh %u face %u (counting from 0) refers to vertex %u, out of range "
+                                "(%u vertices)", path, m, f, af->mIndices[k], am->mNumVertices);
+                    goto done;
+                }
         }
     }
-    return HL_OK;
+    if (r != HL_OK) goto done;
+    if (!s->mRootNode) {
+        r = hl_fail(ctx, HL_ERR_FORMAT, "%s: the scene has no root node", path);
+        goto done;
+    }
+    /* the node tree, depth first with a stack of its own (as deep as the
+       file makes it); placed counts every reference, as the steps do */
+    size_t top = 0, cap = 64;
+    stack = malloc(cap * sizeof *stack);
+    if (!stack) {
+        r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: out of memory checking the scene", path);
+        goto done;
+    }
+    stack[top++] = s->mRootNode;
+    uint64_t placed_vertices = 0, placed_faces = 0;
+    unsigned placed = 0, nreferenced = 0;
+    while (top > 0) {
+        const struct aiNode *nd = stack[--top];
+        if ((nd->mNumMeshes && !nd->mMeshes) || (nd->mNumChildren && !nd->mChildren)) {
+            r = hl_fail(ctx, HL_ERR_FORMAT, "%s: node \"%s\" has no array for its meshes or children", path,
+                        nd->mName.data);
+            goto done;
+        }
+        for (unsigned i = 0; i < nd->mNumMeshes; i++) {
+            unsigned m = nd->mMeshes[i];
+            if (m >= s->mNumMeshes) {
+                r = hl_fail(ctx, HL_ERR_FORMAT, "%s: node \"%s\" refers to mesh %u, out of range (%u meshes)",
+                            path, nd->mName.data, m, s->mNumMeshes);
+                goto done;
+            }
+            const struct aiMesh *am = s->mMeshes[m];
+            nreferenced += !referenced[m];
+            referenced[m] = 1;
+            if (am->mNumFaces && am->mNumVertices && am->mMaterialIndex < s->mNumMaterials) placed++;
+            placed_vertices += am->mNumVertices;
+            placed_faces += out_faces[m];
+        }
+        if (placed_vertices > UINT32_MAX || placed_faces > UINT32_MAX) {
+            r = hl_fail(ctx, HL_ERR_MESH, "%s: its nodes place meshes of more than 2^32 %s in the scene (meshes "
+                        "placed by many nodes)", path, placed_vertices > UINT32_MAX ? "vertices" : "faces");
+            goto done;
+        }
+        for (unsigned c = nd->mNumChildren; c-- > 0;) {
+            if (!nd->mChildren[c]) {
+                r = hl_fail(ctx, HL_ERR_FORMAT, "%s: node \"%s\" has a null child", path, nd->mName.data);
+                goto done;
+            }
+            if (top == cap) {
+                const struct aiNode **grown =
+                    cap < SIZE_MAX / 2 / sizeof *stack ? realloc(stack, 2 * cap * sizeof *stack) : NULL;
+                if (!grown) {
+                    r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: out of memory checking the scene", path);
+                    goto done;
+                }
+                stack = grown;
+                cap *= 2;
+            }
+            stack[top++] = nd->mChildren[c];
+        }
+    }
+    if (placed == 0)
+        r = nreferenced == 0
+                ? hl_fail(ctx, HL_ERR_MESH, "%s: no mesh is placed in the scene: no node of its scene graph "
+                          "references its %u mesh%s", path, s->mNumMeshes, s->mNumMeshes == 1 ? "" : "es")
+                : hl_fail(ctx, HL_ERR_MESH, "%s: no mesh is placed in the scene: the %u mesh%s its nodes "
+                          "reference %s no material", path, nreferenced, nreferenced == 1 ? "" : "es",
+                          nreferenced == 1 ? "has" : "have");
+done:
+    free(stack);
+    free(referenced);
+    free(out_faces);
+    return r;
 }
 
 static hl_result load_assimp(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc,
                              hl_mesh **out, hl_mesh_stats *stats)
 {
-    /* Vertex joining and normal generation stay off: the builder does both
-     * and counts what it changed. The faces are checked between the raw
-     * import and the steps that triangulate and flatten the scene. */
+    /* The safe order of calls with assimp 5.2's C API:
+     * 1. aiImportFile with validation only: the raw scene, whose failures
+     *    come back cleanly.
+     * 2. raw_scene_problem: refuses what triangulation and flattening
+     *    would abort, throw or overrun on.
+     * 3. The scene is released and the file imported again in one call
+     *    with the steps. aiApplyPostProcessing on the raw scene cannot
+     *    fail safely: when a step throws (the DeadlyImportError of
+     *    PretransformVertices, std::bad_alloc when a mesh placed by many
+     *    nodes takes more memory than there is), the importer deletes the
+     *    scene and aiApplyPostProcessing then releases it again through
+     *    aiReleaseImport (a use after free; AC/nosurfaces.ac of
+     *    assimp-testmodels crashed there). Inside aiImportFile the same
+     *    failure is a NULL scene with the message. The steps cannot be
+     *    asked of the first import: it must be checked before they run.
+     * Vertex joining and normal generation stay off: the builder does both
+     * and counts what it changed. The second import costs one more parse
+     * of the file (under a second for every assimp test model). */
     const struct aiScene *s = aiImportFile(path, aiProcess_ValidateDataStructure);
     if (!s) {
         char msg[512];
         snprintf(msg, sizeof msg, "%s", aiGetErrorString());
         return assimp_failure(ctx, path, msg);
     }
-    hl_result r = raw_faces_problem(ctx, path, s);
-    if (r != HL_OK) {
-        aiReleaseImport(s);
-        return r;
+    hl_result r = raw_scene_problem(ctx, path, s);
+    aiReleaseImport(s);
+    if (r != HL_OK) return r;
+    s = aiImportFile(path, aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_PreTransformVertices);
+    if (!s) {
+        char msg[512];
+        snprintf(msg, sizeof msg, "%s", aiGetErrorString());
+        return assimp_failure(ctx, path, msg);
     }
-    s = aiApplyPostProcessing(s, aiProcess_Triangulate | aiProcess_PreTransformVertices);
-    if (!s) /* the scene is released on failure */
-        return hl_fail(ctx, HL_ERR_FORMAT, "%s: importer: %s", path, aiGetErrorString());
     uint64_t nv = 0, nt = 0, skipped = 0;
     int all_normals = s->mNumMeshes > 0, all_colors = s->mNumMeshes > 0;
     for (unsigned m = 0; m < s->mNumMeshes; m++) {
