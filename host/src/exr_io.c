@@ -19,11 +19,16 @@
  * hold values the halves cannot, so any infinity in it is refused rather
  * than passed on. Images are written with OpenEXRCore as 32-bit float RGB,
  * ZIP-compressed.
+ * Every header is parsed by OpenEXRCore first, and refused unless it is
+ * sound and its sizes fit the file, before either decoder sees it: the C++
+ * library trusts the header when it opens a file (a string attribute that
+ * claims 2 GiB gets 2 GiB; a data window of 2^31 rows gets per-row tables
+ * of that length), and OpenEXRCore checks attribute sizes against the file
+ * but not what a data window or tile size asks for (check_parts).
  * The wrapper catches every C++ exception and returns 0, with the text in
  * ImfErrorMessage(); OpenEXRCore's messages go to a handler that keeps the
- * last one. Sizes from the header are bounded before anything is
- * allocated, and the wrapper's pixels are read in strips so that its
- * temporary half buffer stays small.
+ * last one. The wrapper's pixels are read in strips so that its temporary
+ * half buffer stays small.
  * Depends on: libOpenEXR-3_1 and libOpenEXRCore-3_1 (through the
  * hl_openexr CMake target).
  */
@@ -67,7 +72,7 @@ static ImfRgba *frame_base(ImfRgba *first, int64_t x0, int64_t y0, uint32_t widt
 /* Opens the file ourselves first so that "cannot open" (HL_ERR_IO) and
  * "not an OpenEXR file" (HL_ERR_FORMAT) get precise messages before the
  * library sees it. */
-static hl_result check_file(hl_context *ctx, const char *path)
+static hl_result check_file(hl_context *ctx, const char *path, uint64_t *size)
 {
     struct stat st;
     if (stat(path, &st) != 0) {
@@ -95,21 +100,23 @@ static hl_result check_file(hl_context *ctx, const char *path)
         return hl_fail(ctx, HL_ERR_FORMAT,
                        "%s: not an OpenEXR file: bad magic number %02x %02x %02x %02x at byte 0",
                        path, magic[0], magic[1], magic[2], magic[3]);
+    *size = (uint64_t)st.st_size;
     return HL_OK;
 }
 
-/* The data window's size, bounded before anything is allocated. */
-static hl_result window_size(hl_context *ctx, const char *path, unsigned flags, int xmin, int ymin, int xmax,
-                             int ymax, uint32_t *width, uint32_t *height)
+/* The data window's size, bounded before anything is allocated. part
+ * prefixes the message ("" or "part N: "). */
+static hl_result window_size(hl_context *ctx, const char *path, const char *part, unsigned flags, int xmin,
+                             int ymin, int xmax, int ymax, uint32_t *width, uint32_t *height)
 {
     int64_t w64 = (int64_t)xmax - (int64_t)xmin + 1;
     int64_t h64 = (int64_t)ymax - (int64_t)ymin + 1;
     if (w64 < 1 || h64 < 1 || w64 > (int64_t)HL_EXR_MAX_SIDE || h64 > (int64_t)HL_EXR_MAX_SIDE ||
         (uint64_t)w64 * (uint64_t)h64 > HL_EXR_MAX_PIXELS)
         return hl_fail(ctx, HL_ERR_FORMAT,
-                       "%s: data window (%d,%d)-(%d,%d) gives a size of %lld x %lld pixels, "
+                       "%s: %sdata window (%d,%d)-(%d,%d) gives a size of %lld x %lld pixels, "
                        "outside 1..%u per side and %llu pixels in all",
-                       path, xmin, ymin, xmax, ymax, (long long)w64, (long long)h64,
+                       path, part, xmin, ymin, xmax, ymax, (long long)w64, (long long)h64,
                        HL_EXR_MAX_SIDE, (unsigned long long)HL_EXR_MAX_PIXELS);
     uint32_t w = (uint32_t)w64, h = (uint32_t)h64;
     if ((flags & HL_EXR_REQUIRE_2TO1) && w != 2 * h)
@@ -204,6 +211,93 @@ static int probe(exr_context_t f, exr_layout *lay)
     return 1;
 }
 
+/* a * b, or UINT64_MAX where that overflows. */
+static uint64_t mul_sat(uint64_t a, uint64_t b)
+{
+    return b && a > UINT64_MAX / b ? UINT64_MAX : a * b;
+}
+
+/* Every part of a header OpenEXRCore accepted, bounded against the file
+ * before any reader allocates for it: the C++ reader sizes its offset
+ * tables, per-row tables and chunk buffers from the header when the file
+ * is opened, and OpenEXRCore its offset table when the first chunk is
+ * read. A chunk table the file cannot hold, or a chunk larger than any map
+ * needs, is refused; so are deep parts and headers of more attributes and
+ * channels than HL_EXR_MAX_HEADER_ENTRIES. */
+static hl_result check_parts(hl_context *ctx, const char *path, exr_const_context_t f, const core_msg *msg,
+                             uint64_t file_size)
+{
+    int parts = 0;
+    exr_result_t rv = exr_get_count(f, &parts);
+    if (rv != EXR_ERR_SUCCESS || parts < 1)
+        return hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot read OpenEXR header: %s", path,
+                       rv != EXR_ERR_SUCCESS ? core_text(msg, rv) : "no parts");
+    uint64_t table_bytes = 0, entries = 0;
+    for (int p = 0; p < parts; p++) {
+        char part[32] = "";
+        if (parts > 1) snprintf(part, sizeof part, "part %d: ", p);
+        exr_storage_t st;
+        exr_attr_box2i_t dw;
+        const exr_attr_chlist_t *cl = NULL;
+        int32_t chunks = 0, attrs = 0, lines = 1;
+        uint32_t tw = 0, th = 0;
+        rv = exr_get_storage(f, p, &st);
+        if (rv == EXR_ERR_SUCCESS) rv = exr_get_data_window(f, p, &dw);
+        if (rv == EXR_ERR_SUCCESS) rv = exr_get_channels(f, p, &cl);
+        if (rv == EXR_ERR_SUCCESS) rv = exr_get_chunk_count(f, p, &chunks);
+        if (rv == EXR_ERR_SUCCESS) rv = exr_get_attribute_count(f, p, &attrs);
+        if (rv == EXR_ERR_SUCCESS && st == EXR_STORAGE_SCANLINE) rv = exr_get_scanlines_per_chunk(f, p, &lines);
+        if (rv == EXR_ERR_SUCCESS && st == EXR_STORAGE_TILED) rv = exr_get_tile_descriptor(f, p, &tw, &th, NULL, NULL);
+        if (rv != EXR_ERR_SUCCESS || !cl)
+            return hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot read OpenEXR header: %s%s", path, part,
+                           core_text(msg, rv != EXR_ERR_SUCCESS ? rv : EXR_ERR_MISSING_REQ_ATTR));
+        if (st != EXR_STORAGE_SCANLINE && st != EXR_STORAGE_TILED)
+            return hl_fail(ctx, HL_ERR_FORMAT, "%s: %sdeep data (several samples per pixel), not an image", path,
+                           part);
+        uint32_t w = 0, h = 0;
+        hl_result r = window_size(ctx, path, part, 0, dw.min.x, dw.min.y, dw.max.x, dw.max.y, &w, &h);
+        if (r != HL_OK) return r;
+
+        /* A chunk as decoded: its pixels times the bytes of all channels
+           (subsampling ignored: an upper bound). */
+        uint64_t pixel_bytes = 0;
+        for (int c = 0; c < cl->num_channels; c++)
+            pixel_bytes += cl->entries[c].pixel_type == EXR_PIXEL_HALF ? 2u : 4u;
+        uint64_t cw = st == EXR_STORAGE_TILED ? tw : w, ch = st == EXR_STORAGE_TILED ? th : (uint64_t)lines;
+        uint64_t chunk_bytes = mul_sat(cw * ch, pixel_bytes); /* cw, ch < 2^32 */
+        if (chunk_bytes > HL_EXR_MAX_CHUNK_BYTES)
+            return hl_fail(ctx, HL_ERR_FORMAT,
+                           "%s: %sa %s of %llu x %llu pixels with %d channels (%llu bytes a pixel) decodes to "
+                           "%llu bytes, more than the %llu any map needs",
+                           path, part, st == EXR_STORAGE_TILED ? "tile" : "chunk", (unsigned long long)cw,
+                           (unsigned long long)ch, cl->num_channels, (unsigned long long)pixel_bytes,
+                           (unsigned long long)chunk_bytes, (unsigned long long)HL_EXR_MAX_CHUNK_BYTES);
+        if (chunks < 1)
+            return hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot read OpenEXR header: %s%d chunks", path, part, chunks);
+
+        /* Each chunk has its 8-byte entry in the offset table and a header
+           in front of its data: the part number in a multi-part file, then
+           the first row (scanlines) or the tile's four coordinates, then
+           the data size. */
+        uint64_t chunk_header = (parts > 1 ? 4u : 0u) + (st == EXR_STORAGE_TILED ? 20u : 8u);
+        table_bytes += (uint64_t)chunks * (8u + chunk_header);
+        if (table_bytes > file_size)
+            return hl_fail(ctx, HL_ERR_FORMAT,
+                           "%s: %s%d chunks (%s of %llu x %llu pixels in a %u x %u data window) need at least "
+                           "%llu bytes of offset table and chunk headers%s, but the file has %llu bytes",
+                           path, part, chunks, st == EXR_STORAGE_TILED ? "tiles" : "rows", (unsigned long long)cw,
+                           (unsigned long long)ch, w, h, (unsigned long long)table_bytes,
+                           p > 0 ? " with the parts before" : "", (unsigned long long)file_size);
+        entries += (uint64_t)attrs + (uint64_t)cl->num_channels;
+    }
+    if (entries > HL_EXR_MAX_HEADER_ENTRIES)
+        return hl_fail(ctx, HL_ERR_FORMAT,
+                       "%s: the header has %llu attributes and channels in %d part%s, more than the %u a map "
+                       "needs",
+                       path, (unsigned long long)entries, parts, parts == 1 ? "" : "s", HL_EXR_MAX_HEADER_ENTRIES);
+    return HL_OK;
+}
+
 /* Reads a file that probe() passed, as float, chunk by chunk. */
 static hl_result read_core(hl_context *ctx, const char *path, unsigned flags, exr_context_t f, const core_msg *msg,
                            int grey, uint32_t *width, uint32_t *height, float **rgb)
@@ -215,7 +309,7 @@ static hl_result read_core(hl_context *ctx, const char *path, unsigned flags, ex
     if (rv != EXR_ERR_SUCCESS || spc < 1)
         return hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot read OpenEXR header: %s", path, core_text(msg, rv));
     uint32_t w, h;
-    hl_result r = window_size(ctx, path, flags, dw.min.x, dw.min.y, dw.max.x, dw.max.y, &w, &h);
+    hl_result r = window_size(ctx, path, "", flags, dw.min.x, dw.min.y, dw.max.x, dw.max.y, &w, &h);
     if (r != HL_OK) return r;
     float *out = hl_calloc(ctx, 3 * (size_t)w * h, sizeof(float), "environment pixels");
     if (!out) return HL_ERR_OUT_OF_MEMORY;
@@ -282,7 +376,7 @@ static hl_result read_wrapper(hl_context *ctx, const char *path, unsigned flags,
     int xmin = 0, ymin = 0, xmax = -1, ymax = -1;
     ImfHeaderDataWindow(ImfInputHeader(in), &xmin, &ymin, &xmax, &ymax);
     uint32_t w, h;
-    hl_result r = window_size(ctx, path, flags, xmin, ymin, xmax, ymax, &w, &h);
+    hl_result r = window_size(ctx, path, "", flags, xmin, ymin, xmax, ymax, &w, &h);
     if (r != HL_OK) {
         ImfCloseInputFile(in);
         return r;
@@ -343,22 +437,37 @@ hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
 {
     *width = *height = 0;
     *rgb = NULL;
-    hl_result r = check_file(ctx, path);
+    uint64_t file_size = 0;
+    hl_result r = check_file(ctx, path, &file_size);
     if (r != HL_OK) return r;
 
+    /* OpenEXRCore parses the header first, bounding every attribute by the
+       file's size (the C++ reader does not: a string attribute claiming
+       2 GiB gets 2 GiB). Strict: required attributes must be there. A
+       complaint it only reports (a chunkCount that disagrees, an attribute
+       it skips) refuses the file too. */
     core_msg msg = {{0}};
     exr_context_initializer_t init = core_init(&msg);
+    init.flags |= EXR_CONTEXT_FLAG_STRICT_HEADER;
     exr_context_t f = NULL;
+    exr_result_t rv = exr_start_read(&f, path, &init);
+    if (rv != EXR_ERR_SUCCESS || msg.text[0])
+        r = hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot read OpenEXR header: %s", path, core_text(&msg, rv));
+    if (r == HL_OK) r = check_parts(ctx, path, f, &msg, file_size);
     exr_layout lay = {0, 0, 0, NULL};
-    int parsed = exr_start_read(&f, path, &init) == EXR_ERR_SUCCESS && probe(f, &lay);
-    /* a header OpenEXRCore cannot parse goes to the wrapper, whose
-       messages are the library's own */
-    const int core = parsed && lay.any_float && !lay.reason;
+    if (r == HL_OK && !probe(f, &lay))
+        r = hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot read OpenEXR header: %s", path,
+                    core_text(&msg, EXR_ERR_MISSING_REQ_ATTR));
+    if (r != HL_OK) {
+        if (f) exr_finish(&f);
+        return r;
+    }
+    /* Only now does a decoder see the file. */
+    const int core = lay.any_float && !lay.reason;
     if (core) r = read_core(ctx, path, flags, f, &msg, lay.grey, width, height, rgb);
-    if (f) exr_finish(&f);
+    exr_finish(&f);
     if (core) return r;
-    return read_wrapper(ctx, path, flags, parsed && lay.any_float && !lay.dwa ? lay.reason : NULL, width, height,
-                        rgb);
+    return read_wrapper(ctx, path, flags, lay.any_float && !lay.dwa ? lay.reason : NULL, width, height, rgb);
 }
 
 hl_result hl_exr_write_rgb_(hl_context *ctx, const char *path, uint32_t width,

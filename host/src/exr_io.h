@@ -6,7 +6,8 @@
  * decode the file (not DWAA/DWAB); elsewhere they pass through half
  * floats, and a value the halves cannot hold is refused (exr_io.c says
  * why). Pixels come back as linear float RGB, alpha dropped, row 0 = the
- * first row stored.
+ * first row stored. A header is checked against the limits below, in
+ * every part, before any decoder allocates for it.
  */
 #ifndef HL_EXR_IO_H
 #define HL_EXR_IO_H
@@ -15,10 +16,18 @@
 
 #include "haarlight.h"
 
-/* Largest side and pixel count accepted from a file, checked before any
- * allocation. */
+/* Largest side and pixel count accepted from a file, checked (in every
+ * part) before any allocation. */
 #define HL_EXR_MAX_SIDE 65536u
 #define HL_EXR_MAX_PIXELS ((uint64_t)1 << 28)
+/* Largest chunk (rows or tile) as decoded: a 2:1 map within
+ * HL_EXR_MAX_PIXELS is at most 23170 wide, and 256 rows (DWA's chunk) of
+ * float RGBA take 95 MB. The C++ reader allocates a few of these when it
+ * opens the file. */
+#define HL_EXR_MAX_CHUNK_BYTES ((uint64_t)1 << 27)
+/* Most attributes and channels in a header, all parts together: the C++
+ * reader keeps several hundred bytes for each (a map has a few dozen). */
+#define HL_EXR_MAX_HEADER_ENTRIES 8192u
 
 /* Flags of hl_exr_read_rgb_. */
 #define HL_EXR_REQUIRE_2TO1 1u /* refuse (HL_ERR_FORMAT) unless width == 2 * height */
@@ -27,9 +36,10 @@
  * freed by the caller with free()). Values are copied as stored: NaN, Inf
  * and negative values are left for the caller to repair. Errors name the
  * file: HL_ERR_IO when it cannot be opened or read, HL_ERR_FORMAT when it
- * is not a readable OpenEXR image (bad magic, corrupt or truncated data,
- * size out of bounds, not 2:1 when asked, float values beyond the half
- * range in a DWAA/DWAB file). */
+ * is not a readable OpenEXR image (bad magic, a header OpenEXRCore
+ * rejects, sizes beyond the limits above or a chunk table beyond the file,
+ * deep data, corrupt or truncated data, not 2:1 when asked, float values
+ * beyond the half range where only halves can be read). */
 hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
                            uint32_t *width, uint32_t *height, float **rgb);
 
