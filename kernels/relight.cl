@@ -27,6 +27,11 @@
  * (host/src/ref/relight_ref.c walks whole rows), and so rounds alike: zero
  * lanes and entry 0 add exact zeros (fma(0, l, s) = s). Then each
  * vertex's sums are scaled back by 2^e (back) and times the albedo.
+ * Truncated lighting and transport can sum to a little below zero where
+ * the exact answer is dark, and no output may hold negative light: each
+ * channel is clamped at zero (unless keep_negative), and the fourth float
+ * keeps the lowest channel before the clamp (0 when none was negative) so
+ * the host can say how much was clamped.
  */
 #pragma OPENCL FP_CONTRACT OFF
 
@@ -109,18 +114,32 @@ static void walk_tiles(global const uint *col, global const uint *cs, global con
 /* The colours of positions p0 .. p1 - 1 from their sums (planes of n
  * floats from position p0). */
 static void put_colours(global const float *sums, uint n, uint p0, uint p1, global const float *back,
-                        global const float4 *albedo, global const uint *order, global float4 *out)
+                        global const float4 *albedo, global const uint *order, uint keep_negative,
+                        global float4 *out)
 {
     for (uint v = p0; v < p1; v++) {
         uint i = v - p0;
-        out[order[v]] = ((float4)(sums[i], sums[n + i], sums[2 * n + i], 0.0f) * back[v]) * albedo[v];
+        float4 c = ((float4)(sums[i], sums[n + i], sums[2 * n + i], 0.0f) * back[v]) * albedo[v];
+        /* comparisons, not fmin/fmax, so that -0 and +0 come out as in the twin */
+        float lo = 0.0f;
+        lo = c.x < lo ? c.x : lo;
+        lo = c.y < lo ? c.y : lo;
+        lo = c.z < lo ? c.z : lo;
+        if (!keep_negative) {
+            c.x = c.x > 0.0f ? c.x : 0.0f;
+            c.y = c.y > 0.0f ? c.y : 0.0f;
+            c.z = c.z > 0.0f ? c.z : 0.0f;
+        }
+        c.w = lo;
+        out[order[v]] = c;
     }
 }
 
 kernel void hl_relight(global const uint *col, global const uint *col_start, global const ushort *rel, uint tstride,
                        global const uint *range_start, global const float *back, uint ncoef,
                        global const float4 *light, global const uint *kept, global const float4 *albedo,
-                       global float *acc, global float4 *out, uint nverts, uint nranges, global const uint *order)
+                       global float *acc, global float4 *out, uint nverts, uint nranges, global const uint *order,
+                       uint keep_negative)
 {
     uint w = get_global_id(0);
     if (w >= nranges) return;
@@ -132,13 +151,13 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
     for (uint j = 0; j < m; j++) entries += cs[kept[1 + j] + 1] - cs[kept[1 + j]];
     if (!hl_tile_walk_pays(entries, m, nt)) {
         walk_columns(col, cs, light, kept, m, ar, range);
-        put_colours(ar, range, v0, v1, back, albedo, order, out);
+        put_colours(ar, range, v0, v1, back, albedo, order, keep_negative, out);
         return;
     }
     global const ushort *rw = rel + (size_t)w * ncoef * tstride;
     for (uint t0 = 0; t0 < nt; t0 += HL_SUM_TILES) {
         const uint tn = min((uint)HL_SUM_TILES, nt - t0), n = tn * HL_TILE, p0 = v0 + t0 * HL_TILE;
         walk_tiles(col, cs, rw, tstride, light, kept, m, ar, t0, tn);
-        put_colours(ar, n, p0, min(p0 + n, v1), back, albedo, order, out);
+        put_colours(ar, n, p0, min(p0 + n, v1), back, albedo, order, keep_negative, out);
     }
 }

@@ -3,7 +3,7 @@
  * the properties they must have (constant maps stay constant, a small sun
  * keeps its energy, an open vertex under a white sky gives its albedo,
  * untruncated lighting equals the exact discrete sum, the shading
- * follows ENVMAP.md's directions and turn).
+ * follows ENVMAP.md's directions and turn, no light below zero comes out).
  */
 #include <stdint.h>
 
@@ -268,8 +268,7 @@ static void case_stages(void)
                 /* dot products: the twin skips nothing */
                 for (uint32_t v = 0; v < V; v++) {
                     hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * g->nblocks,
-                                   t->row_quant[v], t->info.quant, g->nblocks, sa, alb + 4 * v, Ba + 4 * v);
-                    Ba[4 * v + 3] = 0.0f;
+                                   t->row_quant[v], t->info.quant, g->nblocks, sa, alb + 4 * v, 0, Ba + 4 * v);
                 }
                 HL_CHECK(hl_cl_light_stage_relight(l, sa, ka, Bb) == HL_OK, "relight");
                 uint32_t diff = 0;
@@ -418,7 +417,7 @@ static void case_into(void)
         HL_CHECK(hl_cl_buffer_read(ctx, buf, (size_t)V * 16, b4) == HL_OK, "read");
         HL_CHECK(st.terms_kept == st2.terms_kept && st.energy_kept == st2.energy_kept, "same statistics");
         for (uint32_t v = 0; v < V; v++) {
-            diff += b4[4 * (size_t)v + 3] != 0.0f;
+            diff += !(b4[4 * (size_t)v + 3] <= 0.0f); /* the lowest channel before the clamp */
             for (int c = 0; c < 3; c++) diff += memcmp(&b4[4 * (size_t)v + c], &rgb[3 * (size_t)v + c], 4) != 0;
         }
         /* the read-back path again, on new settings: the kernel's output
@@ -706,12 +705,85 @@ static void case_extreme(void)
     hl_context_destroy(ref);
 }
 
+/* A lone sun on black: truncated lighting and transport sum to below zero
+ * at many vertices (the exact answer is never negative). The colours that
+ * come out are clamped at zero on both backends, bit for bit alike, and
+ * the relighter counts what it clamped; keep_negative shows the raw sums. */
+static void case_negative(void)
+{
+    hl_context *cl = ctx_of(HL_BACKEND_OPENCL), *ref = ctx_of(HL_BACKEND_REFERENCE);
+    hl_transport *t = NULL;
+    const char *path = make_transport("light_neg.hlt", "");
+    HL_CHECK(path && cl && hl_transport_load(ref, path, &t) == HL_OK, "transport");
+    if (!t || !cl) return;
+    const uint32_t V = t->info.vertex_count, W = 256, H = 128;
+    float *px = calloc((size_t)W * H * 3, sizeof(float));
+    for (int c = 0; c < 3; c++) px[3 * ((size_t)30 * W + 70) + c] = 5e4f; /* high above the horizon */
+    hl_env *env = NULL;
+    HL_CHECK(hl_env_create(ref, W, H, px, &env, NULL) == HL_OK, "lone sun");
+    free(px);
+    hl_relighter *r[2] = {NULL, NULL};
+    HL_CHECK(hl_relighter_create(cl, t, &r[0]) == HL_OK && hl_relighter_create(ref, t, &r[1]) == HL_OK, "relighters");
+    HL_CHECK(hl_relighter_set_env(r[0], env) == HL_OK && hl_relighter_set_env(r[1], env) == HL_OK, "set env");
+    float *raw[2] = {malloc((size_t)V * 12), malloc((size_t)V * 12)};
+    float *out[2] = {malloc((size_t)V * 12), malloc((size_t)V * 12)};
+    uint32_t raw_negative = 0, out_negative = 0, differ = 0;
+    for (uint32_t m = 0; m < 3; m++) {
+        const uint32_t M = m == 0 ? 50u : m == 1 ? 200u : HL_TERMS_ALL;
+        hl_relight_stats st[2], sr[2];
+        for (int b = 0; b < 2; b++) {
+            hl_relight_desc keep = {.terms = M, .keep_negative = 1}, clamp = {.terms = M};
+            HL_CHECK(hl_relighter_run(r[b], &keep, raw[b], &sr[b]) == HL_OK, "raw run");
+            HL_CHECK(hl_relighter_run(r[b], &clamp, out[b], &st[b]) == HL_OK, "clamped run");
+        }
+        /* what the clamp should have done, from the raw sums */
+        uint32_t n = 0;
+        float lo = 0.0f, hi = 0.0f;
+        for (uint32_t v = 0; v < V; v++) {
+            float vlo = 0.0f;
+            for (int c = 0; c < 3; c++) {
+                float x = raw[1][3 * (size_t)v + c], y = out[1][3 * (size_t)v + c];
+                vlo = x < vlo ? x : vlo;
+                hi = y > hi ? y : hi;
+                out_negative += !(y >= 0.0f) + !(out[0][3 * (size_t)v + c] >= 0.0f);
+                differ += y != (x > 0.0f ? x : 0.0f); /* clamped, and nothing else changed */
+            }
+            n += vlo < 0.0f;
+            lo = vlo < lo ? vlo : lo;
+        }
+        for (int b = 0; b < 2; b++) {
+            differ += memcmp(raw[0], raw[1], (size_t)V * 12) != 0 || memcmp(out[0], out[1], (size_t)V * 12) != 0;
+            differ += !st[b].negative_counted || st[b].negative_vertices != n ||
+                      st[b].most_negative != (hi > 0.0f ? (double)lo / hi : 0.0);
+            differ += sr[b].negative_vertices != n; /* counted on the raw run too */
+        }
+        raw_negative += n;
+        printf("negative: lone sun, M = %s: %u of %u vertices below zero before the clamp, the lowest %.3g%% of the "
+               "brightest; OpenCL %u, reference %u clamped\n", M == HL_TERMS_ALL ? "all" : (m ? "200" : "50"), n, V,
+               100.0 * (hi > 0.0f ? (double)lo / hi : 0.0), st[0].negative_vertices, st[1].negative_vertices);
+    }
+    printf("negative: %u channels below zero in the clamped colours (tolerance 0); %u mismatches between the "
+           "backends, the raw sums and the counts (tolerance 0)\n", out_negative, differ);
+    HL_CHECK(raw_negative > 0, "the lone sun must drive some raw sums below zero, or this case tests nothing");
+    HL_CHECK(out_negative == 0, "%u clamped channels are below zero", out_negative);
+    HL_CHECK(differ == 0, "%u mismatches", differ);
+    for (int b = 0; b < 2; b++) {
+        hl_relighter_destroy(r[b]);
+        free(raw[b]);
+        free(out[b]);
+    }
+    hl_env_destroy(env);
+    hl_transport_destroy(t);
+    hl_context_destroy(cl);
+    hl_context_destroy(ref);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"env2para", case_env2para}, {"energy", case_energy},   {"stages", case_stages},
         {"relighter", case_relighter}, {"furnace", case_furnace}, {"into", case_into},
-        {"extreme", case_extreme}, {"orientation", case_orientation}, {NULL, NULL},
+        {"extreme", case_extreme}, {"orientation", case_orientation}, {"negative", case_negative}, {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);
 }

@@ -334,16 +334,32 @@ static int rig_open(rig *g, const char *path)
 
 /* Relights env with `terms` terms on both backends. Every colour and
  * statistic must be finite, and the backends must agree bit for bit
- * (colours, terms kept, energy kept, bound, blocks skipped). */
+ * (colours, terms kept, energy kept, bound, blocks skipped). The colours
+ * kept for the accuracy checks are the sums before the clamp at zero
+ * (keep_negative), which the bounds are about; the clamped colours every
+ * output gets must be exactly those sums clamped. */
 static int rig_run_sel(rig *g, const hl_env *env, uint32_t terms, uint32_t select, const char *what)
 {
-    hl_relight_desc d = {.terms = terms, .select = select};
+    hl_relight_desc d = {.terms = terms, .select = select, .keep_negative = 1}, dc = d;
+    dc.keep_negative = 0;
     char w[320];
+    float *clamped = need(malloc((size_t)g->V * 12));
     for (int b = 0; b < 2; b++) {
         hl_result r = hl_relighter_set_env(g->r[b], env);
+        if (r == HL_OK) r = hl_relighter_run(g->r[b], &dc, clamped, NULL);
         if (r == HL_OK) r = hl_relighter_run(g->r[b], &d, g->rgb[b], &g->st[b]);
         HL_CHECK(r == HL_OK, "%s, %s: %s", what, backend_name[b], hl_context_last_error(ctx_for(b)));
-        if (r != HL_OK) return 0;
+        if (r != HL_OK) {
+            free(clamped);
+            return 0;
+        }
+        size_t off = 0;
+        for (size_t i = 0; i < (size_t)g->V * 3; i++) {
+            const float x = g->rgb[b][i], want = x > 0.0f ? x : 0.0f;
+            off += memcmp(&clamped[i], &want, 4) != 0;
+        }
+        snprintf(w, sizeof w, "%s, %s: clamped colours that are not the sums clamped at zero", what, backend_name[b]);
+        hl_check_error(w, (double)off, 0.0);
         const hl_relight_stats *s = &g->st[b];
         size_t bad = count_nonfinite(g->rgb[b], (size_t)g->V * 3) + !isfinite(s->energy_kept) +
                      !isfinite(s->error_bound) + !isfinite(s->blocks_skipped);
@@ -356,6 +372,7 @@ static int rig_run_sel(rig *g, const hl_env *env, uint32_t terms, uint32_t selec
     for (size_t i = 0; i < (size_t)g->V * 3; i++) diff += memcmp(g->rgb[0] + i, g->rgb[1] + i, 4) != 0;
     snprintf(w, sizeof w, "%s: colours and statistics where OpenCL and the reference differ in any bit", what);
     hl_check_error(w, (double)diff, 0.0);
+    free(clamped);
     return 1;
 }
 

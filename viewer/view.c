@@ -201,9 +201,13 @@ static void sky_label(viewer *v, env_slot *s)
 
 static void update_title(viewer *v)
 {
-    char title[1024], terms[32];
-    if (v->rd.terms == HL_TERMS_ALL) snprintf(terms, sizeof terms, "all (%u)", v->st.terms_kept);
-    else snprintf(terms, sizeof terms, "%u", v->st.terms_kept);
+    char title[1024], terms[80];
+    int tn;
+    if (v->rd.terms == HL_TERMS_ALL) tn = snprintf(terms, sizeof terms, "all (%u)", v->st.terms_kept);
+    else tn = snprintf(terms, sizeof terms, "%u", v->st.terms_kept);
+    /* colours written on the device are not read back, so not counted */
+    if (v->st.negative_counted && v->st.negative_vertices && tn > 0 && (size_t)tn < sizeof terms)
+        snprintf(terms + tn, sizeof terms - (size_t)tn, ", %u clamped below 0", v->st.negative_vertices);
     int n = 0;
     if (v->msg[0] && glfwGetTime() < v->msg_until) n = snprintf(title, sizeof title, "%s | ", v->msg);
     snprintf(title + n, sizeof title - (size_t)n,

@@ -436,7 +436,8 @@ int cmd_bench(int argc, char **argv)
     if (r == HL_OK && !md) r = hl_fail(ref, HL_ERR_IO, "%s: cannot write: %s", tmp[OUT_MD], strerror(errno));
     if (r == HL_OK) {
         fprintf(csv, "file,quant,coef_per_vertex,transport_bytes,env,select,M,kept,energy_kept,error_bound,blocks_skipped,"
-                     "l2_exact,max_exact,l2_continuous,max_continuous,cl_ms,ref_ms\n");
+                     "l2_exact,max_exact,l2_continuous,max_continuous,cl_ms,ref_ms,l2_exact_unclamped,max_exact_unclamped,"
+                     "negative_vertices\n");
         fprintf(md, "# Error against run time\n\n"
                     "Mesh: %u vertices (%u object, %u ground); N = %u, C = %u. Device: %s; %d host threads.\n"
                     "Errors are over %u vertices spread over the mesh (exact: untruncated, unquantised transport and\n"
@@ -444,13 +445,16 @@ int cmd_bench(int argc, char **argv)
                     "pixel). L2 is relative to the reference's L2 norm; max is the worst vertex relative to the\n"
                     "brightest. Times are the median of %u full lighting changes (environment to paraboloid, Haar,\n"
                     "selection, dot products, read-back of all vertex colours) on OpenCL, and of %u on the reference\n"
-                    "(under the first map only: its time does not depend on the map).\n\n",
+                    "(under the first map only: its time does not depend on the map). Colours below zero are\n"
+                    "clamped to 0, as every output is; \"unclamped\" is the L2 error of the sums before that\n"
+                    "clamp, and \"clamped\" counts the vertices it changed (of all %u).\n\n",
                 V, in->object_vertex_count, V - in->object_vertex_count, in->N, in->C, hl_context_device_name(cl), hl_context_threads(cl),
-                K, K2, reps, ref_reps);
-        fprintf(md, "| file | env | select | M | kept | energy kept | bound | blocks skipped | L2 exact | max exact | L2 cont. | max cont. | OpenCL ms | ref ms | MB |\n"
-                    "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+                K, K2, reps, ref_reps, V);
+        fprintf(md, "| file | env | select | M | kept | energy kept | bound | blocks skipped | L2 exact | max exact | L2 unclamped | clamped | L2 cont. | max cont. | OpenCL ms | ref ms | MB |\n"
+                    "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     }
-    float *B = malloc((size_t)V * 12);
+    float *B = malloc((size_t)V * 12), *Braw = malloc((size_t)V * 12);
+    if (r == HL_OK && (!B || !Braw)) r = hl_fail(ref, HL_ERR_OUT_OF_MEMORY, "out of memory for %u vertex colours", V);
     double ref_ms[MAX_FILES][3][MAX_TERMS];
     double summary_rate[MAX_FILES], summary_dot[MAX_FILES], summary_bytes[MAX_FILES], summary_bw[MAX_FILES];
     double summary_newmap[MAX_FILES];
@@ -499,25 +503,30 @@ int cmd_bench(int argc, char **argv)
                         if (r == HL_OK) ref_ms[f][s][mi] = 1e3 * median(ref_t, (int)ref_reps);
                     }
                     d.rotate_deg = 0.0f;
+                    hl_relight_desc raw = d;
+                    raw.keep_negative = 1;
+                    if (r == HL_OK) r = hl_relighter_run(rc, &raw, Braw, NULL);
                     if (r == HL_OK) r = hl_relighter_run(rc, &d, B, &st);
                     if (r != HL_OK) break;
-                    double l2e, mxe, l2c = NAN, mxc = NAN;
+                    double l2e, mxe, l2u, mxu, l2c = NAN, mxc = NAN;
                     errors(B, idx, K, envs[e].exact, &l2e, &mxe);
+                    errors(Braw, idx, K, envs[e].exact, &l2u, &mxu);
                     if (K2) errors(B, idx2, K2, envs[e].cont, &l2c, &mxc);
                     double rms = rr ? ref_ms[f][s][mi] : NAN;
                     char mstr[16];
                     if (terms[mi] == HL_TERMS_ALL) snprintf(mstr, sizeof mstr, "all");
                     else snprintf(mstr, sizeof mstr, "%u", terms[mi]);
-                    fprintf(csv, "%s,%s,%.1f,%.0f,%s,%s,%s,%u,%.8f,%.6g,%.4f,%.6g,%.6g,%.6g,%.6g,%.4f,%.2f\n", base_name(files[f]),
-                            fi->quant == HL_QUANT_LOG8 ? "log8" : "linear8", (double)fi->coefficients_kept / V, bytes,
-                            envs[e].name, select_name(selects[s]), mstr, st.terms_kept, st.energy_kept, st.error_bound,
-                            st.blocks_skipped, l2e, mxe, l2c, mxc, cl_ms, rms);
+                    fprintf(csv, "%s,%s,%.1f,%.0f,%s,%s,%s,%u,%.8f,%.6g,%.4f,%.6g,%.6g,%.6g,%.6g,%.4f,%.2f,%.6g,%.6g,%u\n",
+                            base_name(files[f]), fi->quant == HL_QUANT_LOG8 ? "log8" : "linear8",
+                            (double)fi->coefficients_kept / V, bytes, envs[e].name, select_name(selects[s]), mstr,
+                            st.terms_kept, st.energy_kept, st.error_bound, st.blocks_skipped, l2e, mxe, l2c, mxc, cl_ms,
+                            rms, l2u, mxu, st.negative_vertices);
                     char refcell[32] = "not timed";
                     if (rr) snprintf(refcell, sizeof refcell, "%.1f", rms);
-                    fprintf(md, "| %s | %s | %s | %s | %u | %.6f | %.3g | %.0f%% | %.3f%% | %.3f%% | %.3f%% | %.3f%% | %.3f | %s | %.1f |\n",
+                    fprintf(md, "| %s | %s | %s | %s | %u | %.6f | %.3g | %.0f%% | %.3f%% | %.3f%% | %.3f%% | %u | %.3f%% | %.3f%% | %.3f | %s | %.1f |\n",
                             base_name(files[f]), envs[e].name, select_name(selects[s]), mstr, st.terms_kept, st.energy_kept,
-                            st.error_bound, 100 * st.blocks_skipped, 100 * l2e, 100 * mxe, 100 * l2c, 100 * mxc, cl_ms,
-                            refcell, bytes / 1e6);
+                            st.error_bound, 100 * st.blocks_skipped, 100 * l2e, 100 * mxe, 100 * l2u,
+                            st.negative_vertices, 100 * l2c, 100 * mxc, cl_ms, refcell, bytes / 1e6);
                     if (selects[s] == selects[0]) fprintf(gp, "%.5f %.6g %s\n", cl_ms, l2e, mstr);
                     fflush(csv);
                     fflush(md);
@@ -670,6 +679,7 @@ int cmd_bench(int argc, char **argv)
         else printf("bench: wrote %s/bench.md and %s/bench.csv (no plot)\n", outdir, outdir);
     }
     free(B);
+    free(Braw);
     free(Lw);
     free(idx);
     free(idx2);

@@ -230,7 +230,7 @@ int cmd_check(int argc, char **argv)
         all_ok &= report(&(row_report){"select (kept terms)", 0.0, 0.0, mm, nc});
         for (uint32_t v = 0; v < V; v++)
             hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * nb, t->row_quant[v], in->quant, nb, sa,
-                           alb + 4 * (size_t)v, Ba + 4 * (size_t)v);
+                           alb + 4 * (size_t)v, 0, Ba + 4 * (size_t)v);
         r = hl_cl_light_stage_relight(light, sa, ka, Bb);
     }
     if (r == HL_OK) {

@@ -98,6 +98,10 @@ int cmd_relight(int argc, char **argv)
                 "(error bound %.4g per unit albedo); %.0f%% of blocks skipped; %.2f ms\n",
                 scene, env_path ? env_path : "the procedural sky", hl_context_device_name(ctx), st.terms_kept,
                 100.0 * st.energy_kept, st.error_bound, 100.0 * st.blocks_skipped, 1e3 * st.seconds);
+    if (r == HL_OK && !cd.quiet && st.negative_vertices)
+        fprintf(stderr, "negative light: %u of %u vertices summed below zero and were clamped to 0 (the most negative "
+                "channel was %.3g%% of the brightest)\n", st.negative_vertices, t->info.vertex_count,
+                100.0 * st.most_negative);
     if (r == HL_OK && !o.exposure_set) {
         exposure = hl_exposure_auto(t->mesh, rgb);
         if (!cd.quiet && (ply8 || !strcasecmp(ext, ".png"))) fprintf(stderr, "exposure: %+.2f EV (automatic)\n", (double)exposure);

@@ -369,12 +369,17 @@ typedef struct hl_relighter hl_relighter;
  *   terms       0: 200 lighting terms; HL_TERMS_ALL keeps every one
  *   select      HL_SELECT_DEFAULT: transport-weighted (HL_SELECT_TRANSPORT)
  *   rotate_deg  0: the environment as stored (ENVMAP.md's --rotate)
+ *   keep_negative  0: each colour channel is clamped at zero (truncated
+ *               lighting and transport can sum to slightly below zero
+ *               where the exact answer is dark); 1: the sums as they are,
+ *               for measuring what the clamp changes
  */
 #define HL_TERMS_ALL 0xffffffffu
 typedef struct hl_relight_desc {
     uint32_t terms;
     uint32_t select;
     float rotate_deg;
+    int keep_negative;
 } hl_relight_desc;
 
 typedef struct hl_relight_stats {
@@ -388,6 +393,14 @@ typedef struct hl_relight_stats {
     double blocks_skipped;        /* fraction of 256-blocks whose detail
                                      slots keep no lighting term (the dot
                                      products skip every slot not kept) */
+    int negative_counted;         /* 1: the next two were measured (not
+                                     for colours written into a device
+                                     buffer, which are not read back) */
+    uint32_t negative_vertices;   /* vertices with a channel below zero
+                                     before the clamp */
+    double most_negative;         /* the lowest channel before the clamp,
+                                     over the brightest channel of all
+                                     vertices (<= 0) */
     double seconds;               /* wall time of this lighting change */
     int reused;                   /* 1: nothing changed, no work was done */
 } hl_relight_stats;

@@ -577,6 +577,7 @@ struct hl_cl_light {
     const hl_geom *g;
     const hl_light_geom *lg;
     uint32_t nverts, scheme;
+    cl_uint keep_negative; /* the dot products' clamp at zero is off */
     cl_mem cells, turned, start, runs, slots, weight; /* tables and inputs */
     cl_mem Lp, Lw, Lsel, used, bits, res, keys;    /* lighting stages */
     cl_mem col, cols, rel, rstart, back, albedo, B, acc; /* transport, by column */
@@ -974,8 +975,11 @@ static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
     LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rel); LARG(k, 3, ts); LARG(k, 4, l->rstart);
     LARG(k, 5, l->back); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->klist); LARG(k, 9, l->albedo);
     LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
+    LARG(k, 15, l->keep_negative);
     return light_launch(l, K_RELIGHT, l->nranges);
 }
+
+void hl_cl_light_keep_negative(hl_cl_light *l, int keep) { l->keep_negative = keep ? 1u : 0u; }
 
 static hl_result enq_relight(hl_cl_light *l) { return enq_relight_to(l, l->B); }
 

@@ -71,6 +71,9 @@ hl_result hl_cl_light_create(hl_context *ctx, const struct hl_geom *g, const str
 void hl_cl_light_destroy(hl_cl_light *l);
 hl_result hl_cl_light_set_cells(hl_cl_light *l, const float *cells4);
 hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight);
+/* keep 1: the dot products leave negative sums as they are (measuring
+ * what the clamp at zero changes); 0, the default: clamped. */
+void hl_cl_light_keep_negative(hl_cl_light *l, int keep);
 /* A lighting change in one submission: env2para, Haar of R, G, B,
  * selection, dot products; B4 gets 4 floats per vertex. */
 hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, float *B4,

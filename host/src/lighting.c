@@ -434,7 +434,7 @@ static hl_result scheme_weights(hl_relighter *r, uint32_t scheme, const float **
 }
 
 static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_params sp, const float *weight,
-                               hl_select_result *sr)
+                               int keep_negative, hl_select_result *sr)
 {
     const hl_geom *g = r->g;
     const hl_transport *t = r->t;
@@ -443,10 +443,29 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
     *sr = hl_ref_select(r->Lw, g->ncoef, weight, sp, r->Lsel, r->used, r->bits, g->nblocks);
     for (uint32_t v = 0; v < t->info.vertex_count; v++) {
         hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * g->nblocks, t->row_quant[v],
-                       t->info.quant, g->nblocks, r->Lsel, r->albedo4 + 4 * (size_t)v, r->B4 + 4 * (size_t)v);
-        r->B4[4 * (size_t)v + 3] = 0.0f;
+                       t->info.quant, g->nblocks, r->Lsel, r->albedo4 + 4 * (size_t)v, keep_negative,
+                       r->B4 + 4 * (size_t)v);
     }
     return HL_OK;
+}
+
+/* How much negative light the dot products met (the fourth float of each
+ * vertex: its lowest channel before the clamp), against the brightest
+ * channel of all. */
+static void negative_light(const float *B4, uint32_t V, hl_relight_stats *st)
+{
+    float lo = 0.0f, hi = 0.0f;
+    uint32_t n = 0;
+    for (uint32_t v = 0; v < V; v++) {
+        const float *b = B4 + 4 * (size_t)v;
+        if (b[3] < 0.0f) n++;
+        if (b[3] < lo) lo = b[3];
+        for (int c = 0; c < 3; c++)
+            if (b[c] > hi) hi = b[c];
+    }
+    st->negative_counted = 1;
+    st->negative_vertices = n;
+    st->most_negative = hi > 0.0f ? (double)lo / hi : (lo < 0.0f ? -1.0 : 0.0);
 }
 
 /* A lighting change, its colours into B4 (and from there into vertex_rgb
@@ -468,7 +487,8 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
     if (out && !r->cl)
         return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "colours into a device buffer need the OpenCL backend");
     if (r->have_last && r->last_out == out && r->last_serial == r->env_serial && r->last.terms == d.terms &&
-        r->last.select == d.select && r->last.rotate_deg == d.rotate_deg) {
+        r->last.select == d.select && r->last.rotate_deg == d.rotate_deg &&
+        r->last.keep_negative == d.keep_negative) {
         st = r->last_stats;
         st.reused = 1;
     } else {
@@ -484,10 +504,13 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         hl_select_params sp = {d.terms, d.select, {0, 0}};
         hl_select_result sr;
         r->have_last = 0; /* B4 or out may be half written on failure */
+        if (r->cl) hl_cl_light_keep_negative(r->cl, d.keep_negative);
         if (res == HL_OK && out) res = hl_cl_light_run_into(r->cl, s0, f, sp, out, gl, &sr);
         else if (res == HL_OK)
-            res = r->cl ? hl_cl_light_run(r->cl, s0, f, sp, r->B4, &sr) : run_reference(r, s0, f, sp, weight, &sr);
+            res = r->cl ? hl_cl_light_run(r->cl, s0, f, sp, r->B4, &sr)
+                        : run_reference(r, s0, f, sp, weight, d.keep_negative, &sr);
         if (res != HL_OK) return res;
+        if (!out) negative_light(r->B4, V, &st);
         double et = sr.energy_total, ek = sr.energy_kept;
         st.terms_kept = sr.kept;
         st.energy_kept = et > 0 ? ek / et : 1.0;

@@ -34,13 +34,14 @@ hl_result hl_env_to_cells(hl_context *ctx, const hl_env *env, uint32_t wc, uint3
 void hl_rotation_to_shift(float rotate_deg, uint32_t wc, uint32_t *s0, float *f);
 
 /* hl_relighter_run with the colours left in the relighter: *rgba points at
- * 4 floats per vertex (the fourth 0), valid until the next run or destroy.
+ * 4 floats per vertex (the fourth: the lowest channel before the clamp at
+ * zero, or 0), valid until the next run or destroy.
  * Saves the copy to 3 floats where the caller wants 4 (the viewer's GL
  * buffer). */
 hl_result hl_relighter_run4(hl_relighter *r, const hl_relight_desc *desc, const float **rgba, hl_relight_stats *stats);
 
 /* hl_relighter_run with the colours left on the device: 4 floats per
- * vertex (the fourth 0) written into cl_out, a cl_mem of the relighter's
+ * vertex (the fourth as in hl_relighter_run4) written into cl_out, a cl_mem of the relighter's
  * context (see hl_cl_light_run_into; gl: it wraps an OpenGL buffer, which
  * is acquired and released around the dot products). Nothing is copied to
  * the host. OpenCL backend only. */

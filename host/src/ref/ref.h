@@ -44,9 +44,11 @@ hl_select_result hl_ref_select(const float *L, uint32_t ncoef, const float *weig
                                uint32_t *kept_bits, uint32_t nblocks);
 
 /* One vertex: sum over all its entries of dequantised T times light
- * (4 floats per slot), times albedo (3 floats). rgb: 3 floats. */
+ * (4 floats per slot), times albedo (3 floats). rgba: 4 floats: the
+ * colour, each channel clamped at zero unless keep_negative, then the
+ * lowest channel before the clamp (0 when none is negative). */
 void hl_ref_relight(const uint8_t *entries, const uint16_t *block_counts, hl_row_quant rq,
                     uint32_t scheme, uint32_t nblocks, const float *light, const float *albedo,
-                    float *rgb);
+                    int keep_negative, float *rgba);
 
 #endif
