@@ -12,6 +12,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "haarlight.h"
 #include "hl_internal.h"
@@ -881,6 +884,222 @@ static void test_bad_not_mesh(void)
     hl_context_destroy(ctx);
 }
 
+/* ---------------------------------------------------------------- scenes
+ * Files whose scene assimp 5.2's post-processing aborts, throws or
+ * overruns on: they must be refused before it runs (see load_assimp). */
+
+/* Writes a binary glTF: the JSON, then `bin` as its buffer 0. */
+static void write_glb(const char *path, const char *json, const void *bin, size_t bin_size)
+{
+    size_t jpad = (strlen(json) + 3) & ~(size_t)3, bpad = (bin_size + 3) & ~(size_t)3;
+    size_t total = 12 + 8 + jpad + 8 + bpad;
+    unsigned char *b = calloc(1, total);
+    if (!b) {
+        fprintf(stderr, "out of memory for %s\n", path);
+        exit(1);
+    }
+    memcpy(b, "glTF", 4);
+    put_u32(b + 4, 2, 0);
+    put_u32(b + 8, (uint32_t)total, 0);
+    put_u32(b + 12, (uint32_t)jpad, 0);
+    memcpy(b + 16, "JSON", 4);
+    memset(b + 20, ' ', jpad);
+    memcpy(b + 20, json, strlen(json));
+    put_u32(b + 20 + jpad, (uint32_t)bpad, 0);
+    memcpy(b + 24 + jpad, "BIN\0", 4);
+    memcpy(b + 28 + jpad, bin, bin_size);
+    write_file(path, b, total);
+    free(b);
+}
+
+/* A binary glTF with one mesh of `nv` vertices on a grid and one triangle
+ * (vertices 0, 1 and 256 when nv > 256, else 0, 1, 2), placed by `copies`
+ * nodes, the children of the scene's one root node. */
+static void write_instanced_glb(const char *path, uint32_t nv, uint32_t copies)
+{
+    size_t bin_size = (size_t)nv * 12 + 12;
+    unsigned char *bin = malloc(bin_size);
+    size_t cap = 1024 + (size_t)copies * 24;
+    char *json = malloc(cap);
+    if (!bin || !json) {
+        fprintf(stderr, "out of memory for %s\n", path);
+        exit(1);
+    }
+    for (uint32_t i = 0; i < nv; i++) {
+        const float xyz[3] = {(float)(i % 256) / 256.0f, (float)(i / 256) / 256.0f, 0.0f};
+        for (int k = 0; k < 3; k++) {
+            uint32_t bits;
+            memcpy(&bits, &xyz[k], 4);
+            put_u32(bin + 12 * (size_t)i + 4 * (size_t)k, bits, 0);
+        }
+    }
+    const uint32_t tri[3] = {0, 1, nv > 256 ? 256 : 2};
+    for (int k = 0; k < 3; k++) put_u32(bin + (size_t)nv * 12 + 4 * (size_t)k, tri[k], 0);
+    size_t n = (size_t)snprintf(json, cap, "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
+                                           "\"nodes\":[{\"children\":[");
+    for (uint32_t c = 1; c <= copies; c++) n += (size_t)snprintf(json + n, cap - n, "%s%u", c > 1 ? "," : "", c);
+    n += (size_t)snprintf(json + n, cap - n, "]}");
+    for (uint32_t c = 1; c <= copies; c++) n += (size_t)snprintf(json + n, cap - n, ",{\"mesh\":0}");
+    snprintf(json + n, cap - n,
+             "],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}],"
+             "\"buffers\":[{\"byteLength\":%zu}],"
+             "\"bufferViews\":[{\"buffer\":0,\"byteLength\":%zu},{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":12}],"
+             "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":%u,\"type\":\"VEC3\","
+             "\"min\":[0,0,0],\"max\":[1,1,0]},{\"bufferView\":1,\"componentType\":5125,\"count\":3,\"type\":\"SCALAR\"}]}",
+             bin_size, (size_t)nv * 12, (size_t)nv * 12, nv);
+    write_glb(path, json, bin, bin_size);
+    free(json);
+    free(bin);
+}
+
+/* Loads path, which must be refused with `code`, naming the file, with
+ * why in the message. */
+static void refused_because(hl_context *ctx, const char *path, hl_result code, const char *why)
+{
+    hl_mesh *m = NULL;
+    hl_result r = hl_mesh_load(ctx, path, NULL, &m, NULL);
+    expect_failure(ctx, path, r, code);
+    HL_CHECK(strstr(hl_context_last_error(ctx), why) != NULL, "%s: the message does not say \"%s\"", path, why);
+    hl_mesh_destroy(m);
+}
+
+/* A scene in which no node references a mesh: assimp's
+ * PretransformVertices throws "No output meshes", and the C API's
+ * aiApplyPostProcessing then released the deleted scene again (a
+ * segfault, first seen on AC/nosurfaces.ac of assimp-testmodels). AC3D:
+ * an object with vertices and no surfaces becomes a mesh of points that
+ * no node holds, at the top level or inside a world object. glTF: a mesh
+ * whose only node is outside the scene, loaded through a skin's joints.
+ * The same files with a surface, or with the node in the scene, load. */
+static void test_bad_no_placed_mesh(void)
+{
+    hl_context *ctx = make_ctx();
+    static const char verts[] = "numvert 3\n0 0 0\n1 0 0\n0 1 0\n";
+    static const char surf[] = "numsurf 1\nSURF 0x10\nmat 0\nrefs 3\n0 0 0\n1 0 0\n2 0 0\n";
+    char text[512];
+    const char *ac = tmp_path("mesh_no_surfaces.ac");
+    snprintf(text, sizeof text, "AC3Db\nOBJECT poly\n%skids 0\n", verts);
+    write_text(ac, text);
+    refused_because(ctx, ac, HL_ERR_MESH, "no mesh is placed in the scene");
+    const char *ac_world = tmp_path("mesh_no_surfaces_world.ac");
+    snprintf(text, sizeof text, "AC3Db\nOBJECT world\nkids 1\nOBJECT poly\n%skids 0\n", verts);
+    write_text(ac_world, text);
+    refused_because(ctx, ac_world, HL_ERR_MESH, "no mesh is placed in the scene");
+    const char *ac_ok = tmp_path("mesh_one_surface.ac");
+    snprintf(text, sizeof text, "AC3Db\nOBJECT world\nkids 1\nOBJECT poly\n%s%skids 0\n", verts, surf);
+    write_text(ac_ok, text);
+    one_triangle(ctx, ac_ok);
+
+    static const float xyz[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    unsigned char bin[36];
+    for (int i = 0; i < 9; i++) {
+        uint32_t bits;
+        memcpy(&bits, &xyz[i], 4);
+        put_u32(bin + 4 * i, bits, 0);
+    }
+    static const char gltf[] =
+        "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[%s]}],"
+        "\"nodes\":[{\"name\":\"empty\"},{\"name\":\"holder\",\"mesh\":0}],\"skins\":[{\"joints\":[1]}],"
+        "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],\"buffers\":[{\"byteLength\":36}],"
+        "\"bufferViews\":[{\"buffer\":0,\"byteLength\":36}],\"accessors\":[{\"bufferView\":0,\"componentType\":5126,"
+        "\"count\":3,\"type\":\"VEC3\",\"min\":[0,0,0],\"max\":[1,1,0]}]}";
+    const char *glb = tmp_path("mesh_unplaced.glb");
+    snprintf(text, sizeof text, gltf, "0");
+    write_glb(glb, text, bin, sizeof bin);
+    refused_because(ctx, glb, HL_ERR_MESH, "no mesh is placed in the scene");
+    const char *glb_ok = tmp_path("mesh_placed.glb");
+    snprintf(text, sizeof text, gltf, "0,1");
+    write_glb(glb_ok, text, bin, sizeof bin);
+    one_triangle(ctx, glb_ok);
+    hl_context_destroy(ctx);
+}
+
+/* One mesh of 65535 vertices placed by 65538 nodes: more than 2^32
+ * vertices once placed. assimp's PretransformVertices adds them up in 32
+ * bits, allocates the wrapped (small) count and copies past it (heap
+ * corruption from a 2 MB file). Refused before it runs, quickly; the same
+ * mesh placed twice loads. */
+static void test_bad_placed_overflow(void)
+{
+    hl_context *ctx = make_ctx();
+    const char *path = tmp_path("mesh_placed_2e32.glb");
+    write_instanced_glb(path, 65535, 65538);
+    double t0 = hl_now();
+    refused_because(ctx, path, HL_ERR_MESH, "more than 2^32 vertices");
+    printf("refused in %.3f s\n", hl_now() - t0);
+    const char *ok = tmp_path("mesh_placed_twice.glb");
+    write_instanced_glb(ok, 65535, 2);
+    hl_mesh *m = NULL;
+    hl_mesh_stats st;
+    HL_CHECK(load(ctx, ok, NULL, &m, &st) == HL_OK && m, "%s: a mesh placed twice must load", ok);
+    if (m) {
+        print_stats("placed twice", m, &st);
+        /* two copies of 65535 vertices, all but the triangle's unused; the
+           copies coincide, so their vertices weld and both triangles stay */
+        HL_CHECK(st.file_vertices == 2 * 65535u && st.file_triangles == 2, "placed twice: file counts");
+        HL_CHECK(m->vertex_count == 3 && m->triangle_count == 2, "placed twice: %u vertices, %u triangles",
+                 m->vertex_count, m->triangle_count);
+    }
+    hl_mesh_destroy(m);
+    hl_context_destroy(ctx);
+}
+
+#if defined(__SANITIZE_ADDRESS__)
+#define MESH_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define MESH_TEST_ASAN 1
+#endif
+#endif
+
+/* A mesh placed by 12000 nodes: 786 million vertices, under 2^32, so it
+ * gets to assimp's steps, which need about 10 GB for it. With the address
+ * space limited to 1 GiB more than the process has, the allocation fails
+ * inside PretransformVertices; the load must come back refused as out of
+ * memory (aiApplyPostProcessing's failure path crashed on it). Run in a
+ * child process, which takes the limit. Not under AddressSanitizer, whose
+ * shadow memory needs more address space than any such limit. */
+static void test_bad_import_memory(void)
+{
+#ifdef MESH_TEST_ASAN
+    printf("SKIP: an AddressSanitizer build cannot run under an address-space limit\n");
+#else
+    const char *path = tmp_path("mesh_placed_10gb.glb");
+    write_instanced_glb(path, 65535, 12000);
+    fflush(stdout);
+    pid_t pid = fork();
+    HL_CHECK(pid >= 0, "fork failed");
+    if (pid == 0) {
+        long pages = 0, page = sysconf(_SC_PAGESIZE);
+        FILE *f = fopen("/proc/self/statm", "r");
+        if (!f || fscanf(f, "%ld", &pages) != 1 || page <= 0) _exit(3);
+        fclose(f);
+        rlim_t lim = (rlim_t)pages * (rlim_t)page + ((rlim_t)1 << 30);
+        struct rlimit rl;
+        if (getrlimit(RLIMIT_AS, &rl) != 0) _exit(3);
+        if (rl.rlim_cur == RLIM_INFINITY || rl.rlim_cur > lim) rl.rlim_cur = lim;
+        if (setrlimit(RLIMIT_AS, &rl) != 0) _exit(3);
+        hl_context *ctx = make_ctx();
+        hl_mesh *m = NULL;
+        hl_result r = hl_mesh_load(ctx, path, NULL, &m, NULL);
+        const char *msg = hl_context_last_error(ctx);
+        printf("  %s -> %s: %s\n", path, hl_result_string(r), msg);
+        fflush(stdout);
+        int ok = r == HL_ERR_OUT_OF_MEMORY && strstr(msg, path) && strstr(msg, "out of memory");
+        hl_mesh_destroy(m);
+        hl_context_destroy(ctx);
+        _exit(ok ? 0 : 1);
+    }
+    int status = 0;
+    HL_CHECK(waitpid(pid, &status, 0) == pid, "waitpid failed");
+    if (WIFSIGNALED(status))
+        HL_CHECK(0, "the load under a memory limit was killed by signal %d", WTERMSIG(status));
+    else
+        HL_CHECK(WEXITSTATUS(status) == 0, "the load under a memory limit: child exit %d (1: not refused as out of "
+                 "memory, 3: could not set the limit)", WEXITSTATUS(status));
+#endif
+}
+
 static void test_bad_missing(void)
 {
     hl_context *ctx = make_ctx();
@@ -964,6 +1183,9 @@ int main(int argc, char **argv)
         {"bad_counts", test_bad_counts},
         {"bad_missing", test_bad_missing},
         {"bad_empty", test_bad_empty},
+        {"bad_no_placed_mesh", test_bad_no_placed_mesh},
+        {"bad_placed_overflow", test_bad_placed_overflow},
+        {"bad_import_memory", test_bad_import_memory},
         {"bad_args", test_bad_args},
         {NULL, NULL},
     };
