@@ -495,11 +495,12 @@ static void skipped_note(hl_context *ctx, const char *path, uint64_t skipped)
 }
 
 /* After a failed import: assimp's validation reports a mesh without faces
- * or vertices, and a scene without meshes, like any other error, and an
- * allocation that failed inside it comes back as "std::bad_alloc", so
- * they are told apart by its message. (A second import without validation
- * would count them, but assimp's scene preprocessing then walks the
- * unvalidated data and crashes on some corrupt files.) */
+ * or vertices, a scene without meshes, and any other inconsistency of the
+ * scene an importer built, like any other error, and an allocation that
+ * failed inside it comes back as "std::bad_alloc", so they are told apart
+ * by its message. (Importing without validation to count them instead is
+ * not safe: assimp's scene preprocessing then walks the unvalidated data
+ * and crashes on some corrupt files.) */
 static hl_result assimp_failure(hl_context *ctx, const char *path, const char *msg)
 {
     if (strstr(msg, "contains no faces"))
@@ -511,6 +512,9 @@ static hl_result assimp_failure(hl_context *ctx, const char *path, const char *m
     if (strstr(msg, "bad_alloc"))
         return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: out of memory while importing the file (importer: %s)", path,
                        msg);
+    if (strncmp(msg, "Validation failed", 17) == 0)
+        return hl_fail(ctx, HL_ERR_FORMAT, "%s: the importer built an inconsistent scene from the file (importer: %s)",
+                       path, msg);
     return hl_fail(ctx, HL_ERR_FORMAT, "%s: importer: %s", path, msg);
 }
 
@@ -550,24 +554,27 @@ static hl_result raw_scene_problem(hl_context *ctx, const char *path, const stru
     uint64_t *out_faces = calloc(s->mNumMeshes, sizeof *out_faces);
     unsigned char *referenced = calloc(s->mNumMeshes, 1);
     const struct aiNode **stack = NULL;
+    size_t top = 0, cap = 64;
+    uint64_t placed_vertices = 0, placed_faces = 0;
+    unsigned placed = 0, nreferenced = 0;
     hl_result r = HL_OK;
     if (!out_faces || !referenced) {
         r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: out of memory checking the scene", path);
         goto done;
     }
-    for (unsigned m = 0; m < s->mNumMeshes && r == HL_OK; m++) {
+    for (unsigned m = 0; m < s->mNumMeshes; m++) {
         const struct aiMesh *am = s->mMeshes[m];
         if ((am->mNumVertices && !am->mVertices) || (am->mNumFaces && !am->mFaces)) {
             r = hl_fail(ctx, HL_ERR_FORMAT, "%s: mesh %u (counting from 0) has %u vertices and %u faces but "
                         "not their arrays", path, m, am->mNumVertices, am->mNumFaces);
-            break;
+            goto done;
         }
         for (unsigned f = 0; f < am->mNumFaces; f++) {
             const struct aiFace *af = &am->mFaces[f];
             if (af->mNumIndices == 0 || !af->mIndices) {
                 r = hl_fail(ctx, HL_ERR_FORMAT, "%s: mesh %u face %u (counting from 0) has no vertex indices",
                             path, m, f);
-                break;
+                goto done;
             }
             out_faces[m] += af->mNumIndices <= 3 ? 1 : af->mNumIndices - 2;
             if (af->mNumIndices <= 3) continue; /* the builder checks triangles' indices */
@@ -580,22 +587,18 @@ static hl_result raw_scene_problem(hl_context *ctx, const char *path, const stru
                 }
         }
     }
-    if (r != HL_OK) goto done;
     if (!s->mRootNode) {
         r = hl_fail(ctx, HL_ERR_FORMAT, "%s: the scene has no root node", path);
         goto done;
     }
     /* the node tree, depth first with a stack of its own (as deep as the
-       file makes it); placed counts every reference, as the steps do */
-    size_t top = 0, cap = 64;
+       file makes it); the sums count every reference, as the steps do */
     stack = malloc(cap * sizeof *stack);
     if (!stack) {
         r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: out of memory checking the scene", path);
         goto done;
     }
     stack[top++] = s->mRootNode;
-    uint64_t placed_vertices = 0, placed_faces = 0;
-    unsigned placed = 0, nreferenced = 0;
     while (top > 0) {
         const struct aiNode *nd = stack[--top];
         if ((nd->mNumMeshes && !nd->mMeshes) || (nd->mNumChildren && !nd->mChildren)) {
