@@ -5,4 +5,4 @@
 hl_test_exe(test_analytic test_analytic.c)
 hl_test_cases(test_analytic haar roundtrip parseval slots)
 hl_test_cases(test_analytic geom solid_angle mapping table)
-hl_test_cases(test_analytic analytic furnace cap)
+hl_test_cases(test_analytic analytic furnace cap ray_offset)

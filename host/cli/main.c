@@ -53,7 +53,9 @@ static const char *const usage_precompute =
     "  -C, --cube C         cubemap face resolution (default 64)\n"
     "  -N, --para N         paraboloid map resolution, power of two 8..256 (default 64)\n"
     "  --supersample S      S x S rays per cube texel, 1..15 (default 1)\n"
-    "  --ray-offset F       ray origin offset, fraction of the bbox diagonal (default 1e-3)\n"
+    "  --ray-offset F|robust  ray origin offset along the normal: a fraction of the bbox\n"
+    "                       diagonal, or robust (the default: 2^-16 of the larger of the\n"
+    "                       vertex's coordinates and its longest edge, at any scale)\n"
     "truncation (per vertex):\n"
     "  --energy EPS         keep the fewest coefficients holding 1-EPS of the energy\n"
     "                       (the default rule, EPS = 1e-5)\n"
@@ -141,8 +143,9 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
                 return usage_error(usage, "--supersample %s: expected 1 to 15", v);
         } else if (!strcmp(a, "--ray-offset")) {
             NEED_ARG();
-            if (!parse_float(v, &o->pd.ray_offset) || !(o->pd.ray_offset > 0 && o->pd.ray_offset < 0.1f))
-                return usage_error(usage, "--ray-offset %s: expected a number in (0, 0.1)", v);
+            if (!strcmp(v, "robust")) o->pd.ray_offset = 0.0f;
+            else if (!parse_float(v, &o->pd.ray_offset) || !(o->pd.ray_offset > 0 && o->pd.ray_offset < 0.1f))
+                return usage_error(usage, "--ray-offset %s: expected `robust` or a number in (0, 0.1)", v);
         } else if (!strcmp(a, "--energy")) {
             NEED_ARG();
             if (!parse_float(v, &o->pd.eps) || !(o->pd.eps > 0 && o->pd.eps < 1))

@@ -197,7 +197,10 @@ void hl_mesh_destroy(hl_mesh *mesh);
  *   K             0: no cap (top-K rule: required, >= 1 unless keep none)
  *   eps           0: 1e-5 of the row's energy may be dropped (energy rule)
  *   quant         HL_QUANT_DEFAULT: the scheme the bench measured best
- *   ray_offset    0: 1e-3 of the bounding-box diagonal
+ *   ray_offset    0: robust: each vertex's ray origin moves along its normal
+ *                 by 2^-16 of the larger of its largest coordinate
+ *                 magnitude and its longest edge; else a fraction of the
+ *                 bounding-box diagonal, in (0, 0.1)
  *   chunk         0: 1024 vertices per chunk
  *   resume        0: start afresh; 1: continue from out_path + ".partial",
  *                 which an interrupted run leaves (same parameters and mesh

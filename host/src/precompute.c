@@ -27,7 +27,6 @@ hl_result hl_precompute_resolve(hl_context *ctx, hl_precompute_desc *d)
     if (!d->rule) d->rule = HL_TRUNC_ENERGY;
     if (d->rule == HL_TRUNC_ENERGY && d->eps == 0.0f) d->eps = HL_DEFAULT_EPS;
     if (!d->quant) d->quant = HL_DEFAULT_QUANT;
-    if (d->ray_offset == 0.0f) d->ray_offset = HL_DEFAULT_RAY_OFFSET;
     if (!d->chunk) d->chunk = HL_DEFAULT_CHUNK;
     if (d->N < 8 || d->N > 256 || (d->N & (d->N - 1)))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "N = %u: the paraboloid resolution must be a power of two from 8 to 256", d->N);
@@ -41,8 +40,10 @@ hl_result hl_precompute_resolve(hl_context *ctx, hl_precompute_desc *d)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "eps = %g: the dropped energy fraction must be in [0, 1)", (double)d->eps);
     if (d->quant != HL_QUANT_LINEAR8 && d->quant != HL_QUANT_LOG8)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "unknown quantisation scheme %u", d->quant);
-    if (!(d->ray_offset > 0.0f && d->ray_offset < 0.1f))
-        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "ray offset %g: must be in (0, 0.1) of the bounding-box diagonal", (double)d->ray_offset);
+    if (!(d->ray_offset >= 0.0f && d->ray_offset < 0.1f))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "ray offset %g: must be 0 (robust, the default) or in (0, 0.1) of the bounding-box diagonal",
+                       (double)d->ray_offset);
     if (d->chunk > (1u << 20))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "chunk = %u: at most %u vertices", d->chunk, 1u << 20);
     return HL_OK;
@@ -174,7 +175,7 @@ hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precomput
     const uint32_t V = mesh->vertex_count, R = d.chunk < V ? d.chunk : V;
     uint32_t start = 0; /* vertices already written (resume) */
     uint32_t nchunks = (V + R - 1) / R;
-    const float offset = d.ray_offset * hl_mesh_query_diagonal(mesh);
+    const float offset = d.ray_offset * hl_mesh_query_diagonal(mesh); /* 0: robust */
     const float vis_scale = (float)(1.0 / (HL_PI * d.supersample * d.supersample));
     const hl_trunc_params tp = hl_precompute_trunc_params(&d);
     hl_vis_counts vc = {0, 0}, vc_done = {0, 0}; /* vc_done: rays of the vertices appended */

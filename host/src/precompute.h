@@ -11,7 +11,6 @@
 #define HL_DEFAULT_C 64u
 #define HL_DEFAULT_EPS 1e-5f
 #define HL_DEFAULT_QUANT HL_QUANT_LOG8
-#define HL_DEFAULT_RAY_OFFSET 1e-3f
 #define HL_DEFAULT_CHUNK 1024u
 
 /* Fills defaults into d and checks every option; errors name the option. */

@@ -20,12 +20,49 @@
  * still get rays: part of their footprint may be above it. */
 #define HL_HORIZON_MARGIN 1.5f
 
+/* The robust ray offset (ray_offset 0): each vertex's origin moves along
+ * its normal by 2^-HL_ROBUST_SHIFT of the larger of its largest coordinate
+ * magnitude and its longest edge. The errors of a ray-triangle test near
+ * the vertex scale with those two (the coordinates' spacing, and the edges
+ * Embree subtracts and crosses), so the offset clears the vertex's own
+ * triangles at any scale and position, while it stays far below the gaps
+ * of real contacts and creases (a fixed fraction of the bounding-box
+ * diagonal let origins pass through nearby geometry). 2^-16 is 256 units
+ * in the last place of the coordinate; hl.analytic.ray_offset measures
+ * the choice. */
+#define HL_ROBUST_SHIFT 16
+
 struct hl_rt {
     hl_context *ctx;
     RTCDevice device;
     RTCScene scene;
+    uint32_t nverts;
+    float *robust; /* per vertex: the robust offset's size */
+    const hl_mesh *mesh; /* for hl_rt_occluded_from_vertex (filtered scenes) */
+    int filtered;
     char err[512];
 };
+
+/* Per vertex: 2^-HL_ROBUST_SHIFT max(|p|_inf, longest edge). */
+static float *robust_offsets(const hl_mesh *mesh)
+{
+    float *s = calloc(mesh->vertex_count ? mesh->vertex_count : 1, sizeof(float));
+    if (!s) return NULL;
+    const float *P = mesh->positions;
+    for (uint32_t v = 0; v < mesh->vertex_count; v++)
+        for (int c = 0; c < 3; c++) s[v] = fmaxf(s[v], fabsf(P[3 * (size_t)v + c]));
+    for (uint32_t t = 0; t < mesh->triangle_count; t++) {
+        const uint32_t *f = mesh->indices + 3 * (size_t)t;
+        for (int k = 0; k < 3; k++) {
+            const float *a = P + 3 * (size_t)f[k], *b = P + 3 * (size_t)f[(k + 1) % 3];
+            float e = fmaxf(fabsf(a[0] - b[0]), fmaxf(fabsf(a[1] - b[1]), fabsf(a[2] - b[2])));
+            s[f[k]] = fmaxf(s[f[k]], e);
+            s[f[(k + 1) % 3]] = fmaxf(s[f[(k + 1) % 3]], e);
+        }
+    }
+    for (uint32_t v = 0; v < mesh->vertex_count; v++) s[v] = ldexpf(s[v], -HL_ROBUST_SHIFT);
+    return s;
+}
 
 static void embree_error(void *user, enum RTCError code, const char *str)
 {
@@ -33,22 +70,32 @@ static void embree_error(void *user, enum RTCError code, const char *str)
     if (rt && !rt->err[0]) snprintf(rt->err, sizeof rt->err, "Embree error %d: %s", (int)code, str ? str : "");
 }
 
-hl_result hl_rt_create(hl_context *ctx, const hl_mesh *mesh, hl_rt **out)
+static hl_result rt_create(hl_context *ctx, const hl_mesh *mesh, int filtered, hl_rt **out)
 {
     *out = NULL;
     hl_rt *rt = calloc(1, sizeof *rt);
     if (!rt) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
     rt->ctx = ctx;
+    rt->nverts = mesh->vertex_count;
+    rt->mesh = mesh;
+    rt->filtered = filtered;
+    rt->robust = robust_offsets(mesh);
+    if (!rt->robust) {
+        free(rt);
+        return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for %u ray offsets", mesh->vertex_count);
+    }
     char cfg[64];
     snprintf(cfg, sizeof cfg, "threads=%d", ctx->threads);
     rt->device = rtcNewDevice(cfg);
     if (!rt->device) {
+        free(rt->robust);
         free(rt);
         return hl_fail(ctx, HL_ERR_EMBREE, "Embree: cannot create a device (error %d)", (int)rtcGetDeviceError(NULL));
     }
     rtcSetDeviceErrorFunction(rt->device, embree_error, rt);
     rt->scene = rtcNewScene(rt->device);
-    if (!getenv("HL_X_NOROBUST")) rtcSetSceneFlags(rt->scene, RTC_SCENE_FLAG_ROBUST);
+    if (!getenv("HL_X_NOROBUST"))
+        rtcSetSceneFlags(rt->scene, RTC_SCENE_FLAG_ROBUST | (filtered ? RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION : 0));
     rtcSetSceneBuildQuality(rt->scene, RTC_BUILD_QUALITY_HIGH);
     RTCGeometry geom = rtcNewGeometry(rt->device, RTC_GEOMETRY_TYPE_TRIANGLE);
     float *vb = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
@@ -72,11 +119,19 @@ hl_result hl_rt_create(hl_context *ctx, const hl_mesh *mesh, hl_rt **out)
     return HL_OK;
 }
 
+hl_result hl_rt_create(hl_context *ctx, const hl_mesh *mesh, hl_rt **out) { return rt_create(ctx, mesh, 0, out); }
+
+hl_result hl_rt_create_filtered(hl_context *ctx, const hl_mesh *mesh, hl_rt **out)
+{
+    return rt_create(ctx, mesh, 1, out);
+}
+
 void hl_rt_destroy(hl_rt *rt)
 {
     if (!rt) return;
     if (rt->scene) rtcReleaseScene(rt->scene);
     if (rt->device) rtcReleaseDevice(rt->device);
+    free(rt->robust);
     free(rt);
 }
 
@@ -152,8 +207,9 @@ static void trace_vertex(vis_job *job, uint32_t v, packet *pk, const float *off)
     const hl_geom *g = job->g;
     const uint32_t C = g->C, S = job->S;
     const float *p = job->mesh->positions + 3 * (size_t)v, *n = job->mesh->normals + 3 * (size_t)v;
-    const float o[3] = {hl_rt_origin_coord(p[0], n[0], job->offset), hl_rt_origin_coord(p[1], n[1], job->offset),
-                        hl_rt_origin_coord(p[2], n[2], job->offset)};
+    const float d = job->offset > 0.0f ? job->offset : job->rt->robust[v];
+    const float o[3] = {hl_rt_origin_coord(p[0], n[0], d), hl_rt_origin_coord(p[1], n[1], d),
+                        hl_rt_origin_coord(p[2], n[2], d)};
     const float margin = -HL_HORIZON_MARGIN / (float)C;
     uint8_t *row = job->vis ? job->vis + (size_t)(v - job->first) * g->ncube : NULL;
     if (row) memset(row, 0, g->ncube);
@@ -234,17 +290,22 @@ static hl_result run_job(hl_rt *rt, vis_job *job)
     return HL_OK;
 }
 
-static hl_result check_job(hl_rt *rt, uint32_t S)
+static hl_result check_job(hl_rt *rt, const hl_mesh *mesh, uint32_t S)
 {
+    if (mesh->vertex_count != rt->nverts)
+        return hl_fail(rt->ctx, HL_ERR_INVALID_ARGUMENT, "visibility of a mesh of %u vertices on a scene built from %u",
+                       mesh->vertex_count, rt->nverts);
     if (S < 1 || S > 15)
         return hl_fail(rt->ctx, HL_ERR_INVALID_ARGUMENT, "supersample = %u: must be 1 to 15 (S x S rays per texel count in 8 bits)", S);
     return HL_OK;
 }
 
+float hl_rt_robust_offset(const hl_rt *rt, uint32_t v) { return v < rt->nverts ? rt->robust[v] : 0.0f; }
+
 hl_result hl_rt_visibility(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, uint32_t first, uint32_t count,
                            uint32_t S, float offset, uint8_t *vis, hl_vis_counts *counts)
 {
-    hl_result r = check_job(rt, S);
+    hl_result r = check_job(rt, mesh, S);
     if (r != HL_OK) return r;
     vis_job job = {.rt = rt, .g = g, .mesh = mesh, .first = first, .count = count, .S = S, .offset = offset, .vis = vis};
     atomic_init(&job.next, 0u);
@@ -290,7 +351,7 @@ static void *raw_worker(void *arg)
 hl_result hl_rt_raw_rate(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, const uint32_t *verts,
                          uint32_t nverts, uint32_t S, float offset, double *rays_per_s)
 {
-    hl_result r = check_job(rt, S);
+    hl_result r = check_job(rt, mesh, S);
     if (r != HL_OK) return r;
     *rays_per_s = 0.0;
     /* the same packets hl_rt_visibility builds, made up front */
@@ -397,6 +458,84 @@ hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, cons
     primary_job j = {.rt = rt, .count = count, .org = org, .dir = dir, .occluded = occluded};
     atomic_init(&j.next, 0u);
     hl_run_threads(rt->ctx->threads, primary_worker, &j);
+    if (rt->err[0]) return hl_fail(rt->ctx, HL_ERR_EMBREE, "Embree: %s", rt->err);
+    return HL_OK;
+}
+
+/* ------------------------------------------------ rays from a vertex itself */
+
+/* The intersection context of hl_rt_occluded_from_vertex: Embree hands
+ * the filter the pointer to its first member. */
+typedef struct own_filter {
+    struct RTCIntersectContext ic;
+    const uint32_t *indices;
+    uint32_t vertex;
+} own_filter;
+
+/* A ray that starts exactly on a vertex meets the vertex's own triangles
+ * only at t = 0 (it leaves their plane at once), so those hits are
+ * dropped and every other one counts. */
+static void skip_own_triangles(const struct RTCFilterFunctionNArguments *a)
+{
+    const own_filter *f = (const own_filter *)(const void *)a->context;
+    for (unsigned i = 0; i < a->N; i++) {
+        if (a->valid[i] != -1) continue;
+        /* RTCHitN is N hits by field (Ng x, y, z, u, v, primID, ...):
+           rtcore_ray.h's RTCHitN_primID, which is C++ only */
+        const unsigned prim = ((const unsigned *)(const void *)a->hit)[5 * (size_t)a->N + i];
+        const uint32_t *t = f->indices + 3 * (size_t)prim;
+        if (t[0] == f->vertex || t[1] == f->vertex || t[2] == f->vertex) a->valid[i] = 0;
+    }
+}
+
+typedef struct own_job {
+    hl_rt *rt;
+    uint32_t vertex, count;
+    const float *dir;
+    uint8_t *occluded;
+    atomic_uint next;
+} own_job;
+
+static void *own_worker(void *arg)
+{
+    own_job *j = arg;
+    own_filter f;
+    rtcInitIntersectContext(&f.ic);
+    f.ic.filter = skip_own_triangles;
+    f.indices = j->rt->mesh->indices;
+    f.vertex = j->vertex;
+    const float *p = j->rt->mesh->positions + 3 * (size_t)j->vertex;
+    for (;;) {
+        uint32_t i0 = atomic_fetch_add(&j->next, 256u);
+        if (i0 >= j->count) break;
+        uint32_t end = i0 + 256 < j->count ? i0 + 256 : j->count;
+        for (uint32_t i = i0; i < end; i++) {
+            struct RTCRay ray;
+            memset(&ray, 0, sizeof ray);
+            ray.org_x = p[0];
+            ray.org_y = p[1];
+            ray.org_z = p[2];
+            ray.dir_x = j->dir[3 * (size_t)i];
+            ray.dir_y = j->dir[3 * (size_t)i + 1];
+            ray.dir_z = j->dir[3 * (size_t)i + 2];
+            ray.tfar = INFINITY;
+            ray.mask = 0xffffffffu;
+            rtcOccluded1(j->rt->scene, &f.ic, &ray);
+            j->occluded[i] = ray.tfar < 0.0f;
+        }
+    }
+    return NULL;
+}
+
+hl_result hl_rt_occluded_from_vertex(hl_rt *rt, uint32_t vertex, uint32_t count, const float *dir, uint8_t *occluded)
+{
+    if (!rt->filtered || vertex >= rt->nverts)
+        return hl_fail(rt->ctx, HL_ERR_INVALID_ARGUMENT,
+                       "rays from vertex %u: needs a scene from hl_rt_create_filtered of a mesh with that vertex",
+                       vertex);
+    own_job j = {.rt = rt, .vertex = vertex, .count = count, .dir = dir, .occluded = occluded};
+    atomic_init(&j.next, 0u);
+    hl_run_threads(rt->ctx->threads, own_worker, &j);
     if (rt->err[0]) return hl_fail(rt->ctx, HL_ERR_EMBREE, "Embree: %s", rt->err);
     return HL_OK;
 }

@@ -15,6 +15,9 @@
 typedef struct hl_rt hl_rt;
 
 hl_result hl_rt_create(hl_context *ctx, const hl_mesh *mesh, hl_rt **out);
+/* The same scene, which can also answer hl_rt_occluded_from_vertex (its
+ * rays are a little slower); mesh must outlive it. */
+hl_result hl_rt_create_filtered(hl_context *ctx, const hl_mesh *mesh, hl_rt **out);
 void hl_rt_destroy(hl_rt *rt);
 
 typedef struct hl_vis_counts {
@@ -23,11 +26,15 @@ typedef struct hl_vis_counts {
 } hl_vis_counts;
 
 /* Visibility of vertices [first, first + count) into vis (count * ncube
- * bytes), using ctx's thread count. offset: absolute ray-origin offset
- * along the normal. */
+ * bytes), using ctx's thread count; mesh is the one the scene was built
+ * from. offset: absolute ray-origin offset along the normal, or 0 for the
+ * robust offset (per vertex, sized to its coordinates and edges: rays.c). */
 hl_result hl_rt_visibility(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, uint32_t first,
                            uint32_t count, uint32_t S, float offset, uint8_t *vis,
                            hl_vis_counts *counts);
+
+/* The robust offset of vertex v (what offset 0 uses). */
+float hl_rt_robust_offset(const hl_rt *rt, uint32_t v);
 
 /* Embree's raw occlusion rate on the same rays as hl_rt_visibility builds
  * for the listed vertices: the packets are made first, then only the
@@ -52,5 +59,13 @@ hl_result hl_rt_trace_primary(hl_rt *rt, uint32_t count, const float *org, const
  * occluded[i] = 1 when anything lies along ray i. */
 hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, const float *dir,
                                uint8_t *occluded);
+
+/* Occlusion of `count` rays from vertex `vertex` itself, with no offset:
+ * hits on the vertex's own triangles (which such a ray meets only at its
+ * origin) are dropped, every other hit counts. An offset-free way to cast
+ * rays from a vertex, independent of the precompute's offset (bench's
+ * continuous reference). Needs hl_rt_create_filtered. */
+hl_result hl_rt_occluded_from_vertex(hl_rt *rt, uint32_t vertex, uint32_t count, const float *dir,
+                                     uint8_t *occluded);
 
 #endif

@@ -1275,7 +1275,8 @@ void hl_transport_describe(const hl_transport *t, const char *path, FILE *f)
     if (i->rule == HL_TRUNC_ENERGY) fprintf(f, ", eps %g", (double)i->eps);
     fprintf(f, "\n");
     fprintf(f, "quantisation       %s\n", quant_name(i->quant));
-    fprintf(f, "ray offset         %g x bounding-box diagonal\n", (double)i->ray_offset);
+    if (i->ray_offset > 0.0f) fprintf(f, "ray offset         %g x bounding-box diagonal\n", (double)i->ray_offset);
+    else fprintf(f, "ray offset         robust (2^-16 of the vertex's largest coordinate or longest edge)\n");
     fprintf(f, "vertices           %u (object %u, ground %u)\n", V, i->object_vertex_count,
             V - i->object_vertex_count);
     fprintf(f, "triangles          %u\n", i->triangle_count);
