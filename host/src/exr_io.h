@@ -7,7 +7,8 @@
  * floats, and a value the halves cannot hold is refused (exr_io.c says
  * why). Pixels come back as linear float RGB, alpha dropped, row 0 = the
  * first row stored. A header is checked against the limits below, in
- * every part, before any decoder allocates for it.
+ * every part, before any decoder allocates for it, and so is every chunk's
+ * table entry, header and extent in the file.
  */
 #ifndef HL_EXR_IO_H
 #define HL_EXR_IO_H
@@ -38,7 +39,9 @@
  * file: HL_ERR_IO when it cannot be opened or read, HL_ERR_FORMAT when it
  * is not a readable OpenEXR image (bad magic, a header OpenEXRCore
  * rejects, sizes beyond the limits above or a chunk table beyond the file,
- * deep data, corrupt or truncated data, not 2:1 when asked, float values
+ * a chunk whose table entry, header or data does not fit the file (the
+ * message names the part and the chunk), deep data, corrupt or truncated
+ * data, not 2:1 when asked, float values
  * beyond the half range where only halves can be read). */
 hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
                            uint32_t *width, uint32_t *height, float **rgb);
