@@ -63,6 +63,8 @@ static const char *const usage_bench =
     "  --reps R             timed lighting changes per setting on OpenCL (default 15)\n"
     "  --ref-reps R         timed lighting changes per setting on the reference (default 3)\n"
     "  --no-ref-timing      skip timing the plain-C reference\n"
+    "  --no-banding         skip the banding measure (it casts the rays of every ground\n"
+    "                       vertex once)\n"
     "  --device cl:P:D      OpenCL device\n"
     "  --device-memory SIZE most device memory to use, e.g. 512M (default: the device's;\n"
     "                       also HL_DEVICE_MEMORY)\n";
@@ -76,8 +78,9 @@ static const char *const usage_bench =
 typedef struct env_case {
     const char *name, *path;
     hl_env *env;
-    double *exact; /* K x 3 */
-    double *cont;  /* K2 x 3 */
+    double *exact;  /* K x 3 */
+    double *cont;   /* K2 x 3 */
+    double *ground; /* exact B of each ground vertex (G x 3), for banding */
 } env_case;
 
 static int cmp_double(const void *a, const void *b)
@@ -111,6 +114,84 @@ static void errors(const float *B, const uint32_t *idx, uint32_t n, const double
         }
     *l2 = sr > 0 ? sqrt(se / sr) : sqrt(se);
     *mx = mr > 0 ? me / mr : me;
+}
+
+/* The side of the ground grid (hl_mesh_add_ground: (res + 1)^2 vertices
+ * after the object's, row-major), or 0 when there is none to measure. */
+static uint32_t ground_side(const hl_transport_info *in)
+{
+    const uint32_t G = in->vertex_count - in->object_vertex_count;
+    uint32_t n = (uint32_t)sqrt((double)G);
+    while ((uint64_t)n * n > G) n--;
+    while ((uint64_t)(n + 1) * (n + 1) <= G) n++;
+    return (uint64_t)n * n == G && n >= 3 ? n : 0;
+}
+
+/* Banding: contour steps are where the error bends sharply along the
+ * ground, so the measure is the RMS of the 5-point Laplacian of the
+ * ground's luminance error (interior grid points) over the RMS of its
+ * exact luminance. Smooth errors (a little too bright everywhere) add
+ * almost nothing; an 8-bit step in a smooth gradient adds a lot. */
+static double banding(const float *B, uint32_t first, uint32_t n, const double *exact)
+{
+    double se = 0.0, sr = 0.0;
+    uint64_t cnt = 0;
+    for (uint32_t j = 1; j + 1 < n; j++)
+        for (uint32_t i = 1; i + 1 < n; i++) {
+            double lap = 0.0;
+            static const int di[5] = {0, 1, -1, 0, 0}, dj[5] = {0, 0, 0, 1, -1};
+            for (int k = 0; k < 5; k++) {
+                const size_t g = (size_t)(j + dj[k]) * n + (i + di[k]);
+                const float *b = B + 3 * ((size_t)first + g);
+                const double *x = exact + 3 * g;
+                double err = hl_luminance(b[0], b[1], b[2]) - (0.2126 * x[0] + 0.7152 * x[1] + 0.0722 * x[2]);
+                lap += (k == 0 ? -4.0 : 1.0) * err;
+            }
+            const double *x = exact + 3 * ((size_t)j * n + i);
+            const double y = 0.2126 * x[0] + 0.7152 * x[1] + 0.0722 * x[2];
+            se += lap * lap;
+            sr += y * y;
+            cnt++;
+        }
+    return cnt && sr > 0 ? sqrt(se / sr) : NAN;
+}
+
+/* The exact B (untruncated, unquantised transport, float64 sums) of every
+ * ground vertex under each environment's full lighting Lw_all (nenvs x 3
+ * x nc), rays cast in batches. */
+static hl_result ground_exact(hl_context *ctx, hl_rt *rt, const hl_geom *g, const hl_mesh *m,
+                              const hl_transport_info *in, float off, const float *Lw_all, env_case *envs,
+                              int nenvs)
+{
+    const uint32_t first = in->object_vertex_count, G = in->vertex_count - first, nc = g->ncoef, batch = 128;
+    uint8_t *vis = malloc((size_t)batch * g->ncube);
+    float *T = malloc((size_t)nc * 4), *row = malloc((size_t)nc * 4);
+    hl_result r = vis && T && row ? HL_OK : hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the ground rows");
+    for (int e = 0; e < nenvs && r == HL_OK; e++) {
+        envs[e].ground = calloc((size_t)G * 3, sizeof(double));
+        if (!envs[e].ground) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the ground's exact colours");
+    }
+    const float scale = (float)(1.0 / (HL_PI * in->supersample * in->supersample));
+    for (uint32_t b0 = 0; b0 < G && r == HL_OK; b0 += batch) {
+        const uint32_t nb = G - b0 < batch ? G - b0 : batch;
+        r = hl_rt_visibility(rt, g, m, first + b0, nb, in->supersample, off, vis, NULL);
+        for (uint32_t k = 0; k < nb && r == HL_OK; k++) {
+            const uint32_t v = first + b0 + k;
+            hl_ref_cube2para(g, vis + (size_t)k * g->ncube, scale, m->normals + 3 * (size_t)v, T);
+            hl_ref_haar(g, T, row);
+            for (int e = 0; e < nenvs; e++)
+                for (int c = 0; c < 3; c++) {
+                    const float *l = Lw_all + ((size_t)e * 3 + c) * nc;
+                    double sum = 0.0;
+                    for (uint32_t i = 0; i < nc; i++) sum += (double)row[i] * l[i];
+                    envs[e].ground[3 * ((size_t)b0 + k) + c] = sum * m->albedo[3 * (size_t)v + c];
+                }
+        }
+    }
+    free(vis);
+    free(T);
+    free(row);
+    return r;
 }
 
 static const char *base_name(const char *p)
@@ -294,7 +375,7 @@ static int plot(const char *dir, int *plotted)
 int cmd_bench(int argc, char **argv)
 {
     const char *usage = usage_bench, *files[MAX_FILES], *outdir = "bench-out";
-    int nfiles = 0, nenvs = 0, want_sky = 0, ref_timing = 1;
+    int nfiles = 0, nenvs = 0, want_sky = 0, ref_timing = 1, banding_on = 1;
     env_case envs[MAX_ENVS];
     memset(envs, 0, sizeof envs);
     uint32_t terms[MAX_TERMS] = {25, 50, 100, 200, 500, 1000, 2000, HL_TERMS_ALL}, nterms = 8;
@@ -338,6 +419,7 @@ int cmd_bench(int argc, char **argv)
         else if (!strcmp(a, "--reps")) { NEED(); if (!parse_u32(v, &reps) || reps < 1 || reps > 1000) return usage_error(usage, "--reps %s: expected 1 to 1000", v); }
         else if (!strcmp(a, "--ref-reps")) { NEED(); if (!parse_u32(v, &ref_reps) || ref_reps < 1 || ref_reps > MAX_REF_REPS) return usage_error(usage, "--ref-reps %s: expected 1 to 100", v); }
         else if (!strcmp(a, "--no-ref-timing")) ref_timing = 0;
+        else if (!strcmp(a, "--no-banding")) banding_on = 0;
         else if (!strcmp(a, "--device-memory")) {
             NEED();
             if (!parse_device_memory(v, &cd)) return usage_error(usage, "--device-memory %s: expected a byte count such as 512M or 2G", v);
@@ -413,8 +495,10 @@ int cmd_bench(int argc, char **argv)
     }
     free(vis);
     free(T);
-    float *Lw = malloc((size_t)nc * 12);
+    float *Lw_all = malloc((size_t)nenvs * nc * 12);
+    if (r == HL_OK && !Lw_all) r = hl_fail(ref, HL_ERR_OUT_OF_MEMORY, "out of memory for the lighting");
     for (int e = 0; e < nenvs && r == HL_OK; e++) {
+        float *Lw = Lw_all + (size_t)e * nc * 3;
         envs[e].exact = calloc((size_t)K * 3, sizeof(double));
         envs[e].cont = calloc((size_t)(K2 ? K2 : 1) * 3, sizeof(double));
         r = full_lighting(ref, g, lg, envs[e].env, Lw);
@@ -428,6 +512,11 @@ int cmd_bench(int argc, char **argv)
         if (r == HL_OK && K2) r = continuous(ref, rt, m, idx2, K2, envs[e].env, envs[e].cont);
     }
     free(raw);
+    const uint32_t gside = banding_on ? ground_side(in) : 0;
+    if (r == HL_OK && gside) {
+        fprintf(stderr, "bench: exact colours of the %u x %u ground, for banding\n", gside, gside);
+        r = ground_exact(ref, rt, g, m, in, off, Lw_all, envs, nenvs);
+    }
 
     /* the outputs, under temporary names until they are complete */
     char tmp[OUT_COUNT][1200];
@@ -439,7 +528,7 @@ int cmd_bench(int argc, char **argv)
     if (r == HL_OK) {
         fprintf(csv, "file,quant,coef_per_vertex,transport_bytes,env,select,M,kept,energy_kept,error_bound,blocks_skipped,"
                      "l2_exact,max_exact,l2_continuous,max_continuous,cl_ms,ref_ms,l2_exact_unclamped,max_exact_unclamped,"
-                     "negative_vertices\n");
+                     "negative_vertices,banding\n");
         fprintf(md, "# Error against run time\n\n"
                     "Mesh: %u vertices (%u object, %u ground); N = %u, C = %u. Device: %s; %d host threads.\n"
                     "Errors are over %u vertices spread over the mesh (exact: untruncated, unquantised transport and\n"
@@ -449,11 +538,13 @@ int cmd_bench(int argc, char **argv)
                     "selection, dot products, read-back of all vertex colours) on OpenCL, and of %u on the reference\n"
                     "(under the first map only: its time does not depend on the map). Colours below zero are\n"
                     "clamped to 0, as every output is; \"unclamped\" is the L2 error of the sums before that\n"
-                    "clamp, and \"clamped\" counts the vertices it changed (of all %u).\n\n",
+                    "clamp, and \"clamped\" counts the vertices it changed (of all %u). \"Banding\" is the RMS of the\n"
+                    "5-point Laplacian of the ground's luminance error against its exact colours (every ground\n"
+                    "vertex), over the RMS of the exact luminance: contour steps along the ground raise it.\n\n",
                 V, in->object_vertex_count, V - in->object_vertex_count, in->N, in->C, hl_context_device_name(cl), hl_context_threads(cl),
                 K, K2, reps, ref_reps, V);
-        fprintf(md, "| file | env | select | M | kept | energy kept | bound | blocks skipped | L2 exact | max exact | L2 unclamped | clamped | L2 cont. | max cont. | OpenCL ms | ref ms | MB |\n"
-                    "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        fprintf(md, "| file | env | select | M | kept | energy kept | bound | blocks skipped | L2 exact | max exact | L2 unclamped | clamped | banding | L2 cont. | max cont. | OpenCL ms | ref ms | MB |\n"
+                    "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     }
     float *B = malloc((size_t)V * 12), *Braw = malloc((size_t)V * 12);
     if (r == HL_OK && (!B || !Braw)) r = hl_fail(ref, HL_ERR_OUT_OF_MEMORY, "out of memory for %u vertex colours", V);
@@ -513,22 +604,24 @@ int cmd_bench(int argc, char **argv)
                     double l2e, mxe, l2u, mxu, l2c = NAN, mxc = NAN;
                     errors(B, idx, K, envs[e].exact, &l2e, &mxe);
                     errors(Braw, idx, K, envs[e].exact, &l2u, &mxu);
+                    const double band = gside ? banding(B, in->object_vertex_count, gside, envs[e].ground)
+                                                             : NAN;
                     if (K2) errors(B, idx2, K2, envs[e].cont, &l2c, &mxc);
                     double rms = rr ? ref_ms[f][s][mi] : NAN;
                     char mstr[16];
                     if (terms[mi] == HL_TERMS_ALL) snprintf(mstr, sizeof mstr, "all");
                     else snprintf(mstr, sizeof mstr, "%u", terms[mi]);
-                    fprintf(csv, "%s,%s,%.1f,%.0f,%s,%s,%s,%u,%.8f,%.6g,%.4f,%.6g,%.6g,%.6g,%.6g,%.4f,%.2f,%.6g,%.6g,%u\n",
+                    fprintf(csv, "%s,%s,%.1f,%.0f,%s,%s,%s,%u,%.8f,%.6g,%.4f,%.6g,%.6g,%.6g,%.6g,%.4f,%.2f,%.6g,%.6g,%u,%.6g\n",
                             base_name(files[f]), fi->quant == HL_QUANT_LOG8 ? "log8" : "linear8",
                             (double)fi->coefficients_kept / V, bytes, envs[e].name, select_name(selects[s]), mstr,
                             st.terms_kept, st.energy_kept, st.error_bound, st.blocks_skipped, l2e, mxe, l2c, mxc, cl_ms,
-                            rms, l2u, mxu, st.negative_vertices);
+                            rms, l2u, mxu, st.negative_vertices, band);
                     char refcell[32] = "not timed";
                     if (rr) snprintf(refcell, sizeof refcell, "%.1f", rms);
-                    fprintf(md, "| %s | %s | %s | %s | %u | %.6f | %.3g | %.0f%% | %.3f%% | %.3f%% | %.3f%% | %u | %.3f%% | %.3f%% | %.3f | %s | %.1f |\n",
+                    fprintf(md, "| %s | %s | %s | %s | %u | %.6f | %.3g | %.0f%% | %.3f%% | %.3f%% | %.3f%% | %u | %.4f | %.3f%% | %.3f%% | %.3f | %s | %.1f |\n",
                             base_name(files[f]), envs[e].name, select_name(selects[s]), mstr, st.terms_kept, st.energy_kept,
                             st.error_bound, 100 * st.blocks_skipped, 100 * l2e, 100 * mxe, 100 * l2u,
-                            st.negative_vertices, 100 * l2c, 100 * mxc, cl_ms, refcell, bytes / 1e6);
+                            st.negative_vertices, band, 100 * l2c, 100 * mxc, cl_ms, refcell, bytes / 1e6);
                     if (selects[s] == selects[0]) fprintf(gp, "%.5f %.6g %s\n", cl_ms, l2e, mstr);
                     fflush(csv);
                     fflush(md);
@@ -682,13 +775,14 @@ int cmd_bench(int argc, char **argv)
     }
     free(B);
     free(Braw);
-    free(Lw);
+    free(Lw_all);
     free(idx);
     free(idx2);
     for (int e = 0; e < nenvs; e++) {
         hl_env_destroy(envs[e].env);
         free(envs[e].exact);
         free(envs[e].cont);
+        free(envs[e].ground);
     }
     for (int f = 0; f < nfiles; f++) hl_transport_destroy(t[f]);
     hl_rt_destroy(rt);
