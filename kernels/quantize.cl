@@ -19,7 +19,7 @@ kernel void hl_quantize(global const float *coef, uint ncoef, uint nblocks,
     for (uint i = 0; i < ncoef; i++) {
         uint k = hl_key(c[i]);
         if (k > t.thresh || (k == t.thresh && k != 0 && ties++ < t.ties)) {
-            float x = scheme == HL_QUANT_LOG8 ? fabs(c[i]) : c[i];
+            float x = scheme != HL_QUANT_LINEAR8 ? fabs(c[i]) : c[i];
             lo = min(lo, x);
             hi = max(hi, x);
         }
@@ -37,8 +37,7 @@ kernel void hl_quantize(global const float *coef, uint ncoef, uint nblocks,
     for (uint i = 0; i < ncoef; i++) {
         uint k = hl_key(c[i]);
         if (k > t.thresh || (k == t.thresh && k != 0 && ties++ < t.ties)) {
-            uint code = scheme == HL_QUANT_LOG8 ? hl_quant_log8(c[i], lo, hi)
-                                                : hl_quant_linear8(c[i], lo, hi);
+            uint code = hl_quant(scheme, c[i], lo, hi);
             out[2 * n] = (uchar)(i & 255u);
             out[2 * n + 1] = (uchar)code;
             bc[i >> 8]++;

@@ -948,7 +948,7 @@ static void case_cap(void)
 
     static const double alphas_deg[3] = {30, 45, 60};
     static const uint32_t Rs[3] = {16, 32, 64};
-    static const uint32_t quants[2] = {HL_QUANT_LINEAR8, HL_QUANT_LOG8};
+    static const uint32_t quants[3] = {HL_QUANT_LINEAR8, HL_QUANT_LOG8, HL_QUANT_SQRT8};
     static const uint32_t Ss[2] = {1, 4};
     const float ray_offset = 1e-5f; /* of the diagonal: see below */
     double err[2][3][3]; /* [S index][alpha][resolution]: Embree, unquantised */
@@ -1038,8 +1038,8 @@ static void case_cap(void)
             }
 
             /* End to end: hl_precompute -> file -> hl_transport_query_row */
-            for (int iq = 0; iq < 2; iq++) {
-                const char *qn = quants[iq] == HL_QUANT_LOG8 ? "log8" : "linear8";
+            for (int iq = 0; iq < 3; iq++) {
+                const char *qn = quants[iq] == HL_QUANT_LOG8 ? "log8" : quants[iq] == HL_QUANT_SQRT8 ? "sqrt8" : "linear8";
                 char path[1024];
                 snprintf(path, sizeof path, "%s/analytic_cap_%d_%u_%s_%ld.hlt", tmp, (int)adeg, R, qn,
                          (long)getpid());
@@ -1072,20 +1072,24 @@ static void case_cap(void)
                         worst_bits = fmax(worst_bits, fabs((double)dense[i]));
                         continue;
                     }
-                    float v = quants[iq] == HL_QUANT_LOG8 ? fabsf(coef[i]) : coef[i];
+                    float v = quants[iq] != HL_QUANT_LINEAR8 ? fabsf(coef[i]) : coef[i];
                     lo = fminf(lo, v);
                     hi = fmaxf(hi, v);
-                    uint32_t code = quants[iq] == HL_QUANT_LOG8 ? hl_quant_log8(coef[i], rq.a, rq.b)
-                                                                : hl_quant_linear8(coef[i], rq.a, rq.b);
+                    uint32_t code = hl_quant(quants[iq], coef[i], rq.a, rq.b);
                     float want = hl_dequant(quants[iq], code, rq.a, rq.b);
                     worst_bits = fmax(worst_bits, fabs((double)dense[i] - want));
                     /* the scheme's own worst step: linear8, half of
                      * (b - a) / 255; log8, half of (key span) / 127 float keys
                      * plus one for the dequantiser's rounding, a key being at
-                     * most 2^-23 of the value */
+                     * most 2^-23 of the value; sqrt8, sqrt(|v| / b) rounded to a
+                     * 127th: b (2 sqrt(|v| / b) + 1/254) / 254, plus a few
+                     * units in the last place of b for the float rounding */
                     double step = quants[iq] == HL_QUANT_LOG8
                                       ? fabs((double)coef[i]) *
                                             (((double)hl_key(rq.b) - hl_key(rq.a)) / 254.0 + 1.0) * ldexp(1.0, -23)
+                                  : quants[iq] == HL_QUANT_SQRT8
+                                      ? rq.b * (2.0 * sqrt(fabs((double)coef[i]) / rq.b) + 1.0 / 254.0) / 254.0 +
+                                            8.0 * ldexp((double)rq.b, -24)
                                       : ((double)rq.b - rq.a) / 510.0;
                     bound += fabs((double)WL[i]) * step;
                 }

@@ -184,7 +184,7 @@ static void synth_make(synth *s, uint32_t N, uint32_t quant, uint32_t V, uint32_
     s->entries = calloc((size_t)V, s->stride);
     s->nnz = calloc(V, sizeof *s->nnz);
     for (uint32_t v = 0; v < V; v++) {
-        if (quant == HL_QUANT_LOG8) {
+        if (quant != HL_QUANT_LINEAR8) {
             s->rq[v].a = rng_float(1e-6f, 1e-3f);
             s->rq[v].b = rng_float(1e-2f, 2.0f);
         } else {
@@ -294,8 +294,7 @@ static void synth_compare(const hl_transport *t, const synth *s, const char *wha
         for (uint32_t b = 0; b < B; b++)
             for (uint32_t j = 0; j < s->counts[(size_t)v * B + b]; j++, k++) {
                 uint32_t slot = b * HL_BLOCK + src[2 * k], code = src[2 * k + 1];
-                want[slot] = e->quant == HL_QUANT_LOG8 ? hl_dequant_log8(code, s->rq[v].a, s->rq[v].b)
-                                                       : hl_dequant_linear8(code, s->rq[v].a, s->rq[v].b);
+                want[slot] = hl_dequant(e->quant, code, s->rq[v].a, s->rq[v].b);
             }
         for (uint32_t q = 0; q < slots; q++) dense[q] = 12345.0f; /* query_row must clear */
         hl_transport_query_row(t, v, dense);
@@ -316,11 +315,11 @@ static void case_roundtrip(void)
 {
     hl_context *ctx = make_ctx();
     static const uint32_t Ns[] = {8, 64};
-    static const uint32_t quants[] = {HL_QUANT_LINEAR8, HL_QUANT_LOG8};
+    static const uint32_t quants[] = {HL_QUANT_LINEAR8, HL_QUANT_LOG8, HL_QUANT_SQRT8};
     static const uint32_t pattern_a[] = {1, 0, 3, 7, 2, 16};
     static const uint32_t pattern_b[] = {1000};
     for (int ni = 0; ni < 2; ni++)
-        for (int qi = 0; qi < 2; qi++) {
+        for (int qi = 0; qi < 3; qi++) {
             synth s;
             synth_make(&s, Ns[ni], quants[qi], 37, 50);
             char what[64], pa[512], pb[512];

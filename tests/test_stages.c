@@ -220,7 +220,7 @@ static void case_quantize(void)
     uint8_t *ea = calloc((size_t)rows * g->ncoef, 2), *eb = calloc((size_t)rows * g->ncoef, 2);
     uint32_t *na = malloc(rows * 4), *nb = malloc(rows * 4);
     hl_trunc_params tps[] = {{HL_TRUNC_ALL, 0, 0, 0}, {HL_TRUNC_ENERGY, 0, 105, 0}, {HL_TRUNC_TOPK, 7, 0, 0}};
-    for (uint32_t scheme = HL_QUANT_LINEAR8; scheme <= HL_QUANT_LOG8; scheme++)
+    for (uint32_t scheme = HL_QUANT_LINEAR8; scheme <= HL_QUANT_MAX; scheme++)
         for (size_t c = 0; c < 3; c++) {
             for (uint32_t i = 0; i < rows; i++) tr[i] = hl_ref_truncate(g, coef + (size_t)i * g->ncoef, tps[c]);
             HL_CHECK(hl_cl_pipe_quantize(f.pipe, rows, coef, tr, scheme, rqb, bcb, eb, nb) == HL_OK, "%s",
@@ -246,7 +246,7 @@ static void case_quantize(void)
                     }
             }
             printf("%s, rule %u: %u of %u rows differ; relative L2 quantisation error of kept values %.4f\n",
-                   scheme == HL_QUANT_LOG8 ? "log8" : "linear8", tps[c].rule, mism, rows, qscale > 0 ? sqrt(qerr / qscale) : 0.0);
+                   scheme == HL_QUANT_LOG8 ? "log8" : scheme == HL_QUANT_SQRT8 ? "sqrt8" : "linear8", tps[c].rule, mism, rows, qscale > 0 ? sqrt(qerr / qscale) : 0.0);
             HL_CHECK(mism == 0, "integer outputs and parameters must match exactly");
         }
     free(tr); free(rqa); free(rqb); free(bca); free(bcb); free(ea); free(eb); free(na); free(nb); free(coef);

@@ -490,14 +490,20 @@ static double lighting_energy(const lighting *L, int c)
  * operations on values up to max(|a|, |b|)) and of the encode's x + 0.5.
  * log8: the key is on a grid of step keys from bits(a), rounded to the
  * nearest (step / 2 + 1 keys) or capped at the last point (at most 126
- * keys below bits(b)); a key is at most 2^-23 of the value. A value not
- * stored (0) is off by itself. */
+ * keys below bits(b)); a key is at most 2^-23 of the value. sqrt8: s =
+ * sqrt(m / b) is rounded to a 127th, so |m - b s'^2| <= b (2 s + 1/254)
+ * / 254, plus the float rounding of the thresholds and the decode (a few
+ * units in the last place of b). A value not stored (0) is off by itself. */
 static double quant_error(uint32_t scheme, hl_row_quant q, float raw, float stored)
 {
     if (stored == 0.0f) return fabs((double)raw);
     if (scheme == HL_QUANT_LOG8) {
         double keys = hl_log8_step(q.a, q.b) / 2.0 + 127.0;
         return fmax(fabs((double)raw), fabs((double)stored)) * keys * ldexp(1.0, -23);
+    }
+    if (scheme == HL_QUANT_SQRT8) {
+        double sq = sqrt(fabs((double)raw) / q.b);
+        return q.b * (2.0 * sq + 1.0 / 254.0) / 254.0 + 8.0 * U_F32 * q.b;
     }
     return ((double)q.b - q.a) / 510.0 * (1.0 + 1e-4) + 4.0 * U_F32 * fmax(fabs((double)q.a), fabs((double)q.b));
 }

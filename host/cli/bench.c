@@ -612,7 +612,7 @@ int cmd_bench(int argc, char **argv)
                     if (terms[mi] == HL_TERMS_ALL) snprintf(mstr, sizeof mstr, "all");
                     else snprintf(mstr, sizeof mstr, "%u", terms[mi]);
                     fprintf(csv, "%s,%s,%.1f,%.0f,%s,%s,%s,%u,%.8f,%.6g,%.4f,%.6g,%.6g,%.6g,%.6g,%.4f,%.2f,%.6g,%.6g,%u,%.6g\n",
-                            base_name(files[f]), fi->quant == HL_QUANT_LOG8 ? "log8" : "linear8",
+                            base_name(files[f]), fi->quant == HL_QUANT_LOG8 ? "log8" : fi->quant == HL_QUANT_SQRT8 ? "sqrt8" : "linear8",
                             (double)fi->coefficients_kept / V, bytes, envs[e].name, select_name(selects[s]), mstr,
                             st.terms_kept, st.energy_kept, st.error_bound, st.blocks_skipped, l2e, mxe, l2c, mxc, cl_ms,
                             rms, l2u, mxu, st.negative_vertices, band);

@@ -62,8 +62,9 @@ static const char *const usage_precompute =
     "  --terms K            keep the K largest; with --energy, cap the count at K\n"
     "  --terms all          keep every non-zero coefficient\n"
     "quantisation:\n"
-    "  --quant log8|linear8 8-bit scheme (default log8: sign + log magnitude;\n"
-    "                       linear8: linear between the row's min and max kept value)\n"
+    "  --quant sqrt8|log8|linear8  8-bit scheme (default sqrt8: sign + 7 bits uniform in\n"
+    "                       the square root of |v| over the row's largest; log8: sign +\n"
+    "                       log magnitude; linear8: linear between the row's min and max)\n"
     "running:\n"
     "  --device cl|ref|cl:P:D   OpenCL device (default: first), or the plain-C reference\n"
     "  --device-memory SIZE most device memory to use, e.g. 512M or 2G (default: the\n"
@@ -159,9 +160,10 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
             o->terms_set = 1;
         } else if (!strcmp(a, "--quant")) {
             NEED_ARG();
-            if (!strcmp(v, "log8")) o->pd.quant = HL_QUANT_LOG8;
+            if (!strcmp(v, "sqrt8")) o->pd.quant = HL_QUANT_SQRT8;
+            else if (!strcmp(v, "log8")) o->pd.quant = HL_QUANT_LOG8;
             else if (!strcmp(v, "linear8")) o->pd.quant = HL_QUANT_LINEAR8;
-            else return usage_error(usage, "--quant %s: expected log8 or linear8", v);
+            else return usage_error(usage, "--quant %s: expected sqrt8, log8 or linear8", v);
         } else if (!strcmp(a, "--device")) {
             NEED_ARG();
             if (!parse_device(v, &o->cd)) return usage_error(usage, "--device %s: expected cl, ref or cl:PLATFORM:DEVICE", v);

@@ -69,6 +69,9 @@ HL_INLINE int hl_tile_walk_pays(HL_U64 entries, HL_U32 m, HL_U32 nt)
 #define HL_QUANT_LOG8 2u    /* sign bit + 7-bit magnitude, uniform in the
                                float bit pattern (a piecewise-linear log2)
                                between the min and max kept |v| */
+#define HL_QUANT_SQRT8 3u   /* sign bit + 7-bit magnitude, uniform in
+                               sqrt(|v| / max kept |v|) (the default) */
+#define HL_QUANT_MAX 3u
 
 /* One entry of the cubemap-to-paraboloid table: the part of a paraboloid
  * texel's footprint that falls in one cube texel. m is the first moment of
@@ -268,10 +271,55 @@ HL_INLINE float hl_dequant_log8(HL_U32 code, float mn, float mx)
     return hl_dequant_log8_p(code, HL_AS_U32(mn), hl_log8_step(mn, mx));
 }
 
+/* sqrt8: |v| = max (q / 127)^2, so the step between codes is 2 q / 127^2
+ * of the row's largest magnitude: fine where the large terms that dominate
+ * a vertex's colour sit (1.6% of the value at the top, against log8's
+ * ~6.8% over a typical 12-octave row), coarser for the small ones, whose
+ * errors weigh little. (log8 spends as many codes on each octave, and
+ * half the codes on magnitudes below 2^-6 of the largest.) The smallest
+ * non-zero code is 1/127^2 = 6.2e-5 of the largest. Encoding compares |v|
+ * with max t_q, t_q = ((2q - 1) / 254)^2 (the midpoints of the codes in
+ * sqrt space), by bisection: only IEEE multiplies and comparisons, so
+ * every device and the host give the same code. */
+HL_INLINE float hl_sqrt8_threshold(HL_U32 q)
+{
+    float s = (float)(2u * q - 1u) * (1.0f / 254.0f);
+    return s * s;
+}
+
+HL_INLINE HL_U32 hl_quant_sqrt8(float v, float mx)
+{
+    HL_U32 sign = (HL_AS_U32(v) >> 31) << 7;
+    float m = HL_AS_F32(hl_key(v));
+    HL_U32 lo = 0u, hi = 127u; /* the largest q with m >= mx t_q (t_0 = 0) */
+    while (lo < hi) {
+        HL_U32 mid = (lo + hi + 1u) / 2u;
+        if (m >= mx * hl_sqrt8_threshold(mid)) lo = mid;
+        else hi = mid - 1u;
+    }
+    return sign | lo;
+}
+
+HL_INLINE float hl_dequant_sqrt8(HL_U32 code, float mx)
+{
+    float s = (float)(code & 127u) * (1.0f / 127.0f);
+    return HL_AS_F32(HL_AS_U32(mx * (s * s)) | ((code & 128u) << 24));
+}
+
 HL_INLINE float hl_dequant(HL_U32 scheme, HL_U32 code, float a, float b)
 {
-    return scheme == HL_QUANT_LOG8 ? hl_dequant_log8(code, a, b)
-                                   : hl_dequant_linear8(code, a, b);
+    return scheme == HL_QUANT_LOG8    ? hl_dequant_log8(code, a, b)
+           : scheme == HL_QUANT_SQRT8 ? hl_dequant_sqrt8(code, b)
+                                      : hl_dequant_linear8(code, a, b);
+}
+
+/* The code of v in a scheme, for a row whose kept values (magnitudes for
+ * log8 and sqrt8) run from a to b. */
+HL_INLINE HL_U32 hl_quant(HL_U32 scheme, float v, float a, float b)
+{
+    return scheme == HL_QUANT_LOG8    ? hl_quant_log8(v, a, b)
+           : scheme == HL_QUANT_SQRT8 ? hl_quant_sqrt8(v, b)
+                                      : hl_quant_linear8(v, a, b);
 }
 
 #endif

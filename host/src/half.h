@@ -1,6 +1,6 @@
 /* half.h - the transport terms as the dot products hold them.
  *
- * The file keeps each term as an 8-bit code (log8 or linear8). The device
+ * The file keeps each term as an 8-bit code (sqrt8, log8 or linear8). The device
  * does not decode codes in its dot products: decoding was two thirds of
  * their vector instructions, and the loop was bound by them, not by memory.
  * Instead the columns are built with each term already decoded, scaled by
@@ -13,8 +13,9 @@
  * functions, so the two agree bit for bit. A half holds a term to 2^-11
  * of itself, or, for a term over 2^14 times smaller than the row's
  * largest, to 2^-24 of that largest. The codes' own steps are far coarser:
- * 1/255 of the row's range (linear8), or a grid of 128 points over the
- * row's magnitudes in float bit patterns (log8).
+ * 1/255 of the row's range (linear8), a grid of 128 points over the
+ * row's magnitudes in float bit patterns (log8), or 128 squares of q / 127
+ * times the row's largest magnitude (sqrt8).
  */
 #ifndef HL_HALF_H
 #define HL_HALF_H
@@ -29,7 +30,7 @@
  * sums by 2^e (both exact: e is clamped so that 2^e and 2^-e are normal). */
 static inline int hl_half_exponent(uint32_t scheme, float a, float b)
 {
-    float m = scheme == HL_QUANT_LOG8 ? fabsf(b) : fmaxf(fabsf(a), fabsf(b));
+    float m = scheme != HL_QUANT_LINEAR8 ? fabsf(b) : fmaxf(fabsf(a), fabsf(b));
     int e = 0;
     if (m > 0.0f && isfinite(m)) frexpf(m, &e);
     return e < -125 ? -125 : e > 125 ? 125 : e;

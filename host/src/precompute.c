@@ -38,7 +38,7 @@ hl_result hl_precompute_resolve(hl_context *ctx, hl_precompute_desc *d)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "unknown truncation rule %u", d->rule);
     if (!(d->eps >= 0.0f && d->eps < 1.0f))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "eps = %g: the dropped energy fraction must be in [0, 1)", (double)d->eps);
-    if (d->quant != HL_QUANT_LINEAR8 && d->quant != HL_QUANT_LOG8)
+    if (d->quant < HL_QUANT_LINEAR8 || d->quant > HL_QUANT_MAX)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "unknown quantisation scheme %u", d->quant);
     if (!(d->ray_offset >= 0.0f && d->ray_offset < 0.1f))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,

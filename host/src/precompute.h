@@ -10,7 +10,7 @@
 #define HL_DEFAULT_N 64u
 #define HL_DEFAULT_C 64u
 #define HL_DEFAULT_EPS 1e-5f
-#define HL_DEFAULT_QUANT HL_QUANT_LOG8
+#define HL_DEFAULT_QUANT HL_QUANT_SQRT8
 #define HL_DEFAULT_CHUNK 1024u
 
 /* Fills defaults into d and checks every option; errors name the option. */

@@ -273,7 +273,7 @@ static int info_problem(const hl_transport_info *i, char *msg, size_t n)
         return snprintf(msg, n, "rule = %u is not a known truncation rule", i->rule), 1;
     if (!(i->eps >= 0.0f && i->eps <= 1.0f))
         return snprintf(msg, n, "eps = %g is outside [0, 1]", (double)i->eps), 1;
-    if (i->quant != HL_QUANT_LINEAR8 && i->quant != HL_QUANT_LOG8)
+    if (i->quant < HL_QUANT_LINEAR8 || i->quant > HL_QUANT_MAX)
         return snprintf(msg, n, "quant = %u is not a known quantisation scheme", i->quant), 1;
     if (!(i->ray_offset >= 0.0f && isfinite(i->ray_offset)))
         return snprintf(msg, n, "ray_offset = %g is not a finite non-negative number", (double)i->ray_offset), 1;
@@ -320,8 +320,9 @@ static int row_quant_problem(uint32_t quant, hl_row_quant rq, char *msg, size_t 
         return snprintf(msg, n, "quantisation parameters (%g, %g) are not finite", (double)rq.a, (double)rq.b), 1;
     /* LOG8 interpolates bit patterns of magnitudes: a sign bit would make
      * the dequantised values meaningless. */
-    if (quant == HL_QUANT_LOG8 && ((HL_AS_U32(rq.a) | HL_AS_U32(rq.b)) >> 31))
-        return snprintf(msg, n, "log8 magnitudes (%g, %g) are negative", (double)rq.a, (double)rq.b), 1;
+    if (quant != HL_QUANT_LINEAR8 && ((HL_AS_U32(rq.a) | HL_AS_U32(rq.b)) >> 31))
+        return snprintf(msg, n, "%s magnitudes (%g, %g) are negative", quant == HL_QUANT_LOG8 ? "log8" : "sqrt8",
+                        (double)rq.a, (double)rq.b), 1;
     if (rq.a > rq.b)
         return snprintf(msg, n, "quantisation range (%g, %g) is reversed", (double)rq.a, (double)rq.b), 1;
     if (quant == HL_QUANT_LINEAR8 && !isfinite(rq.b - rq.a))
@@ -1234,6 +1235,7 @@ static const char *quant_name(uint32_t quant)
     switch (quant) {
     case HL_QUANT_LINEAR8: return "linear8 (8-bit linear between the row's min and max)";
     case HL_QUANT_LOG8: return "log8 (sign + 7-bit log magnitude)";
+    case HL_QUANT_SQRT8: return "sqrt8 (sign + 7-bit square-root magnitude)";
     default: return "unknown";
     }
 }

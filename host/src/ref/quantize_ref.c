@@ -16,7 +16,7 @@ uint32_t hl_ref_quantize(const hl_geom *g, const float *coef, hl_trunc_result tr
         uint32_t key = hl_key(coef[i]);
         int keep = key > tr.thresh || (key == tr.thresh && key != 0 && ties++ < tr.ties);
         if (!keep) continue;
-        float v = scheme == HL_QUANT_LOG8 ? fabsf(coef[i]) : coef[i];
+        float v = scheme != HL_QUANT_LINEAR8 ? fabsf(coef[i]) : coef[i];
         if (v < lo) lo = v;
         if (v > hi) hi = v;
         entries[2 * n] = (uint8_t)(i % HL_BLOCK); /* value filled below */
@@ -31,7 +31,7 @@ uint32_t hl_ref_quantize(const hl_geom *g, const float *coef, hl_trunc_result tr
     for (uint32_t b = 0; b < g->nblocks; b++)
         for (uint32_t k = 0; k < block_counts[b]; k++, e++) {
             float v = coef[b * HL_BLOCK + entries[2 * e]];
-            uint32_t q = scheme == HL_QUANT_LOG8 ? hl_quant_log8(v, lo, hi) : hl_quant_linear8(v, lo, hi);
+            uint32_t q = hl_quant(scheme, v, lo, hi);
             entries[2 * e + 1] = (uint8_t)q;
         }
     return n;
