@@ -1,14 +1,15 @@
 /* quantize.cl - 8-bit quantisation and packing into 256-slot blocks.
  * One work-item per row: a pass for the range of the kept values, a pass
  * that writes (index, code) pairs in slot order. Each row owns a fixed
- * span of ncoef pairs in `entries`. Twin: host/src/ref/quantize_ref.c.
+ * span of ncoef pairs in `entries`; row v is vertex first + v (sqrt8's
+ * dither depends on it). Twin: host/src/ref/quantize_ref.c.
  */
 #pragma OPENCL FP_CONTRACT OFF
 
 kernel void hl_quantize(global const float *coef, uint ncoef, uint nblocks,
                         global const hl_trunc_result *tr, uint scheme,
                         global hl_row_quant *rq, global ushort *block_counts,
-                        global uchar *entries, global uint *nnz, uint nrows)
+                        global uchar *entries, global uint *nnz, uint nrows, uint first)
 {
     uint v = get_global_id(0);
     if (v >= nrows) return;
@@ -37,7 +38,7 @@ kernel void hl_quantize(global const float *coef, uint ncoef, uint nblocks,
     for (uint i = 0; i < ncoef; i++) {
         uint k = hl_key(c[i]);
         if (k > t.thresh || (k == t.thresh && k != 0 && ties++ < t.ties)) {
-            uint code = hl_quant(scheme, c[i], lo, hi);
+            uint code = hl_quant(scheme, c[i], lo, hi, hl_dither_key(first + v, i));
             out[2 * n] = (uchar)(i & 255u);
             out[2 * n + 1] = (uchar)code;
             bc[i >> 8]++;

@@ -1075,8 +1075,8 @@ static void case_cap(void)
                     float v = quants[iq] != HL_QUANT_LINEAR8 ? fabsf(coef[i]) : coef[i];
                     lo = fminf(lo, v);
                     hi = fmaxf(hi, v);
-                    uint32_t code = hl_quant(quants[iq], coef[i], rq.a, rq.b);
-                    float want = hl_dequant(quants[iq], code, rq.a, rq.b);
+                    uint32_t code = hl_quant(quants[iq], coef[i], rq.a, rq.b, hl_dither_key(rv, i));
+                    float want = hl_dequant(quants[iq], code, rq.a, rq.b, hl_dither_key(rv, i));
                     worst_bits = fmax(worst_bits, fabs((double)dense[i] - want));
                     /* the scheme's own worst step: linear8, half of
                      * (b - a) / 255; log8, half of (key span) / 127 float keys

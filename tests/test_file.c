@@ -294,7 +294,7 @@ static void synth_compare(const hl_transport *t, const synth *s, const char *wha
         for (uint32_t b = 0; b < B; b++)
             for (uint32_t j = 0; j < s->counts[(size_t)v * B + b]; j++, k++) {
                 uint32_t slot = b * HL_BLOCK + src[2 * k], code = src[2 * k + 1];
-                want[slot] = hl_dequant(e->quant, code, s->rq[v].a, s->rq[v].b);
+                want[slot] = hl_dequant(e->quant, code, s->rq[v].a, s->rq[v].b, hl_dither_key(v, slot));
             }
         for (uint32_t q = 0; q < slots; q++) dense[q] = 12345.0f; /* query_row must clear */
         hl_transport_query_row(t, v, dense);

@@ -268,7 +268,7 @@ static void case_stages(void)
                 /* dot products: the twin skips nothing */
                 for (uint32_t v = 0; v < V; v++) {
                     hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * g->nblocks,
-                                   t->row_quant[v], t->info.quant, g->nblocks, sa, alb + 4 * v, 0, Ba + 4 * v);
+                                   t->row_quant[v], t->info.quant, v, g->nblocks, sa, alb + 4 * v, 0, Ba + 4 * v);
                 }
                 HL_CHECK(hl_cl_light_stage_relight(l, sa, ka, Bb) == HL_OK, "relight");
                 uint32_t diff = 0;

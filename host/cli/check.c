@@ -166,9 +166,14 @@ int cmd_check(int argc, char **argv)
         uint64_t mm = 0;
         for (uint32_t i = 0; i < K; i++) mm += memcmp(&tra[i], &trb[i], 12) != 0;
         all_ok &= report(&(row_report){"truncate (integers)", 0.0, 0.0, mm, K});
+        /* each row as its vertex, one at a time on the device: sqrt8's
+           dither depends on the vertex, and the sampled ones are apart */
         for (uint32_t i = 0; i < K; i++)
-            na[i] = hl_ref_quantize(g, ca + (size_t)i * nc, tra[i], in->quant, &rqa[i], bca + (size_t)i * nb, ea + (size_t)i * nc * 2);
-        r = hl_cl_pipe_quantize(pipe, K, ca, tra, in->quant, rqb, bcb, eb, nbb);
+            na[i] = hl_ref_quantize(g, ca + (size_t)i * nc, tra[i], in->quant, idx[i], &rqa[i], bca + (size_t)i * nb,
+                                    ea + (size_t)i * nc * 2);
+        for (uint32_t i = 0; i < K && r == HL_OK; i++)
+            r = hl_cl_pipe_quantize(pipe, 1, idx[i], ca + (size_t)i * nc, tra + i, in->quant, rqb + i,
+                                    bcb + (size_t)i * nb, eb + (size_t)i * nc * 2, nbb + i);
     }
     if (r == HL_OK) {
         uint64_t mm = 0, stored = 0;
@@ -229,7 +234,7 @@ int cmd_check(int argc, char **argv)
         mm += memcmp(ua, ub, nb) != 0 || memcmp(ka, kb, nc / 8) != 0 || sra.kept != srb.kept;
         all_ok &= report(&(row_report){"select (kept terms)", 0.0, 0.0, mm, nc});
         for (uint32_t v = 0; v < V; v++)
-            hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * nb, t->row_quant[v], in->quant, nb, sa,
+            hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * nb, t->row_quant[v], in->quant, v, nb, sa,
                            alb + 4 * (size_t)v, 0, Ba + 4 * (size_t)v);
         r = hl_cl_light_stage_relight(light, sa, ka, Bb);
     }

@@ -271,54 +271,79 @@ HL_INLINE float hl_dequant_log8(HL_U32 code, float mn, float mx)
     return hl_dequant_log8_p(code, HL_AS_U32(mn), hl_log8_step(mn, mx));
 }
 
-/* sqrt8: |v| = max (q / 127)^2, so the step between codes is 2 q / 127^2
- * of the row's largest magnitude: fine where the large terms that dominate
- * a vertex's colour sit (1.6% of the value at the top, against log8's
- * ~6.8% over a typical 12-octave row), coarser for the small ones, whose
- * errors weigh little. (log8 spends as many codes on each octave, and
- * half the codes on magnitudes below 2^-6 of the largest.) The smallest
- * non-zero code is 1/127^2 = 6.2e-5 of the largest. Encoding compares |v|
- * with max t_q, t_q = ((2q - 1) / 254)^2 (the midpoints of the codes in
- * sqrt space), by bisection: only IEEE multiplies and comparisons, so
- * every device and the host give the same code. */
-HL_INLINE float hl_sqrt8_threshold(HL_U32 q)
+/* sqrt8: |v| = max s^2 with s on a grid of 127ths, so the step between
+ * codes is ~2 s / 127 of the row's largest magnitude: fine where the large
+ * terms that make a vertex's colour sit (1.6% of the value at the top,
+ * against log8's ~6.8% over a typical 12-octave row), coarser for the
+ * small ones, whose errors weigh little. The smallest non-zero magnitude
+ * is about 1/127^2 = 6.2e-5 of the largest.
+ * Subtractive dither: each (vertex, slot) has a fixed offset d in
+ * [-1/2, 1/2) (hl_dither_key), the code is q = round(127 s + d) and the
+ * decoded s is (q - d) / 127. The error stays within half a step, as with
+ * plain rounding, but no longer follows the value: coefficients that vary
+ * smoothly over a surface no longer step together, which drew contour
+ * bands along the ground. (The 2003 paper dithered its codes too.)
+ * Encoding compares |v| with max t, t = ((2q - 1 - 2d) / 254)^2, by
+ * bisection: IEEE multiplies and comparisons only, so every device and the
+ * host give the same code. Code 0 is 0. */
+
+/* A well-mixed 32-bit hash of (vertex, slot): the dither's key. */
+HL_INLINE HL_U32 hl_dither_key(HL_U32 vertex, HL_U32 slot)
 {
-    float s = (float)(2u * q - 1u) * (1.0f / 254.0f);
+    HL_U32 x = vertex * 0x9e3779b9u ^ (slot + 0x7f4a7c15u);
+    x ^= x >> 16;
+    x *= 0x7feb352du;
+    x ^= x >> 15;
+    x *= 0x846ca68bu;
+    x ^= x >> 16;
+    return x;
+}
+
+/* The dither offset of a key: a multiple of 1/256 in [-1/2, 1/2), exact
+ * in float. */
+HL_INLINE float hl_dither(HL_U32 key) { return (float)(int)(key >> 24) * (1.0f / 256.0f) - 0.5f; }
+
+HL_INLINE float hl_sqrt8_threshold(HL_U32 q, float d)
+{
+    float s = ((float)(2u * q - 1u) - 2.0f * d) * (1.0f / 254.0f);
     return s * s;
 }
 
-HL_INLINE HL_U32 hl_quant_sqrt8(float v, float mx)
+HL_INLINE HL_U32 hl_quant_sqrt8(float v, float mx, HL_U32 key)
 {
     HL_U32 sign = (HL_AS_U32(v) >> 31) << 7;
-    float m = HL_AS_F32(hl_key(v));
+    float m = HL_AS_F32(hl_key(v)), d = hl_dither(key);
     HL_U32 lo = 0u, hi = 127u; /* the largest q with m >= mx t_q (t_0 = 0) */
     while (lo < hi) {
         HL_U32 mid = (lo + hi + 1u) / 2u;
-        if (m >= mx * hl_sqrt8_threshold(mid)) lo = mid;
+        if (m >= mx * hl_sqrt8_threshold(mid, d)) lo = mid;
         else hi = mid - 1u;
     }
     return sign | lo;
 }
 
-HL_INLINE float hl_dequant_sqrt8(HL_U32 code, float mx)
+HL_INLINE float hl_dequant_sqrt8(HL_U32 code, float mx, HL_U32 key)
 {
-    float s = (float)(code & 127u) * (1.0f / 127.0f);
+    if (!(code & 127u)) return 0.0f;
+    float s = ((float)(code & 127u) - hl_dither(key)) * (1.0f / 127.0f);
     return HL_AS_F32(HL_AS_U32(mx * (s * s)) | ((code & 128u) << 24));
 }
 
-HL_INLINE float hl_dequant(HL_U32 scheme, HL_U32 code, float a, float b)
+/* Decoding in any scheme; key = hl_dither_key(vertex, slot) (only sqrt8
+ * uses it). */
+HL_INLINE float hl_dequant(HL_U32 scheme, HL_U32 code, float a, float b, HL_U32 key)
 {
     return scheme == HL_QUANT_LOG8    ? hl_dequant_log8(code, a, b)
-           : scheme == HL_QUANT_SQRT8 ? hl_dequant_sqrt8(code, b)
+           : scheme == HL_QUANT_SQRT8 ? hl_dequant_sqrt8(code, b, key)
                                       : hl_dequant_linear8(code, a, b);
 }
 
 /* The code of v in a scheme, for a row whose kept values (magnitudes for
- * log8 and sqrt8) run from a to b. */
-HL_INLINE HL_U32 hl_quant(HL_U32 scheme, float v, float a, float b)
+ * log8 and sqrt8) run from a to b; key as for hl_dequant. */
+HL_INLINE HL_U32 hl_quant(HL_U32 scheme, float v, float a, float b, HL_U32 key)
 {
     return scheme == HL_QUANT_LOG8    ? hl_quant_log8(v, a, b)
-           : scheme == HL_QUANT_SQRT8 ? hl_quant_sqrt8(v, b)
+           : scheme == HL_QUANT_SQRT8 ? hl_quant_sqrt8(v, b, key)
                                       : hl_quant_linear8(v, a, b);
 }
 

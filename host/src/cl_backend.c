@@ -453,12 +453,13 @@ static hl_result enqueue_truncate(hl_cl_pipe *p, uint32_t rows, hl_trunc_params 
     return launch(p, K_TRUNCATE, rows);
 }
 
-static hl_result enqueue_quantize(hl_cl_pipe *p, uint32_t rows, uint32_t scheme)
+static hl_result enqueue_quantize(hl_cl_pipe *p, uint32_t rows, uint32_t scheme, uint32_t first)
 {
     cl_kernel k = p->cl->k[K_QUANTIZE];
-    cl_uint ncoef = p->g->ncoef, nb = p->g->nblocks, n = rows, sc = scheme;
+    cl_uint ncoef = p->g->ncoef, nb = p->g->nblocks, n = rows, sc = scheme, f0 = first;
     ARG(k, 0, p->coef); ARG(k, 1, ncoef); ARG(k, 2, nb); ARG(k, 3, p->tr); ARG(k, 4, sc);
     ARG(k, 5, p->rq); ARG(k, 6, p->bc); ARG(k, 7, p->entries); ARG(k, 8, p->nnz); ARG(k, 9, n);
+    ARG(k, 10, f0);
     return launch(p, K_QUANTIZE, rows);
 }
 
@@ -486,7 +487,7 @@ hl_result hl_cl_pipe_submit(hl_cl_pipe *p, int slot, uint32_t rows, float vis_sc
     TRY(enqueue_cube2para(p, slot, rows, vis_scale));
     TRY(enqueue_haar(p, rows));
     TRY(enqueue_truncate(p, rows, tp));
-    TRY(enqueue_quantize(p, rows, scheme));
+    TRY(enqueue_quantize(p, rows, scheme, io->first));
     READ(p->tr, R * sizeof(hl_trunc_result), io->tr, CL_FALSE, NULL);
     READ(p->rq, R * sizeof(hl_row_quant), io->rq, CL_FALSE, NULL);
     READ(p->bc, R * g->nblocks * 2, io->bc, CL_FALSE, NULL);
@@ -536,14 +537,15 @@ hl_result hl_cl_pipe_truncate(hl_cl_pipe *p, uint32_t rows, const float *coef, h
     return HL_OK;
 }
 
-hl_result hl_cl_pipe_quantize(hl_cl_pipe *p, uint32_t rows, const float *coef, const hl_trunc_result *tr,
-                              uint32_t scheme, hl_row_quant *rq, uint16_t *bc, uint8_t *entries, uint32_t *nnz)
+hl_result hl_cl_pipe_quantize(hl_cl_pipe *p, uint32_t rows, uint32_t first, const float *coef,
+                              const hl_trunc_result *tr, uint32_t scheme, hl_row_quant *rq, uint16_t *bc,
+                              uint8_t *entries, uint32_t *nnz)
 {
     TRY(check_rows(p, rows));
     const hl_geom *g = p->g;
     WRITE(p->coef, (size_t)rows * g->ncoef * 4, coef, CL_TRUE);
     WRITE(p->tr, (size_t)rows * sizeof *tr, tr, CL_TRUE);
-    TRY(enqueue_quantize(p, rows, scheme));
+    TRY(enqueue_quantize(p, rows, scheme, first));
     READ(p->rq, (size_t)rows * sizeof *rq, rq, CL_TRUE, NULL);
     READ(p->bc, (size_t)rows * g->nblocks * 2, bc, CL_TRUE, NULL);
     READ(p->entries, (size_t)rows * g->ncoef * 2, entries, CL_TRUE, NULL);
@@ -813,7 +815,8 @@ static hl_result build_columns(hl_cl_light *l, const hl_transport *t)
                             col[(size_t)(c[s] - 1) * stride] = tile;
                         }
                         const hl_row_quant q = t->row_quant[u];
-                        float term = hl_dequant(l->scheme, t->entries[2 * e + 1], q.a, q.b);
+                        float term = hl_dequant(l->scheme, t->entries[2 * e + 1], q.a, q.b,
+                                                hl_dither_key((uint32_t)u, (uint32_t)s));
                         ((uint16_t *)(col + (size_t)(c[s] - 1) * stride + 1))[lane] = hl_half_held(term, ex[v]);
                     }
             }

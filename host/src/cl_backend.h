@@ -36,6 +36,7 @@ typedef struct hl_chunk_buf {
     uint16_t *bc;
     uint8_t *entries;
     uint32_t *nnz;
+    uint32_t first; /* the chunk's first vertex (sqrt8's dither depends on it) */
 } hl_chunk_buf;
 
 hl_result hl_cl_pipe_create(hl_context *ctx, const struct hl_geom *g, uint32_t max_rows,
@@ -55,7 +56,8 @@ hl_result hl_cl_pipe_cube2para(hl_cl_pipe *p, uint32_t rows, const uint8_t *vis,
 hl_result hl_cl_pipe_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef);
 hl_result hl_cl_pipe_truncate(hl_cl_pipe *p, uint32_t rows, const float *coef,
                               hl_trunc_params tp, hl_trunc_result *tr);
-hl_result hl_cl_pipe_quantize(hl_cl_pipe *p, uint32_t rows, const float *coef,
+/* Row v is vertex first + v (sqrt8's dither). */
+hl_result hl_cl_pipe_quantize(hl_cl_pipe *p, uint32_t rows, uint32_t first, const float *coef,
                               const hl_trunc_result *tr, uint32_t scheme,
                               hl_row_quant *rq, uint16_t *bc, uint8_t *entries,
                               uint32_t *nnz);

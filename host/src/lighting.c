@@ -352,10 +352,13 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
         for (uint32_t v = 0; v < V; v++) {
             double ss = 0.0;
             const hl_row_quant q = t->row_quant[v];
-            for (uint64_t e = t->row_offset[v]; e < t->row_offset[v + 1]; e++) {
-                double x = hl_dequant(t->info.quant, t->entries[2 * e + 1], q.a, q.b);
-                ss += x * x;
-            }
+            uint64_t e = t->row_offset[v];
+            for (uint32_t b = 0; b < t->info.block_count; b++)
+                for (uint32_t k = 0; k < t->block_counts[(size_t)v * t->info.block_count + b]; k++, e++) {
+                    const uint32_t slot = b * HL_BLOCK + t->entries[2 * e];
+                    double x = hl_dequant(t->info.quant, t->entries[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
+                    ss += x * x;
+                }
             if (ss > r->max_row_norm) r->max_row_norm = ss;
         }
         r->max_row_norm = sqrt(r->max_row_norm);
@@ -409,7 +412,10 @@ hl_result hl_selection_weights(hl_context *ctx, const hl_transport *t, const hl_
         const hl_row_quant q = t->row_quant[v];
         for (uint32_t b = 0; b < nb; b++)
             for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++)
-                acc[b * HL_BLOCK + t->entries[2 * e]] += fabs(hl_dequant(t->info.quant, t->entries[2 * e + 1], q.a, q.b));
+            {
+                const uint32_t slot = b * HL_BLOCK + t->entries[2 * e];
+                acc[slot] += fabs(hl_dequant(t->info.quant, t->entries[2 * e + 1], q.a, q.b, hl_dither_key(v, slot)));
+            }
     }
     for (uint32_t i = 0; i < nc; i++) w[i] = (float)(acc[i] / (V ? V : 1));
     free(acc);
@@ -443,7 +449,7 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
     *sr = hl_ref_select(r->Lw, g->ncoef, weight, sp, r->Lsel, r->used, r->bits, g->nblocks);
     for (uint32_t v = 0; v < t->info.vertex_count; v++) {
         hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * g->nblocks, t->row_quant[v],
-                       t->info.quant, g->nblocks, r->Lsel, r->albedo4 + 4 * (size_t)v, keep_negative,
+                       t->info.quant, v, g->nblocks, r->Lsel, r->albedo4 + 4 * (size_t)v, keep_negative,
                        r->B4 + 4 * (size_t)v);
     }
     return HL_OK;

@@ -115,8 +115,8 @@ static void *ref_worker(void *arg)
         hl_ref_cube2para(g, io->vis + (size_t)v * g->ncube, j->scale, io->normals4 + 4 * (size_t)v, T);
         hl_ref_haar(g, T, coef);
         io->tr[v] = hl_ref_truncate(g, coef, j->tp);
-        io->nnz[v] = hl_ref_quantize(g, coef, io->tr[v], j->scheme, &io->rq[v], io->bc + (size_t)v * g->nblocks,
-                                     io->entries + (size_t)v * g->ncoef * 2);
+        io->nnz[v] = hl_ref_quantize(g, coef, io->tr[v], j->scheme, io->first + v, &io->rq[v],
+                                     io->bc + (size_t)v * g->nblocks, io->entries + (size_t)v * g->ncoef * 2);
     }
     free(T);
     free(coef);
@@ -247,6 +247,7 @@ hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precomput
             progress(ctx, pf + pc, V, vc.rays_cast, st.seconds_rays, t_start);
         }
         if (k == nchunks) break;
+        buf[s].first = first;
         if (pipe) {
             r = hl_cl_pipe_submit(pipe, s, count, vis_scale, tp, d.quant, &buf[s]);
         } else {

@@ -1204,7 +1204,8 @@ void hl_transport_query_row(const hl_transport *t, uint32_t v, float *dense)
     hl_row_quant rq = t->row_quant[v];
     for (uint32_t b = 0; b < i->block_count; b++) {
         float *base = dense + (size_t)b * HL_BLOCK;
-        for (uint32_t j = 0; j < counts[b]; j++, e += 2) base[e[0]] = hl_dequant(i->quant, e[1], rq.a, rq.b);
+        for (uint32_t j = 0; j < counts[b]; j++, e += 2)
+            base[e[0]] = hl_dequant(i->quant, e[1], rq.a, rq.b, hl_dither_key(v, b * HL_BLOCK + e[0]));
     }
 }
 

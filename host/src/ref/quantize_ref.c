@@ -5,7 +5,7 @@
 #include "ref.h"
 
 uint32_t hl_ref_quantize(const hl_geom *g, const float *coef, hl_trunc_result tr,
-                         uint32_t scheme, hl_row_quant *rq, uint16_t *block_counts,
+                         uint32_t scheme, uint32_t vertex, hl_row_quant *rq, uint16_t *block_counts,
                          uint8_t *entries)
 {
     /* mark the kept slots first, then quantise them */
@@ -30,8 +30,8 @@ uint32_t hl_ref_quantize(const hl_geom *g, const float *coef, hl_trunc_result tr
     uint32_t e = 0;
     for (uint32_t b = 0; b < g->nblocks; b++)
         for (uint32_t k = 0; k < block_counts[b]; k++, e++) {
-            float v = coef[b * HL_BLOCK + entries[2 * e]];
-            uint32_t q = hl_quant(scheme, v, lo, hi);
+            const uint32_t slot = b * HL_BLOCK + entries[2 * e];
+            uint32_t q = hl_quant(scheme, coef[slot], lo, hi, hl_dither_key(vertex, slot));
             entries[2 * e + 1] = (uint8_t)q;
         }
     return n;

@@ -26,8 +26,8 @@ hl_trunc_result hl_ref_truncate(const hl_geom *g, const float *coef,
  * code) byte pairs by block, block_counts one count per block. Returns the
  * number of entries. */
 uint32_t hl_ref_quantize(const hl_geom *g, const float *coef,
-                         hl_trunc_result tr, uint32_t scheme, hl_row_quant *rq,
-                         uint16_t *block_counts, uint8_t *entries);
+                         hl_trunc_result tr, uint32_t scheme, uint32_t vertex,
+                         hl_row_quant *rq, uint16_t *block_counts, uint8_t *entries);
 
 /* Lighting texel j = sum over its taps of weight * the tap's cell blended
  * with its neighbour: c[k + s0] + f (c[k + s0 + 1] - c[k + s0]) (indices
@@ -48,7 +48,7 @@ hl_select_result hl_ref_select(const float *L, uint32_t ncoef, const float *weig
  * colour, each channel clamped at zero unless keep_negative, then the
  * lowest channel before the clamp (0 when none is negative). */
 void hl_ref_relight(const uint8_t *entries, const uint16_t *block_counts, hl_row_quant rq,
-                    uint32_t scheme, uint32_t nblocks, const float *light, const float *albedo,
-                    int keep_negative, float *rgba);
+                    uint32_t scheme, uint32_t vertex, uint32_t nblocks, const float *light,
+                    const float *albedo, int keep_negative, float *rgba);
 
 #endif

@@ -11,7 +11,8 @@
 #include "ref.h"
 
 void hl_ref_relight(const uint8_t *entries, const uint16_t *block_counts, hl_row_quant rq, uint32_t scheme,
-                    uint32_t nblocks, const float *light, const float *albedo, int keep_negative, float *rgba)
+                    uint32_t vertex, uint32_t nblocks, const float *light, const float *albedo, int keep_negative,
+                    float *rgba)
 {
     float acc[3] = {0.0f, 0.0f, 0.0f};
     const int ex = hl_half_exponent(scheme, rq.a, rq.b);
@@ -19,7 +20,9 @@ void hl_ref_relight(const uint8_t *entries, const uint16_t *block_counts, hl_row
     size_t e = 0;
     for (uint32_t b = 0; b < nblocks; b++)
         for (uint32_t k = 0; k < block_counts[b]; k++, e++) {
-            float t = hl_half_term(hl_dequant(scheme, entries[2 * e + 1], rq.a, rq.b), ex);
+            float t = hl_half_term(
+                hl_dequant(scheme, entries[2 * e + 1], rq.a, rq.b, hl_dither_key(vertex, b * HL_BLOCK + entries[2 * e])),
+                ex);
             const float *l = light + 4 * ((size_t)b * HL_BLOCK + entries[2 * e]);
             for (int c = 0; c < 3; c++) acc[c] = fmaf(t, l[c], acc[c]);
         }
