@@ -3,22 +3,30 @@
  *
  * Two of the library's C interfaces, because neither does everything on
  * Debian 12 (OpenEXR 3.1.5):
- * - OpenEXRCore (openexr.h) reads and writes 32-bit float channels, but
- *   cannot decode DWAA/DWAB, which the shared environments use.
+ * - OpenEXRCore (openexr.h) decodes half and 32-bit float channels to
+ *   float exactly, and checks every chunk's data as it decodes it (a ZIP
+ *   chunk must decompress to exactly its size), but cannot decode
+ *   DWAA/DWAB, which the shared environments use, and decodes B44 blocks
+ *   at a chunk's edges wrongly.
  * - The C wrapper of the C++ library (ImfCRgbaFile.h) decodes every
- *   compression, DWAB included, but only through half floats: a float
- *   channel comes back rounded to 11 significant bits, and any value
- *   beyond +-65504 as infinite.
- * So a file whose R, G, B or Y channel is 32-bit float is read with
- * OpenEXRCore wherever it can decode it (one scanline part, no DWA), and
- * everything else with the wrapper. DWA loses nothing that way: its lossy
- * coder stores float R, G, B and Y through halves already (a 1e5 written
- * to a float DWAB file reads back as 64704, here and with OpenEXR 3.5's
- * own Python reader). A float file
- * that reaches the wrapper for another reason (tiled, several parts) could
- * hold values the halves cannot, so any infinity in it is refused rather
- * than passed on. Images are written with OpenEXRCore as 32-bit float RGB,
- * ZIP-compressed.
+ *   compression, DWAB included, but only through half floats (a float
+ *   channel comes back rounded to 11 significant bits, any value beyond
+ *   +-65504 as infinite), and takes a ZIP chunk that decompresses to fewer
+ *   bytes than it holds without an error, filling the rest of its pixels
+ *   from its own uninitialised buffer.
+ * So OpenEXRCore reads every file it can decode (read_core): one scanline
+ * part, R, G, B or Y half or float, not subsampled, no chroma, not DWA,
+ * and not B44 unless a channel read is float (B44 stores float channels
+ * uncompressed). The wrapper reads the rest (read_wrapper): DWA, several
+ * parts (it reads part 0), tiles (level 0), subsampled, chroma or integer
+ * channels, B44 of half channels. Half values are the same either way
+ * (both convert exactly). DWA loses nothing through halves either: its
+ * lossy coder stores float R, G, B and Y through halves already (a 1e5
+ * written to a float DWAB file reads back as 64704, here and with OpenEXR
+ * 3.5's own Python reader). A float file that reaches the wrapper for
+ * another reason (tiled, several parts) could hold values the halves
+ * cannot, so any infinity in it is refused rather than passed on. Images
+ * are written with OpenEXRCore as 32-bit float RGB, ZIP-compressed.
  * Every header is parsed by OpenEXRCore first, and refused unless it is
  * sound and its sizes fit the file, before either decoder sees it: the C++
  * library trusts the header when it opens a file (a string attribute that
@@ -173,45 +181,57 @@ static int channel_of(const char *name)
 
 /* What OpenEXRCore's header parse (no decoding) says of the file. */
 typedef struct exr_layout {
-    int any_float;      /* an R, G, B or Y channel is 32-bit float */
-    int grey;           /* Y and none of R, G, B */
-    int dwa;            /* DWAA or DWAB compression */
-    const char *reason; /* why OpenEXRCore cannot decode it (NULL: it can:
-                           one scanline part, no DWA, R/G/B/Y half or float,
-                           not subsampled, no chroma) */
+    int any_float;          /* an R, G, B or Y channel is 32-bit float */
+    int grey;               /* Y is read, as grey; R, G and B are not */
+    exr_compression_t comp; /* part 0's compression */
+    const char *reason;     /* why read_core does not read it (NULL: it does:
+                               one scanline part, R/G/B/Y half or float, not
+                               subsampled, no chroma, not DWA, not B44 with
+                               only half R/G/B/Y) */
 } exr_layout;
 
+/* Y is grey when there is no R, G or B; beside them it wins only where no
+ * R, G, B or Y channel is float: the C++ library's RGBA interface reads
+ * any file with Y as luminance and drops R, G and B, and half files were
+ * read by it before OpenEXRCore read them (they load as they did), while
+ * OpenEXRCore has read float ones as RGB since it read float files.
+ * B44 with only half R/G/B/Y stays with the wrapper: OpenEXRCore 3.1.5
+ * decodes the B44 blocks at a chunk's edges wrongly (the last row of a
+ * 130 x 65 map, every pixel of a 2 x 1 one, or "unable to decompress");
+ * B44 leaves float channels uncompressed, so float files are not
+ * affected, and went to OpenEXRCore before. */
 static int probe(exr_context_t f, exr_layout *lay)
 {
     int parts = 0;
     exr_storage_t st;
-    exr_compression_t comp;
     const exr_attr_chlist_t *cl = NULL;
     memset(lay, 0, sizeof *lay);
     if (exr_get_count(f, &parts) != EXR_ERR_SUCCESS || exr_get_storage(f, 0, &st) != EXR_ERR_SUCCESS ||
-        exr_get_compression(f, 0, &comp) != EXR_ERR_SUCCESS || exr_get_channels(f, 0, &cl) != EXR_ERR_SUCCESS ||
-        !cl)
+        exr_get_compression(f, 0, &lay->comp) != EXR_ERR_SUCCESS ||
+        exr_get_channels(f, 0, &cl) != EXR_ERR_SUCCESS || !cl)
         return 0;
-    int found = 0, odd = 0;
-    lay->grey = 1;
+    int rgb = 0, y = 0, odd = 0;
     for (int i = 0; i < cl->num_channels; i++) {
         const exr_attr_chlist_entry_t *e = &cl->entries[i];
         if (e->name.str && (strcmp(e->name.str, "RY") == 0 || strcmp(e->name.str, "BY") == 0)) odd = 1;
         int k = channel_of(e->name.str);
         if (k < 0) continue;
-        found = 1;
-        if (k != CH_Y) lay->grey = 0;
+        if (k == CH_Y) y = 1;
+        else rgb = 1;
         if (e->pixel_type == EXR_PIXEL_FLOAT) lay->any_float = 1;
         else if (e->pixel_type != EXR_PIXEL_HALF) odd = 1;
         if (e->x_sampling != 1 || e->y_sampling != 1) odd = 1;
     }
-    lay->dwa = comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB;
-    lay->reason = parts != 1                    ? "a file of several parts"
-                  : st != EXR_STORAGE_SCANLINE  ? "a tiled or deep file"
-                  : lay->dwa                    ? "DWA compression"
-                  : !found                      ? "no R, G, B or Y channel"
-                  : odd                         ? "subsampled, chroma or integer channels"
-                                                : NULL;
+    lay->grey = y && (!rgb || !lay->any_float);
+    const int b44 = lay->comp == EXR_COMPRESSION_B44 || lay->comp == EXR_COMPRESSION_B44A;
+    lay->reason = parts != 1                                       ? "a file of several parts"
+                  : st != EXR_STORAGE_SCANLINE                     ? "a tiled or deep file"
+                  : lay->comp == EXR_COMPRESSION_DWAA ||
+                    lay->comp == EXR_COMPRESSION_DWAB              ? "DWA compression"
+                  : !rgb && !y                                     ? "no R, G, B or Y channel"
+                  : odd                                            ? "subsampled, chroma or integer channels"
+                  : b44 && !lay->any_float                         ? "B44 compression of half channels"
+                                                                   : NULL;
     return 1;
 }
 
@@ -594,6 +614,18 @@ static hl_result check_chunks(hl_context *ctx, const char *path, exr_const_conte
     return r;
 }
 
+/* " (N bytes of ZIP data for M bytes of pixels)" for a chunk OpenEXRCore
+ * read the header of, else "". */
+static void chunk_sizes(char *out, size_t n, const exr_chunk_info_t *ci)
+{
+    static const char *const names[] = {"uncompressed", "RLE",  "ZIPS", "ZIP",  "PIZ",
+                                        "PXR24",        "B44",  "B44A", "DWAA", "DWAB"};
+    out[0] = '\0';
+    if (ci->unpacked_size > 0 && ci->compression < sizeof names / sizeof names[0])
+        snprintf(out, n, " (%llu bytes of %s data for %llu bytes of pixels)", (unsigned long long)ci->packed_size,
+                 names[ci->compression], (unsigned long long)ci->unpacked_size);
+}
+
 /* Reads a file that probe() passed, as float, chunk by chunk. */
 static hl_result read_core(hl_context *ctx, const char *path, unsigned flags, exr_context_t f, const core_msg *msg,
                            int grey, uint32_t *width, uint32_t *height, float **rgb)
@@ -608,13 +640,19 @@ static hl_result read_core(hl_context *ctx, const char *path, unsigned flags, ex
     hl_result r = window_size(ctx, path, "", flags, dw.min.x, dw.min.y, dw.max.x, dw.max.y, &w, &h);
     if (r != HL_OK) return r;
     float *out = hl_calloc(ctx, 3 * (size_t)w * h, sizeof(float), "environment pixels");
-    if (!out) return HL_ERR_OUT_OF_MEMORY;
+    float *unread = hl_malloc(ctx, sizeof(float) * (size_t)w * (size_t)spc, "OpenEXR unread channel rows");
+    if (!out || !unread) {
+        free(out);
+        free(unread);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
 
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     int inited = 0, chosen = 0;
     int64_t y = dw.min.y, first = 0, last = 0;
     for (; r == HL_OK && y <= (int64_t)dw.max.y; y += spc) {
         exr_chunk_info_t ci;
+        memset(&ci, 0, sizeof ci);
         first = y - dw.min.y;
         last = first + spc - 1 < (int64_t)h - 1 ? first + spc - 1 : (int64_t)h - 1;
         rv = exr_read_scanline_chunk_info(f, 0, (int)y, &ci);
@@ -625,14 +663,24 @@ static hl_result read_core(hl_context *ctx, const char *path, unsigned flags, ex
         if (rv == EXR_ERR_SUCCESS &&
             (ci.start_y < dw.min.y || (int64_t)ci.start_y - dw.min.y + ci.height > (int64_t)h || ci.width != (int32_t)w))
             rv = EXR_ERR_CORRUPT_CHUNK;
+        /* Every channel is decoded somewhere: those not read go to a scratch
+           row buffer. OpenEXRCore 3.1.5 picks its fast half-to-float
+           routines (three or four interleaved channels) by the channels it
+           writes, then writes every channel, through a NULL pointer for one
+           left out (a fuzzer's B, G and one more half channel crashed it). */
         for (int c = 0; rv == EXR_ERR_SUCCESS && c < dec.channel_count; c++) {
             exr_coding_channel_info_t *ch = &dec.channels[c];
             int k = channel_of(ch->channel_name);
-            int slot = k == CH_Y ? (grey ? 0 : -1) : k;
-            ch->decode_to_ptr =
-                slot < 0 ? NULL : (uint8_t *)(out + 3 * (size_t)(ci.start_y - dw.min.y) * w + (size_t)slot);
-            ch->user_pixel_stride = 3 * (int32_t)sizeof(float);
-            ch->user_line_stride = 3 * (int32_t)sizeof(float) * (int32_t)w;
+            int slot = grey ? (k == CH_Y ? 0 : -1) : (k == CH_Y ? -1 : k);
+            if (slot < 0) {
+                ch->decode_to_ptr = (uint8_t *)unread;
+                ch->user_pixel_stride = (int32_t)sizeof(float);
+                ch->user_line_stride = (int32_t)sizeof(float) * (int32_t)w;
+            } else {
+                ch->decode_to_ptr = (uint8_t *)(out + 3 * (size_t)(ci.start_y - dw.min.y) * w + (size_t)slot);
+                ch->user_pixel_stride = 3 * (int32_t)sizeof(float);
+                ch->user_line_stride = 3 * (int32_t)sizeof(float) * (int32_t)w;
+            }
             ch->user_data_type = EXR_PIXEL_FLOAT;
             ch->user_bytes_per_element = (int16_t)sizeof(float);
         }
@@ -642,11 +690,15 @@ static hl_result read_core(hl_context *ctx, const char *path, unsigned flags, ex
             chosen = 1;
         }
         if (rv == EXR_ERR_SUCCESS) rv = exr_decoding_run(f, 0, &dec);
-        if (rv != EXR_ERR_SUCCESS)
-            r = hl_fail(ctx, HL_ERR_FORMAT, "%s: corrupt or truncated pixel data in rows %lld..%lld: %s", path,
-                        (long long)first, (long long)last, core_text(msg, rv));
+        if (rv != EXR_ERR_SUCCESS) {
+            char sizes[96];
+            chunk_sizes(sizes, sizeof sizes, &ci);
+            r = hl_fail(ctx, HL_ERR_FORMAT, "%s: corrupt or truncated pixel data in rows %lld..%lld%s: %s", path,
+                        (long long)first, (long long)last, sizes, core_text(msg, rv));
+        }
     }
     if (inited) exr_decoding_destroy(f, &dec);
+    free(unread);
     if (r != HL_OK) {
         free(out);
         return r;
@@ -759,12 +811,17 @@ hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
         if (f) exr_finish(&f);
         return r;
     }
-    /* Only now does a decoder see the file. */
-    const int core = lay.any_float && !lay.reason;
+    /* Only now does a decoder see the file: OpenEXRCore where it can
+       decode it (probe: one scanline part, R/G/B/Y half or float, not
+       subsampled, no chroma, not DWA, not B44 of half channels), exactly
+       and checking every chunk's decompressed size; else the C++
+       wrapper. */
+    const int core = !lay.reason;
+    const int dwa = lay.comp == EXR_COMPRESSION_DWAA || lay.comp == EXR_COMPRESSION_DWAB;
     if (core) r = read_core(ctx, path, flags, f, &msg, lay.grey, width, height, rgb);
     exr_finish(&f);
     if (core) return r;
-    return read_wrapper(ctx, path, flags, lay.any_float && !lay.dwa ? lay.reason : NULL, width, height, rgb);
+    return read_wrapper(ctx, path, flags, lay.any_float && !dwa ? lay.reason : NULL, width, height, rgb);
 }
 
 hl_result hl_exr_write_rgb_(hl_context *ctx, const char *path, uint32_t width,

@@ -2,13 +2,14 @@
  * OpenEXR headers).
  *
  * Reading decodes every compression the library knows, DWAB included.
- * 32-bit float channels keep their full value wherever OpenEXRCore can
- * decode the file (not DWAA/DWAB); elsewhere they pass through half
- * floats, and a value the halves cannot hold is refused (exr_io.c says
- * why). Pixels come back as linear float RGB, alpha dropped, row 0 = the
- * first row stored. A header is checked against the limits below, in
- * every part, before any decoder allocates for it, and so is every chunk's
- * table entry, header and extent in the file.
+ * OpenEXRCore reads every file it can decode (one scanline part, not DWA;
+ * exr_io.c says which), half and 32-bit float channels alike, at their
+ * full value; elsewhere the C++ library's wrapper reads the file through
+ * half floats, and a float value the halves cannot hold is refused.
+ * Pixels come back as linear float RGB, alpha dropped, row 0 = the first
+ * row stored. A header is checked against the limits below, in every
+ * part, before any decoder allocates for it, and so is every chunk's table
+ * entry, header and extent in the file.
  */
 #ifndef HL_EXR_IO_H
 #define HL_EXR_IO_H
