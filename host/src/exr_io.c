@@ -36,7 +36,12 @@
  * every chunk of every part is checked without decoding: its offset-table
  * entry, its header and that its data lies in the file (check_chunks), as
  * the C++ reader turns a chunk that is not there into garbage pixels
- * without an error.
+ * without an error. Before the wrapper decodes a file, OpenEXRCore decodes
+ * every chunk the wrapper will and throws the pixels away (check_decodes),
+ * so that data that decompresses short is refused there too; not for DWA
+ * (OpenEXRCore cannot decode it) nor B44 (the C++ reader refuses short B44
+ * data itself). A DWA chunk whose own counts are short of its blocks is
+ * still not caught (see check_decodes).
  * The wrapper catches every C++ exception and returns 0, with the text in
  * ImfErrorMessage(); OpenEXRCore's messages go to a handler that keeps the
  * last one. The wrapper's pixels are read in strips so that its temporary
@@ -626,6 +631,90 @@ static void chunk_sizes(char *out, size_t n, const exr_chunk_info_t *ci)
                  names[ci->compression], (unsigned long long)ci->unpacked_size);
 }
 
+/* Decodes one chunk (ci) of part p with OpenEXRCore and throws the pixels
+ * away: no channel is unpacked, but the data is read and decompressed,
+ * and OpenEXRCore checks that it decompresses to exactly the chunk's
+ * size. */
+static exr_result_t test_decode(exr_const_context_t f, int p, const exr_chunk_info_t *ci, exr_decode_pipeline_t *dec,
+                                int *inited)
+{
+    exr_result_t rv = *inited ? exr_decoding_update(f, p, ci, dec) : exr_decoding_initialize(f, p, ci, dec);
+    if (rv != EXR_ERR_SUCCESS) return rv;
+    *inited = 1;
+    for (int c = 0; c < dec->channel_count; c++) dec->channels[c].decode_to_ptr = NULL;
+    rv = exr_decoding_choose_default_routines(f, p, dec);
+    return rv == EXR_ERR_SUCCESS ? exr_decoding_run(f, p, dec) : rv;
+}
+
+/* Every chunk the wrapper decodes (part 0's; in a tiled part, the tiles of
+ * level (0, 0)), decoded by OpenEXRCore first (test_decode), for the one
+ * fault check_chunks cannot see without decoding: data that decompresses
+ * to fewer bytes than the chunk holds. The C++ reader takes a short ZIP or
+ * ZIPS chunk without an error and fills the rest of its pixels from its
+ * own uninitialised buffer (RLE, PXR24 and B44 it refuses itself). Not
+ * for B44, whose edge blocks OpenEXRCore 3.1 decodes wrongly (it would
+ * refuse sound files), nor DWA, which it cannot decode: the C++ reader
+ * checks that DWA's DC and AC data decompress to the counts in the chunk,
+ * but not that those counts cover the chunk's blocks, and decodes a chunk
+ * whose counts are short from its uninitialised buffer without an error;
+ * catching that would mean parsing DWA's channel rules here, which is not
+ * done. Cost: a second decompression of every chunk the wrapper reads
+ * (no unpacking). */
+static hl_result check_decodes(hl_context *ctx, const char *path, exr_const_context_t f, core_msg *msg)
+{
+    exr_storage_t st;
+    exr_attr_box2i_t dw;
+    int32_t lines = 1, lw = 0, lh = 0;
+    uint32_t tw = 0, th = 0;
+    exr_result_t rv = exr_get_storage(f, 0, &st);
+    if (rv == EXR_ERR_SUCCESS) rv = exr_get_data_window(f, 0, &dw);
+    if (rv == EXR_ERR_SUCCESS && st == EXR_STORAGE_SCANLINE) rv = exr_get_scanlines_per_chunk(f, 0, &lines);
+    if (rv == EXR_ERR_SUCCESS && st == EXR_STORAGE_TILED) rv = exr_get_tile_descriptor(f, 0, &tw, &th, NULL, NULL);
+    if (rv == EXR_ERR_SUCCESS && st == EXR_STORAGE_TILED) rv = exr_get_level_sizes(f, 0, 0, 0, &lw, &lh);
+    if (rv == EXR_ERR_SUCCESS && (lines < 1 || (st == EXR_STORAGE_TILED && (tw < 1 || th < 1 || lw < 1 || lh < 1))))
+        rv = EXR_ERR_INVALID_ATTR;
+    if (rv != EXR_ERR_SUCCESS)
+        return hl_fail(ctx, HL_ERR_FORMAT, "%s: cannot read OpenEXR header: part 0: %s", path, core_text(msg, rv));
+
+    exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
+    int inited = 0;
+    hl_result r = HL_OK;
+    char sizes[96];
+    exr_chunk_info_t ci;
+    if (st == EXR_STORAGE_SCANLINE) {
+        for (int64_t y = dw.min.y; r == HL_OK && y <= (int64_t)dw.max.y; y += lines) {
+            int64_t last = y + lines - 1 < (int64_t)dw.max.y ? y + lines - 1 : (int64_t)dw.max.y;
+            memset(&ci, 0, sizeof ci);
+            msg->text[0] = '\0';
+            rv = exr_read_scanline_chunk_info(f, 0, (int)y, &ci);
+            if (rv == EXR_ERR_SUCCESS) rv = test_decode(f, 0, &ci, &dec, &inited);
+            if (rv != EXR_ERR_SUCCESS) {
+                chunk_sizes(sizes, sizeof sizes, &ci);
+                r = hl_fail(ctx, HL_ERR_FORMAT,
+                            "%s: part 0, chunk of rows %lld..%lld: corrupt or truncated pixel data%s: %s", path,
+                            (long long)y, (long long)last, sizes, core_text(msg, rv));
+            }
+        }
+    } else {
+        int64_t nx = ((int64_t)lw + tw - 1) / tw, ny = ((int64_t)lh + th - 1) / th;
+        for (int64_t ty = 0; r == HL_OK && ty < ny; ty++)
+            for (int64_t tx = 0; r == HL_OK && tx < nx; tx++) {
+                memset(&ci, 0, sizeof ci);
+                msg->text[0] = '\0';
+                rv = exr_read_tile_chunk_info(f, 0, (int)tx, (int)ty, 0, 0, &ci);
+                if (rv == EXR_ERR_SUCCESS) rv = test_decode(f, 0, &ci, &dec, &inited);
+                if (rv != EXR_ERR_SUCCESS) {
+                    chunk_sizes(sizes, sizeof sizes, &ci);
+                    r = hl_fail(ctx, HL_ERR_FORMAT,
+                                "%s: part 0, tile (%lld, %lld) level (0, 0): corrupt or truncated pixel data%s: %s",
+                                path, (long long)tx, (long long)ty, sizes, core_text(msg, rv));
+                }
+            }
+    }
+    if (inited) exr_decoding_destroy(f, &dec);
+    return r;
+}
+
 /* Reads a file that probe() passed, as float, chunk by chunk. */
 static hl_result read_core(hl_context *ctx, const char *path, unsigned flags, exr_context_t f, const core_msg *msg,
                            int grey, uint32_t *width, uint32_t *height, float **rgb)
@@ -814,13 +903,17 @@ hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
     /* Only now does a decoder see the file: OpenEXRCore where it can
        decode it (probe: one scanline part, R/G/B/Y half or float, not
        subsampled, no chroma, not DWA, not B44 of half channels), exactly
-       and checking every chunk's decompressed size; else the C++
-       wrapper. */
+       and checking every chunk's decompressed size; else the C++ wrapper,
+       after OpenEXRCore has decoded every chunk it will (check_decodes)
+       except for DWA and B44, which OpenEXRCore 3.1.5 cannot decode
+       (rightly). */
     const int core = !lay.reason;
     const int dwa = lay.comp == EXR_COMPRESSION_DWAA || lay.comp == EXR_COMPRESSION_DWAB;
+    const int b44 = lay.comp == EXR_COMPRESSION_B44 || lay.comp == EXR_COMPRESSION_B44A;
     if (core) r = read_core(ctx, path, flags, f, &msg, lay.grey, width, height, rgb);
+    else if (!dwa && !b44) r = check_decodes(ctx, path, f, &msg);
     exr_finish(&f);
-    if (core) return r;
+    if (core || r != HL_OK) return r;
     return read_wrapper(ctx, path, flags, lay.any_float && !dwa ? lay.reason : NULL, width, height, rgb);
 }
 

@@ -9,7 +9,9 @@
  * Pixels come back as linear float RGB, alpha dropped, row 0 = the first
  * row stored. A header is checked against the limits below, in every
  * part, before any decoder allocates for it, and so is every chunk's table
- * entry, header and extent in the file.
+ * entry, header and extent in the file; a chunk whose data decompresses
+ * to fewer bytes than it holds is refused (in DWA files, as far as the
+ * C++ library checks; exr_io.c says what it misses).
  */
 #ifndef HL_EXR_IO_H
 #define HL_EXR_IO_H
@@ -42,7 +44,8 @@
  * rejects, sizes beyond the limits above or a chunk table beyond the file,
  * a chunk whose table entry, header or data does not fit the file (the
  * message names the part and the chunk), deep data, corrupt or truncated
- * data, not 2:1 when asked, float values
+ * data, data that decompresses short of its chunk (the message names the
+ * rows or the part and the chunk), not 2:1 when asked, float values
  * beyond the half range where only halves can be read). */
 hl_result hl_exr_read_rgb_(hl_context *ctx, const char *path, unsigned flags,
                            uint32_t *width, uint32_t *height, float **rgb);
