@@ -17,15 +17,18 @@
  * with broken chunks written byte by byte: zeroed or far offset tables, no
  * data, packed sizes beyond the file, a short uncompressed chunk, tile
  * entries at other tiles in one-level, mipmap and ripmap files, a bad
- * second part, an entry into the offset tables; each refused naming the
- * part and the chunk; the sound maps they came from load exactly),
+ * second part, an entry into the offset tables, ZIP data that
+ * decompresses short of its chunk in a scanline map, a tile and a first
+ * part; each refused naming the part and the chunk, or the rows; the
+ * sound maps they came from load exactly, and so does one of three half
+ * channels with one not read),
  * sky (sun energy, irradiance and direction for several sizes, elevations
  * and azimuths), image_io (EXR round trip, bit for bit, PNG inflated and unfiltered
  * here and compared with hl_tonemap_srgb8, PNG compression ratios,
  * refused extensions, unwritable places, no temporary files left),
  * tonemap (known sRGB codes and exposure).
- * Depends on: haarlight_core (reference backend only), POSIX dirent/stat,
- * fork/wait4/setrlimit.
+ * Depends on: haarlight_core (reference backend only), zlib (ZIP chunks
+ * written by hostile_chunks), POSIX dirent/stat, fork/wait4/setrlimit.
  */
 #define _POSIX_C_SOURCE 200809L
 #define _DEFAULT_SOURCE /* wait4 */
@@ -39,6 +42,7 @@
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include "haarlight.h"
 #include "hl_test.h"
@@ -1170,6 +1174,86 @@ static void cf_tiled_one(chunk_file *cf) { cf_tiled(cf, 0); }
 static void cf_tiled_mipmap(chunk_file *cf) { cf_tiled(cf, 1); }
 static void cf_tiled_ripmap(chunk_file *cf) { cf_tiled(cf, 2); }
 
+/* A ZIP chunk's packed size and data, as OpenEXR stores n bytes of pixels
+ * (raw, in eb_pixels' order): the bytes split into the even ones, then the
+ * odd ones; each then stored as its difference from the one before plus
+ * 128 (mod 256); then deflated (zlib). Only the first keep of the n
+ * transformed bytes go into the stream: a sound zlib stream that
+ * decompresses to keep bytes, short of the chunk when keep < n. */
+static void eb_zip_chunk(exr_bytes *b, const uint8_t *raw, size_t n, size_t keep)
+{
+    uint8_t *t = malloc(n);
+    uLongf packed = compressBound((uLong)n);
+    uint8_t *z = malloc(packed);
+    if (!t || !z) {
+        fprintf(stderr, "out of memory building a test file\n");
+        exit(1);
+    }
+    for (size_t i = 0; i < n; i++) t[i % 2 ? (n + 1) / 2 + i / 2 : i / 2] = raw[i];
+    for (size_t i = n; i-- > 1;) t[i] = (uint8_t)(t[i] - t[i - 1] + 128u);
+    if (compress2(z, &packed, t, (uLong)keep, 9) != Z_OK) {
+        fprintf(stderr, "zlib cannot compress a test chunk\n");
+        exit(1);
+    }
+    eb_i32(b, (int64_t)packed);
+    eb_put(b, z, packed);
+    free(t);
+    free(z);
+}
+
+/* The 16 x 8 map in ZIP chunks, laid out as layout says: 0 one scanline
+ * part (one chunk: a ZIP chunk has 16 rows), 1 one tiled part of two 8 x 8
+ * tiles, 2 two scanline parts (one chunk each). The first chunk
+ * decompresses to only keep bytes when keep > 0 (eb_zip_chunk). */
+static void cf_zip(chunk_file *cf, int layout, size_t keep)
+{
+    exr_bytes *b = &cf->b, raw = {NULL, 0, 0};
+    const int chunks = layout == 0 ? 1 : 2;
+    eb_start(b, layout == 1 ? EB_TILED : layout == 2 ? EB_MULTIPART : 0);
+    if (layout == 2) {
+        eb_part_compressed(b, "map", EB_ZIP, 0, 0, 15, 7, 1);
+        eb_part_compressed(b, "other", EB_ZIP, 0, 0, 15, 7, 1);
+    } else {
+        eb_required(b, 3, EB_HALF, EB_ZIP, 0, 0, 15, 7);
+        if (layout == 1) eb_tiles(b, 8, 8, 0);
+    }
+    eb_u8(b, 0);
+    const size_t table = b->n; /* both parts' tables, one entry each, are adjacent */
+    eb_zeros(b, 8 * (size_t)chunks);
+    for (int i = 0; i < chunks; i++) {
+        put_u64(b->p + table + 8 * (size_t)i, b->n);
+        raw.n = 0;
+        if (layout == 1) {
+            for (int k = 0; k < 4; k++) eb_i32(b, k == 0 ? i : 0); /* tile (i, 0), level (0, 0) */
+            eb_pixels(&raw, 8 * i, 8, 0, 8);
+        } else {
+            if (layout == 2) eb_i32(b, i); /* the part */
+            eb_i32(b, 0);                  /* the first row */
+            eb_pixels(&raw, 0, 16, 0, 8);
+        }
+        eb_zip_chunk(b, raw.p, raw.n, i == 0 && keep > 0 ? keep : raw.n);
+    }
+    free(raw.p);
+}
+/* The uncompressed scanline map with its R channel renamed Z (still sorted
+ * last): three half channels, B and G read, Z not (R reads 0). The shape
+ * of a fuzzer's file on which OpenEXRCore 3.1.5 wrote the unread channel
+ * through a NULL pointer once half files went to it. */
+static void cf_unread_third_channel(chunk_file *cf)
+{
+    cf_scanline(cf, 1, 0, 96);
+    /* the magic and version, "channels", "chlist", the size, B and G */
+    const size_t r = 8 + sizeof "channels" + sizeof "chlist" + 4 + 2 * (2 + 16);
+    if (cf->b.n <= r || cf->b.p[r] != 'R' || cf->b.p[r + 1] != 0) {
+        fprintf(stderr, "no R channel at byte %zu of the test map\n", r);
+        exit(1);
+    }
+    cf->b.p[r] = 'Z';
+}
+static void cf_zip_scanline(chunk_file *cf) { cf_zip(cf, 0, 0); }
+static void cf_zip_tiled(chunk_file *cf) { cf_zip(cf, 1, 0); }
+static void cf_zip_two_parts(chunk_file *cf) { cf_zip(cf, 2, 0); }
+
 /* A 16 x 8 ZIP header (one chunk of 16 rows) and its offset table of one
  * zero entry: the shape of regress/env/openexr-zip-chunk-without-data. */
 static void hc_zip_zeroed_table(chunk_file *cf)
@@ -1271,6 +1355,16 @@ static void hc_entry_into_tables(chunk_file *cf)
     put_u64(cf->b.p + cf->table[0], cf->table[1]);
 }
 
+/* ZIP chunks whose data is a sound zlib stream that decompresses to fewer
+ * bytes than the chunk's pixels: 100 of the 768 of a scanline map's one
+ * chunk, 100 of the 384 of a tiled map's first tile, and 100 of the 768 of
+ * the first part's chunk in a file of two parts. The C++ reader loads all
+ * three without an error (the rest of the pixels from its uninitialised
+ * buffer). */
+static void hc_zip_short(chunk_file *cf) { cf_zip(cf, 0, 100); }
+static void hc_zip_tile_short(chunk_file *cf) { cf_zip(cf, 1, 100); }
+static void hc_zip_part_short(chunk_file *cf) { cf_zip(cf, 2, 100); }
+
 static void test_hostile_chunks(void)
 {
     static const struct {
@@ -1294,6 +1388,11 @@ static void test_hostile_chunks(void)
         {"second_part_entry_zeroed", hc_second_part_entry, "part 1, chunk of rows 3..3", "points at byte 0, inside the header"},
         {"entry_into_offset_tables", hc_entry_into_tables, "part 0, chunk of rows 0..0",
          "inside the header and offset tables"},
+        {"zip_chunk_decompresses_short", hc_zip_short, "pixel data in rows 0..7", "of ZIP data for 768 bytes of pixels"},
+        {"zip_tile_decompresses_short", hc_zip_tile_short, "part 0, tile (0, 0) level (0, 0)",
+         "of ZIP data for 384 bytes of pixels"},
+        {"zip_first_part_decompresses_short", hc_zip_part_short, "part 0, chunk of rows 0..7",
+         "of ZIP data for 768 bytes of pixels"},
     };
     hl_context *ctx = make_ctx();
     char dir[512], path[1024];
@@ -1319,12 +1418,20 @@ static void test_hostile_chunks(void)
            sizeof shapes / sizeof shapes[0]);
 
     /* The sound maps these were made from load, every value exact (the
-       multi-part one reads its part 0); so do the float fixtures. */
+       multi-part one reads its part 0; the one without R reads 0 there);
+       so do the float fixtures. */
     static const struct {
         const char *name;
         void (*make)(chunk_file *);
-    } sound[] = {{"sound_scanline", NULL},         {"sound_two_parts", NULL},      {"sound_tiled", cf_tiled_one},
-                 {"sound_tiled_mipmap", cf_tiled_mipmap}, {"sound_tiled_ripmap", cf_tiled_ripmap}};
+    } sound[] = {{"sound_scanline", NULL},
+                 {"sound_two_parts", NULL},
+                 {"sound_tiled", cf_tiled_one},
+                 {"sound_tiled_mipmap", cf_tiled_mipmap},
+                 {"sound_tiled_ripmap", cf_tiled_ripmap},
+                 {"sound_zip", cf_zip_scanline},
+                 {"sound_zip_tiled", cf_zip_tiled},
+                 {"sound_zip_two_parts", cf_zip_two_parts},
+                 {"sound_unread_third_channel", cf_unread_third_channel}};
     double worst = 0.0;
     for (size_t i = 0; i < sizeof sound / sizeof sound[0]; i++) {
         chunk_file cf;
@@ -1343,8 +1450,10 @@ static void test_hostile_chunks(void)
         HL_CHECK(env->width == 16 && env->height == 8, "%s: %u x %u", path, env->width, env->height);
         for (int y = 0; y < 8 && env->width == 16 && env->height == 8; y++)
             for (int x = 0; x < 16; x++)
-                for (int c = 0; c < 3; c++)
-                    w = fmax(w, fabs((double)env->rgb[3 * (16 * y + x) + c] - chunk_value(x, y, c)));
+                for (int c = 0; c < 3; c++) {
+                    double want = c == 0 && sound[i].make == cf_unread_third_channel ? 0.0 : chunk_value(x, y, c);
+                    w = fmax(w, fabs((double)env->rgb[3 * (16 * y + x) + c] - want));
+                }
         printf("%s (%zu bytes): loaded, worst |value - written| %g\n", sound[i].name, cf.b.n, w);
         worst = fmax(worst, w);
         hl_env_destroy(env);
