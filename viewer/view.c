@@ -607,7 +607,7 @@ static int run_loop(viewer *v)
     for (;;) {
         if (headless || pending(v)) glfwPollEvents();
         else glfwWaitEventsTimeout(0.25); /* wakes to notice Ctrl-C and messages running out */
-        if (v->quit || glfwWindowShouldClose(v->win) || hl_interrupt_requested) break;
+        if (v->quit || glfwWindowShouldClose(v->win) || hl_context_cancelled(v->ctx)) break;
         if (!headless && !pending(v)) {
             if (v->msg[0] && glfwGetTime() >= v->msg_until) {
                 v->msg[0] = '\0';
@@ -667,7 +667,7 @@ static int run_loop(viewer *v)
         update_title(v);
         if (headless && ++frame >= v->frames_limit) break;
     }
-    if (hl_interrupt_requested) {
+    if (hl_context_cancelled(v->ctx)) {
         fprintf(stderr, "haarlight: interrupted\n");
         return 130;
     }
@@ -816,6 +816,7 @@ static int load(viewer *v, const char **env_args, int n_env_args)
         fprintf(stderr, "haarlight: %s\n", err);
         return 0;
     }
+    cli_watch(v->ctx, NULL); /* Ctrl-C cancels it: the loop polls it */
     if (hl_transport_load(v->ctx, v->scene, &v->t) != HL_OK) {
         cli_fail(v->ctx, HL_ERR_IO);
         return 0;
@@ -928,10 +929,12 @@ int cmd_view(int argc, char **argv)
         if (!v->o.cd.quiet)
             fprintf(stderr, "view %s: %u vertices on %s; OpenGL: %s; colours by %s\n", v->scene,
                     v->t->mesh->vertex_count, hl_context_device_name(v->ctx), vw_gl_renderer(v->gl), v->feed);
+        cli_watch(v->ctx, v->gctx);
         for (int i = 0; i < v->n_drops; i++) drop_file(v, v->drops[i]);
         rc = run_loop(v);
         print_times(v);
     }
+    cli_unwatch();
     hl_cl_mem_release(v->glmem); /* the sharing objects before the GL buffer and context go */
     hl_relighter_destroy(v->rl);
     hl_context_destroy(v->gctx);

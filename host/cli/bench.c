@@ -458,6 +458,7 @@ int cmd_bench(int argc, char **argv)
 
     hl_context *cl = NULL, *ref = NULL;
     if (!cli_context_pair(&cd, &cl, &ref)) return 1;
+    cli_watch(cl, ref);
     hl_transport *t[MAX_FILES] = {0};
     hl_geom *g = NULL;
     hl_light_geom *lg = NULL;
@@ -483,6 +484,7 @@ int cmd_bench(int argc, char **argv)
         for (int e = 0; e < nenvs; e++) hl_env_destroy(envs[e].env);
         hl_geom_destroy(g);
         hl_light_geom_destroy(lg);
+        cli_unwatch();
         hl_context_destroy(cl);
         hl_context_destroy(ref);
         return rc;
@@ -803,6 +805,7 @@ int cmd_bench(int argc, char **argv)
     hl_rt_destroy(rt);
     hl_light_geom_destroy(lg);
     hl_geom_destroy(g);
+    cli_unwatch();
     hl_context_destroy(cl);
     hl_context_destroy(ref);
     return rc;

@@ -91,6 +91,7 @@ int cmd_check(int argc, char **argv)
     if (!rd.select) rd.select = HL_SELECT_TRANSPORT;
     hl_context *cl = NULL, *ref = NULL;
     if (!cli_context_pair(&cd, &cl, &ref)) return 1;
+    cli_watch(cl, ref);
     hl_transport *t = NULL;
     hl_env *env = NULL;
     hl_geom *g = NULL;
@@ -108,6 +109,7 @@ int cmd_check(int argc, char **argv)
         hl_transport_destroy(t);
         hl_env_destroy(env);
         hl_geom_destroy(g);
+        cli_unwatch();
         hl_context_destroy(cl);
         hl_context_destroy(ref);
         return rc;
@@ -263,6 +265,7 @@ int cmd_check(int argc, char **argv)
     hl_geom_destroy(g);
     hl_env_destroy(env);
     hl_transport_destroy(t);
+    cli_unwatch();
     hl_context_destroy(cl);
     hl_context_destroy(ref);
     return rc;

@@ -23,6 +23,11 @@ const char *select_name(uint32_t scheme);
 /* An OpenCL context from cl_desc and a reference context beside it (for
  * comparing the two); prints the error and returns 0 on failure. */
 int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context **ref);
+/* Ctrl-C (SIGINT) and SIGTERM cancel the contexts watched (main.c): a
+ * command watches the one or two contexts its long work runs on (b may be
+ * NULL) once they are created, and unwatches them before destroying them. */
+void cli_watch(hl_context *a, hl_context *b);
+void cli_unwatch(void);
 /* Prints the context's last error; returns the exit code for r. */
 int cli_fail(hl_context *ctx, hl_result r);
 /* hl_env_load, then (unless quiet) a line on stderr saying how many

@@ -8,6 +8,7 @@
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -76,10 +77,40 @@ static const char *const usage_precompute =
     "                       required, and the result is the same bytes\n"
     "  -q, --quiet          no progress line\n";
 
+/* The contexts of the running command, for the SIGINT and SIGTERM
+ * handler: it may run at any moment, so it reads them through lock-free
+ * atomics (the only objects besides volatile sig_atomic_t that C11 lets a
+ * handler touch). pending remembers a signal that came before the command
+ * had a context, so that the context is cancelled as soon as it is
+ * watched and the long work stops as it always did. */
+static _Atomic(hl_context *) watched[2];
+static volatile sig_atomic_t pending;
+
+#if ATOMIC_POINTER_LOCK_FREE != 2
+#error "the signal handler needs lock-free atomic pointers"
+#endif
+
 static void on_sigint(int sig)
 {
     (void)sig;
-    hl_interrupt_requested = 1;
+    pending = 1;
+    for (int i = 0; i < 2; i++) hl_context_cancel(atomic_load(&watched[i]));
+}
+
+void cli_watch(hl_context *a, hl_context *b)
+{
+    atomic_store(&watched[0], a);
+    atomic_store(&watched[1], b);
+    if (pending) { /* after the stores: a signal in between reaches them either way */
+        hl_context_cancel(a);
+        hl_context_cancel(b);
+    }
+}
+
+void cli_unwatch(void)
+{
+    atomic_store(&watched[0], NULL);
+    atomic_store(&watched[1], NULL);
 }
 
 /* Options shared by precompute and bench-precompute. */
@@ -230,6 +261,7 @@ static int cmd_precompute(int argc, char **argv)
         fprintf(stderr, "haarlight: %s\n", err);
         return 1;
     }
+    cli_watch(ctx, NULL);
     hl_mesh *mesh = NULL;
     r = load_scene(ctx, &o, &mesh);
     hl_precompute_stats st;
@@ -251,6 +283,7 @@ static int cmd_precompute(int argc, char **argv)
                 st.seconds_rays > 0 ? (double)st.rays_cast / st.seconds_rays * 1e-6 : 0.0, st.seconds_kernels);
     }
     hl_mesh_destroy(mesh);
+    cli_unwatch();
     hl_context_destroy(ctx);
     return rc;
 }
@@ -320,6 +353,7 @@ static int cmd_bench_precompute(int argc, char **argv)
         fprintf(stderr, "haarlight: %s\n", err);
         return 1;
     }
+    cli_watch(ctx, NULL);
     hl_mesh *mesh = NULL;
     hl_geom *g = NULL;
     hl_rt *rt = NULL;
@@ -364,6 +398,7 @@ static int cmd_bench_precompute(int argc, char **argv)
     hl_rt_destroy(rt);
     hl_geom_destroy(g);
     hl_mesh_destroy(mesh);
+    cli_unwatch();
     hl_context_destroy(ctx);
     return rc;
 }

@@ -77,6 +77,7 @@ int cmd_relight(int argc, char **argv)
         fprintf(stderr, "haarlight: %s\n", err);
         return 1;
     }
+    cli_watch(ctx, NULL);
     hl_transport *t = NULL;
     hl_env *env = NULL;
     hl_relighter *rl = NULL;
@@ -117,6 +118,7 @@ int cmd_relight(int argc, char **argv)
     hl_relighter_destroy(rl);
     hl_env_destroy(env);
     hl_transport_destroy(t);
+    cli_unwatch();
     hl_context_destroy(ctx);
     return rc;
 }

@@ -93,6 +93,21 @@ typedef struct hl_context hl_context;
 hl_result hl_context_create(const hl_context_desc *desc, hl_context **out,
                             char *err, size_t err_size);
 void hl_context_destroy(hl_context *ctx);
+/* Cancellation. hl_context_cancel asks the long work running on ctx to
+ * stop: the ray casting and the chunks of hl_precompute (which keeps its
+ * .partial file for --resume), hl_render's pixel chunks and the viewer's
+ * loop poll the flag between units of work and return
+ * HL_ERR_INTERRUPTED. Work already finished is not undone, and a call
+ * that does not poll (loading, relighting once) runs to its end. The flag
+ * stays set for the rest of the context's life, so later long calls on
+ * ctx fail at once with HL_ERR_INTERRUPTED; NULL is ignored.
+ * Async-signal-safe and thread safe: it does nothing but store to a
+ * lock-free atomic int in ctx (the build refuses a target where atomic_int
+ * is not lock-free), so a SIGINT handler may call it, provided ctx is not
+ * being destroyed meanwhile. hl_context_cancelled returns 1 once the
+ * context was cancelled, else 0 (also for NULL). */
+void hl_context_cancel(hl_context *ctx);
+int hl_context_cancelled(const hl_context *ctx);
 /* Reads a byte count: digits with an optional K, M or G suffix (powers of
  * 1024). Returns 1 and sets *out when the whole string is one, at least 1
  * and below 2^63; 0 otherwise. */

@@ -1,8 +1,7 @@
 /* context.c - the context object, result strings and small host helpers.
  *
  * The context owns the compute device (through cl_backend.c) and the last
- * error message. Nothing here is global except the interrupt flag that
- * the CLI's signal handler sets.
+ * error message, and the cancellation flag. Nothing here is global.
  */
 #define _POSIX_C_SOURCE 200809L
 #define _DEFAULT_SOURCE /* MADV_HUGEPAGE is a Linux extension */
@@ -17,8 +16,6 @@
 
 #include "cl_backend.h"
 #include "hl_internal.h"
-
-volatile int hl_interrupt_requested = 0;
 
 static const char *const result_strings[HL_RESULT_COUNT] = {
     [HL_OK] = "success",
@@ -120,6 +117,7 @@ hl_result hl_context_create(const hl_context_desc *desc, hl_context **out,
         if (err && err_size) snprintf(err, err_size, "out of memory creating the context");
         return HL_ERR_OUT_OF_MEMORY;
     }
+    atomic_init(&ctx->cancelled, 0);
     ctx->backend = d.backend == HL_BACKEND_DEFAULT ? HL_BACKEND_OPENCL : d.backend;
     ctx->quiet = d.quiet;
     long cores = sysconf(_SC_NPROCESSORS_ONLN);
@@ -154,6 +152,17 @@ void hl_context_destroy(hl_context *ctx)
     if (!ctx) return;
     hl_cl_destroy(ctx->cl);
     free(ctx);
+}
+
+void hl_context_cancel(hl_context *ctx)
+{
+    /* one store to a lock-free atomic: async-signal-safe (see haarlight.h) */
+    if (ctx) atomic_store(&ctx->cancelled, 1);
+}
+
+int hl_context_cancelled(const hl_context *ctx)
+{
+    return ctx && atomic_load(&ctx->cancelled) != 0;
 }
 
 int hl_parse_bytes(const char *s, uint64_t *out)

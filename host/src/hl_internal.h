@@ -9,6 +9,7 @@
 #define HL_INTERNAL_H
 
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -24,7 +25,17 @@ struct hl_context {
     char device_name[256];
     char err[4096];
     struct hl_cl *cl; /* NULL for the reference backend */
+    /* Set by hl_context_cancel, polled by the long loops. An atomic_int,
+     * not a volatile sig_atomic_t: a signal handler may store to it only
+     * because it is lock-free (C11 7.14.1.1; asserted below), and being
+     * atomic it is also seen by the worker threads that poll it, which
+     * volatile does not promise. */
+    atomic_int cancelled;
 };
+
+#if ATOMIC_INT_LOCK_FREE != 2
+#error "hl_context_cancel needs a lock-free atomic_int to be async-signal-safe"
+#endif
 
 /* Records a formatted message on ctx (may be NULL) and returns code. */
 hl_result hl_fail(hl_context *ctx, hl_result code, const char *fmt, ...)
@@ -60,8 +71,5 @@ hl_result hl_mesh_build_(hl_context *ctx, const char *name, uint32_t vertex_coun
                          const float *positions, const float *normals, const float *colors,
                          uint32_t triangle_count, const uint32_t *indices,
                          const hl_mesh_load_desc *desc, hl_mesh **out, hl_mesh_stats *stats);
-
-/* Set by SIGINT handlers of the CLI; long loops poll it. */
-extern volatile int hl_interrupt_requested;
 
 #endif

@@ -262,7 +262,7 @@ hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precomput
             if (r == HL_OK) r = hl_tfile_writer_checkpoint(w, vc_done.rays_cast, vc_done.rays_culled);
             progress(ctx, first + count, V, vc.rays_cast, st.seconds_rays, t_start);
         }
-        if (r == HL_OK && hl_interrupt_requested) r = HL_ERR_INTERRUPTED;
+        if (r == HL_OK && hl_context_cancelled(ctx)) r = HL_ERR_INTERRUPTED;
     }
     if (r == HL_ERR_INTERRUPTED && w)
         hl_fail(ctx, HL_ERR_INTERRUPTED,

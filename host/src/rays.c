@@ -274,7 +274,7 @@ static void *vis_worker(void *arg)
     sub_offsets(job->S, job->g->C, off);
     for (;;) {
         uint32_t i = atomic_fetch_add(&job->next, 4u);
-        if (i >= job->count || hl_interrupt_requested) break;
+        if (i >= job->count || hl_context_cancelled(job->rt->ctx)) break;
         uint32_t end = i + 4 < job->count ? i + 4 : job->count;
         for (; i < end; i++) trace_vertex(job, job->first + i, pk, off);
     }
@@ -286,7 +286,7 @@ static hl_result run_job(hl_rt *rt, vis_job *job)
 {
     hl_run_threads(rt->ctx->threads, vis_worker, job);
     if (rt->err[0]) return hl_fail(rt->ctx, HL_ERR_EMBREE, "Embree: %s", rt->err);
-    if (hl_interrupt_requested) return hl_fail(rt->ctx, HL_ERR_INTERRUPTED, "interrupted");
+    if (hl_context_cancelled(rt->ctx)) return hl_fail(rt->ctx, HL_ERR_INTERRUPTED, "interrupted");
     return HL_OK;
 }
 

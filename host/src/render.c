@@ -249,7 +249,7 @@ hl_result hl_render(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rg
 
     float eye[3] = {(float)c.eye[0], (float)c.eye[1], (float)c.eye[2]};
     for (size_t first = 0; first < npix; first += chunk) {
-        if (hl_interrupt_requested) {
+        if (hl_context_cancelled(ctx)) {
             r = hl_fail(ctx, HL_ERR_INTERRUPTED, "render: interrupted");
             goto done;
         }
