@@ -9,6 +9,7 @@
  * with a message naming the vertex or triangle.
  *
  * Depends on: hl_internal.h (hl_fail, allocation), hl_mesh_destroy (mesh.c),
+ * zlib (crc32_z),
  * POSIX open/pread/pwrite/fsync/rename/ftruncate, flock.
  */
 #define _DEFAULT_SOURCE /* flock */
@@ -24,6 +25,8 @@
 #include <sys/stat.h>
 #include <sys/types.h>
 #include <unistd.h>
+
+#include <zlib.h>
 
 #include "half.h"
 #include "transport_file.h"
@@ -137,47 +140,19 @@ static uint64_t align_up(uint64_t x) { return (x + (TF_ALIGN - 1)) & ~(uint64_t)
 
 /* ---------------------------------------------------------------- CRC-32 */
 
-/* IEEE 802.3 CRC-32 (reflected polynomial 0xEDB88320, as zlib and PNG),
- * sliced by 8 so that checking a multi-gigabyte file costs well under the
- * time to read it. The tables live in the caller's state, not a global. */
-typedef struct tf_crc {
-    uint32_t t[8][256];
-} tf_crc;
-
-static void crc_init(tf_crc *c)
+/* IEEE 802.3 CRC-32 (reflected polynomial 0xEDB88320, as PNG), computed
+ * by zlib's crc32_z. crc is the value returned by the previous call (0 to
+ * start), so a section's CRC can be built piece by piece. */
+static uint32_t crc_update(uint32_t crc, const void *data, size_t n)
 {
-    for (uint32_t i = 0; i < 256; i++) {
-        uint32_t r = i;
-        for (int k = 0; k < 8; k++) r = (r & 1u) ? (r >> 1) ^ 0xEDB88320u : r >> 1;
-        c->t[0][i] = r;
-    }
-    for (int s = 1; s < 8; s++)
-        for (uint32_t i = 0; i < 256; i++) c->t[s][i] = (c->t[s - 1][i] >> 8) ^ c->t[0][c->t[s - 1][i] & 0xffu];
-}
-
-/* crc is the value returned by the previous call (0 to start). */
-static uint32_t crc_update(const tf_crc *c, uint32_t crc, const void *data, size_t n)
-{
-    const uint8_t *p = data;
-    crc = ~crc;
-    while (n >= 8) {
-        uint32_t lo = crc ^ get_u32(p);
-        uint32_t hi = get_u32(p + 4);
-        crc = c->t[7][lo & 0xffu] ^ c->t[6][(lo >> 8) & 0xffu] ^ c->t[5][(lo >> 16) & 0xffu] ^
-              c->t[4][lo >> 24] ^ c->t[3][hi & 0xffu] ^ c->t[2][(hi >> 8) & 0xffu] ^
-              c->t[1][(hi >> 16) & 0xffu] ^ c->t[0][hi >> 24];
-        p += 8;
-        n -= 8;
-    }
-    while (n--) crc = c->t[0][(crc ^ *p++) & 0xffu] ^ (crc >> 8);
-    return ~crc;
+    return (uint32_t)crc32_z(crc, data, n);
 }
 
 /* ---------------------------------------------------------------- header */
 
 /* magic: TF_MAGIC, or TF_PARTIAL_MAGIC for the checkpoint of an unfinished
  * file, which also records the vertices appended so far (H_APPENDED). */
-static void header_encode(const tf_header *h, const tf_crc *crc, const char *magic, uint32_t appended,
+static void header_encode(const tf_header *h, const char *magic, uint32_t appended,
                           uint8_t out[TF_HEADER_SIZE])
 {
     const hl_transport_info *i = &h->info;
@@ -207,7 +182,7 @@ static void header_encode(const tf_header *h, const tf_crc *crc, const char *mag
         put_u64(out + H_SECTIONS + 16 * s + 8, h->sec[s].size);
         put_u32(out + H_SECTION_CRCS + 4 * s, h->sec[s].crc);
     }
-    put_u32(out + H_HEADER_CRC, crc_update(crc, 0, out, H_HEADER_CRC));
+    put_u32(out + H_HEADER_CRC, crc_update(0, out, H_HEADER_CRC));
 }
 
 static void header_decode(const uint8_t *in, tf_header *h)
@@ -426,7 +401,6 @@ struct hl_tfile_writer {
     uint32_t appended;
     uint64_t coefficients;
     tf_stream rows, entries;
-    tf_crc crc;
 };
 
 static hl_result writer_io_error(hl_tfile_writer *w, const char *what)
@@ -439,7 +413,7 @@ static hl_result writer_io_error(hl_tfile_writer *w, const char *what)
 static hl_result stream_flush(hl_tfile_writer *w, tf_stream *s)
 {
     if (s->len == 0) return HL_OK;
-    s->crc = crc_update(&w->crc, s->crc, s->buf, s->len);
+    s->crc = crc_update(s->crc, s->buf, s->len);
     if (pwrite_all(w->fd, s->buf, s->len, s->pos) != 0) return writer_io_error(w, "write");
     s->pos += s->len;
     s->len = 0;
@@ -563,7 +537,6 @@ static hl_result writer_new(hl_context *ctx, const char *path, const hl_transpor
         writer_free(w);
         return HL_ERR_OUT_OF_MEMORY;
     }
-    crc_init(&w->crc);
 
     tf_header *h = &w->hdr;
     h->info = *info;
@@ -591,7 +564,7 @@ static hl_result writer_lock(hl_tfile_writer *w)
 }
 
 /* CRC-32 of the mesh section as it would be written. */
-static uint32_t mesh_crc(const tf_crc *c, const hl_mesh *mesh)
+static uint32_t mesh_crc(const hl_mesh *mesh)
 {
     const void *parts[4] = {mesh->positions, mesh->normals, mesh->albedo, mesh->indices};
     size_t words[4] = {3 * (size_t)mesh->vertex_count, 3 * (size_t)mesh->vertex_count,
@@ -606,7 +579,7 @@ static uint32_t mesh_crc(const tf_crc *c, const hl_mesh *mesh)
                 memcpy(&u, (const uint8_t *)parts[k] + 4 * i, 4);
                 put_u32(tmp + n, u);
             }
-            crc = crc_update(c, crc, tmp, n);
+            crc = crc_update(crc, tmp, n);
         }
     return crc;
 }
@@ -679,7 +652,7 @@ hl_result hl_tfile_writer_checkpoint(hl_tfile_writer *w, uint64_t rays_cast, uin
     p.sec[SEC_ENTRIES].crc = w->entries.crc;
     p.file_size = p.sec[SEC_ENTRIES].offset + p.sec[SEC_ENTRIES].size;
     uint8_t bytes[TF_HEADER_SIZE];
-    header_encode(&p, &w->crc, TF_PARTIAL_MAGIC, w->appended, bytes);
+    header_encode(&p, TF_PARTIAL_MAGIC, w->appended, bytes);
     if (pwrite_all(w->fd, bytes, sizeof bytes, 0) != 0) return writer_io_error(w, "write");
     return HL_OK;
 }
@@ -696,7 +669,7 @@ static int file_crc(hl_tfile_writer *w, uint64_t off, uint64_t n, uint32_t *crc)
             free(buf);
             return -1;
         }
-        c = crc_update(&w->crc, c, buf, k);
+        c = crc_update(c, buf, k);
         off += k;
         n -= k;
     }
@@ -732,11 +705,11 @@ hl_result hl_tfile_writer_resume(hl_context *ctx, const char *path, const hl_tra
         uint32_t appended = get_u32(bytes + H_APPENDED);
         uint64_t rows = (uint64_t)appended * row_record_bytes(h->info.block_count);
         if (memcmp(bytes, TF_PARTIAL_MAGIC, 8) != 0) why = "not a partial transport file";
-        else if (get_u32(bytes + H_HEADER_CRC) != crc_update(&w->crc, 0, bytes, H_HEADER_CRC)) why = "its checkpoint is corrupt";
+        else if (get_u32(bytes + H_HEADER_CRC) != crc_update(0, bytes, H_HEADER_CRC)) why = "its checkpoint is corrupt";
         else if (get_u32(bytes + H_VERSION) != TF_VERSION) why = "written by another format version";
         else if (info_params_differ(&p.info, &h->info)) why = "made with other parameters or another mesh";
         else if (p.sec[SEC_MESH].offset != h->sec[SEC_MESH].offset || p.sec[SEC_MESH].size != h->sec[SEC_MESH].size ||
-                 p.sec[SEC_MESH].crc != mesh_crc(&w->crc, mesh))
+                 p.sec[SEC_MESH].crc != mesh_crc(mesh))
             why = "made from another mesh";
         else if (appended > h->info.vertex_count || p.sec[SEC_ROWS].offset != h->sec[SEC_ROWS].offset ||
                  p.sec[SEC_ROWS].size != rows || p.sec[SEC_ENTRIES].offset != h->sec[SEC_ENTRIES].offset ||
@@ -882,7 +855,7 @@ hl_result hl_tfile_writer_finish(hl_tfile_writer *w, const hl_transport_info *fi
         h->sec[SEC_ENTRIES].crc = w->entries.crc;
         h->file_size = h->sec[SEC_ENTRIES].offset + h->sec[SEC_ENTRIES].size;
         uint8_t bytes[TF_HEADER_SIZE];
-        header_encode(h, &w->crc, TF_MAGIC, 0, bytes);
+        header_encode(h, TF_MAGIC, 0, bytes);
         r = write_padding(w, h->sec[SEC_ROWS].offset + h->sec[SEC_ROWS].size, h->sec[SEC_ENTRIES].offset);
         if (r == HL_OK && pwrite_all(w->fd, bytes, sizeof bytes, 0) != 0) r = writer_io_error(w, "write");
         if (r == HL_OK && fsync(w->fd) != 0) r = writer_io_error(w, "sync");
@@ -930,7 +903,6 @@ typedef struct tf_reader {
     const char *path;
     int fd;
     uint64_t file_size;
-    tf_crc crc;
 } tf_reader;
 
 /* Reads a section range into memory; the file size was checked against the
@@ -971,7 +943,7 @@ static hl_result read_header(tf_reader *rd, tf_header *h)
         return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header_size %" PRIu32 ", version 1 has %u", rd->path,
                        get_u32(bytes + H_HEADER_SIZE), TF_HEADER_SIZE);
     uint32_t stored = get_u32(bytes + H_HEADER_CRC);
-    uint32_t computed = crc_update(&rd->crc, 0, bytes, H_HEADER_CRC);
+    uint32_t computed = crc_update(0, bytes, H_HEADER_CRC);
     if (stored != computed)
         return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: checksum mismatch in the header (stored %08" PRIx32
                        ", computed %08" PRIx32 ")", rd->path, stored, computed);
@@ -1043,7 +1015,7 @@ static hl_result read_mesh(tf_reader *rd, const tf_header *h, hl_mesh **out)
     for (int p = 0; p < 4; p++) {
         hl_result r = read_range(rd, parts[p], 4 * (uint64_t)words[p], off, "mesh section");
         if (r != HL_OK) return r;
-        crc = crc_update(&rd->crc, crc, parts[p], 4 * words[p]);
+        crc = crc_update(crc, parts[p], 4 * words[p]);
         swap_words_if_big_endian(parts[p], words[p]);
         off += 4 * (uint64_t)words[p];
     }
@@ -1072,7 +1044,7 @@ static hl_result read_rows(tf_reader *rd, const tf_header *h, hl_transport *t)
         size_t n = i->vertex_count - v0 < chunk ? (size_t)(i->vertex_count - v0) : chunk;
         r = read_range(rd, buf, (uint64_t)n * rec, sec->offset + (uint64_t)v0 * rec, "row table");
         if (r != HL_OK) break;
-        crc = crc_update(&rd->crc, crc, buf, n * rec);
+        crc = crc_update(crc, buf, n * rec);
         for (size_t k = 0; k < n; k++) {
             const uint8_t *p = buf + k * rec;
             size_t v = (size_t)v0 + k;
@@ -1125,7 +1097,6 @@ hl_result hl_transport_load(hl_context *ctx, const char *path, hl_transport **ou
     if (!rd) return HL_ERR_OUT_OF_MEMORY;
     rd->ctx = ctx;
     rd->path = path;
-    crc_init(&rd->crc);
     rd->fd = open(path, O_RDONLY | O_CLOEXEC);
     if (rd->fd < 0) {
         int e = errno;
@@ -1170,7 +1141,7 @@ hl_result hl_transport_load(hl_context *ctx, const char *path, hl_transport **ou
     if (r == HL_OK) r = read_range(rd, t->entries, h.sec[SEC_ENTRIES].size, h.sec[SEC_ENTRIES].offset, "entries section");
     if (r == HL_OK)
         r = check_crc(rd, SEC_ENTRIES, h.sec[SEC_ENTRIES].crc,
-                      crc_update(&rd->crc, 0, t->entries, (size_t)h.sec[SEC_ENTRIES].size));
+                      crc_update(0, t->entries, (size_t)h.sec[SEC_ENTRIES].size));
     if (r == HL_OK) r = validate_rows(rd, t);
     close(rd->fd);
     free(rd);
