@@ -250,6 +250,7 @@ static void case_stages(void)
         float *sa = malloc((size_t)nc * 16), *sb = malloc((size_t)nc * 16), *Ba = malloc((size_t)V * 16), *Bb = malloc((size_t)V * 16);
         uint8_t *ua = malloc(g->nblocks), *ub = malloc(g->nblocks);
         uint32_t *ka = malloc((size_t)nc / 8), *kb = malloc((size_t)nc / 8);
+        hl_ref_key *keys = malloc((size_t)nc * sizeof *keys);
         static const uint32_t Ms[] = {1, 25, 200, 1000, HL_TERMS_ALL};
         uint32_t walks[2] = {0, 0}; /* ranges walked by tile, by column */
         for (uint32_t sel = HL_SELECT_AREA; sel <= HL_SELECT_UNWEIGHTED; sel++)
@@ -259,7 +260,7 @@ static void case_stages(void)
                 float *ones = NULL;
                 if (!w) { ones = malloc((size_t)nc * 4); for (uint32_t i = 0; i < nc; i++) ones[i] = 1.0f; w = ones; }
                 hl_cl_light_set_weights(l, w);
-                hl_select_result ra = hl_ref_select(wa, nc, w, sp, sa, ua, ka, g->nblocks), rb;
+                hl_select_result ra = hl_ref_select(wa, nc, w, sp, sa, ua, ka, g->nblocks, keys), rb;
                 HL_CHECK(hl_cl_light_stage_select(l, wa, sp, sb, ub, kb, &rb) == HL_OK, "select");
                 int same = !memcmp(sa, sb, (size_t)nc * 16) && !memcmp(ua, ub, g->nblocks) && !memcmp(ka, kb, nc / 8) && ra.kept == rb.kept &&
                            ra.blocks_used == rb.blocks_used && ra.energy_kept == rb.energy_kept && ra.energy_total == rb.energy_total;
@@ -284,7 +285,7 @@ static void case_stages(void)
         /* both of the kernel's walks were compared with the twin */
         printf("ranges walked by tile: %u, by column: %u\n", walks[0], walks[1]);
         HL_CHECK(walks[0] > 0 && walks[1] > 0, "both walks of the dot products tested");
-        free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub); free(ka); free(kb);
+        free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub); free(ka); free(kb); free(keys);
         free(Lp); free(Lp2); free(wa); free(wb); free(alb);
         hl_free_big(cells);
         hl_env_destroy(env);

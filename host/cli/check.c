@@ -136,8 +136,9 @@ int cmd_check(int argc, char **argv)
     uint16_t *bca = malloc((size_t)K * nb * 2), *bcb = malloc((size_t)K * nb * 2);
     uint8_t *ea = calloc((size_t)K * nc, 2), *eb = calloc((size_t)K * nc, 2);
     uint32_t *na = malloc(K * 4), *nbb = malloc(K * 4), *idx = malloc(K * 4);
+    hl_ref_key *keys = malloc((size_t)nc * sizeof *keys); /* scratch of hl_ref_truncate and hl_ref_select */
     if (!vis || !n4 || !Ta || !Tb || !Tc || !ca || !cb || !tra || !trb || !rqa || !rqb || !bca || !bcb || !ea || !eb ||
-        !na || !nbb || !idx)
+        !na || !nbb || !idx || !keys)
         r = hl_fail(ref, HL_ERR_OUT_OF_MEMORY, "out of memory for %u vertices' precompute stages (%.1f GB); "
                     "try fewer --vertices", K, 5.0 * 4.0 * (double)K * nc / 1e9);
     if (r == HL_OK) r = hl_rt_create(ref, t->mesh, &rt);
@@ -161,7 +162,7 @@ int cmd_check(int argc, char **argv)
     }
     if (r == HL_OK) {
         all_ok &= report(&(row_report){"haar (float)", rel_worst(ca, cb, (size_t)K * nc), 1e-5, 0, (uint64_t)K * nc});
-        for (uint32_t i = 0; i < K; i++) tra[i] = hl_ref_truncate(g, ca + (size_t)i * nc, tp);
+        for (uint32_t i = 0; i < K; i++) tra[i] = hl_ref_truncate(g, ca + (size_t)i * nc, tp, keys);
         r = hl_cl_pipe_truncate(pipe, K, ca, tp, trb);
     }
     if (r == HL_OK) {
@@ -227,7 +228,7 @@ int cmd_check(int argc, char **argv)
     hl_select_result sra, srb;
     if (r == HL_OK) {
         all_ok &= report(&(row_report){"haar of the lighting", rel_worst(wa, wb, (size_t)nc * 3), 1e-5, 0, (uint64_t)nc * 3});
-        sra = hl_ref_select(wa, nc, wsel, sp, sa, ua, ka, nb);
+        sra = hl_ref_select(wa, nc, wsel, sp, sa, ua, ka, nb, keys);
         r = hl_cl_light_stage_select(light, wa, sp, sb, ub, kb, &srb);
     }
     if (r == HL_OK) {
@@ -259,7 +260,7 @@ int cmd_check(int argc, char **argv)
     hl_free_big(cells);
     free(alb); free(La); free(Lb); free(wa); free(wb); free(sa); free(sb); free(Ba); free(Bb); free(wsel); free(ua); free(ub); free(ka); free(kb);
     free(vis); free(n4); free(Ta); free(Tb); free(Tc); free(ca); free(cb); free(tra); free(trb); free(rqa); free(rqb);
-    free(bca); free(bcb); free(ea); free(eb); free(na); free(nbb); free(idx);
+    free(bca); free(bcb); free(ea); free(eb); free(na); free(nbb); free(idx); free(keys);
     hl_rt_destroy(rt);
     hl_light_geom_destroy(lg);
     hl_geom_destroy(g);

@@ -295,6 +295,7 @@ struct hl_relighter {
     float *Lp, *Lw, *Lsel;  /* reference scratch */
     uint8_t *used;
     uint32_t *bits;
+    hl_ref_key *keys;       /* hl_ref_select's scratch */
     int have_last;
     void *last_out;         /* where the last colours went: NULL for B4 */
     hl_relight_desc last;
@@ -317,6 +318,7 @@ void hl_relighter_destroy(hl_relighter *r)
     free(r->Lsel);
     free(r->used);
     free(r->bits);
+    free(r->keys);
     free(r);
 }
 
@@ -340,7 +342,8 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
         r->Lsel = hl_malloc(ctx, (size_t)nc * 16, "lighting");
         r->used = hl_malloc(ctx, r->g->nblocks, "block flags");
         r->bits = hl_malloc(ctx, (size_t)nc / 8, "kept-slot bits");
-        if (!r->albedo4 || !r->B4 || !r->Lp || !r->Lw || !r->Lsel || !r->used || !r->bits)
+        r->keys = hl_malloc(ctx, (size_t)nc * sizeof *r->keys, "the selection's sort keys");
+        if (!r->albedo4 || !r->B4 || !r->Lp || !r->Lw || !r->Lsel || !r->used || !r->bits || !r->keys)
             res = HL_ERR_OUT_OF_MEMORY;
     }
     if (res == HL_OK) {
@@ -446,7 +449,7 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
     const hl_transport *t = r->t;
     hl_ref_env2para(r->cells, r->lg->wc, r->lg->tap_start, r->lg->taps, s0, f, g->ncoef, r->Lp);
     for (int c = 0; c < 3; c++) hl_ref_haar(g, r->Lp + (size_t)c * g->ncoef, r->Lw + (size_t)c * g->ncoef);
-    *sr = hl_ref_select(r->Lw, g->ncoef, weight, sp, r->Lsel, r->used, r->bits, g->nblocks);
+    *sr = hl_ref_select(r->Lw, g->ncoef, weight, sp, r->Lsel, r->used, r->bits, g->nblocks, r->keys);
     for (uint32_t v = 0; v < t->info.vertex_count; v++) {
         hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * g->nblocks, t->row_quant[v],
                        t->info.quant, v, g->nblocks, r->Lsel, r->albedo4 + 4 * (size_t)v, keep_negative,

@@ -102,10 +102,12 @@ static void *ref_worker(void *arg)
     ref_job *j = arg;
     const hl_geom *g = j->g;
     float *T = malloc((size_t)g->ncoef * sizeof(float)), *coef = malloc((size_t)g->ncoef * sizeof(float));
-    if (!T || !coef) {
+    hl_ref_key *keys = malloc((size_t)g->ncoef * sizeof *keys); /* hl_ref_truncate's, for every row */
+    if (!T || !coef || !keys) {
         atomic_store(&j->oom, 1);
         free(T);
         free(coef);
+        free(keys);
         return NULL;
     }
     for (;;) {
@@ -114,12 +116,13 @@ static void *ref_worker(void *arg)
         const hl_chunk_buf *io = j->io;
         hl_ref_cube2para(g, io->vis + (size_t)v * g->ncube, j->scale, io->normals4 + 4 * (size_t)v, T);
         hl_ref_haar(g, T, coef);
-        io->tr[v] = hl_ref_truncate(g, coef, j->tp);
+        io->tr[v] = hl_ref_truncate(g, coef, j->tp, keys);
         io->nnz[v] = hl_ref_quantize(g, coef, io->tr[v], j->scheme, io->first + v, &io->rq[v],
                                      io->bc + (size_t)v * g->nblocks, io->entries + (size_t)v * g->ncoef * 2);
     }
     free(T);
     free(coef);
+    free(keys);
     return NULL;
 }
 
@@ -130,7 +133,9 @@ hl_result hl_ref_rows(hl_context *ctx, const hl_geom *g, uint32_t rows, float vi
     atomic_init(&j.next, 0u);
     atomic_init(&j.oom, 0);
     hl_run_threads(ctx->threads, ref_worker, &j);
-    if (atomic_load(&j.oom)) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory in the reference stages");
+    if (atomic_load(&j.oom))
+        return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the reference stages' scratch (%zu bytes per thread)",
+                       (size_t)g->ncoef * (2 * sizeof(float) + sizeof(hl_ref_key)));
     return HL_OK;
 }
 

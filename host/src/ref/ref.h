@@ -3,11 +3,17 @@
  * Each function carries the name of its kernel (kernels/NAME.cl ->
  * hl_ref_NAME) and computes the same result in the most direct way, so the
  * tests check the maths and not the scheduling. Thread safe: no state.
+ * None allocates, so none can fail: the two that sort take their scratch
+ * from the caller (hl_ref_key, one per slot), which can own it across rows
+ * and report an allocation that fails.
  */
 #ifndef HL_REF_H
 #define HL_REF_H
 
 #include "../geom.h"
+
+/* Scratch of the sorting twins: one per coefficient slot (g->ncoef). */
+typedef struct hl_ref_key { uint32_t key, slot; } hl_ref_key;
 
 /* T[j] = scale * sum over table entries e of texel j of
  * vis[e.cube] * max(0, n . m_e); scale = 1 / (pi * supersample^2). */
@@ -15,12 +21,13 @@ void hl_ref_cube2para(const hl_geom *g, const uint8_t *vis, float scale,
                       const float n[3], float *T);
 
 /* Orthonormal non-standard 2D Haar of both N x N maps of T (destroyed),
- * written to coef in slot order. */
+ * written to coef in slot order. Works in place in T. */
 void hl_ref_haar(const hl_geom *g, float *T, float *coef);
 
-/* Chooses the kept coefficients of one row (see hl_trunc_result). */
+/* Chooses the kept coefficients of one row (see hl_trunc_result).
+ * scratch: g->ncoef entries, contents ignored and overwritten. */
 hl_trunc_result hl_ref_truncate(const hl_geom *g, const float *coef,
-                                hl_trunc_params p);
+                                hl_trunc_params p, hl_ref_key *scratch);
 
 /* Quantises the kept coefficients and packs them: entries gets (index,
  * code) byte pairs by block, block_counts one count per block. Returns the
@@ -38,10 +45,12 @@ void hl_ref_env2para(const float *cells, uint32_t wc, const uint32_t *start,
 
 /* Keeps the p.M lighting terms of highest priority (see select.cl):
  * out gets 4 floats per slot (zero where not kept), block_used one flag per
- * block (detail slots), kept_bits one bit per slot (ncoef / 32 words). */
+ * block (detail slots), kept_bits one bit per slot (ncoef / 32 words; ncoef
+ * is a multiple of 32).
+ * scratch: ncoef entries, contents ignored and overwritten. */
 hl_select_result hl_ref_select(const float *L, uint32_t ncoef, const float *weight,
                                hl_select_params p, float *out, uint8_t *block_used,
-                               uint32_t *kept_bits, uint32_t nblocks);
+                               uint32_t *kept_bits, uint32_t nblocks, hl_ref_key *scratch);
 
 /* One vertex: sum over all its entries of dequantised T times light
  * (4 floats per slot), times albedo (3 floats). rgba: 4 floats: the

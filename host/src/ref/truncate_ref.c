@@ -3,20 +3,17 @@
 
 #include "ref.h"
 
-typedef struct keyed { uint32_t key, slot; } keyed;
-
 static int by_key_desc(const void *pa, const void *pb)
 {
-    const keyed *a = pa, *b = pb;
+    const hl_ref_key *a = pa, *b = pb;
     if (a->key != b->key) return a->key > b->key ? -1 : 1;
     return a->slot < b->slot ? -1 : (a->slot > b->slot);
 }
 
-hl_trunc_result hl_ref_truncate(const hl_geom *g, const float *coef, hl_trunc_params p)
+hl_trunc_result hl_ref_truncate(const hl_geom *g, const float *coef, hl_trunc_params p, hl_ref_key *scratch)
 {
     hl_trunc_result r = {0xffffffffu, 0u, 0u, 0u};
-    keyed *k = malloc((size_t)g->ncoef * sizeof *k);
-    if (!k) abort();
+    hl_ref_key *k = scratch;
     uint32_t nnz = 0, maxkey = 0;
     for (uint32_t i = 0; i < g->ncoef; i++) {
         uint32_t key = hl_key(coef[i]);
@@ -44,6 +41,5 @@ hl_trunc_result hl_ref_truncate(const hl_geom *g, const float *coef, hl_trunc_pa
         for (uint32_t i = 0; i < count; i++) r.ties += k[i].key == r.thresh;
     }
     r.count = count;
-    free(k);
     return r;
 }
