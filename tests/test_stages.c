@@ -356,6 +356,7 @@ static void case_dither(void)
 #define HL_TEST_ASAN 1
 #endif
 
+#ifndef HL_TEST_ASAN
 static size_t mapped_bytes(void)
 {
     unsigned long pages = 0;
@@ -390,6 +391,7 @@ static int oom_child(hl_context *ctx, const hl_geom *g, uint32_t rows, const hl_
     if (r == HL_ERR_OUT_OF_MEMORY && strstr(hl_context_last_error(ctx), "out of memory")) return OOM_REPORTED;
     return OOM_OTHER;
 }
+#endif
 
 static void case_ref_oom(void)
 {
