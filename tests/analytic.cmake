@@ -1,4 +1,4 @@
-# The maths of DESIGN.md section 2 against closed forms (tests/test_analytic.c):
+# The maths of docs/CONVENTIONS.md against closed forms (tests/test_analytic.c):
 # the Haar transform, the direction maps and their tables, and two scenes with
 # known answers (white furnace, occluding spherical cap). Reference backend
 # only, so no OpenCL device is needed.

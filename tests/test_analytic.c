@@ -1,4 +1,4 @@
-/* test_analytic.c - the maths of DESIGN.md section 2 against closed forms
+/* test_analytic.c - the maths of docs/CONVENTIONS.md against closed forms
  * (suites "haar", "geom", "analytic").
  *
  * haar.roundtrip   hl_ref_haar then an inverse written here from the step
@@ -93,7 +93,7 @@ static void haar_of(const hl_geom *g, const float *in, float *coef)
     free(T);
 }
 
-/* Inverse of the step of DESIGN.md section 2, written from the formulas and
+/* Inverse of the step of docs/CONVENTIONS.md, written from the formulas and
  * not from haar_ref.c: avg = (a+b+c+d)/2, H = (a-b+c-d)/2 at Mallat (i, j+h),
  * V = (a+b-c-d)/2 at (i+h, j), D = (a-b-c+d)/2 at (i+h, j+h), where a, b, c,
  * d are (2i,2j), (2i,2j+1), (2i+1,2j), (2i+1,2j+1). Solving the 4x4 system
@@ -366,7 +366,7 @@ static void case_solid_angle(void)
         for (uint32_t j = 0; j < g->ncoef; j++) sum += g->omega[j];
         char what[128];
         snprintf(what, sizeof what, "N=%u sum of omega = %.9f vs 4 pi, relative", N, sum);
-        hl_check_error(what, fabs(sum - 4.0 * PI) / (4.0 * PI), 1e-4); /* DESIGN.md section 2 */
+        hl_check_error(what, fabs(sum - 4.0 * PI) / (4.0 * PI), 1e-4); /* docs/CONVENTIONS.md */
 
         /* The table stores hl_para_rect_omega per texel (float) and zero
          * for texels wholly outside the disc. */
@@ -476,7 +476,7 @@ static void case_mapping(void)
                     hl_para_texel_dir(N, m, c, r, d);
                     double dd[3] = {d[0], d[1], d[2]};
                     worst_len = fmax(worst_len, fabs(norm3(dd) - 1.0));
-                    /* DESIGN.md: d = (2s, +/-(1 - r^2), 2t) / (1 + r^2) */
+                    /* docs/CONVENTIONS.md: d = (2s, +/-(1 - r^2), 2t) / (1 + r^2) */
                     double ex[3] = {2 * s / (1 + r2), (m ? -1 : 1) * (1 - r2) / (1 + r2), 2 * t / (1 + r2)};
                     for (int q = 0; q < 3; q++) worst_formula = fmax(worst_formula, fabs(dd[q] - ex[q]));
                     int mb;
@@ -488,7 +488,7 @@ static void case_mapping(void)
         /* a float unit vector: a few ulps */
         snprintf(what, sizeof what, "N=%u paraboloid texel directions (%ld): | |d| - 1 |", N, count);
         hl_check_error(what, worst_len, 4.0 * FLT_EPSILON);
-        snprintf(what, sizeof what, "N=%u paraboloid direction vs DESIGN.md formula (double)", N);
+        snprintf(what, sizeof what, "N=%u paraboloid direction vs docs/CONVENTIONS.md formula (double)", N);
         hl_check_error(what, worst_formula, 2.0 * FLT_EPSILON);
         snprintf(what, sizeof what, "N=%u directions mapped back to the wrong map", N);
         hl_check_error(what, (double)bad_map, 0.0);

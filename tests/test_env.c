@@ -1,6 +1,6 @@
 /* test_env.c - environments, images and tone mapping (suite "env").
  *
- * Cases: convention (pins ENVMAP.md: landmarks, every pixel centre, the
+ * Cases: convention (pins docs/CONVENTIONS.md: landmarks, every pixel centre, the
  * rotation sense), solid_angle (the pixel solid angles add up to 4pi and
  * match a numerical integral), load_shared (the eight shared maps against
  * the numbers in shared/data/README.md), bad_files (missing, empty, random,
@@ -126,7 +126,7 @@ static uint8_t *read_bytes(const char *path, size_t *n)
     return p;
 }
 
-/* ENVMAP.md, "going the other way". */
+/* docs/CONVENTIONS.md, "going the other way". */
 static void dir_of_uv(double u, double v, float w[3])
 {
     double phi = 2.0 * PI * (u - 0.5), theta = PI * v;
@@ -192,7 +192,7 @@ static void test_convention(void)
     hl_env *env = index_env(ctx, W, H);
     int c = (int)W / 2, m = (int)H / 2;
 
-    /* Landmarks of ENVMAP.md. */
+    /* Landmarks of docs/CONVENTIONS.md. */
     expect_pixel(env, 1, 0, 0, 0, c, m, "+X is u = 0.5, the image centre");
     expect_pixel(env, 5, 0, 0, 0, c, m, "+X, not unit length");
     expect_pixel(env, 0, 0, -1, 0, (int)W / 4, m, "-Z is u = 0.25");

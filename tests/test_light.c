@@ -3,7 +3,7 @@
  * the properties they must have (constant maps stay constant, a small sun
  * keeps its energy, an open vertex under a white sky gives its albedo,
  * untruncated lighting equals the exact discrete sum, the shading
- * follows ENVMAP.md's directions and turn, no light below zero comes out).
+ * follows docs/CONVENTIONS.md's directions and turn, no light below zero comes out).
  */
 #include <stdint.h>
 
@@ -498,12 +498,12 @@ static void case_furnace(void)
     hl_context_destroy(ctx);
 }
 
-/* The lighting follows ENVMAP.md end to end. Small triangles facing +-X,
+/* The lighting follows docs/CONVENTIONS.md end to end. Small triangles facing +-X,
  * +-Y, +-Z and two oblique ways, far apart (nothing shadows them), albedo
  * 1, are relit with every term under a lobe max(0, w.d)^8 about an
  * oblique d, turned by 0, 90 and 200 degrees. Each colour must match the
  * same map integrated here over its pixels, with directions and the turn
- * written out from ENVMAP.md (not taken from env.c): B = 1/pi sum_p L_p
+ * written out from docs/CONVENTIONS.md (not taken from env.c): B = 1/pi sum_p L_p
  * max(0, n . R_y(deg) w_p) omega_p. A mirrored axis, or a turn the wrong
  * way round, swaps bright and dark faces. Tolerance: 0.05 of the
  * brightest face; N = C = 32 and the cell grid give 0.009 to 0.018, while

@@ -306,7 +306,7 @@ static void barycentric(void)
 }
 
 /* A camera that sees no geometry shows the environment: a constant one
- * exactly, and a 4 x 2 one by the ENVMAP.md mapping (+X at u = 0.5). */
+ * exactly, and a 4 x 2 one by the docs/CONVENTIONS.md mapping (+X at u = 0.5). */
 static void background(void)
 {
     hl_context *ctx = make_ctx();

@@ -409,7 +409,7 @@ static const hl_geom *geom_of(uint32_t N)
  * coefficient (0, 0) adds them all; a detail at level h (the power of two
  * with h <= max(row, col) < 2h) subtracts the right half of its support
  * when col >= h, the bottom half when row >= h, and so the top-right and
- * bottom-left quarters when both (DESIGN.md: (a-b+c-d)/2, (a+b-c-d)/2 and
+ * bottom-left quarters when both (docs/CONVENTIONS.md: (a-b+c-d)/2, (a+b-c-d)/2 and
  * (a-b-c+d)/2 at (i, j+h), (i+h, j), (i+h, j+h), applied level by level). */
 static void haar_double(const hl_geom *g, const float *in, double *out)
 {

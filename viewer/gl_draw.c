@@ -3,7 +3,7 @@
  * A frame: the mesh (per-vertex linear colours, interpolated like
  * hl_render's barycentrics) and then the environment behind it (a full-
  * screen triangle at the far plane, each pixel reading the equirectangular
- * map along its own view direction with ENVMAP.md's mapping, bilinear like
+ * map along its own view direction with docs/CONVENTIONS.md's mapping, bilinear like
  * hl_env_query_smooth) into an RGBA16F target; optionally the glare (a
  * bright-pass of exposure-scaled values above 1 into a quarter-size float
  * target, a separable Gaussian blur, added back); then the tone map onto
@@ -69,7 +69,7 @@ static const char *const vs_full =
     "  gl_Position = vec4(p, 1.0, 1.0);\n"
     "}\n";
 
-/* The pixel's ray as hl_render shoots it, then ENVMAP.md: u = 0.5 +
+/* The pixel's ray as hl_render shoots it, then docs/CONVENTIONS.md: u = 0.5 +
  * atan2(z, x) / 2pi + rotation / 360, v = acos(y) / pi, row 0 = +Y at
  * t = 0. Repeat along u and clamp along v is hl_env_query_smooth's
  * wrap across the seam and clamp at the poles. */

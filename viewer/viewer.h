@@ -29,7 +29,7 @@ typedef struct vw_gl vw_gl;
 typedef struct vw_frame {
     float mvp[16];          /* column-major clip-from-world */
     hl_camera_view view;    /* for the background's per-pixel directions */
-    float rotate_deg;       /* environment rotation (ENVMAP.md) */
+    float rotate_deg;       /* environment rotation (docs/CONVENTIONS.md) */
     float exposure_ev;
     int glare;
 } vw_frame;

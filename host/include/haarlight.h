@@ -306,7 +306,7 @@ void hl_transport_query_terms(const hl_transport *t, uint32_t v, float *dense);
 /* ---------------------------------------------------------------- environments */
 
 /* An equirectangular environment: linear RGB radiance, width x height
- * pixels (height = width / 2), row 0 = +Y, read exactly as ENVMAP.md says:
+ * pixels (height = width / 2), row 0 = +Y, read exactly as docs/CONVENTIONS.md says:
  * direction w -> u = 0.5 + atan2(w.z, w.x) / 2pi, v = acos(w.y) / pi. */
 typedef struct hl_env {
     uint32_t width, height;
@@ -368,7 +368,7 @@ hl_result hl_env_create(hl_context *ctx, uint32_t width, uint32_t height, const 
                         hl_env **out, hl_env_stats *stats);
 
 /* Radiance seen in direction w (need not be unit) with the content turned
- * by rotate_deg about +Y (ENVMAP.md): nearest pixel. */
+ * by rotate_deg about +Y (docs/CONVENTIONS.md): nearest pixel. */
 void hl_env_query(const hl_env *env, const float w[3], float rotate_deg, float rgb[3]);
 /* The same, bilinear between pixel centres (for display). */
 void hl_env_query_smooth(const hl_env *env, const float w[3], float rotate_deg, float rgb[3]);
@@ -386,7 +386,7 @@ typedef struct hl_relighter hl_relighter;
 /* hl_relight_desc fields and defaults:
  *   terms       0: 200 lighting terms; HL_TERMS_ALL keeps every one
  *   select      HL_SELECT_DEFAULT: transport-weighted (HL_SELECT_TRANSPORT)
- *   rotate_deg  0: the environment as stored (ENVMAP.md's --rotate)
+ *   rotate_deg  0: the environment as stored (docs/CONVENTIONS.md's --rotate)
  *   keep_negative  0: each colour channel is clamped at zero (truncated
  *               lighting and transport can sum to slightly below zero
  *               where the exact answer is dark); 1: the sums as they are,

@@ -1,7 +1,7 @@
 /* env.c - equirectangular environments: loading, repair, procedural sky
  * and direction queries.
  *
- * The mapping is that of ENVMAP.md (shared with the team): a direction w
+ * The mapping is that of docs/CONVENTIONS.md: a direction w
  * reads u = 0.5 + atan2(w.z, w.x) / 2pi, v = acos(w.y) / pi, row 0 = +Y.
  * Every pixel that leaves this file is finite, >= 0 and <= HL_MAX_RADIANCE:
  * NaN/Inf channels become 0 and negative ones are clamped, and the counts

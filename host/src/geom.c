@@ -33,7 +33,7 @@ void hl_dir_to_para(const float d[3], int *map, float *s, float *t)
     *t = (float)(z * k);
 }
 
-/* F of DESIGN.md: Omega of [0,s]x[0,t] (signed) for rectangles in the disc. */
+/* F of docs/CONVENTIONS.md: Omega of [0,s]x[0,t] (signed) for rectangles in the disc. */
 static double omega_F(double s, double t)
 {
     double a = sqrt(1.0 + s * s), b = sqrt(1.0 + t * t);

@@ -1,6 +1,6 @@
 /* geom.h - direction parameterisations and the tables derived from them.
  *
- * Dual-paraboloid maps (DESIGN.md section 2), OpenGL-order cubemaps, the
+ * Dual-paraboloid maps (docs/CONVENTIONS.md), OpenGL-order cubemaps, the
  * cubemap-to-paraboloid footprint table and the Haar coefficient order.
  * An hl_geom depends only on (N, C); build it once and share it read-only.
  */
