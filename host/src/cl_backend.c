@@ -336,24 +336,22 @@ static hl_result make_buf(hl_cl_pipe *p, cl_mem *m, cl_mem_flags fl, size_t byte
 {
     cl_int e;
     struct hl_cl *cl = p->cl;
-    char need[32], lim[32], used[32];
-    fmt_bytes(need, sizeof need, bytes);
-    fmt_bytes(lim, sizeof lim, cl->limit);
-    fmt_bytes(used, sizeof used, cl->used);
-    if (cl->limit_set && bytes > cl->limit - cl->used)
+    if (cl->limit && bytes > cl->limit - cl->used) {
+        char need[32], lim[32], used[32];
+        fmt_bytes(need, sizeof need, bytes);
+        fmt_bytes(lim, sizeof lim, cl->limit);
+        fmt_bytes(used, sizeof used, cl->used);
         return hl_fail(p->ctx, HL_ERR_OUT_OF_MEMORY,
-                       "OpenCL: %s needs %s, beyond the device memory limit of %s (--device-memory or "
-                       "HL_DEVICE_MEMORY; %s already in use); raise the limit, use --device ref, or for precompute "
-                       "a smaller --chunk",
-                       what, need, lim, used);
+                       "OpenCL: %s needs %s, beyond %s %s%s (%s already in use); %suse --device ref, or for "
+                       "precompute a smaller --chunk",
+                       what, need, cl->limit_set ? "the device memory limit of" : "the device's", lim,
+                       cl->limit_set ? " (--device-memory or HL_DEVICE_MEMORY)" : " of memory", used,
+                       cl->limit_set ? "raise the limit, " : "");
+    }
     if (bytes > cl->max_alloc)
         return hl_fail(p->ctx, HL_ERR_OUT_OF_MEMORY,
                        "OpenCL: %s needs %zu bytes, more than the device's largest allocation (%llu); use a smaller --chunk or --device ref",
                        what, bytes, (unsigned long long)cl->max_alloc);
-    if (cl->limit && bytes > cl->limit - cl->used)
-        return hl_fail(p->ctx, HL_ERR_OUT_OF_MEMORY,
-                       "OpenCL: %s needs %s, beyond the device's %s of memory (%s already in use); "
-                       "use --device ref, or for precompute a smaller --chunk", what, need, lim, used);
     if (init && !(fl & CL_MEM_USE_HOST_PTR)) fl |= CL_MEM_COPY_HOST_PTR;
     *m = clCreateBuffer(cl->context, fl, bytes ? bytes : 4, (void *)init, &e);
     CL_TRY(p->ctx, e, what);
