@@ -166,7 +166,8 @@ static const char *ply_match(const char *s, const char *token)
 
 /* The next token of an ASCII line: 1 with the value of its leading digits
  * (saturated; 0 without any, as assimp's parse of a count gives), 0 at the
- * end of the line (consumed), -1 at the end of the file. */
+ * end of the line (consumed), -1 at the end of the file, -2 at a control
+ * byte (not text). */
 static int ply_token(FILE *f, uint64_t *value)
 {
     int c;
@@ -183,12 +184,23 @@ static int ply_token(FILE *f, uint64_t *value)
     uint64_t v = 0;
     int digits = 1;
     for (; c != EOF && c != ' ' && c != '\t' && c != '\v' && c != '\f' && c != '\n' && c != '\r'; c = getc(f)) {
+        if (c < 0x20 || c == 0x7f) return -2; /* a control byte: not text (assimp splits lines at a NUL) */
         if (digits && c >= '0' && c <= '9') v = ply_digit(v, c);
         else digits = 0;
     }
     if (c != EOF) ungetc(c, f);
     *value = v;
     return 1;
+}
+
+/* A control byte in an ASCII body: assimp's reader and this walk would
+ * split its lines differently (a 381-byte file made assimp allocate 7 GB
+ * for a count the walk had read on another line), so such a body is not
+ * read at all. */
+static int ply_not_text(char *msg, size_t msg_size, const char *element, uint64_t i)
+{
+    return problem(msg, msg_size, "PLY ASCII body: \"%s\" element %llu holds a control byte, which is not text",
+                   element, (unsigned long long)i);
 }
 
 static int ply_walk_ascii(FILE *f, const ply_elem *el, int nel, char *msg, size_t msg_size)
@@ -198,6 +210,7 @@ static int ply_walk_ascii(FILE *f, const ply_elem *el, int nel, char *msg, size_
             uint64_t v = 0;
             int t;
             while ((t = ply_token(f, &v)) == 0) continue; /* blank lines */
+            if (t == -2) return ply_not_text(msg, msg_size, el[e].name, i);
             if (t < 0)
                 return problem(msg, msg_size, "PLY header declares %llu \"%s\" elements, but the file ends after %llu",
                                 (unsigned long long)el[e].count, el[e].name, (unsigned long long)i);
@@ -207,12 +220,14 @@ static int ply_walk_ascii(FILE *f, const ply_elem *el, int nel, char *msg, size_
                 if (t <= 0 || !el[e].props[p].list) continue;
                 uint64_t n = v, k = 0;
                 for (; k < n && (t = ply_token(f, &v)) > 0; k++) continue;
+                if (t == -2) return ply_not_text(msg, msg_size, el[e].name, i);
                 if (k < n)
                     return problem(msg, msg_size, "PLY \"%s\" element %llu: a list of %llu values, but its line "
                                     "holds only %llu", el[e].name, (unsigned long long)i, (unsigned long long)n,
                                     (unsigned long long)k);
             }
             while (t > 0) t = ply_token(f, &v); /* the rest of the line */
+            if (t == -2) return ply_not_text(msg, msg_size, el[e].name, i);
         }
     return 0;
 }
