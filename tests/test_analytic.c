@@ -33,7 +33,7 @@
 
 #include "hl_test.h"
 #include "rays.h"
-#include "ref/ref.h"
+#include "twins.h"
 
 #define PI 3.14159265358979323846
 

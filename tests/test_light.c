@@ -12,7 +12,7 @@
 #include "half.h"
 #include "hl_test.h"
 #include "lighting.h"
-#include "ref/ref.h"
+#include "twins.h"
 
 static hl_context *ctx_of(hl_backend b)
 {

@@ -25,7 +25,7 @@
 #include "hl_test.h"
 #include "precompute.h"
 #include "rays.h"
-#include "ref/ref.h"
+#include "twins.h"
 
 typedef struct fixture {
     hl_context *cl, *ref;

@@ -65,7 +65,7 @@
 #include "hl_test.h"
 #include "lighting.h"
 #include "rays.h"
-#include "ref/ref.h"
+#include "twins.h"
 
 #define U_F32 5.9604644775390625e-08     /* 2^-24, float unit roundoff */
 #define SUB_HALF 7.0064923216240854e-46  /* 2^-150, half the least subnormal */

@@ -33,7 +33,7 @@
 #include "lighting.h"
 #include "precompute.h"
 #include "rays.h"
-#include "ref/ref.h"
+#include "twins.h"
 
 static const char *const usage_bench =
     "usage: haarlight bench SCENE.hlt [SCENE2.hlt ...] [--env ENV.exr ...] [--sky] [options]\n"

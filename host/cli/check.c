@@ -13,7 +13,7 @@
 #include "lighting.h"
 #include "precompute.h"
 #include "rays.h"
-#include "ref/ref.h"
+#include "twins.h"
 
 static const char *const usage_check =
     "usage: haarlight check SCENE.hlt [--env ENV.exr | --sky] [options]\n"

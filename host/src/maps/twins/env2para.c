@@ -1,5 +1,5 @@
-/* env2para_ref.c - twin of kernels/env2para.cl. */
-#include "ref.h"
+/* env2para.c - twin of kernels/maps/env2para.cl. */
+#include "twins.h"
 
 void hl_ref_env2para(const float *cells, uint32_t wc, const uint32_t *start, const hl_env_tap *taps,
                      uint32_t s0, float f, uint32_t ncoef, float *L)

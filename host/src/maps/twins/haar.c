@@ -1,5 +1,5 @@
-/* haar_ref.c - twin of kernels/haar.cl, level by level in place. */
-#include "ref.h"
+/* haar.c - twin of kernels/maps/haar.cl, level by level in place. */
+#include "twins.h"
 
 void hl_ref_haar(const hl_geom *g, float *T, float *coef)
 {

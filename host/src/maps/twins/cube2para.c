@@ -1,5 +1,5 @@
-/* cube2para_ref.c - twin of kernels/cube2para.cl. */
-#include "ref.h"
+/* cube2para.c - twin of kernels/maps/cube2para.cl. */
+#include "twins.h"
 
 void hl_ref_cube2para(const hl_geom *g, const uint8_t *vis, float scale,
                       const float n[3], float *T)

@@ -1,16 +1,18 @@
-/* ref.h - plain-C twins of the OpenCL kernels, one vertex at a time.
+/* twins.h - plain-C twins of the OpenCL kernels, one vertex at a time:
+ * the `--device ref` backend.
  *
- * Each function carries the name of its kernel (kernels/NAME.cl ->
+ * Each function carries the name of its kernel, and its file mirrors the
+ * kernel's place (kernels/STAGE/NAME.cl -> host/src/STAGE/twins/NAME.c,
  * hl_ref_NAME) and computes the same result in the most direct way, so the
  * tests check the maths and not the scheduling. Thread safe: no state.
  * None allocates, so none can fail: the two that sort take their scratch
  * from the caller (hl_ref_key, one per slot), which can own it across rows
  * and report an allocation that fails.
  */
-#ifndef HL_REF_H
-#define HL_REF_H
+#ifndef HL_TWINS_H
+#define HL_TWINS_H
 
-#include "../geom.h"
+#include "geom.h"
 
 /* Scratch of the sorting twins: one per coefficient slot (g->ncoef). */
 typedef struct hl_ref_key { uint32_t key, slot; } hl_ref_key;

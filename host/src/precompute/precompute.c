@@ -16,7 +16,7 @@
 
 #include "precompute.h"
 #include "rays.h"
-#include "ref/ref.h"
+#include "twins.h"
 #include "transport_file.h"
 
 hl_result hl_precompute_resolve(hl_context *ctx, hl_precompute_desc *d)

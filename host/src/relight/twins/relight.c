@@ -1,4 +1,4 @@
-/* relight_ref.c - twin of kernels/relight.cl: walks the whole row (the terms
+/* relight.c - twin of kernels/relight/relight.cl: walks the whole row (the terms
  * not kept meet a zero light and add nothing), one fused multiply-add per
  * term as the kernel does, on the terms as the kernel holds them (decoded,
  * scaled by 2^-e and rounded to half precision: ../half.h), then scales
@@ -7,8 +7,8 @@
  * 0, in rgba[3], as the kernel does. */
 #include <math.h>
 
-#include "../half.h"
-#include "ref.h"
+#include "half.h"
+#include "twins.h"
 
 void hl_ref_relight(const uint8_t *entries, const uint16_t *block_counts, hl_row_quant rq, uint32_t scheme,
                     uint32_t vertex, uint32_t nblocks, const float *light, const float *albedo, int keep_negative,

@@ -1,7 +1,7 @@
-/* truncate_ref.c - twin of kernels/truncate.cl: sort, then walk. */
+/* truncate.c - twin of kernels/precompute/truncate.cl: sort, then walk. */
 #include <stdlib.h>
 
-#include "ref.h"
+#include "twins.h"
 
 static int by_key_desc(const void *pa, const void *pb)
 {

@@ -1,8 +1,8 @@
-/* quantize_ref.c - twin of kernels/quantize.cl. */
+/* quantize.c - twin of kernels/precompute/quantize.cl. */
 #include <math.h>
 #include <string.h>
 
-#include "ref.h"
+#include "twins.h"
 
 uint32_t hl_ref_quantize(const hl_geom *g, const float *coef, hl_trunc_result tr,
                          uint32_t scheme, uint32_t vertex, hl_row_quant *rq, uint16_t *block_counts,

@@ -14,7 +14,7 @@
 
 #include "cl_backend.h"
 #include "lighting.h"
-#include "ref/ref.h"
+#include "twins.h"
 
 void hl_rotation_to_shift(float rotate_deg, uint32_t wc, uint32_t *s0, float *f)
 {

@@ -1,9 +1,9 @@
-/* select_ref.c - twin of kernels/select.cl: sorts the priorities. */
+/* select.c - twin of kernels/relight/select.cl: sorts the priorities. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "ref.h"
+#include "twins.h"
 
 static int by_key_desc(const void *pa, const void *pb)
 {
