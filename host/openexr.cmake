@@ -1,4 +1,4 @@
-# OpenEXR for host/src/exr_io.c (the only file that includes its headers).
+# OpenEXR for host/src/io/exr_io.c (the only file that includes its headers).
 #
 # Defines the interface target hl_openexr: the C wrapper of the C++ library
 # (ImfCRgbaFile.h), which decodes DWAB where Debian 12's OpenEXRCore cannot,

@@ -327,7 +327,7 @@ typedef struct hl_env_stats {
 
 /* Reads an equirectangular OpenEXR (any compression the OpenEXR library
  * reads, DWAB included; float channels at full precision where OpenEXRCore
- * decodes the file, see host/src/exr_io.c). Refuses files that are not 2:1
+ * decodes the file, see host/src/io/exr_io.c). Refuses files that are not 2:1
  * or that hold a channel above HL_MAX_RADIANCE, or a tiled or multi-part
  * float file with a value that half floats cannot hold (HL_ERR_FORMAT);
  * NaN/Inf channels are set

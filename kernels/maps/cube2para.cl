@@ -6,7 +6,7 @@
  * few byte reads. Within a paraboloid texel the parts arrive in ascending
  * cube order, as in the twin's gather, and the zero terms added for rows
  * without visibility leave the sums unchanged, so rounding is identical.
- * Twin: host/src/ref/cube2para_ref.c.
+ * Twin: host/src/maps/twins/cube2para.c.
  *   T[v][j] = scale * sum_e vis[v][e.cube] * max(0, n_v . m_e)
  */
 #pragma OPENCL FP_CONTRACT OFF

@@ -1,5 +1,5 @@
 /* env2para.cl - environment cells to dual-paraboloid lighting, with a
- * rotation about +Y. Twin: host/src/ref/env2para_ref.c.
+ * rotation about +Y. Twin: host/src/maps/twins/env2para.c.
  *
  * A turn of the content is an offset of s0 + f cells along every row:
  * hl_turn writes the turned grid once per change, each cell blended with

@@ -1,7 +1,7 @@
 /* haar.cl - orthonormal non-standard 2D Haar of both paraboloid maps.
  * One work-item per row of 2 N^2 values. Averages are compacted in place
  * (row-major order never overwrites an unread input); details go straight
- * to their slots. Twin: host/src/ref/haar_ref.c.
+ * to their slots. Twin: host/src/maps/twins/haar.c.
  */
 #pragma OPENCL FP_CONTRACT OFF
 

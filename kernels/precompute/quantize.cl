@@ -2,7 +2,7 @@
  * One work-item per row: a pass for the range of the kept values, a pass
  * that writes (index, code) pairs in slot order. Each row owns a fixed
  * span of ncoef pairs in `entries`; row v is vertex first + v (sqrt8's
- * dither depends on it). Twin: host/src/ref/quantize_ref.c.
+ * dither depends on it). Twin: host/src/precompute/twins/quantize.c.
  */
 #pragma OPENCL FP_CONTRACT OFF
 

@@ -1,7 +1,7 @@
 /* truncate.cl - nonlinear truncation of one transport row per work-item.
  * Exact radix select on the bit patterns of |T_i| (4 passes of 8 bits), so
  * no sort and no float summation order: energies are fixed-point integers.
- * Twin: host/src/ref/truncate_ref.c (sorts instead).
+ * Twin: host/src/precompute/twins/truncate.c (sorts instead).
  */
 #pragma OPENCL FP_CONTRACT OFF
 

@@ -2,7 +2,7 @@
  * kept lighting terms.
  *
  * The transport is held by column on the device (built on load from the
- * file's rows, see build_columns in host/src/cl_backend.c). The device
+ * file's rows, see build_columns in host/src/device/cl_backend.c). The device
  * holds the vertices in its own order (order[p]: the vertex at position p;
  * see vertex_order), positions grouped in tiles of HL_TILE and tiles in
  * ranges, one range per work-item (range_start: position boundaries, whole
@@ -13,7 +13,7 @@
  * vertex stores that slot, in tile order, each as one entry of ENTRY
  * words: a head (the tile in the range) and the tile's HL_TILE terms as
  * halves, decoded from the file's codes on load and scaled by 2^-e per
- * vertex (host/src/half.h; zero in lanes whose vertex does not store the
+ * vertex (host/src/core/half.h; zero in lanes whose vertex does not store the
  * slot). Column (w, s) holds entries col_start[w (ncoef + 1) + s] to the
  * next start. Entry 0 is all zero. For each range, slot and tile, rel (16
  * bits) says which entry of the column holds that tile: 1 for the first,
@@ -24,7 +24,7 @@
  * hl_shared.h): by column (walk_columns) or by tile (walk_tiles). Either
  * way each vertex adds its kept terms in ascending slot order, one fused
  * multiply-add per term and colour, as the twin does
- * (host/src/ref/relight_ref.c walks whole rows), and so rounds alike: zero
+ * (host/src/relight/twins/relight.c walks whole rows), and so rounds alike: zero
  * lanes and entry 0 add exact zeros (fma(0, l, s) = s). Then each
  * vertex's sums are scaled back by 2^e (back) and times the albedo.
  * Truncated lighting and transport can sum to a little below zero where

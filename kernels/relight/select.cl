@@ -12,7 +12,7 @@
  * A block's flag counts only its detail slots 1..255: slot 0 holds a
  * coarse coefficient (kept almost always), which would otherwise mark
  * every block used.
- * Twin: host/src/ref/select_ref.c.
+ * Twin: host/src/relight/twins/select.c.
  */
 #pragma OPENCL FP_CONTRACT OFF
 

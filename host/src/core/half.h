@@ -9,7 +9,7 @@
  * bits, to nearest even). The kernel converts halves to floats exactly
  * (vload_half), and multiplies each vertex's sums by 2^e at the end.
  *
- * The twin (ref/relight_ref.c) adds the same terms through these same
+ * The twin (host/src/relight/twins/relight.c) adds the same terms through these same
  * functions, so the two agree bit for bit. A half holds a term to 2^-11
  * of itself, or, for a term over 2^14 times smaller than the row's
  * largest, to 2^-24 of that largest. The codes' own steps are far coarser:

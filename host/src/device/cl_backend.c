@@ -110,7 +110,7 @@ static hl_result assemble_source(hl_context *ctx, char **out)
         char *owned = NULL;
         char path[1200];
         if (i < 0) { /* the shared header first */
-            snprintf(path, sizeof path, "%s/../host/include/hl_shared.h", ctx->kernel_dir);
+            snprintf(path, sizeof path, "%s/../host/src/device/hl_shared.h", ctx->kernel_dir);
             text = hl_embedded_shared;
         } else {
             const hl_embedded_kernel *k = &hl_embedded_kernels[i];
@@ -143,7 +143,7 @@ static hl_result assemble_source(hl_context *ctx, char **out)
     return HL_OK;
 }
 
-/* rows per work-item of hl_cube2para (HL_C2P_ROWS in kernels/cube2para.cl) */
+/* rows per work-item of hl_cube2para (HL_C2P_ROWS in kernels/maps/cube2para.cl) */
 #define C2P_ROWS 4u
 
 static hl_result build_program(hl_context *ctx, struct hl_cl *cl)
@@ -746,7 +746,7 @@ static uint32_t cut_ranges(hl_cl_light *l, uint32_t **starts)
     return (uint32_t)R;
 }
 
-/* The rows turned into columns (see kernels/relight.cl): vertices in tiles
+/* The rows turned into columns (see kernels/relight/relight.cl): vertices in tiles
  * of HL_TILE, tiles in ranges (one work-item each, cut_ranges); for each
  * range and slot, the tiles that store the slot, in tile order, each as one
  * entry: a head word (the tile in the range) and the HL_TILE terms as

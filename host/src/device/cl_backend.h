@@ -117,7 +117,7 @@ hl_result hl_cl_light_time_relight(hl_cl_light *l, uint32_t reps, double *second
 uint32_t hl_cl_light_ranges(const hl_cl_light *l);
 double hl_cl_light_kept_entries(const hl_cl_light *l, const uint32_t *bits, double *per_range);
 /* Whether range rg takes the tile walk rather than the column walk
- * (kernels/relight.cl) when `kept` kept slots hold `entries` of its column
+ * (kernels/relight/relight.cl) when `kept` kept slots hold `entries` of its column
  * entries. */
 int hl_cl_light_tile_walk(const hl_cl_light *l, uint32_t rg, double entries, uint32_t kept);
 /* Bytes the dot-product kernel reads and writes for the last selection

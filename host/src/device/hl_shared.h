@@ -4,7 +4,7 @@
  * kernel program. Anything both sides must agree on to the bit lives here
  * (struct layouts, quantisation formulas), so that the OpenCL stages and
  * their plain-C twins produce identical integers from identical floats.
- * The host pins the layouts with _Static_assert in host/src/layout_check.c.
+ * The host pins the layouts with _Static_assert in host/src/device/layout_check.c.
  */
 #ifndef HL_SHARED_H
 #define HL_SHARED_H
@@ -38,7 +38,7 @@ static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return 
  * slot are added as one 16-wide vector. */
 #define HL_TILE 16
 
-/* The dot products (kernels/relight.cl) walk a range's tiles one of two
+/* The dot products (kernels/relight/relight.cl) walk a range's tiles one of two
  * ways. The column walk adds each kept entry into sums in memory (per
  * 16-lane entry 6 vector loads and 6 stores of the sums besides the
  * multiply-adds). The tile walk adds a few kept slots at a time, tile by
