@@ -1,0 +1,170 @@
+/* transport_layout.h - the byte layout of transport files (.hlt), shared by
+ * the writer (transport_file.c), the loader (transport_load.c) and the
+ * layout's own code (transport_layout.c): header offsets, section sizes,
+ * little-endian byte coding, the CRC-32 and the checks both sides apply.
+ *
+ * The constants must match host/FORMAT.md. Everything is little-endian and
+ * encoded byte by byte, so files are identical whatever the host.
+ *
+ * Depends on: hl_internal.h (types), zlib (crc32_z).
+ */
+#ifndef HL_TRANSPORT_LAYOUT_H
+#define HL_TRANSPORT_LAYOUT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include <zlib.h>
+
+#include "hl_internal.h"
+
+#define TF_MAGIC "HLTRANS1"
+/* An unfinished file (path + ".partial"), resumable: the header area holds
+ * a checkpoint in the same layout, with the sections' sizes and checksums
+ * so far and the vertices appended so far in the first reserved word. */
+#define TF_PARTIAL_MAGIC "HLTPART1"
+#define TF_VERSION HL_TRANSPORT_VERSION
+#define TF_HEADER_SIZE 192u
+#define TF_ALIGN 64u /* section alignment: lets a later reader mmap them */
+
+/* Header field offsets (FORMAT.md, "Header"). */
+enum {
+    H_MAGIC = 0,
+    H_VERSION = 8,
+    H_HEADER_SIZE = 12,
+    H_N = 16,
+    H_C = 20,
+    H_SUPERSAMPLE = 24,
+    H_RULE = 28,
+    H_K = 32,
+    H_EPS = 36,
+    H_QUANT = 40,
+    H_RAY_OFFSET = 44,
+    H_VERTEX_COUNT = 48,
+    H_OBJECT_VERTEX_COUNT = 52,
+    H_TRIANGLE_COUNT = 56,
+    H_BLOCK_COUNT = 60,
+    H_COEFFICIENTS_KEPT = 64,
+    H_RAYS_CAST = 72,
+    H_RAYS_CULLED = 80,
+    H_FILE_SIZE = 88,
+    H_SECTIONS = 96, /* 3 x (u64 offset, u64 size) */
+    H_SECTION_CRCS = 144, /* 3 x u32 */
+    H_RESERVED = 156,
+    H_APPENDED = 156, /* partial files only */
+    H_HEADER_CRC = 188
+};
+
+enum { SEC_MESH, SEC_ROWS, SEC_ENTRIES, SEC_COUNT };
+
+/* Largest row record: N = 256 gives 512 blocks. */
+#define TF_MAX_BLOCKS 512u
+#define TF_MAX_RECORD (8u + 2u * TF_MAX_BLOCKS)
+
+typedef struct tf_section {
+    uint64_t offset, size;
+    uint32_t crc;
+} tf_section;
+
+typedef struct tf_header {
+    hl_transport_info info;
+    uint32_t header_size;
+    uint64_t file_size;
+    tf_section sec[SEC_COUNT];
+    int reserved_nonzero;
+} tf_header;
+
+/* ---------------------------------------------------------------- bytes */
+
+static inline void put_u16(uint8_t *p, uint16_t v)
+{
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+}
+
+static inline void put_u32(uint8_t *p, uint32_t v)
+{
+    for (int i = 0; i < 4; i++) p[i] = (uint8_t)(v >> (8 * i));
+}
+
+static inline void put_u64(uint8_t *p, uint64_t v)
+{
+    for (int i = 0; i < 8; i++) p[i] = (uint8_t)(v >> (8 * i));
+}
+
+static inline uint16_t get_u16(const uint8_t *p) { return (uint16_t)(p[0] | (p[1] << 8)); }
+
+static inline uint32_t get_u32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static inline uint64_t get_u64(const uint8_t *p) { return (uint64_t)get_u32(p) | (uint64_t)get_u32(p + 4) << 32; }
+
+static inline uint64_t align_up(uint64_t x) { return (x + (TF_ALIGN - 1)) & ~(uint64_t)(TF_ALIGN - 1); }
+
+/* ---------------------------------------------------------------- CRC-32 */
+
+/* IEEE 802.3 CRC-32 (reflected polynomial 0xEDB88320, as PNG), computed
+ * by zlib's crc32_z. crc is the value returned by the previous call (0 to
+ * start), so a section's CRC can be built piece by piece. */
+static inline uint32_t crc_update(uint32_t crc, const void *data, size_t n)
+{
+    return (uint32_t)crc32_z(crc, data, n);
+}
+
+/* ---------------------------------------------------------------- sizes */
+
+static inline uint32_t slot_total(uint32_t N) { return 2u * N * N; }
+static inline uint32_t blocks_for(uint32_t N) { return (slot_total(N) + HL_BLOCK - 1) / HL_BLOCK; }
+
+/* Slots of block b: HL_BLOCK except a short last block (N = 8). */
+static inline uint32_t slots_in_block(uint32_t N, uint32_t b)
+{
+    uint32_t rest = slot_total(N) - b * HL_BLOCK;
+    return rest < HL_BLOCK ? rest : HL_BLOCK;
+}
+
+static inline uint64_t mesh_bytes(uint32_t vertices, uint32_t triangles)
+{
+    return 36u * (uint64_t)vertices + 12u * (uint64_t)triangles;
+}
+
+static inline uint64_t row_record_bytes(uint32_t block_count) { return 8u + 2u * (uint64_t)block_count; }
+
+/* ---------------------------------------------------------------- header */
+
+/* magic: TF_MAGIC, or TF_PARTIAL_MAGIC for the checkpoint of an unfinished
+ * file, which also records the vertices appended so far (H_APPENDED). */
+void hl_tf_header_encode(const tf_header *h, const char *magic, uint32_t appended, uint8_t out[TF_HEADER_SIZE]);
+/* Every field, unchecked; reserved_nonzero tells whether bytes
+ * H_RESERVED..H_HEADER_CRC - 1 hold anything. */
+void hl_tf_header_decode(const uint8_t *in, tf_header *h);
+
+/* ---------------------------------------------------------------- checks */
+
+/* Each describes the first problem into msg (n bytes) and returns 1, or
+ * returns 0 when there is none. Shared by the writer (a caller's bug) and
+ * the loader (a bad file). */
+
+/* The parameters and counts of a header. */
+int hl_tf_info_problem(const hl_transport_info *i, char *msg, size_t n);
+/* Finite positions, unit normals, albedo in [0, 1], indices in range. */
+int hl_tf_mesh_problem(uint32_t vertices, uint32_t triangles, const float *pos, const float *nrm,
+                       const float *alb, const uint32_t *idx, char *msg, size_t n);
+/* A row's quantisation parameters under scheme quant. */
+int hl_tf_row_quant_problem(uint32_t quant, hl_row_quant rq, char *msg, size_t n);
+/* Checks one vertex's block counts and entries. entries may be NULL to
+ * check only the counts (the sum is returned in *nnz either way). */
+int hl_tf_row_problem(uint32_t N, const uint16_t *counts, const uint8_t *entries, uint64_t *nnz, char *msg,
+                      size_t n);
+
+/* ---------------------------------------------------------------- file I/O */
+
+/* n bytes at offset off, retried after EINTR and short writes: 0, or -1
+ * with errno set. */
+int hl_tf_pwrite_all(int fd, const void *data, size_t n, uint64_t off);
+/* 0: read all; 1: end of file first; -1: error (errno). */
+int hl_tf_pread_all(int fd, void *data, size_t n, uint64_t off);
+
+#endif

@@ -1,0 +1,347 @@
+/* transport_load.c - the transport file (.hlt) loader (hl_transport_load)
+ * with its checks, and the loaded transport's queries and release.
+ *
+ * The reader trusts nothing: every size is checked against the header and
+ * the real file size before anything is allocated, every section carries a
+ * CRC-32, and the contents are validated after the checksums so that a
+ * forged but consistent file is still refused with a message naming the
+ * vertex or triangle. The byte layout lives in host/FORMAT.md and
+ * transport_layout.h.
+ *
+ * Depends on: transport_layout.h (header decoding, checks, CRC-32 by zlib's
+ * crc32_z), hl_internal.h (hl_fail, allocation), hl_mesh_destroy (mesh.c),
+ * half.h (hl_transport_query_terms), POSIX open/pread/fstat.
+ */
+#define _POSIX_C_SOURCE 200809L /* pread, pwrite, O_CLOEXEC */
+#define _FILE_OFFSET_BITS 64
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/types.h>
+#include <unistd.h>
+
+#include "half.h"
+#include "transport_layout.h"
+
+static const char *const section_names[SEC_COUNT] = {"mesh", "row table", "entries"};
+
+/* ---------------------------------------------------------------- bytes */
+
+static int host_is_little_endian(void)
+{
+    const uint16_t one = 1;
+    uint8_t b;
+    memcpy(&b, &one, 1);
+    return b == 1;
+}
+
+/* In-place conversion of 32-bit words between file order and host order. */
+static void swap_words_if_big_endian(void *data, size_t words)
+{
+    if (host_is_little_endian()) return;
+    uint8_t *p = data;
+    for (size_t i = 0; i < words; i++, p += 4) {
+        uint32_t v = get_u32(p);
+        memcpy(p, &v, 4);
+    }
+}
+
+/* ---------------------------------------------------------------- reader */
+
+typedef struct tf_reader {
+    hl_context *ctx;
+    const char *path;
+    int fd;
+    uint64_t file_size;
+} tf_reader;
+
+/* Reads a section range into memory; the file size was checked against the
+ * header already, so a short read means the file changed under us. */
+static hl_result read_range(tf_reader *rd, void *dst, uint64_t bytes, uint64_t off, const char *what)
+{
+    if (bytes > SIZE_MAX) return hl_fail(rd->ctx, HL_ERR_OUT_OF_MEMORY, "%s: %s too large for this host", rd->path, what);
+    int k = hl_tf_pread_all(rd->fd, dst, (size_t)bytes, off);
+    if (k < 0) return hl_fail(rd->ctx, HL_ERR_IO, "%s: cannot read the %s: %s", rd->path, what, strerror(errno));
+    if (k > 0)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: truncated while reading the %s (file shrank?)", rd->path, what);
+    return HL_OK;
+}
+
+static hl_result check_crc(tf_reader *rd, int sec, uint32_t stored, uint32_t computed)
+{
+    if (stored == computed) return HL_OK;
+    return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: checksum mismatch in the %s section (stored %08" PRIx32
+                   ", computed %08" PRIx32 ")", rd->path, section_names[sec], stored, computed);
+}
+
+static hl_result read_header(tf_reader *rd, tf_header *h)
+{
+    uint8_t bytes[TF_HEADER_SIZE];
+    size_t have = rd->file_size < TF_HEADER_SIZE ? (size_t)rd->file_size : TF_HEADER_SIZE;
+    hl_result r = read_range(rd, bytes, have, 0, "header");
+    if (r != HL_OK) return r;
+    size_t magic_have = have < 8 ? have : 8;
+    if (memcmp(bytes, TF_MAGIC, magic_have) != 0)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: not a haarlight transport file", rd->path);
+    if (have >= H_VERSION + 4 && get_u32(bytes + H_VERSION) != TF_VERSION)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: version %" PRIu32 ", this build reads %u", rd->path,
+                       get_u32(bytes + H_VERSION), TF_VERSION);
+    if (have < TF_HEADER_SIZE)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: truncated: expected at least %u bytes, file has %" PRIu64,
+                       rd->path, TF_HEADER_SIZE, rd->file_size);
+    if (get_u32(bytes + H_HEADER_SIZE) != TF_HEADER_SIZE)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header_size %" PRIu32 ", version 1 has %u", rd->path,
+                       get_u32(bytes + H_HEADER_SIZE), TF_HEADER_SIZE);
+    uint32_t stored = get_u32(bytes + H_HEADER_CRC);
+    uint32_t computed = crc_update(0, bytes, H_HEADER_CRC);
+    if (stored != computed)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: checksum mismatch in the header (stored %08" PRIx32
+                       ", computed %08" PRIx32 ")", rd->path, stored, computed);
+    hl_tf_header_decode(bytes, h);
+    if (h->reserved_nonzero)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: reserved header bytes %u..%u are not zero", rd->path,
+                       (unsigned)H_RESERVED, (unsigned)H_HEADER_CRC - 1);
+
+    char msg[256];
+    const hl_transport_info *i = &h->info;
+    if (hl_tf_info_problem(i, msg, sizeof msg))
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header field %s", rd->path, msg);
+    uint64_t max_coef = (uint64_t)i->vertex_count * slot_total(i->N);
+    if (i->coefficients_kept > max_coef)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header field coefficients_kept = %" PRIu64
+                       " exceeds vertex_count x 2N^2 = %" PRIu64, rd->path, i->coefficients_kept, max_coef);
+
+    /* Sizes follow from the counts; offsets are free but ordered, aligned
+     * past the header and inside the file, so no section overlaps another. */
+    const uint64_t expect[SEC_COUNT] = {mesh_bytes(i->vertex_count, i->triangle_count),
+                                        (uint64_t)i->vertex_count * row_record_bytes(i->block_count),
+                                        2 * i->coefficients_kept};
+    static const char *const size_fields[SEC_COUNT] = {"mesh_size", "rows_size", "entries_size"};
+    static const char *const offset_fields[SEC_COUNT] = {"mesh_offset", "rows_offset", "entries_offset"};
+    uint64_t end = TF_HEADER_SIZE;
+    for (int s = 0; s < SEC_COUNT; s++) {
+        if (h->sec[s].size != expect[s])
+            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header field %s = %" PRIu64 ", the counts need %" PRIu64,
+                           rd->path, size_fields[s], h->sec[s].size, expect[s]);
+        if (h->sec[s].offset < end || h->sec[s].offset % TF_ALIGN != 0 || h->sec[s].offset > h->file_size ||
+            h->sec[s].size > h->file_size - h->sec[s].offset)
+            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header field %s = %" PRIu64
+                           " is misaligned, overlaps or lies outside the file (%" PRIu64 " bytes)",
+                           rd->path, offset_fields[s], h->sec[s].offset, h->file_size);
+        end = h->sec[s].offset + h->sec[s].size;
+    }
+    if (h->file_size != end)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header field file_size = %" PRIu64 " but the entries end at %" PRIu64,
+                       rd->path, h->file_size, end);
+    if (rd->file_size < h->file_size)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: truncated: expected %" PRIu64 " bytes, file has %" PRIu64,
+                       rd->path, h->file_size, rd->file_size);
+    if (rd->file_size > h->file_size)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: %" PRIu64 " bytes of trailing data after the %" PRIu64
+                       " bytes the header describes", rd->path, rd->file_size - h->file_size, h->file_size);
+    return HL_OK;
+}
+
+static hl_result read_mesh(tf_reader *rd, const tf_header *h, hl_mesh **out)
+{
+    const hl_transport_info *i = &h->info;
+    const tf_section *sec = &h->sec[SEC_MESH];
+    hl_mesh *m = calloc(1, sizeof *m);
+    if (!m) return hl_fail(rd->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory allocating the mesh");
+    *out = m;
+    size_t v3 = 3 * (size_t)i->vertex_count, t3 = 3 * (size_t)i->triangle_count;
+    m->positions = hl_malloc(rd->ctx, v3 * sizeof(float), "mesh positions");
+    m->normals = hl_malloc(rd->ctx, v3 * sizeof(float), "mesh normals");
+    m->albedo = hl_malloc(rd->ctx, v3 * sizeof(float), "mesh albedo");
+    m->indices = hl_malloc(rd->ctx, t3 * sizeof(uint32_t), "mesh indices");
+    if (!m->positions || !m->normals || !m->albedo || !m->indices) return HL_ERR_OUT_OF_MEMORY;
+    m->vertex_count = i->vertex_count;
+    m->triangle_count = i->triangle_count;
+    m->object_vertex_count = i->object_vertex_count;
+
+    void *parts[4] = {m->positions, m->normals, m->albedo, m->indices};
+    size_t words[4] = {v3, v3, v3, t3};
+    uint64_t off = sec->offset;
+    uint32_t crc = 0;
+    for (int p = 0; p < 4; p++) {
+        hl_result r = read_range(rd, parts[p], 4 * (uint64_t)words[p], off, "mesh section");
+        if (r != HL_OK) return r;
+        crc = crc_update(crc, parts[p], 4 * words[p]);
+        swap_words_if_big_endian(parts[p], words[p]);
+        off += 4 * (uint64_t)words[p];
+    }
+    hl_result r = check_crc(rd, SEC_MESH, sec->crc, crc);
+    if (r != HL_OK) return r;
+    char msg[256];
+    if (hl_tf_mesh_problem(m->vertex_count, m->triangle_count, m->positions, m->normals, m->albedo, m->indices,
+                           msg, sizeof msg))
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: mesh: %s", rd->path, msg);
+    return HL_OK;
+}
+
+static hl_result read_rows(tf_reader *rd, const tf_header *h, hl_transport *t)
+{
+    const hl_transport_info *i = &h->info;
+    const tf_section *sec = &h->sec[SEC_ROWS];
+    uint32_t B = i->block_count;
+    size_t rec = (size_t)row_record_bytes(B);
+    size_t chunk = ((size_t)1 << 20) / rec;
+    if (chunk > i->vertex_count) chunk = i->vertex_count;
+    uint8_t *buf = hl_malloc(rd->ctx, chunk * rec, "the row table reader");
+    if (!buf) return HL_ERR_OUT_OF_MEMORY;
+    uint32_t crc = 0;
+    hl_result r = HL_OK;
+    for (uint64_t v0 = 0; v0 < i->vertex_count && r == HL_OK; v0 += chunk) {
+        size_t n = i->vertex_count - v0 < chunk ? (size_t)(i->vertex_count - v0) : chunk;
+        r = read_range(rd, buf, (uint64_t)n * rec, sec->offset + (uint64_t)v0 * rec, "row table");
+        if (r != HL_OK) break;
+        crc = crc_update(crc, buf, n * rec);
+        for (size_t k = 0; k < n; k++) {
+            const uint8_t *p = buf + k * rec;
+            size_t v = (size_t)v0 + k;
+            t->row_quant[v].a = HL_AS_F32(get_u32(p));
+            t->row_quant[v].b = HL_AS_F32(get_u32(p + 4));
+            for (uint32_t b = 0; b < B; b++) t->block_counts[v * B + b] = get_u16(p + 8 + 2 * b);
+        }
+    }
+    free(buf);
+    if (r != HL_OK) return r;
+    return check_crc(rd, SEC_ROWS, sec->crc, crc);
+}
+
+/* Derives row_offset and checks every row against the entries. Runs after
+ * all checksums, so it reports structure errors in files that are intact
+ * but were written wrongly. */
+static hl_result validate_rows(tf_reader *rd, hl_transport *t)
+{
+    const hl_transport_info *i = &t->info;
+    uint32_t B = i->block_count;
+    uint64_t off = 0;
+    char msg[256];
+    for (uint32_t v = 0; v < i->vertex_count; v++) {
+        t->row_offset[v] = off;
+        uint64_t nnz = 0;
+        const uint16_t *counts = t->block_counts + (size_t)v * B;
+        if (hl_tf_row_quant_problem(i->quant, t->row_quant[v], msg, sizeof msg))
+            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, v, msg);
+        if (hl_tf_row_problem(i->N, counts, NULL, &nnz, msg, sizeof msg))
+            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, v, msg);
+        if (nnz > i->coefficients_kept - off)
+            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: block counts run past coefficients_kept = %" PRIu64,
+                           rd->path, v, i->coefficients_kept);
+        if (hl_tf_row_problem(i->N, counts, t->entries + 2 * off, &nnz, msg, sizeof msg))
+            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, v, msg);
+        off += nnz;
+    }
+    t->row_offset[i->vertex_count] = off;
+    if (off != i->coefficients_kept)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: block counts of all vertices sum to %" PRIu64
+                       ", coefficients_kept says %" PRIu64, rd->path, off, i->coefficients_kept);
+    return HL_OK;
+}
+
+hl_result hl_transport_load(hl_context *ctx, const char *path, hl_transport **out)
+{
+    if (out) *out = NULL;
+    if (!path || !out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_transport_load: path and out are required");
+    tf_reader *rd = hl_calloc(ctx, 1, sizeof *rd, "the transport reader");
+    if (!rd) return HL_ERR_OUT_OF_MEMORY;
+    rd->ctx = ctx;
+    rd->path = path;
+    rd->fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (rd->fd < 0) {
+        int e = errno;
+        free(rd);
+        return hl_fail(ctx, HL_ERR_IO, "%s: cannot open: %s", path, strerror(e));
+    }
+    hl_transport *t = NULL;
+    hl_result r = HL_OK;
+    struct stat st;
+    if (fstat(rd->fd, &st) != 0) {
+        r = hl_fail(ctx, HL_ERR_IO, "%s: cannot stat: %s", path, strerror(errno));
+    } else if (!S_ISREG(st.st_mode)) {
+        r = hl_fail(ctx, HL_ERR_IO, "%s: not a regular file", path);
+    }
+    tf_header h;
+    if (r == HL_OK) {
+        rd->file_size = (uint64_t)st.st_size;
+        r = read_header(rd, &h);
+    }
+    if (r == HL_OK && (h.sec[SEC_MESH].size > SIZE_MAX / 4 || h.sec[SEC_ROWS].size > SIZE_MAX / 4 ||
+                       h.sec[SEC_ENTRIES].size > SIZE_MAX / 4))
+        r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: file too large for this host's address space", path);
+    if (r == HL_OK) {
+        t = hl_calloc(ctx, 1, sizeof *t, "the transport");
+        if (!t) r = HL_ERR_OUT_OF_MEMORY;
+    }
+    if (r == HL_OK) {
+        t->info = h.info;
+        r = read_mesh(rd, &h, &t->mesh);
+    }
+    if (r == HL_OK) {
+        /* Every size below is bounded by the file size checked in
+         * read_header: rows need >= 10 bytes per vertex on disk. */
+        size_t V = h.info.vertex_count, B = h.info.block_count;
+        t->row_quant = hl_malloc(ctx, V * sizeof *t->row_quant, "row quantisation parameters");
+        t->block_counts = hl_alloc_big(ctx, V * B * sizeof *t->block_counts, "block counts");
+        t->row_offset = hl_malloc(ctx, (V + 1) * sizeof *t->row_offset, "row offsets");
+        t->entries = hl_alloc_big(ctx, (size_t)h.sec[SEC_ENTRIES].size, "transport entries");
+        if (!t->row_quant || !t->block_counts || !t->row_offset || !t->entries) r = HL_ERR_OUT_OF_MEMORY;
+    }
+    if (r == HL_OK) r = read_rows(rd, &h, t);
+    if (r == HL_OK) r = read_range(rd, t->entries, h.sec[SEC_ENTRIES].size, h.sec[SEC_ENTRIES].offset, "entries section");
+    if (r == HL_OK)
+        r = check_crc(rd, SEC_ENTRIES, h.sec[SEC_ENTRIES].crc,
+                      crc_update(0, t->entries, (size_t)h.sec[SEC_ENTRIES].size));
+    if (r == HL_OK) r = validate_rows(rd, t);
+    close(rd->fd);
+    free(rd);
+    if (r != HL_OK) {
+        hl_transport_destroy(t);
+        return r;
+    }
+    *out = t;
+    return HL_OK;
+}
+
+void hl_transport_destroy(hl_transport *t)
+{
+    if (!t) return;
+    hl_mesh_destroy(t->mesh);
+    free(t->row_quant);
+    hl_free_big(t->block_counts);
+    free(t->row_offset);
+    hl_free_big(t->entries);
+    free(t);
+}
+
+void hl_transport_query_row(const hl_transport *t, uint32_t v, float *dense)
+{
+    if (!t || !dense) return;
+    const hl_transport_info *i = &t->info;
+    memset(dense, 0, (size_t)slot_total(i->N) * sizeof *dense);
+    if (v >= i->vertex_count) return;
+    const uint8_t *e = t->entries + 2 * t->row_offset[v];
+    const uint16_t *counts = t->block_counts + (size_t)v * i->block_count;
+    hl_row_quant rq = t->row_quant[v];
+    for (uint32_t b = 0; b < i->block_count; b++) {
+        float *base = dense + (size_t)b * HL_BLOCK;
+        for (uint32_t j = 0; j < counts[b]; j++, e += 2)
+            base[e[0]] = hl_dequant(i->quant, e[1], rq.a, rq.b, hl_dither_key(v, b * HL_BLOCK + e[0]));
+    }
+}
+
+void hl_transport_query_terms(const hl_transport *t, uint32_t v, float *dense)
+{
+    hl_transport_query_row(t, v, dense);
+    if (!t || !dense || v >= t->info.vertex_count) return;
+    const hl_row_quant rq = t->row_quant[v];
+    const int ex = hl_half_exponent(t->info.quant, rq.a, rq.b);
+    for (uint32_t i = 0; i < slot_total(t->info.N); i++)
+        if (dense[i] != 0.0f) dense[i] = ldexpf(hl_half_term(dense[i], ex), ex);
+}
