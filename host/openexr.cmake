@@ -1,4 +1,5 @@
-# OpenEXR for host/src/io/exr_io.c (the only file that includes its headers).
+# OpenEXR for host/src/io/exr_io.c and host/src/io/exr_check.c (the only files
+# that include its headers).
 #
 # Defines the interface target hl_openexr: the C wrapper of the C++ library
 # (ImfCRgbaFile.h), which decodes DWAB where Debian 12's OpenEXRCore cannot,
