@@ -2,8 +2,11 @@
  *
  * Not installed. Holds the context layout, the error helper and the
  * internal interfaces between modules (geometry tables, stage runners,
- * third-party wrappers). Each third-party header is included by exactly one
- * .c file; the rest of the library sees only the opaque types below.
+ * third-party wrappers). Each third-party header is included by one file
+ * (OpenCL's by device/cl_internal.h, for the files that talk to the
+ * device); the rest of the library sees only the opaque types below.
+ * Core depends on nothing above it: this header names the device only as
+ * an incomplete struct.
  */
 #ifndef HL_INTERNAL_H
 #define HL_INTERNAL_H
@@ -14,8 +17,9 @@
 #include <stdint.h>
 
 #include "haarlight.h"
+#include "hl_shared.h" /* the layouts the library shares with its kernels */
 
-struct hl_cl; /* cl_backend.c */
+struct hl_cl; /* device/cl_internal.h */
 
 struct hl_context {
     hl_backend backend;

@@ -1,9 +1,20 @@
-/* cl_backend.h - the library's only view of OpenCL (cl_backend.c includes
- * the OpenCL headers; nothing else does).
+/* cl_backend.h - the library's only view of OpenCL: the OpenCL headers
+ * are included by cl_internal.h, which only the files that talk to the
+ * device include; everything else calls the functions declared here.
  *
  * hl_cl owns the platform, device, queue, program and kernels of a context.
  * Stage runners take host arrays and return host arrays, so callers never
  * see cl_mem. Errors carry the cl_int name and, for builds, the build log.
+ *
+ * Where they are defined, by stage:
+ *   device/cl_device.c, cl_program.c   hl_cl_create, hl_cl_destroy
+ *   device/cl_buffers.c, cl_gl.c       buffers, OpenGL sharing
+ *   device/cl_probe.c                  hl_cl_read_bandwidth
+ *   precompute/cl_pipe.c               hl_cl_pipe_*
+ *   relight/cl_relight.c, cl_columns.c hl_cl_light_* (run and stages)
+ *   relight/cl_light_probe.c           hl_cl_light_* (bench probes)
+ * The declarations name other stages' types only as incomplete structs, so
+ * this header depends on core alone.
  */
 #ifndef HL_CL_BACKEND_H
 #define HL_CL_BACKEND_H

@@ -1,0 +1,92 @@
+/* cl_internal.h - the OpenCL side of the library, private to the files that
+ * talk to the device: the struct hl_cl a context holds, the kernel handles,
+ * the error macro and the counted buffers.
+ *
+ * Included only by the .c files that call OpenCL (device/cl_*.c,
+ * device/context_open.c, precompute/cl_pipe.c, relight/cl_*.c); everything
+ * else sees OpenCL through cl_backend.h, whose functions take host arrays
+ * and opaque handles. Depends on: CL/cl.h, hl_internal.h (core).
+ */
+#ifndef HL_CL_INTERNAL_H
+#define HL_CL_INTERNAL_H
+
+#ifndef CL_TARGET_OPENCL_VERSION
+#define CL_TARGET_OPENCL_VERSION 120
+/* OpenGL buffers (cl_gl.c): enqueues taking m (from hl_cl_gl_buffer) from
+ * OpenGL, and giving it back (the error code, for the caller's message). */
+hl_result hl_cl_gl_acquire(hl_context *ctx, cl_mem m);
+cl_int hl_cl_gl_release(struct hl_cl *cl, cl_mem m);
+
+#endif
+#include <CL/cl.h>
+
+#include "cl_backend.h"
+#include "hl_internal.h"
+
+/* The program's kernels, in the order of hl_cl_kernel_names. */
+enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_TURN, K_ENV2PARA, K_SELECT, K_RELIGHT, K_BANDWIDTH, K_COUNT };
+extern const char *const hl_cl_kernel_names[K_COUNT];
+
+/* rows per work-item of hl_cube2para (HL_C2P_ROWS in kernels/maps/cube2para.cl) */
+#define C2P_ROWS 4u
+
+struct hl_cl {
+    cl_platform_id platform;
+    cl_device_id device;
+    cl_context context;
+    cl_command_queue queue;
+    cl_program program;
+    cl_kernel k[K_COUNT];
+    cl_ulong max_alloc;
+    /* The device memory this context may hold at once: the device's global
+       memory, or less (hl_context_desc.device_memory), so that a job too
+       big for the memory a user grants is refused up front whatever the
+       device; used counts the buffers made through hl_cl_make_buf. */
+    cl_ulong limit, used;
+    int limit_set; /* the limit came from the caller, not the device */
+    size_t wg; /* work-group size: 1 on CPUs, where each work-item's long
+                  row loop is the unit of work and PoCL would otherwise
+                  put every row in one group on one core */
+    cl_uint units; /* compute units (cores on a CPU device) */
+};
+
+/* The name of an OpenCL error code, for messages. */
+const char *hl_cl_err_name(cl_int e);
+
+/* Builds the program from the embedded (or on-disk) kernels and makes the
+ * kernel handles (cl_program.c). */
+hl_result hl_cl_build_program(hl_context *ctx, struct hl_cl *cl);
+
+/* Out of device memory or resources: a smaller precompute chunk may fit;
+ * any other failure: only the reference backend is sure to help. */
+#define CL_TRY(ctx, call, what)                                                            \
+    do {                                                                                   \
+        cl_int e_ = (call);                                                                \
+        if (e_ != CL_SUCCESS) {                                                            \
+            int mem_ = e_ == CL_MEM_OBJECT_ALLOCATION_FAILURE || e_ == CL_OUT_OF_RESOURCES; \
+            return hl_fail((ctx), mem_ ? HL_ERR_OUT_OF_MEMORY : HL_ERR_OPENCL, "OpenCL: %s failed: %s (%d); %s", \
+                           what, hl_cl_err_name(e_), (int)e_,                              \
+                           mem_ ? "try a smaller --chunk (precompute) or --device ref" : "try --device ref"); \
+        }                                                                                  \
+    } while (0)
+
+#define TRY(x) do { hl_result r_ = (x); if (r_ != HL_OK) return r_; } while (0)
+
+/* Buffers (cl_buffers.c). Allocates a buffer of ctx's device counted
+ * against the context's device memory limit; init, when given, is copied
+ * (or used, with CL_MEM_USE_HOST_PTR). */
+hl_result hl_cl_make_buf(hl_context *ctx, cl_mem *m, cl_mem_flags fl, size_t bytes, const void *init,
+                         const char *what);
+/* Releases a buffer made by hl_cl_make_buf and gives its bytes back. */
+void hl_cl_release_buf(struct hl_cl *cl, cl_mem *m);
+/* A large read-only buffer, filled from init when given. On a CPU device
+ * it lives in our own memory (*keep, to free with hl_free_big after the
+ * buffer is released), allocated with huge pages advised. */
+hl_result hl_cl_big_buf(hl_context *ctx, cl_mem *m, size_t bytes, const void *init, void **keep, const char *what);
+
+/* OpenGL buffers (cl_gl.c): enqueues taking m (from hl_cl_gl_buffer) from
+ * OpenGL, and giving it back (the error code, for the caller's message). */
+hl_result hl_cl_gl_acquire(hl_context *ctx, cl_mem m);
+cl_int hl_cl_gl_release(struct hl_cl *cl, cl_mem m);
+
+#endif

@@ -1,0 +1,246 @@
+/* cl_relight.c - the relight's device stages (hl_cl_light_*): the buffers
+ * of a relighter, and a lighting change's launches (env2para, Haar of R, G
+ * and B, selection, the dot products) in one submission, whole or stage
+ * by stage, into a host array or a device (or OpenGL) buffer.
+ *
+ * Depends on: cl_light.h (the device state, OpenCL), cl_columns.c for
+ * the transport's layout, lighting.h (the environment's tables).
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include "cl_light.h"
+
+void hl_cl_light_destroy(hl_cl_light *l)
+{
+    if (!l) return;
+    if (l->cl && l->cl->queue) clFinish(l->cl->queue);
+    cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
+                     &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rel, &l->rstart, &l->back, &l->albedo, &l->B,
+                     &l->acc, &l->ord, &l->klist};
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(l->cl, all[i]);
+    for (int i = 0; i < 4; i++) hl_free_big(l->host[i]);
+    free(l->col_start);
+    free(l->range_start);
+    free(l->order);
+    free(l);
+}
+
+hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
+                             const float *albedo4, hl_cl_light **out)
+{
+    *out = NULL;
+    if (!ctx->cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the context has no OpenCL device");
+    hl_cl_light *l = calloc(1, sizeof *l);
+    if (!l) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    l->ctx = ctx;
+    l->cl = ctx->cl;
+    l->g = g;
+    l->lg = lg;
+    l->nverts = t->info.vertex_count;
+    l->scheme = t->info.quant;
+    size_t nc = g->ncoef, V = l->nverts, cells = (size_t)lg->wc * lg->hc;
+    hl_result r = HL_OK;
+#define B(m, fl, bytes, init, what) if (r == HL_OK) r = hl_cl_make_buf(l->ctx, &l->m, fl, bytes, init, what)
+    B(cells, CL_MEM_READ_ONLY, cells * 16, NULL, "environment cells");
+    B(turned, CL_MEM_READ_WRITE, cells * 16, NULL, "environment cells");
+    B(start, CL_MEM_READ_ONLY, (nc + 1) * 4, lg->tap_start, "environment runs");
+    /* the taps as (cell index, weight bits): 8 bytes each */
+    uint32_t *taps2 = malloc(((size_t)lg->ntaps + 1) * 8);
+    if (!taps2) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the environment runs");
+    for (size_t e = 0; taps2 && e < lg->ntaps; e++) {
+        taps2[2 * e] = lg->taps[e].row * lg->wc + lg->taps[e].col;
+        memcpy(&taps2[2 * e + 1], &lg->taps[e].weight, 4);
+    }
+    B(runs, CL_MEM_READ_ONLY, ((size_t)lg->ntaps + 1) * 8, taps2, "environment runs");
+    free(taps2);
+    B(slots, CL_MEM_READ_ONLY, (size_t)g->N * g->N * 4, g->slot_of_mallat, "the Haar slot order");
+    B(weight, CL_MEM_READ_ONLY, nc * 4, lg->area, "selection weights");
+    B(Lp, CL_MEM_READ_WRITE, 3 * nc * 4, NULL, "paraboloid lighting");
+    B(Lw, CL_MEM_READ_WRITE, 3 * nc * 4, NULL, "wavelet lighting");
+    B(Lsel, CL_MEM_READ_WRITE, nc * 16, NULL, "selected lighting");
+    B(used, CL_MEM_READ_WRITE, g->nblocks, NULL, "block flags");
+    B(bits, CL_MEM_READ_WRITE, nc / 8, NULL, "kept-slot bits");
+    B(res, CL_MEM_READ_WRITE, sizeof(hl_select_result), NULL, "selection result");
+    B(keys, CL_MEM_READ_WRITE, nc * 4, NULL, "selection keys");
+    B(klist, CL_MEM_READ_WRITE, (nc + 1) * 4, NULL, "kept slots");
+    if (r == HL_OK) r = hl_cl_light_build_columns(l, t);
+    /* albedo in the device's vertex order */
+    float *alb = r == HL_OK ? malloc((V ? V : 1) * 16) : NULL;
+    if (r == HL_OK && !alb) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the albedo");
+    for (size_t i = 0; alb && i < V; i++) memcpy(alb + 4 * i, albedo4 + 4 * (size_t)l->order[i], 16);
+    B(albedo, CL_MEM_READ_ONLY, V * 16, alb, "albedo");
+    free(alb);
+    B(ord, CL_MEM_READ_ONLY, V * 4, l->order, "vertex order");
+    B(B, CL_MEM_READ_WRITE, V * 16, NULL, "vertex colours");
+    B(acc, CL_MEM_READ_WRITE, (size_t)3 * (l->nranges && V ? l->range_start[l->nranges] : 1) * 4, NULL, "running sums");
+#undef B
+    if (r != HL_OK) { hl_cl_light_destroy(l); return r; }
+    *out = l;
+    return HL_OK;
+}
+
+#define LWRITE(buf, bytes, src) \
+    CL_TRY(l->ctx, clEnqueueWriteBuffer(l->cl->queue, buf, CL_TRUE, 0, bytes, src, 0, NULL, NULL), "upload")
+#define LREAD(buf, bytes, dst, blocking) \
+    CL_TRY(l->ctx, clEnqueueReadBuffer(l->cl->queue, buf, blocking, 0, bytes, dst, 0, NULL, NULL), "read-back")
+#define LARG(k, i, v) CL_TRY(l->ctx, clSetKernelArg(k, i, sizeof(v), &(v)), "clSetKernelArg")
+
+hl_result hl_cl_light_set_cells(hl_cl_light *l, const float *cells4)
+{
+    LWRITE(l->cells, (size_t)l->lg->wc * l->lg->hc * 16, cells4);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight)
+{
+    LWRITE(l->weight, (size_t)l->g->ncoef * 4, weight);
+    return HL_OK;
+}
+
+static hl_result light_launch(hl_cl_light *l, int which, size_t items)
+{
+    /* selection is one work-item */
+    size_t local = which == K_SELECT ? 1 : l->cl->wg;
+    size_t global = (items + local - 1) / local * local;
+    CL_TRY(l->ctx, clEnqueueNDRangeKernel(l->cl->queue, l->cl->k[which], 1, NULL, &global, &local, 0, NULL, NULL),
+           hl_cl_kernel_names[which]);
+    return HL_OK;
+}
+
+static hl_result enq_env2para(hl_cl_light *l, uint32_t s0, float f)
+{
+    /* CPU: 64 chunks of consecutive cells or texels; a GPU: one each per
+       work-item */
+    cl_kernel k = l->cl->k[K_TURN];
+    cl_uint wc = l->lg->wc, ncell = l->lg->wc * l->lg->hc, nc = l->g->ncoef, sh = s0;
+    cl_uint per = l->cl->wg == 1 ? (ncell + 63) / 64 : 1;
+    LARG(k, 0, l->cells); LARG(k, 1, wc); LARG(k, 2, ncell); LARG(k, 3, sh); LARG(k, 4, f); LARG(k, 5, per);
+    LARG(k, 6, l->turned);
+    TRY(light_launch(l, K_TURN, (ncell + per - 1) / per));
+    k = l->cl->k[K_ENV2PARA];
+    per = l->cl->wg == 1 ? (nc + 63) / 64 : 1;
+    LARG(k, 0, l->turned); LARG(k, 1, l->start); LARG(k, 2, l->runs); LARG(k, 3, nc); LARG(k, 4, per);
+    LARG(k, 5, l->Lp);
+    return light_launch(l, K_ENV2PARA, (nc + per - 1) / per);
+}
+
+static hl_result enq_haar3(hl_cl_light *l)
+{
+    cl_kernel k = l->cl->k[K_HAAR];
+    cl_uint N = l->g->N, rows = 3;
+    LARG(k, 0, l->Lp); LARG(k, 1, l->Lw); LARG(k, 2, l->slots); LARG(k, 3, N); LARG(k, 4, rows);
+    return light_launch(l, K_HAAR, 3);
+}
+
+static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
+{
+    cl_kernel k = l->cl->k[K_SELECT];
+    cl_uint nc = l->g->ncoef, nb = l->g->nblocks;
+    LARG(k, 0, l->Lw); LARG(k, 1, nc); LARG(k, 2, l->weight); LARG(k, 3, sp); LARG(k, 4, l->Lsel);
+    LARG(k, 5, l->used); LARG(k, 6, l->bits); LARG(k, 7, nb); LARG(k, 8, l->res); LARG(k, 9, l->keys);
+    LARG(k, 10, l->klist);
+    return light_launch(l, K_SELECT, 1);
+}
+
+static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
+{
+    cl_kernel k = l->cl->k[K_RELIGHT];
+    cl_uint nc = l->g->ncoef, nv = l->nverts, nr = l->nranges, ts = l->tstride;
+    LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rel); LARG(k, 3, ts); LARG(k, 4, l->rstart);
+    LARG(k, 5, l->back); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->klist); LARG(k, 9, l->albedo);
+    LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
+    LARG(k, 15, l->keep_negative);
+    return light_launch(l, K_RELIGHT, l->nranges);
+}
+
+void hl_cl_light_keep_negative(hl_cl_light *l, int keep) { l->keep_negative = keep ? 1u : 0u; }
+
+hl_result hl_cl_light_enq_relight(hl_cl_light *l) { return enq_relight_to(l, l->B); }
+
+/* The lighting stages up to the kept terms: env2para, Haar, selection. */
+static hl_result enq_lighting(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp)
+{
+    TRY(enq_env2para(l, s0, f));
+    TRY(enq_haar3(l));
+    return enq_select(l, sp);
+}
+
+hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, float *B4, hl_select_result *res)
+{
+    /* one submission, one wait: launches cost ~50 us each to finish */
+    TRY(enq_lighting(l, s0, f, sp));
+    TRY(hl_cl_light_enq_relight(l));
+    LREAD(l->res, sizeof *res, res, CL_FALSE);
+    LREAD(l->B, (size_t)l->nverts * 16, B4, CL_TRUE);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, void *out, int gl,
+                               hl_select_result *res)
+{
+    cl_mem m = (cl_mem)out;
+    size_t have = 0, need = (size_t)l->nverts * 16;
+    CL_TRY(l->ctx, clGetMemObjectInfo(m, CL_MEM_SIZE, sizeof have, &have, NULL), "the colour buffer");
+    if (have < need)
+        return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "the colour buffer holds %zu bytes; %u vertices need %zu", have,
+                       l->nverts, need);
+    TRY(enq_lighting(l, s0, f, sp));
+    if (gl) TRY(hl_cl_gl_acquire(l->ctx, m));
+    hl_result r = enq_relight_to(l, m);
+    if (gl) {
+        cl_int e = hl_cl_gl_release(l->cl, m);
+        if (r == HL_OK && e != CL_SUCCESS)
+            r = hl_fail(l->ctx, HL_ERR_OPENCL, "OpenCL: clEnqueueReleaseGLObjects failed (%s)", hl_cl_err_name(e));
+    }
+    /* the blocking read of the result also waits for the release: OpenGL
+       may draw from the buffer once this returns */
+    if (r == HL_OK) LREAD(l->res, sizeof *res, res, CL_TRUE);
+    else clFinish(l->cl->queue);
+    return r;
+}
+
+hl_result hl_cl_light_stage_env2para(hl_cl_light *l, uint32_t s0, float f, float *Lp)
+{
+    TRY(enq_env2para(l, s0, f));
+    LREAD(l->Lp, (size_t)3 * l->g->ncoef * 4, Lp, CL_TRUE);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_stage_haar(hl_cl_light *l, const float *Lp, float *Lw)
+{
+    LWRITE(l->Lp, (size_t)3 * l->g->ncoef * 4, Lp);
+    TRY(enq_haar3(l));
+    LREAD(l->Lw, (size_t)3 * l->g->ncoef * 4, Lw, CL_TRUE);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_stage_select(hl_cl_light *l, const float *Lw, hl_select_params sp, float *Lsel4,
+                                   uint8_t *used, uint32_t *bits, hl_select_result *res)
+{
+    LWRITE(l->Lw, (size_t)3 * l->g->ncoef * 4, Lw);
+    TRY(enq_select(l, sp));
+    LREAD(l->Lsel, (size_t)l->g->ncoef * 16, Lsel4, CL_TRUE);
+    LREAD(l->used, l->g->nblocks, used, CL_TRUE);
+    LREAD(l->bits, l->g->ncoef / 8, bits, CL_TRUE);
+    LREAD(l->res, sizeof *res, res, CL_TRUE);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint32_t *bits, float *B4)
+{
+    const size_t nc = l->g->ncoef;
+    uint32_t *list = malloc((nc + 1) * 4); /* as hl_select writes it */
+    if (!list) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    list[0] = 0;
+    for (size_t s = 0; s < nc; s++)
+        if ((bits[s / 32] >> (s % 32)) & 1u) list[++list[0]] = (uint32_t)s;
+    cl_int e = clEnqueueWriteBuffer(l->cl->queue, l->klist, CL_TRUE, 0, (nc + 1) * 4, list, 0, NULL, NULL);
+    free(list);
+    CL_TRY(l->ctx, e, "upload");
+    LWRITE(l->Lsel, nc * 16, Lsel4);
+    LWRITE(l->bits, nc / 8, bits);
+    TRY(hl_cl_light_enq_relight(l));
+    LREAD(l->B, (size_t)l->nverts * 16, B4, CL_TRUE);
+    return HL_OK;
+}
