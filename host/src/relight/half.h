@@ -16,6 +16,10 @@
  * 1/255 of the row's range (linear8), a grid of 128 points over the
  * row's magnitudes in float bit patterns (log8), or 128 squares of q / 127
  * times the row's largest magnitude (sqrt8).
+ *
+ * Header only. Used by the relight's columns (cl_columns.c), its twin, and
+ * the transport reader (hl_transport_query_terms). Depends on:
+ * hl_shared.h (the quantisation schemes), libm.
  */
 #ifndef HL_HALF_H
 #define HL_HALF_H
