@@ -1,7 +1,9 @@
 /* hl_test.h - tiny assertion helpers for the ctest suites.
  *
  * A test executable takes the case name as argv[1] and dispatches to one
- * function. Every numeric check prints its tolerance and the worst error
+ * function. A case that cannot run here (optional data missing) calls
+ * hl_test_skip_missing and exits 77, which ctest's SKIP_RETURN_CODE
+ * reports as skipped. Every numeric check prints its tolerance and the worst error
  * it saw, so a passing log still tells how close it came.
  */
 #ifndef HL_TEST_H
@@ -36,6 +38,20 @@ static inline void hl_check_error(const char *what, double worst, double tol)
     if (!ok) hl_test_failures++;
 }
 
+/* The exit code of a skipped case (SKIP_RETURN_CODE in tests/CMakeLists.txt). */
+#define HL_TEST_SKIP 77
+static int hl_test_skipped = 0;
+
+/* Marks the running case skipped because folder is missing: the optional
+ * shared data (HL_SHARED_DATA at configure time, HL_TEST_DATA at run
+ * time) that a clone of the repository does not have. */
+static inline void hl_test_skip_missing(const char *folder)
+{
+    printf("skipped: %s not found (set HL_SHARED_DATA to the shared data folder when configuring, "
+           "or HL_TEST_DATA when running)\n", folder);
+    hl_test_skipped = 1;
+}
+
 typedef struct hl_test_case {
     const char *name;
     void (*fn)(void);
@@ -53,6 +69,10 @@ static inline int hl_test_main(int argc, char **argv, const hl_test_case *cases)
     for (const hl_test_case *c = cases; c->name; c++) {
         if (strcmp(c->name, argv[1]) == 0) {
             c->fn();
+            if (hl_test_skipped && !hl_test_failures) {
+                printf("%s: skipped\n", c->name);
+                return HL_TEST_SKIP;
+            }
             printf("%s: %s\n", c->name, hl_test_failures ? "FAILED" : "passed");
             return hl_test_failures ? 1 : 0;
         }

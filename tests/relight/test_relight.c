@@ -1,9 +1,21 @@
-/* test_light.c - the lighting stages (environment to paraboloid, Haar,
- * selection, sparse dot products): OpenCL against the plain-C twins, and
- * the properties they must have (constant maps stay constant, a small sun
- * keeps its energy, an open vertex under a white sky gives its albedo,
- * untruncated lighting equals the exact discrete sum, the shading
- * follows docs/CONVENTIONS.md's directions and turn, no light below zero comes out).
+/* test_relight.c - the sparse dot products (kernels/relight/relight.cl
+ * and its plain-C twin host/src/relight/twins/relight.c) and whole
+ * relights through the public API, suite "relight".
+ *
+ * relight.twin         lighting Haar, selection and dot products: OpenCL
+ *                      equals C bit for bit, both walks of the kernel
+ *                      (by tile, by column) and the ranges' balance.
+ * relight.relighter    whole relights against the exact discrete sum.
+ * relight.into         colours left on the device equal the read-back ones.
+ * relight.furnace      an open vertex under a white sky gives its albedo.
+ * relight.orientation  the shading follows docs/CONVENTIONS.md's
+ *                      directions and turn.
+ * relight.extreme      very bright and very dim lighting stay finite and
+ *                      scale.
+ * relight.negative     no light below zero comes out.
+ *
+ * Depends on: haarlight_core, an OpenCL device (PoCL),
+ * tests/common/light_util.h.
  */
 #include <stdint.h>
 
@@ -13,291 +25,9 @@
 #include "hl_test.h"
 #include "lighting.h"
 #include "twins.h"
+#include "light_util.h"
 
-static hl_context *ctx_of(hl_backend b)
-{
-    hl_context_desc d = {.backend = b, .cl_platform = -1, .cl_device = -1};
-    hl_context *c = NULL;
-    char err[4096];
-    if (hl_context_create(&d, &c, err, sizeof err) != HL_OK) fprintf(stderr, "context: %s\n", err);
-    return c;
-}
-
-/* A small transport made here: data/bunny_lowres.obj with a ground. */
-static const char *make_transport(const char *name, const char *extra)
-{
-    static char path[1024];
-    char cmd[4096];
-    snprintf(path, sizeof path, "%s/%s", hl_test_env("HL_TMP", "/tmp"), name);
-    snprintf(cmd, sizeof cmd, "'%s' precompute '%s/bunny_lowres.obj' --ground --ground-res 12 -C 32 -N 32 -q %s -o '%s'",
-             hl_test_env("HL_BIN", "haarlight"), hl_test_env("HL_REPO_DATA", "data"), extra, path);
-    if (system(cmd) != 0) {
-        fprintf(stderr, "failed: %s\n", cmd);
-        return NULL;
-    }
-    return path;
-}
-
-/* A 2:1 environment: a soft gradient plus an optional one-pixel sun, every
- * pixel times scale. */
-static hl_env *make_env_scaled(hl_context *ctx, uint32_t W, int sun_x, int sun_y, float sun, float scale)
-{
-    uint32_t H = W / 2;
-    float *rgb = malloc((size_t)W * H * 12);
-    for (uint32_t y = 0; y < H; y++)
-        for (uint32_t x = 0; x < W; x++) {
-            float *p = rgb + 3 * ((size_t)y * W + x);
-            p[0] = 0.2f + 0.5f * (float)y / (float)H;
-            p[1] = 0.3f + 0.2f * (float)x / (float)W;
-            p[2] = 0.9f - 0.6f * (float)y / (float)H;
-        }
-    if (sun > 0) for (int c = 0; c < 3; c++) rgb[3 * ((size_t)sun_y * W + sun_x) + c] = sun;
-    for (size_t i = 0; i < (size_t)W * H * 3; i++) rgb[i] *= scale;
-    hl_env *e = NULL;
-    if (hl_env_create(ctx, W, H, rgb, &e, NULL) != HL_OK) fprintf(stderr, "%s\n", hl_context_last_error(ctx));
-    free(rgb);
-    return e;
-}
-
-static hl_env *make_env(hl_context *ctx, uint32_t W, int sun_x, int sun_y, float sun)
-{
-    return make_env_scaled(ctx, W, sun_x, sun_y, sun, 1.0f);
-}
-
-static void case_env2para(void)
-{
-    hl_context *cl = ctx_of(HL_BACKEND_OPENCL), *ref = ctx_of(HL_BACKEND_REFERENCE);
-    hl_transport *t = NULL;
-    const char *path = make_transport("light_a.hlt", "");
-    HL_CHECK(path && hl_transport_load(ref, path, &t) == HL_OK, "transport");
-    if (!t || !cl) return;
-    hl_geom *g = NULL;
-    hl_light_geom *lg = NULL;
-    hl_geom_create(ref, t->info.N, t->info.C, &g);
-    hl_light_geom_create(ref, g, &lg);
-    float *alb = calloc((size_t)t->info.vertex_count, 16);
-    hl_cl_light *l = NULL;
-    HL_CHECK(hl_cl_light_create(cl, g, lg, t, alb, &l) == HL_OK, "%s", hl_context_last_error(cl));
-    const size_t nc = g->ncoef;
-    float *a = malloc(nc * 12), *b = malloc(nc * 12), *cells = NULL;
-    /* the sun: 1 pixel of 1e5 on a 256 x 128 map */
-    hl_env *env = make_env(ref, 256, 77, 30, 1e5f);
-    HL_CHECK(hl_env_to_cells(ref, env, lg->wc, lg->hc, &cells) == HL_OK, "cells");
-    hl_cl_light_set_cells(l, cells);
-    static const float rots[] = {0.0f, 1.0f, 37.3f, -90.0f, 359.99f};
-    double worst = 0.0;
-    for (size_t i = 0; i < 5; i++) {
-        uint32_t s0;
-        float f;
-        hl_rotation_to_shift(rots[i], lg->wc, &s0, &f);
-        hl_ref_env2para(cells, lg->wc, lg->tap_start, lg->taps, s0, f, g->ncoef, a);
-        HL_CHECK(hl_cl_light_stage_env2para(l, s0, f, b) == HL_OK, "%s", hl_context_last_error(cl));
-        for (size_t k = 0; k < 3 * nc; k++) worst = fmax(worst, fabs((double)a[k] - b[k]) / fmax(1.0, fabs(a[k])));
-    }
-    /* same operations in the same order */
-    hl_check_error("env2para OpenCL vs C (relative)", worst, 1e-6);
-    hl_cl_light_destroy(l);
-    hl_env_destroy(env);
-    hl_free_big(cells);
-    free(a); free(b); free(alb);
-    hl_light_geom_destroy(lg);
-    hl_geom_destroy(g);
-    hl_transport_destroy(t);
-    hl_context_destroy(cl);
-    hl_context_destroy(ref);
-}
-
-/* Constant maps stay constant; a one-pixel sun keeps its energy. */
-static void case_energy(void)
-{
-    hl_context *ref = ctx_of(HL_BACKEND_REFERENCE);
-    static const uint32_t Ns[] = {16, 64};
-    for (size_t n = 0; n < 2; n++) {
-        hl_geom *g = NULL;
-        hl_light_geom *lg = NULL;
-        hl_geom_create(ref, Ns[n], 16, &g);
-        hl_light_geom_create(ref, g, &lg);
-        const size_t nc = g->ncoef;
-        float *L = malloc(nc * 12), *cells = NULL;
-        /* constant radiance 2.5 */
-        uint32_t W = 64;
-        float *px = malloc((size_t)W * W / 2 * 12);
-        for (size_t i = 0; i < (size_t)W * W / 2 * 3; i++) px[i] = 2.5f;
-        hl_env *env = NULL;
-        hl_env_create(ref, W, W / 2, px, &env, NULL);
-        hl_env_to_cells(ref, env, lg->wc, lg->hc, &cells);
-        double worst = 0.0;
-        for (float rot = 0.0f; rot < 360.0f; rot += 47.1f) {
-            uint32_t s0;
-            float f;
-            hl_rotation_to_shift(rot, lg->wc, &s0, &f);
-            hl_ref_env2para(cells, lg->wc, lg->tap_start, lg->taps, s0, f, (uint32_t)nc, L);
-            for (size_t j = 0; j < nc; j++)
-                if (g->omega[j] > 0) worst = fmax(worst, fabs(L[j] - 2.5) / 2.5);
-        }
-        char what[128];
-        snprintf(what, sizeof what, "N=%u constant map 2.5 -> every texel 2.5 (relative)", g->N);
-        hl_check_error(what, worst, 1e-5);
-        hl_env_destroy(env);
-        hl_free_big(cells);
-        /* a one-pixel sun on a 1024 x 512 map at several rotations: the
-           paraboloid energy sum L_j Omega_j against the pixel's */
-        W = 1024;
-        px = realloc(px, (size_t)W * W / 2 * 12);
-        memset(px, 0, (size_t)W * W / 2 * 12);
-        int sx = 345, sy = 123;
-        for (int c = 0; c < 3; c++) px[3 * ((size_t)sy * W + sx) + c] = 1e6f;
-        hl_env_create(ref, W, W / 2, px, &env, NULL);
-        double pix = 2.0 * HL_PI / W * (cos(HL_PI * sy / (W / 2)) - cos(HL_PI * (sy + 1) / (W / 2))) * 1e6;
-        hl_env_to_cells(ref, env, lg->wc, lg->hc, &cells);
-        worst = 0.0;
-        for (float rot = 0.0f; rot < 360.0f; rot += 13.7f) {
-            uint32_t s0;
-            float f;
-            hl_rotation_to_shift(rot, lg->wc, &s0, &f);
-            hl_ref_env2para(cells, lg->wc, lg->tap_start, lg->taps, s0, f, (uint32_t)nc, L);
-            double e = 0.0;
-            for (size_t j = 0; j < nc; j++) e += (double)L[j] * g->omega[j];
-            worst = fmax(worst, fabs(e - pix) / pix);
-        }
-        snprintf(what, sizeof what, "N=%u one-pixel sun energy over rotations (relative)", g->N);
-        /* each cell is shared out by rays walked through the texel grid
-           with the exact solid angle along each, so a texel's taps total
-           its solid angle to about 1e-4 (DESIGN: the sun must keep its
-           energy) */
-        hl_check_error(what, worst, 1e-3);
-        hl_env_destroy(env);
-        hl_free_big(cells);
-        free(px);
-        free(L);
-        hl_light_geom_destroy(lg);
-        hl_geom_destroy(g);
-    }
-    hl_context_destroy(ref);
-}
-
-/* The dot products' work-items share the kept column entries evenly (the
- * kernel waits for the largest share): on a CPU device the tiles are dealt
- * to one range per core. Checked where every range gets at least 48 tiles
- * (on this mesh: up to 2 ranges), since a few dealt tiles need not share
- * evenly. */
-static void check_balance(const hl_cl_light *l, const uint32_t *bits, uint32_t nverts)
-{
-    uint32_t n = hl_cl_light_ranges(l);
-    double *per = malloc(n * sizeof *per), total = 0.0, most = 0.0;
-    if (!per) return;
-    hl_cl_light_kept_entries(l, bits, per);
-    for (uint32_t r = 0; r < n; r++) {
-        total += per[r];
-        most = fmax(most, per[r]);
-    }
-    if (n > 1 && (nverts + 15) / 16 / n >= 48) {
-        printf("kept entries over %u ranges: largest %.0f, mean %.1f\n", n, most, total / n);
-        hl_check_error("largest range's kept entries over the mean, minus 1", most / (total / n) - 1.0, 0.03);
-    } else if (n > 1) {
-        printf("kept entries over %u ranges: balance not checked (fewer than 48 tiles a range)\n", n);
-    }
-    free(per);
-}
-
-/* The ranges that take the tile walk for the kept slots in bits (the rest
- * into *by_column). */
-static uint32_t count_walks(const hl_cl_light *l, const uint32_t *bits, uint32_t *by_column)
-{
-    uint32_t n = hl_cl_light_ranges(l), tiles = 0;
-    double *per = malloc(n * sizeof *per);
-    if (!per) return 0;
-    double kept = hl_cl_light_kept_entries(l, bits, per);
-    for (uint32_t r = 0; r < n; r++) {
-        int t = hl_cl_light_tile_walk(l, r, per[r], (uint32_t)kept);
-        tiles += t;
-        *by_column += !t;
-    }
-    free(per);
-    return tiles;
-}
-
-/* Haar of 3 rows, selection and dot products: OpenCL equals C exactly
- * given identical inputs. */
-static void case_stages(void)
-{
-    hl_context *cl = ctx_of(HL_BACKEND_OPENCL), *ref = ctx_of(HL_BACKEND_REFERENCE);
-    hl_transport *t = NULL;
-    for (int scheme = 0; scheme < 2; scheme++) {
-        const char *path = make_transport("light_b.hlt", scheme ? "--quant linear8" : "--quant log8");
-        HL_CHECK(path && hl_transport_load(ref, path, &t) == HL_OK, "transport");
-        if (!t || !cl) return;
-        hl_geom *g = NULL;
-        hl_light_geom *lg = NULL;
-        hl_geom_create(ref, t->info.N, t->info.C, &g);
-        hl_light_geom_create(ref, g, &lg);
-        const uint32_t V = t->info.vertex_count, nc = g->ncoef;
-        float *alb = malloc((size_t)V * 16);
-        for (uint32_t v = 0; v < V; v++) { memcpy(alb + 4 * v, t->mesh->albedo + 3 * v, 12); alb[4 * v + 3] = 0; }
-        hl_cl_light *l = NULL;
-        HL_CHECK(hl_cl_light_create(cl, g, lg, t, alb, &l) == HL_OK, "%s", hl_context_last_error(cl));
-        hl_env *env = make_env(ref, 512, 100, 60, 3e4f);
-        float *cells = NULL, *Lp = malloc((size_t)nc * 12), *Lp2 = malloc((size_t)nc * 12);
-        float *wa = malloc((size_t)nc * 12), *wb = malloc((size_t)nc * 12);
-        hl_env_to_cells(ref, env, lg->wc, lg->hc, &cells);
-        hl_ref_env2para(cells, lg->wc, lg->tap_start, lg->taps, 5, 0.25f, nc, Lp);
-        memcpy(Lp2, Lp, (size_t)nc * 12);
-        for (int c = 0; c < 3; c++) hl_ref_haar(g, Lp + (size_t)c * nc, wa + (size_t)c * nc);
-        HL_CHECK(hl_cl_light_stage_haar(l, Lp2, wb) == HL_OK, "haar");
-        double hw = 0.0, hs = 0.0;
-        for (size_t k = 0; k < 3 * (size_t)nc; k++) { hw = fmax(hw, fabs((double)wa[k] - wb[k])); hs = fmax(hs, fabs(wa[k])); }
-        hl_check_error("Haar of R, G, B: OpenCL vs C (relative to max)", hw / hs, 1e-6);
-        float *sa = malloc((size_t)nc * 16), *sb = malloc((size_t)nc * 16), *Ba = malloc((size_t)V * 16), *Bb = malloc((size_t)V * 16);
-        uint8_t *ua = malloc(g->nblocks), *ub = malloc(g->nblocks);
-        uint32_t *ka = malloc((size_t)nc / 8), *kb = malloc((size_t)nc / 8);
-        hl_ref_key *keys = malloc((size_t)nc * sizeof *keys);
-        static const uint32_t Ms[] = {1, 25, 200, 1000, HL_TERMS_ALL};
-        uint32_t walks[2] = {0, 0}; /* ranges walked by tile, by column */
-        for (uint32_t sel = HL_SELECT_AREA; sel <= HL_SELECT_UNWEIGHTED; sel++)
-            for (size_t m = 0; m < 5; m++) {
-                hl_select_params sp = {Ms[m], sel, {0, 0}};
-                float *w = sel == HL_SELECT_AREA ? lg->area : NULL;
-                float *ones = NULL;
-                if (!w) { ones = malloc((size_t)nc * 4); for (uint32_t i = 0; i < nc; i++) ones[i] = 1.0f; w = ones; }
-                hl_cl_light_set_weights(l, w);
-                hl_select_result ra = hl_ref_select(wa, nc, w, sp, sa, ua, ka, g->nblocks, keys), rb;
-                HL_CHECK(hl_cl_light_stage_select(l, wa, sp, sb, ub, kb, &rb) == HL_OK, "select");
-                int same = !memcmp(sa, sb, (size_t)nc * 16) && !memcmp(ua, ub, g->nblocks) && !memcmp(ka, kb, nc / 8) && ra.kept == rb.kept &&
-                           ra.blocks_used == rb.blocks_used && ra.energy_kept == rb.energy_kept && ra.energy_total == rb.energy_total;
-                HL_CHECK(same, "selection M=%u scheme %u: OpenCL differs from C", Ms[m], sel);
-                HL_CHECK(ra.kept == (Ms[m] < nc ? Ms[m] : ra.kept), "kept %u of M=%u", ra.kept, Ms[m]);
-                /* dot products: the twin skips nothing */
-                for (uint32_t v = 0; v < V; v++) {
-                    hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * g->nblocks,
-                                   t->row_quant[v], t->info.quant, v, g->nblocks, sa, alb + 4 * v, 0, Ba + 4 * v);
-                }
-                HL_CHECK(hl_cl_light_stage_relight(l, sa, ka, Bb) == HL_OK, "relight");
-                uint32_t diff = 0;
-                for (uint32_t v = 0; v < V; v++) diff += memcmp(Ba + 4 * v, Bb + 4 * v, 12) != 0;
-                printf("%s, %s, M=%u: kept %u, %u of %u blocks, energy kept %.6f; %u of %u vertices differ\n",
-                       scheme ? "linear8" : "log8", sel == HL_SELECT_AREA ? "area" : "unweighted", Ms[m], ra.kept,
-                       ra.blocks_used, g->nblocks, ra.energy_total > 0 ? ra.energy_kept / ra.energy_total : 1.0, diff, V);
-                HL_CHECK(diff == 0, "dot products: OpenCL must equal C bit for bit");
-                walks[0] += count_walks(l, ka, &walks[1]);
-                if (Ms[m] == 200) check_balance(l, ka, V);
-                free(ones);
-            }
-        /* both of the kernel's walks were compared with the twin */
-        printf("ranges walked by tile: %u, by column: %u\n", walks[0], walks[1]);
-        HL_CHECK(walks[0] > 0 && walks[1] > 0, "both walks of the dot products tested");
-        free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub); free(ka); free(kb); free(keys);
-        free(Lp); free(Lp2); free(wa); free(wb); free(alb);
-        hl_free_big(cells);
-        hl_env_destroy(env);
-        hl_cl_light_destroy(l);
-        hl_light_geom_destroy(lg);
-        hl_geom_destroy(g);
-        hl_transport_destroy(t);
-        t = NULL;
-    }
-    hl_context_destroy(cl);
-    hl_context_destroy(ref);
-}
+static void case_twin(void) { lighting_chain(1); }
 
 /* Whole relights through the public API. */
 static void case_relighter(void)
@@ -782,9 +512,14 @@ static void case_negative(void)
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
-        {"env2para", case_env2para}, {"energy", case_energy},   {"stages", case_stages},
-        {"relighter", case_relighter}, {"furnace", case_furnace}, {"into", case_into},
-        {"extreme", case_extreme}, {"orientation", case_orientation}, {"negative", case_negative}, {NULL, NULL},
+        {"twin", case_twin},
+        {"relighter", case_relighter},
+        {"into", case_into},
+        {"furnace", case_furnace},
+        {"orientation", case_orientation},
+        {"extreme", case_extreme},
+        {"negative", case_negative},
+        {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);
 }

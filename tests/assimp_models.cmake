@@ -1,12 +1,3 @@
-# Mesh module: loading (native OBJ and assimp), welding, clean-up,
-# orientation, normals, ground plane and bad input.
-hl_test_exe(test_mesh test_mesh.c)
-hl_test_cases(test_mesh mesh
-  bunny teapot horse_up_z horse_keep_winding normals ground ply create
-  obj_features obj_vs_ply
-  bad_nan bad_index bad_no_faces bad_not_mesh bad_counts bad_missing bad_empty bad_args
-  bad_no_placed_mesh bad_placed_overflow bad_import_memory)
-
 # Every model of Debian's assimp-testmodels package through `precompute`
 # (-C 8 -N 8, --device ref), two at a time, each under a memory and a time
 # limit: each loads or is refused with a message (test_assimp_models.sh).
@@ -17,7 +8,7 @@ if(HL_SANITIZE)
 else()
   set(HL_MODELS_SANITIZE 0)
 endif()
-add_test(NAME hl.mesh.assimp_testmodels COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_assimp_models.sh)
-set_tests_properties(hl.mesh.assimp_testmodels PROPERTIES
+add_test(NAME hl.assimp_models.testmodels COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_assimp_models.sh)
+set_tests_properties(hl.assimp_models.testmodels PROPERTIES
   ENVIRONMENT "HL_BIN=$<TARGET_FILE:haarlight>;HL_TMP=${CMAKE_CURRENT_BINARY_DIR}/tmp;HL_SANITIZE=${HL_MODELS_SANITIZE}"
   SKIP_RETURN_CODE 77 TIMEOUT 1500)

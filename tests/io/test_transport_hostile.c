@@ -1,0 +1,322 @@
+/* test_transport_hostile.c - corrupt transport files and bad rows (suite
+ * "transport_hostile").
+ *
+ * Cases: corrupt (every single-byte flip refused unless it lands in
+ * padding; forged headers and contents with valid checksums refused),
+ * badappend (invalid rows and parameters refused without changing the
+ * writer). The header offsets are those of host/FORMAT.md, so this test
+ * also pins the documented layout; checksums are forged with the test's
+ * own bitwise CRC-32.
+ * Depends on: haarlight_core (reference backend only),
+ * tests/common/transport_synth.h.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <dirent.h>
+#include <errno.h>
+#include <stdint.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "hl_test.h"
+#include "transport_file.h"
+#include "transport_synth.h"
+
+static hl_result load_bytes(hl_context *ctx, const char *path, const uint8_t *data, size_t size, hl_transport **t)
+{
+    write_file(path, data, size);
+    *t = NULL;
+    return hl_transport_load(ctx, path, t);
+}
+
+static void expect_refused(hl_context *ctx, const char *path, const uint8_t *data, size_t size, const char *what,
+                           const char *needle)
+{
+    hl_transport *t = NULL;
+    hl_result r = load_bytes(ctx, path, data, size, &t);
+    const char *msg = hl_context_last_error(ctx);
+    printf("%s: %s\n", what, msg);
+    HL_CHECK(r == HL_ERR_FORMAT && t == NULL, "%s: result %d", what, (int)r);
+    HL_CHECK(strstr(msg, needle) != NULL, "%s: message should mention \"%s\"", what, needle);
+    hl_transport_destroy(t);
+}
+
+static void case_corrupt(void)
+{
+    hl_context *ctx = make_ctx();
+    char path[512], bad[512];
+    tmp_path(path, sizeof path, "file_corrupt_src.hlt");
+    tmp_path(bad, sizeof bad, "file_corrupt.hlt");
+    synth s;
+    small_file(ctx, path, &s);
+    uint8_t *data = NULL;
+    size_t size = 0;
+    HL_CHECK(read_file(path, &data, &size) == 0, "read");
+    uint8_t *f = malloc(size);
+
+    uint64_t mesh_end = rd64(data + F_MESH_OFFSET) + rd64(data + F_MESH_SIZE);
+    uint64_t rows_end = rd64(data + F_ROWS_OFFSET) + rd64(data + F_ROWS_SIZE);
+    uint64_t rows_off = rd64(data + F_ROWS_OFFSET), entries_off = rd64(data + F_ENTRIES_OFFSET);
+    printf("file %zu bytes, padding [%llu, %llu) and [%llu, %llu)\n", size, (unsigned long long)mesh_end,
+           (unsigned long long)rows_off, (unsigned long long)rows_end, (unsigned long long)entries_off);
+
+    /* every byte, three flip patterns */
+    static const uint8_t masks[] = {0x01, 0x80, 0xFF};
+    int refused = 0, padding_ok = 0;
+    for (size_t pos = 0; pos < size; pos++)
+        for (int m = 0; m < 3; m++) {
+            memcpy(f, data, size);
+            f[pos] ^= masks[m];
+            hl_transport *t = NULL;
+            hl_result r = load_bytes(ctx, bad, f, size, &t);
+            int in_padding = (pos >= mesh_end && pos < rows_off) || (pos >= rows_end && pos < entries_off);
+            if (r == HL_ERR_FORMAT && !t) {
+                refused++;
+                HL_CHECK(!in_padding, "flip at %zu (padding) refused: %s", pos, hl_context_last_error(ctx));
+            } else if (r == HL_OK && t) {
+                HL_CHECK(in_padding, "flip 0x%02x at %zu accepted", masks[m], pos);
+                synth_compare(t, &s, "padding flip");
+                padding_ok++;
+            } else {
+                HL_CHECK(0, "flip at %zu: result %d", pos, (int)r);
+            }
+            hl_transport_destroy(t);
+        }
+    printf("%d flips refused, %d in padding loaded identically\n", refused, padding_ok);
+
+    /* forged headers with valid CRCs */
+    memcpy(f, data, size);
+    memcpy(f, "HLTRANS2", 8);
+    expect_refused(ctx, bad, f, size, "magic", "not a haarlight transport file");
+    memcpy(f, data, size);
+    wr32(f + F_VERSION, 1);
+    fix_header_crc(f);
+    expect_refused(ctx, bad, f, size, "version", "version 1, this build reads 2");
+    memcpy(f, data, size);
+    wr32(f + F_N, 12);
+    fix_header_crc(f);
+    expect_refused(ctx, bad, f, size, "N", "N = 12");
+    memcpy(f, data, size);
+    wr32(f + F_VERTEX_COUNT, 0xFFFFFFF0u);
+    fix_header_crc(f);
+    expect_refused(ctx, bad, f, size, "huge vertex_count", "mesh_size");
+
+    /* consistent forgery: every size agrees with a 2^31-vertex file, so only
+     * the real file size stands between the reader and a 100 GB malloc */
+    {
+        uint32_t V = 0x7FFFFFFFu, T = 0x7FFFFFFFu;
+        uint64_t mesh = 36ull * V + 12ull * T, ro = (192 + mesh + 63) / 64 * 64, rs = 10ull * V;
+        uint64_t eo = (ro + rs + 63) / 64 * 64;
+        memcpy(f, data, size);
+        wr32(f + F_VERTEX_COUNT, V);
+        wr32(f + F_TRIANGLE_COUNT, T);
+        wr64(f + F_COEF, 0);
+        wr64(f + F_MESH_SIZE, mesh);
+        wr64(f + F_ROWS_OFFSET, ro);
+        wr64(f + F_ROWS_SIZE, rs);
+        wr64(f + F_ENTRIES_OFFSET, eo);
+        wr64(f + F_ENTRIES_SIZE, 0);
+        wr64(f + F_FILE_SIZE, eo);
+        fix_header_crc(f);
+        expect_refused(ctx, bad, f, size, "consistent huge header", "truncated: expected");
+    }
+
+    /* valid checksums, invalid contents: the structure checks must catch them */
+    uint64_t mo = rd64(data + F_MESH_OFFSET);
+    uint32_t V = s.info.vertex_count, T = s.info.triangle_count;
+    memcpy(f, data, size);
+    wr32(f + mo + 36 * V + 12 * 2 + 4, V); /* triangle 2, second index */
+    fix_section_crc(f, F_MESH_OFFSET, F_MESH_CRC);
+    expect_refused(ctx, bad, f, size, "index out of range", "triangle 2");
+    memcpy(f, data, size);
+    wr32(f + mo + 12 * 3 + 4, 0x7FC00000u); /* vertex 3 position y = NaN */
+    fix_section_crc(f, F_MESH_OFFSET, F_MESH_CRC);
+    expect_refused(ctx, bad, f, size, "NaN position", "vertex 3");
+    memcpy(f, data, size);
+    wr32(f + mo + 24 * V + 12 * 4, 0x7F800000u); /* vertex 4 albedo r = +Inf */
+    fix_section_crc(f, F_MESH_OFFSET, F_MESH_CRC);
+    expect_refused(ctx, bad, f, size, "Inf albedo", "vertex 4");
+    memcpy(f, data, size);
+    wr32(f + mo + 24 * V + 12 * 2 + 4, 0x40000000u); /* vertex 2 albedo g = 2 */
+    fix_section_crc(f, F_MESH_OFFSET, F_MESH_CRC);
+    expect_refused(ctx, bad, f, size, "albedo above 1", "vertex 2: albedo");
+    memcpy(f, data, size);
+    wr32(f + mo + 12 * V + 12 * 3, 0x40000000u); /* vertex 3 normal x = 2 */
+    fix_section_crc(f, F_MESH_OFFSET, F_MESH_CRC);
+    expect_refused(ctx, bad, f, size, "normal not of unit length", "vertex 3: normal");
+    (void)T;
+
+    /* row records: 8 + 2 bytes for N = 8 */
+    memcpy(f, data, size);
+    f[rows_off + 10 * 2 + 8] = 129; /* vertex 2: 129 entries in a 128-slot block */
+    f[rows_off + 10 * 2 + 9] = 0;
+    fix_section_crc(f, F_ROWS_OFFSET, F_ROWS_CRC);
+    expect_refused(ctx, bad, f, size, "count over slots", "vertex 2");
+    memcpy(f, data, size);
+    f[rows_off + 10 * 0 + 8] += 1; /* vertex 0 is empty; now it claims an entry */
+    fix_section_crc(f, F_ROWS_OFFSET, F_ROWS_CRC);
+    expect_refused(ctx, bad, f, size, "count sum", "vertex");
+    memcpy(f, data, size);
+    wr32(f + rows_off + 10 * 3, 0xBF800000u); /* vertex 3 log8 min = -1 */
+    fix_section_crc(f, F_ROWS_OFFSET, F_ROWS_CRC);
+    expect_refused(ctx, bad, f, size, "negative log8 magnitude", "vertex 3");
+
+    /* entries: the first vertex with two entries in its (single) block */
+    uint64_t off = 0;
+    uint32_t target = V;
+    for (uint32_t v = 0; v < V; v++) {
+        if (s.nnz[v] >= 2) {
+            target = v;
+            break;
+        }
+        off += s.nnz[v];
+    }
+    HL_CHECK(target < V, "small file needs a vertex with two entries");
+    if (target < V) {
+        char needle[32];
+        snprintf(needle, sizeof needle, "vertex %u", target);
+        memcpy(f, data, size);
+        uint8_t *e = f + entries_off + 2 * off;
+        uint8_t tmp = e[0];
+        e[0] = e[2];
+        e[2] = tmp; /* indices now decrease */
+        fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
+        expect_refused(ctx, bad, f, size, "decreasing indices", needle);
+        memcpy(f, data, size);
+        e = f + entries_off + 2 * off;
+        e[2] = e[0]; /* duplicate index */
+        fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
+        expect_refused(ctx, bad, f, size, "duplicate index", needle);
+        memcpy(f, data, size);
+        e = f + entries_off + 2 * off;
+        e[2 * (s.nnz[target] - 1)] = 200; /* beyond the 128 slots of N = 8 */
+        fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
+        expect_refused(ctx, bad, f, size, "index beyond slots", needle);
+    }
+    free(f);
+    free(data);
+    remove(bad);
+    remove(path);
+    synth_free(&s);
+    hl_context_destroy(ctx);
+}
+
+static void expect_append_refused(hl_tfile_writer *w, hl_context *ctx, const char *what, const hl_row_quant *rq,
+                                  const uint16_t *counts, const uint8_t *entries, size_t stride,
+                                  const uint32_t *nnz, uint32_t n)
+{
+    hl_result r = hl_tfile_writer_append(w, n, rq, counts, entries, stride, nnz);
+    printf("%s: %s\n", what, hl_context_last_error(ctx));
+    HL_CHECK(r == HL_ERR_INVALID_ARGUMENT, "%s: result %d", what, (int)r);
+}
+
+static void case_badappend(void)
+{
+    hl_context *ctx = make_ctx();
+    char path[512], ref[512];
+    tmp_path(path, sizeof path, "file_badappend.hlt");
+    tmp_path(ref, sizeof ref, "file_badappend_ref.hlt");
+    synth s;
+    synth_make(&s, 8, HL_QUANT_LOG8, 4, 2);
+    static const uint32_t all[] = {100};
+    HL_CHECK(synth_write(ctx, ref, &s, all, 1) == HL_OK, "reference write: %s", hl_context_last_error(ctx));
+
+    /* bad parameters at open */
+    hl_tfile_writer *w = NULL;
+    hl_transport_info bi = s.info;
+    bi.N = 12;
+    HL_CHECK(hl_tfile_writer_open(ctx, path, &bi, &s.mesh, &w) == HL_ERR_INVALID_ARGUMENT && !w, "N = 12");
+    bi = s.info;
+    bi.block_count = 2;
+    HL_CHECK(hl_tfile_writer_open(ctx, path, &bi, &s.mesh, &w) == HL_ERR_INVALID_ARGUMENT && !w, "block_count");
+    bi = s.info;
+    bi.rule = HL_TRUNC_DEFAULT;
+    HL_CHECK(hl_tfile_writer_open(ctx, path, &bi, &s.mesh, &w) == HL_ERR_INVALID_ARGUMENT && !w, "rule 0");
+    bi = s.info;
+    bi.vertex_count = 5;
+    HL_CHECK(hl_tfile_writer_open(ctx, path, &bi, &s.mesh, &w) == HL_ERR_INVALID_ARGUMENT && !w, "mesh mismatch");
+    s.mesh.indices[1] = 4;
+    HL_CHECK(hl_tfile_writer_open(ctx, path, &s.info, &s.mesh, &w) == HL_ERR_INVALID_ARGUMENT && !w, "bad index");
+    printf("bad mesh index: %s\n", hl_context_last_error(ctx));
+    s.mesh.indices[1] = 0;
+    HL_CHECK(!file_exists(path), "refused open left a file");
+
+    /* a reference file to compare with, from s with indices[1] = 0 */
+    remove(ref);
+    HL_CHECK(synth_write(ctx, ref, &s, all, 1) == HL_OK, "reference write: %s", hl_context_last_error(ctx));
+
+    HL_CHECK(hl_tfile_writer_open(ctx, path, &s.info, &s.mesh, &w) == HL_OK, "open: %s", hl_context_last_error(ctx));
+    hl_row_quant rq = {1e-3f, 1.0f};
+    uint16_t cnt[1];
+    uint8_t e[8];
+    uint32_t nz;
+
+    cnt[0] = 129;
+    nz = 129;
+    uint8_t big[2 * 129] = {0};
+    for (int k = 0; k < 129; k++) big[2 * k] = (uint8_t)k;
+    expect_append_refused(w, ctx, "129 entries in 128 slots", &rq, cnt, big, sizeof big, &nz, 1);
+    cnt[0] = 3;
+    nz = 2;
+    e[0] = 1, e[2] = 2, e[4] = 3;
+    expect_append_refused(w, ctx, "counts sum to 3, nnz 2", &rq, cnt, e, 8, &nz, 1);
+    cnt[0] = 2;
+    nz = 2;
+    e[0] = 5, e[2] = 5;
+    expect_append_refused(w, ctx, "duplicate index", &rq, cnt, e, 8, &nz, 1);
+    e[0] = 7, e[2] = 3;
+    expect_append_refused(w, ctx, "decreasing index", &rq, cnt, e, 8, &nz, 1);
+    e[0] = 3, e[2] = 200;
+    expect_append_refused(w, ctx, "index past the short block", &rq, cnt, e, 8, &nz, 1);
+    e[0] = 3, e[2] = 4;
+    hl_row_quant nanq = {NAN, 1.0f}, negq = {-1.0f, 1.0f};
+    expect_append_refused(w, ctx, "NaN row parameter", &nanq, cnt, e, 8, &nz, 1);
+    expect_append_refused(w, ctx, "negative log8 magnitude", &negq, cnt, e, 8, &nz, 1);
+    /* two vertices whose rows overlap because the stride is too short */
+    hl_row_quant rq2[2] = {rq, rq};
+    uint16_t cnt2[2] = {2, 2};
+    uint32_t nz2[2] = {2, 2};
+    expect_append_refused(w, ctx, "stride shorter than a row", rq2, cnt2, e, 2, nz2, 2);
+    /* second vertex of a batch is bad: the first must not be written */
+    uint16_t cnt3[2] = {0, 200};
+    uint32_t nz3[2] = {0, 200};
+    expect_append_refused(w, ctx, "bad second vertex", rq2, cnt3, big, 0, nz3, 2);
+    expect_append_refused(w, ctx, "too many vertices", s.rq, s.counts, s.entries, s.stride, s.nnz, 5);
+
+    /* after all the refusals, the real rows give the reference bytes */
+    HL_CHECK(hl_tfile_writer_append(w, 4, s.rq, s.counts, s.entries, s.stride, s.nnz) == HL_OK, "valid append: %s",
+             hl_context_last_error(ctx));
+    expect_append_refused(w, ctx, "append past the end", s.rq, s.counts, s.entries, s.stride, s.nnz, 1);
+    hl_transport_info fin = s.info;
+    fin.coefficients_kept = s.total + 1;
+    hl_result r = hl_tfile_writer_finish(w, &fin);
+    printf("wrong coefficients_kept: %s\n", hl_context_last_error(ctx));
+    HL_CHECK(r == HL_ERR_INVALID_ARGUMENT && !file_exists(path), "wrong coefficients_kept at finish");
+
+    HL_CHECK(hl_tfile_writer_open(ctx, path, &s.info, &s.mesh, &w) == HL_OK, "open");
+    expect_append_refused(w, ctx, "bad second vertex again", rq2, cnt3, big, 0, nz3, 2);
+    HL_CHECK(hl_tfile_writer_append(w, 4, s.rq, s.counts, s.entries, s.stride, s.nnz) == HL_OK, "valid append");
+    fin.coefficients_kept = s.total;
+    fin.rays_cast = 123456789012ull;
+    fin.rays_culled = 98765432101ull;
+    HL_CHECK(hl_tfile_writer_finish(w, &fin) == HL_OK, "finish: %s", hl_context_last_error(ctx));
+    uint8_t *a = NULL, *b = NULL;
+    size_t na = 0, nb = 0;
+    HL_CHECK(read_file(path, &a, &na) == 0 && read_file(ref, &b, &nb) == 0 && na == nb && memcmp(a, b, na) == 0,
+             "refused appends changed the output");
+    free(a);
+    free(b);
+    remove(path);
+    remove(ref);
+    synth_free(&s);
+    hl_context_destroy(ctx);
+}
+
+int main(int argc, char **argv)
+{
+    static const hl_test_case cases[] = {
+        {"corrupt", case_corrupt},
+        {"badappend", case_badappend},
+        {NULL, NULL},
+    };
+    return hl_test_main(argc, argv, cases);
+}

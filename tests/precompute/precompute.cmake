@@ -1,0 +1,13 @@
+# Precompute (host/src/precompute, kernels/precompute): truncation and
+# quantisation against their plain-C twins (needs an OpenCL device: PoCL),
+# and the whole chunk path.
+hl_test_exe(test_truncate ${CMAKE_CURRENT_LIST_DIR}/test_truncate.c)
+hl_test_cases(test_truncate truncate twin)
+hl_test_exe(test_quantize ${CMAKE_CURRENT_LIST_DIR}/test_quantize.c)
+hl_test_cases(test_quantize quantize twin dither)
+hl_test_exe(test_precompute ${CMAKE_CURRENT_LIST_DIR}/test_precompute.c)
+hl_test_cases(test_precompute precompute pipeline)
+# Address-space limits cannot work under AddressSanitizer's shadow memory.
+if(NOT HL_SANITIZE)
+  hl_test_cases(test_precompute precompute ref_oom)
+endif()
