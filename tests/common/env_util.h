@@ -161,5 +161,4 @@ static inline hl_result expect_refused(hl_context *ctx, const char *path, hl_res
     return r;
 }
 
-
 #endif

@@ -1,12 +1,10 @@
 /* exr_build.h - OpenEXR files written byte by byte (tests/io's hostile
  * header and chunk tests): a growing byte buffer, little-endian numbers,
- * attributes, the required header attributes, tile descriptions.
+ * attributes, the required header attributes, tile descriptions, parts.
  * Depends on: hl_test.h.
  */
 #ifndef HL_TEST_EXR_BUILD_H
 #define HL_TEST_EXR_BUILD_H
-
-/* ---------------------------------------------------------------- hostile_headers */
 
 /* OpenEXR bytes written field by field (little-endian), for headers no
  * library would write. */

@@ -194,5 +194,4 @@ static inline void lighting_chain(int dots)
     hl_context_destroy(ref);
 }
 
-
 #endif

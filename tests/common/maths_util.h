@@ -161,5 +161,4 @@ static inline double stages_B(const hl_geom *g, const uint8_t *vis, uint32_t S, 
     return B;
 }
 
-
 #endif

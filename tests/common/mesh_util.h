@@ -218,5 +218,4 @@ static inline void check_ground(const char *what, hl_mesh *m, uint32_t res, doub
     HL_CHECK(hl_mesh_add_ground(NULL, m, NULL) == HL_ERR_INVALID_ARGUMENT, "%s: a second ground must be refused", what);
 }
 
-
 #endif

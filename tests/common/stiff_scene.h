@@ -322,5 +322,4 @@ static inline int rig_run(rig *g, const hl_env *env, uint32_t terms, const char 
     return rig_run_sel(g, env, terms, HL_SELECT_DEFAULT, what);
 }
 
-
 #endif
