@@ -161,138 +161,203 @@ static void fill_normals(const hl_mesh *m, uint32_t first, uint32_t count, float
     }
 }
 
-hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *desc,
-                        const char *out_path, hl_precompute_stats *stats)
+/* One run's state, shared by its phases: open, the chunk loop, close. */
+typedef struct pc_run {
+    hl_context *ctx;
+    const hl_mesh *mesh;
+    const char *out_path;
+    hl_precompute_desc d;
+    hl_precompute_stats st;
+    double t_start;
+    hl_geom *g;
+    hl_rt *rt;
+    hl_cl_pipe *pipe;
+    hl_tfile_writer *w;
+    hl_chunk_buf buf[2];
+    uint32_t V, R;
+    uint32_t start; /* vertices already written (resume) */
+    uint32_t nchunks;
+    float offset, vis_scale;
+    hl_trunc_params tp;
+    hl_vis_counts vc, vc_done; /* vc_done: rays of the vertices appended */
+    hl_vis_counts vc_resumed;  /* rays of a resumed file's earlier runs */
+    hl_transport_info info;
+} pc_run;
+
+/* The file's header fields known before the first row. */
+static void fill_info(pc_run *u)
 {
-    hl_precompute_desc d = {0};
-    if (desc) d = *desc;
-    hl_result r = hl_precompute_resolve(ctx, &d);
-    if (r != HL_OK) return r;
-    if (!mesh || mesh->vertex_count == 0 || mesh->triangle_count == 0)
-        return hl_fail(ctx, HL_ERR_MESH, "the mesh is empty");
-    double t_start = hl_now();
-    hl_precompute_stats st = {0};
-    hl_geom *g = NULL;
-    hl_rt *rt = NULL;
-    hl_cl_pipe *pipe = NULL;
-    hl_tfile_writer *w = NULL;
-    hl_chunk_buf buf[2] = {{0}};
-    const uint32_t V = mesh->vertex_count, R = d.chunk < V ? d.chunk : V;
-    uint32_t start = 0; /* vertices already written (resume) */
-    uint32_t nchunks = (V + R - 1) / R;
-    const float offset = d.ray_offset * hl_mesh_query_diagonal(mesh); /* 0: robust */
-    const float vis_scale = (float)(1.0 / (HL_PI * d.supersample * d.supersample));
-    const hl_trunc_params tp = hl_precompute_trunc_params(&d);
-    hl_vis_counts vc = {0, 0}, vc_done = {0, 0}; /* vc_done: rays of the vertices appended */
-    hl_vis_counts vc_resumed = {0, 0};              /* rays of a resumed file's earlier runs */
-    hl_transport_info info = {0};
+    const hl_precompute_desc *d = &u->d;
+    hl_transport_info *info = &u->info;
+    info->N = d->N;
+    info->C = d->C;
+    info->supersample = d->supersample;
+    info->rule = d->rule;
+    info->K = d->K;
+    info->eps = d->rule == HL_TRUNC_ENERGY ? d->eps : 0.0f;
+    info->quant = d->quant;
+    info->ray_offset = d->ray_offset;
+    info->vertex_count = u->V;
+    info->object_vertex_count = u->mesh->object_vertex_count;
+    info->triangle_count = u->mesh->triangle_count;
+    info->block_count = u->g->nblocks;
+}
 
-    r = hl_geom_create(ctx, d.N, d.C, &g);
-    if (r == HL_OK) r = hl_rt_create(ctx, mesh, &rt);
-    if (r == HL_OK) r = hl_chunk_buf_alloc(ctx, g, R, &buf[0]);
-    if (r == HL_OK) r = hl_chunk_buf_alloc(ctx, g, R, &buf[1]);
-    if (r == HL_OK && ctx->backend == HL_BACKEND_OPENCL) r = hl_cl_pipe_create(ctx, g, R, &pipe);
+/* With --resume, the writer of out_path.partial and where it stopped (no
+ * writer when there is nothing to resume). */
+static hl_result resume_writer(pc_run *u)
+{
+    hl_tfile_progress done;
+    hl_result r = hl_tfile_writer_resume(u->ctx, u->out_path, &u->info, u->mesh, &u->w, &done);
+    if (r == HL_OK && u->w) {
+        u->start = done.appended;
+        u->st.coefficients_kept = done.coefficients;
+        u->vc.rays_cast = u->vc_done.rays_cast = done.rays_cast;
+        u->vc.rays_culled = u->vc_done.rays_culled = done.rays_culled;
+        u->vc_resumed = u->vc;
+        u->nchunks = (u->V - u->start + u->R - 1) / u->R;
+        if (!u->ctx->quiet)
+            fprintf(stderr, "precompute: resuming %s.partial at vertex %u of %u\n", u->out_path, u->start, u->V);
+    } else if (r == HL_OK && !u->ctx->quiet) {
+        fprintf(stderr, "precompute: no %s.partial to resume; starting from the beginning\n", u->out_path);
+    }
+    return r;
+}
+
+/* Tables, ray tracer, host chunk buffers, device pipeline and the writer. */
+static hl_result run_open(pc_run *u)
+{
+    hl_context *ctx = u->ctx;
+    hl_result r = hl_geom_create(ctx, u->d.N, u->d.C, &u->g);
+    if (r == HL_OK) r = hl_rt_create(ctx, u->mesh, &u->rt);
+    if (r == HL_OK) r = hl_chunk_buf_alloc(ctx, u->g, u->R, &u->buf[0]);
+    if (r == HL_OK) r = hl_chunk_buf_alloc(ctx, u->g, u->R, &u->buf[1]);
+    if (r == HL_OK && ctx->backend == HL_BACKEND_OPENCL) r = hl_cl_pipe_create(ctx, u->g, u->R, &u->pipe);
     if (r == HL_OK) {
-        info.N = d.N;
-        info.C = d.C;
-        info.supersample = d.supersample;
-        info.rule = d.rule;
-        info.K = d.K;
-        info.eps = d.rule == HL_TRUNC_ENERGY ? d.eps : 0.0f;
-        info.quant = d.quant;
-        info.ray_offset = d.ray_offset;
-        info.vertex_count = V;
-        info.object_vertex_count = mesh->object_vertex_count;
-        info.triangle_count = mesh->triangle_count;
-        info.block_count = g->nblocks;
-        if (d.resume) {
-            hl_tfile_progress done;
-            r = hl_tfile_writer_resume(ctx, out_path, &info, mesh, &w, &done);
-            if (r == HL_OK && w) {
-                start = done.appended;
-                st.coefficients_kept = done.coefficients;
-                vc.rays_cast = vc_done.rays_cast = done.rays_cast;
-                vc.rays_culled = vc_done.rays_culled = done.rays_culled;
-                vc_resumed = vc;
-                nchunks = (V - start + R - 1) / R;
-                if (!ctx->quiet)
-                    fprintf(stderr, "precompute: resuming %s.partial at vertex %u of %u\n", out_path, start, V);
-            } else if (r == HL_OK && !ctx->quiet) {
-                fprintf(stderr, "precompute: no %s.partial to resume; starting from the beginning\n", out_path);
-            }
-        }
-        if (r == HL_OK && !w) r = hl_tfile_writer_open(ctx, out_path, &info, mesh, &w);
+        fill_info(u);
+        if (u->d.resume) r = resume_writer(u);
+        if (r == HL_OK && !u->w) r = hl_tfile_writer_open(ctx, u->out_path, &u->info, u->mesh, &u->w);
     }
+    return r;
+}
 
-    /* chunk k's rays are cast while the device runs chunk k-1 */
-    for (uint32_t k = 0; r == HL_OK && k <= nchunks; k++) {
+/* The visibility rows of count vertices from first into slot s. */
+static hl_result cast_chunk(pc_run *u, int s, uint32_t first, uint32_t count)
+{
+    double t0 = hl_now();
+    fill_normals(u->mesh, first, count, u->buf[s].normals4);
+    hl_result r = hl_rt_visibility(u->rt, u->g, u->mesh, first, count, u->d.supersample, u->offset, u->buf[s].vis, &u->vc);
+    u->st.seconds_rays += hl_now() - t0;
+    return r;
+}
+
+/* Waits for the device's chunk k in slot s and appends its rows; the rays
+ * counted before the next chunk was cast (vc_before) are the ones its
+ * checkpoint records. */
+static hl_result append_device_chunk(pc_run *u, int s, uint32_t k, hl_vis_counts vc_before)
+{
+    double t0 = hl_now();
+    hl_result r = hl_cl_pipe_wait(u->pipe, s);
+    u->st.seconds_kernels += hl_now() - t0;
+    if (r != HL_OK) return r;
+    const hl_chunk_buf *b = &u->buf[s];
+    uint32_t pf = u->start + k * u->R, pc = u->V - pf < u->R ? u->V - pf : u->R;
+    r = hl_tfile_writer_append(u->w, pc, b->rq, b->bc, b->entries, (size_t)u->g->ncoef * 2, b->nnz);
+    for (uint32_t i = 0; i < pc; i++) u->st.coefficients_kept += b->nnz[i];
+    /* the rays of chunk k are cast but its rows are not written */
+    u->vc_done = vc_before;
+    if (r == HL_OK) r = hl_tfile_writer_checkpoint(u->w, u->vc_done.rays_cast, u->vc_done.rays_culled);
+    if (r != HL_OK) return r;
+    progress(u->ctx, pf + pc, u->V, u->vc.rays_cast, u->st.seconds_rays, u->t_start);
+    return HL_OK;
+}
+
+/* The four stages on the chunk in slot s: submitted to the device (its
+ * rows are appended when the next chunk's rays are cast), or run by the
+ * twins and appended now. */
+static hl_result run_chunk(pc_run *u, int s, uint32_t first, uint32_t count)
+{
+    hl_chunk_buf *b = &u->buf[s];
+    b->first = first;
+    if (u->pipe) return hl_cl_pipe_submit(u->pipe, s, count, u->vis_scale, u->tp, u->d.quant, b);
+    double t0 = hl_now();
+    hl_result r = hl_ref_rows(u->ctx, u->g, count, u->vis_scale, u->tp, u->d.quant, b);
+    u->st.seconds_kernels += hl_now() - t0;
+    if (r == HL_OK) r = hl_tfile_writer_append(u->w, count, b->rq, b->bc, b->entries, (size_t)u->g->ncoef * 2, b->nnz);
+    for (uint32_t i = 0; i < count; i++) u->st.coefficients_kept += b->nnz[i];
+    u->vc_done = u->vc;
+    if (r == HL_OK) r = hl_tfile_writer_checkpoint(u->w, u->vc_done.rays_cast, u->vc_done.rays_culled);
+    progress(u->ctx, first + count, u->V, u->vc.rays_cast, u->st.seconds_rays, u->t_start);
+    return r;
+}
+
+/* Chunk k's rays are cast while the device runs chunk k-1. */
+static hl_result run_chunks(pc_run *u)
+{
+    hl_result r = HL_OK;
+    for (uint32_t k = 0; r == HL_OK && k <= u->nchunks; k++) {
         int s = (int)(k & 1u);
-        uint32_t first = start + k * R, count = k < nchunks ? (V - first < R ? V - first : R) : 0;
-        hl_vis_counts vc_before = vc;
-        if (k < nchunks) {
-            double t0 = hl_now();
-            fill_normals(mesh, first, count, buf[s].normals4);
-            r = hl_rt_visibility(rt, g, mesh, first, count, d.supersample, offset, buf[s].vis, &vc);
-            st.seconds_rays += hl_now() - t0;
-            if (r != HL_OK) break;
-        }
-        if (pipe && k > 0) {
-            double t0 = hl_now();
-            r = hl_cl_pipe_wait(pipe, 1 - s);
-            st.seconds_kernels += hl_now() - t0;
-            if (r != HL_OK) break;
-            uint32_t pf = start + (k - 1) * R, pc = V - pf < R ? V - pf : R;
-            r = hl_tfile_writer_append(w, pc, buf[1 - s].rq, buf[1 - s].bc, buf[1 - s].entries, (size_t)g->ncoef * 2,
-                                       buf[1 - s].nnz);
-            for (uint32_t i = 0; i < pc; i++) st.coefficients_kept += buf[1 - s].nnz[i];
-            /* the rays of chunk k are cast but its rows are not written */
-            vc_done = vc_before;
-            if (r == HL_OK) r = hl_tfile_writer_checkpoint(w, vc_done.rays_cast, vc_done.rays_culled);
-            if (r != HL_OK) break;
-            progress(ctx, pf + pc, V, vc.rays_cast, st.seconds_rays, t_start);
-        }
-        if (k == nchunks) break;
-        buf[s].first = first;
-        if (pipe) {
-            r = hl_cl_pipe_submit(pipe, s, count, vis_scale, tp, d.quant, &buf[s]);
-        } else {
-            double t0 = hl_now();
-            r = hl_ref_rows(ctx, g, count, vis_scale, tp, d.quant, &buf[s]);
-            st.seconds_kernels += hl_now() - t0;
-            if (r == HL_OK)
-                r = hl_tfile_writer_append(w, count, buf[s].rq, buf[s].bc, buf[s].entries, (size_t)g->ncoef * 2,
-                                           buf[s].nnz);
-            for (uint32_t i = 0; i < count; i++) st.coefficients_kept += buf[s].nnz[i];
-            vc_done = vc;
-            if (r == HL_OK) r = hl_tfile_writer_checkpoint(w, vc_done.rays_cast, vc_done.rays_culled);
-            progress(ctx, first + count, V, vc.rays_cast, st.seconds_rays, t_start);
-        }
-        if (r == HL_OK && hl_context_cancelled(ctx)) r = HL_ERR_INTERRUPTED;
+        uint32_t first = u->start + k * u->R;
+        uint32_t count = k < u->nchunks ? (u->V - first < u->R ? u->V - first : u->R) : 0;
+        hl_vis_counts vc_before = u->vc;
+        if (k < u->nchunks && (r = cast_chunk(u, s, first, count)) != HL_OK) break;
+        if (u->pipe && k > 0 && (r = append_device_chunk(u, 1 - s, k - 1, vc_before)) != HL_OK) break;
+        if (k == u->nchunks) break;
+        r = run_chunk(u, s, first, count);
+        if (r == HL_OK && hl_context_cancelled(u->ctx)) r = HL_ERR_INTERRUPTED;
     }
-    if (r == HL_ERR_INTERRUPTED && w)
-        hl_fail(ctx, HL_ERR_INTERRUPTED,
+    return r;
+}
+
+/* Finishes the file (or keeps or removes the partial one), frees the
+ * run's resources and fills the statistics. */
+static hl_result run_close(pc_run *u, hl_result r, hl_precompute_stats *stats)
+{
+    if (r == HL_ERR_INTERRUPTED && u->w)
+        hl_fail(u->ctx, HL_ERR_INTERRUPTED,
                 "interrupted: %s not written; %u of %u vertices are kept in %s.partial (run again with --resume "
                 "to continue)",
-                out_path, hl_tfile_writer_appended(w), V, out_path);
+                u->out_path, hl_tfile_writer_appended(u->w), u->V, u->out_path);
     if (r == HL_OK) {
-        info.coefficients_kept = st.coefficients_kept;
-        info.rays_cast = vc.rays_cast;
-        info.rays_culled = vc.rays_culled;
-        r = hl_tfile_writer_finish(w, &info);
-        w = NULL;
+        u->info.coefficients_kept = u->st.coefficients_kept;
+        u->info.rays_cast = u->vc.rays_cast;
+        u->info.rays_culled = u->vc.rays_culled;
+        r = hl_tfile_writer_finish(u->w, &u->info);
+        u->w = NULL;
     }
     /* an interrupted run keeps its partial file for --resume; any other
        failure removes it */
-    if (w && r == HL_ERR_INTERRUPTED) hl_tfile_writer_keep(w);
-    else if (w) hl_tfile_writer_abort(w);
-    hl_cl_pipe_destroy(pipe);
-    hl_chunk_buf_free(&buf[0]);
-    hl_chunk_buf_free(&buf[1]);
-    hl_rt_destroy(rt);
-    hl_geom_destroy(g);
-    st.rays_cast = vc.rays_cast - vc_resumed.rays_cast; /* by this run */
-    st.rays_culled = vc.rays_culled - vc_resumed.rays_culled;
-    st.seconds_total = hl_now() - t_start;
-    if (stats) *stats = st;
+    if (u->w && r == HL_ERR_INTERRUPTED) hl_tfile_writer_keep(u->w);
+    else if (u->w) hl_tfile_writer_abort(u->w);
+    hl_cl_pipe_destroy(u->pipe);
+    hl_chunk_buf_free(&u->buf[0]);
+    hl_chunk_buf_free(&u->buf[1]);
+    hl_rt_destroy(u->rt);
+    hl_geom_destroy(u->g);
+    u->st.rays_cast = u->vc.rays_cast - u->vc_resumed.rays_cast; /* by this run */
+    u->st.rays_culled = u->vc.rays_culled - u->vc_resumed.rays_culled;
+    u->st.seconds_total = hl_now() - u->t_start;
+    if (stats) *stats = u->st;
     return r;
+}
+
+hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *desc,
+                        const char *out_path, hl_precompute_stats *stats)
+{
+    pc_run u = {.ctx = ctx, .mesh = mesh, .out_path = out_path};
+    if (desc) u.d = *desc;
+    hl_result r = hl_precompute_resolve(ctx, &u.d);
+    if (r != HL_OK) return r;
+    if (!mesh || mesh->vertex_count == 0 || mesh->triangle_count == 0)
+        return hl_fail(ctx, HL_ERR_MESH, "the mesh is empty");
+    u.t_start = hl_now();
+    u.V = mesh->vertex_count;
+    u.R = u.d.chunk < u.V ? u.d.chunk : u.V;
+    u.nchunks = (u.V + u.R - 1) / u.R;
+    u.offset = u.d.ray_offset * hl_mesh_query_diagonal(mesh); /* 0: robust */
+    u.vis_scale = (float)(1.0 / (HL_PI * u.d.supersample * u.d.supersample));
+    u.tp = hl_precompute_trunc_params(&u.d);
+    r = run_open(&u);
+    if (r == HL_OK) r = run_chunks(&u);
+    return run_close(&u, r, stats);
 }
