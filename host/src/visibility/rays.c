@@ -1,5 +1,12 @@
 /* rays.c - Embree 3 scene and visibility rays, on all cores.
  *
+ * One concern: every ray the library casts. It is the only file that
+ * includes Embree's headers, so the scene and all its queries live here:
+ * the precompute's visibility rows (hl_rt_visibility), the benchmark's raw
+ * ray rate, and the single rays of the renderer and the tests (primary,
+ * occluded, occluded from a vertex). Depends on: Embree 3, rays.h, geom.h
+ * (the cube texels), core's threads.
+ *
  * Rays go out in 16-ray packets (rtcOccluded16), the fastest query on the
  * machines we measured. A vertex's rays share an origin and are ordered by
  * cube texel, so packets are coherent. Threads take vertices from an atomic
