@@ -1,5 +1,5 @@
-/* exr_io.h - the OpenEXR wrapper (exr_io.c is the only file that sees
- * OpenEXR headers).
+/* exr_io.h - the OpenEXR wrapper (exr_io.c and exr_check.c are the only
+ * files that see OpenEXR headers).
  *
  * Reading decodes every compression the library knows, DWAB included.
  * OpenEXRCore reads every file it can decode (one scanline part, not DWA;
@@ -11,7 +11,7 @@
  * part, before any decoder allocates for it, and so is every chunk's table
  * entry, header and extent in the file; a chunk whose data decompresses
  * to fewer bytes than it holds is refused (in DWA files, as far as the
- * C++ library checks; exr_io.c says what it misses).
+ * C++ library checks; exr_check.c says what it misses).
  */
 #ifndef HL_EXR_IO_H
 #define HL_EXR_IO_H

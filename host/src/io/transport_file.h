@@ -1,14 +1,16 @@
 /* transport_file.h - streaming writer and report for transport files (.hlt).
  *
- * The byte layout is documented in host/FORMAT.md; the reader is the public
- * hl_transport_load. The precompute pipeline opens a writer, appends vertex
- * rows in order as chunks finish, and finishes it. Memory stays bounded: the
- * mesh is written at open, rows and entries are streamed straight to their
- * final positions in a partial file (path + ".partial", locked while a
- * writer has it), and only the header is written at finish, just before the
- * file is renamed onto path. A checkpoint records in the partial file's
- * header area what has been appended so far, so that a run that was
- * interrupted or killed can resume there and still write the same bytes.
+ * The byte layout is documented in host/FORMAT.md (and transport_layout.h);
+ * the writer is transport_file.c, the report transport_report.c, and the
+ * reader is the public hl_transport_load (transport_load.c). The
+ * precompute pipeline opens a writer, appends vertex rows in order as
+ * chunks finish, and finishes it. Memory stays bounded: the mesh is
+ * written at open, rows and entries are streamed straight to their final
+ * positions in a partial file (path + ".partial", locked while a writer
+ * has it), and only the header is written at finish, just before the file
+ * is renamed onto path. A checkpoint records in the partial file's header
+ * area what has been appended so far, so that a run that was interrupted
+ * or killed can resume there and still write the same bytes.
  *
  * Errors: HL_ERR_INVALID_ARGUMENT for bad parameters or appended data (the
  * writer is left as it was, so the caller may still abort or continue),
