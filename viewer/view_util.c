@@ -183,3 +183,9 @@ void vw_screenshot_name(char *buf, size_t size)
         if (access(buf, F_OK) != 0) return;
     }
 }
+
+const char *vw_base_name(const char *path)
+{
+    const char *s = strrchr(path, '/');
+    return s ? s + 1 : path;
+}

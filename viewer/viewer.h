@@ -1,12 +1,16 @@
 /* viewer.h - the interactive viewer (`haarlight view`): interfaces between
- * its three files.
+ * its files.
  *
- *   view.c       the command: options, loading, the GLFW window, input,
- *                the frame loop and the HUD (the only file that sees GLFW)
- *   gl_draw.c    every OpenGL call: mesh, background, glare, tone mapping,
- *                read-back (the only file that sees OpenGL)
- *   view_util.c  what needs neither: camera maths, the tone-map table, the
- *                colour feed decision, file names
+ *   view.c        the command: options, loading, the GLFW window, CL/GL
+ *                 sharing
+ *   view_frame.c  the frame loop: lighting work, camera, screenshots,
+ *                 timings, messages and the HUD
+ *   view_input.c  keys, mouse and dropped files; the environment list
+ *   gl_draw.c     every OpenGL call: mesh, background, glare, tone mapping,
+ *                 read-back (the only file that sees OpenGL)
+ *   view_util.c   what needs neither OpenGL nor GLFW: camera maths, the
+ *                 tone-map table, the colour feed decision, file names
+ * The view*.c files see GLFW; gl_draw.c does not.
  *
  * Not thread safe: everything runs on the thread that owns the window.
  */
@@ -16,14 +20,155 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "cli.h"
 #include "haarlight.h"
+#include "haarlight_tools.h"
 
 /* `haarlight view ...` (argv after the command name); returns the exit code. */
 int cmd_view(int argc, char **argv);
 
-/* ---------------------------------------------------------------- gl_draw.c */
+/* The help's list of keys (usage and the h key). */
+#define VW_KEYS                                                                              \
+    "keys and mouse:\n"                                                                      \
+    "  left drag              orbit the camera about its target\n"                           \
+    "  scroll                 zoom\n"                                                        \
+    "  right drag, shift + left drag   turn the environment about +Y\n"                      \
+    "  ctrl + left drag       move the sun of the built-in sky (azimuth, elevation)\n"        \
+    "  left / right           turn the environment by -/+ 10 degrees\n"                      \
+    "  up / down              sun elevation +/- 5 degrees (built-in sky)\n"                   \
+    "  page up / page down    sun azimuth +/- 15 degrees (built-in sky)\n"                    \
+    "  + / -                  double / halve M, the lighting terms kept (up to all)\n"        \
+    "  ] / [                  exposure +/- 0.5 EV\n"                                          \
+    "  a                      automatic exposure (as relight's)\n"                            \
+    "  g                      glare on / off\n"                                               \
+    "  1 .. 9                 environment 1 .. 9 (command-line order, then dropped files)\n"  \
+    "  drop an .exr file      load it as the next environment and show it\n"                  \
+    "  space                  spin the environment (a lighting change every frame)\n"         \
+    "  p                      screenshot: haarlight-view-NNN.png in the current folder\n"     \
+    "  r                      reset the camera\n"                                             \
+    "  h                      print this list\n"                                              \
+    "  q, escape              quit\n"
+
+
+#define VW_MAX_ENVS 64
+#define VW_MAX_DROPS 8
+/* hl_sky_desc's default sun elevation, for the keys that move it. */
+#define VW_SUN_DEFAULT_ELEVATION 35.0f
+#define VW_DEFAULT_TERMS 200u
+#define VW_MESSAGE_SECONDS 6.0
+/* Mouse and key steps. */
+#define VW_ORBIT_RAD_PER_PIXEL 0.006
+#define VW_DRAG_DEG_PER_PIXEL 0.3
+#define VW_ZOOM_PER_NOTCH 0.9
+#define VW_ENV_KEY_DEG 10.0f
+#define VW_SUN_KEY_ELEVATION 5.0f
+#define VW_SUN_KEY_AZIMUTH 15.0f
+#define VW_EXPOSURE_STEP 0.5f
 
 typedef struct vw_gl vw_gl;
+struct GLFWwindow;
+
+typedef struct env_slot {
+    char label[128];
+    hl_env *env;
+} env_slot;
+
+/* Sums of per-frame times in seconds, for the averages printed at exit. */
+typedef struct time_sums {
+    double relight, upload, draw, present, frame;
+    uint64_t n;
+} time_sums;
+
+enum { DRAG_NONE, DRAG_ORBIT, DRAG_ENV, DRAG_SUN };
+
+typedef struct viewer {
+    cli_scene_opts o;
+    const char *scene, *shot_path;
+    const char *drops[VW_MAX_DROPS];
+    int n_drops;
+    uint32_t frames_limit;
+    float spin_deg;
+
+    hl_context *ctx;
+    hl_transport *t;
+    hl_relighter *rl;
+    hl_context *gctx;  /* shares buffers with the window's GL context (interop);
+                          the relighter lives on it when set, else on ctx */
+    hl_gl_colours *glmem; /* the GL colour buffer as an OpenCL buffer (interop) */
+    int interop, readback_asked;
+    float *rgb;
+    env_slot envs[VW_MAX_ENVS];
+    int n_envs, cur, loaded, sky_slot;
+    float sun_el, sun_az;
+    hl_relight_desc rd;
+    hl_relight_stats st;
+    float exposure;
+    int exposure_auto, glare, spinning;
+    char feed[160];
+
+    float eye[3], target[3], up[3];
+    hl_camera_view view;
+    float centre[3], radius;
+
+    struct GLFWwindow *win;
+    vw_gl *gl;
+    uint32_t fb_w, fb_h;
+    int drag;
+    double last_x, last_y;
+
+    /* work waiting for the next frame */
+    int sky_dirty, env_dirty, light_dirty, camera_dirty, resized, redraw, shot_requested, auto_requested, quit;
+    int failed; /* the first environment could not be set: nothing to show */
+
+    char msg[512];
+    double msg_until;
+    double fps, last_frame_end, first_frame;
+    double t_relight, t_upload, t_draw, t_present;
+    time_sums all, lit;
+} viewer;
+
+/* ---------------------------------------------------------------- view_frame.c */
+
+/* The last error of the relighter's context. */
+const char *vw_rl_error(const viewer *v);
+/* A line in the HUD for a while, and on stderr (errors always, the rest
+ * unless quiet). */
+void vw_say(viewer *v, int error, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+void vw_update_title(viewer *v);
+/* Gives up CL/GL interop (setup failed, or a relight into the GL buffer
+ * did) and says why; the colours are read back from then on. */
+void vw_interop_off(viewer *v, const char *why);
+/* The camera for the current eye and target (automatic: the options' or
+ * hl_render's framing); a camera hl_render refuses leaves the previous one
+ * and returns 0. */
+int vw_update_camera(viewer *v, int automatic);
+/* Frames until quit, the window closes, Ctrl-C or --frames; returns the
+ * exit code. vw_print_times then gives the mean timings. */
+int vw_run_loop(viewer *v);
+void vw_print_times(const viewer *v);
+
+/* ---------------------------------------------------------------- view_input.c */
+
+/* Sets the window's input callbacks (its user pointer is the viewer). */
+void vw_input_attach(struct GLFWwindow *w);
+/* Appends an environment (owned from then on); returns its index, or -1
+ * (and destroys it) when the list is full. */
+int vw_add_env(viewer *v, hl_env *env, const char *label);
+void vw_sky_label(viewer *v, env_slot *s);
+/* The built-in sky at the current sun. */
+hl_result vw_make_sky(viewer *v, hl_env **out);
+/* Loads a dropped (or --drop) file and shows it; an unreadable one leaves
+ * the lighting as it was. */
+void vw_drop_file(viewer *v, const char *path);
+void vw_rotate_env(viewer *v, float deg);
+/* Automatic exposure from the current colours. */
+void vw_auto_exposure(viewer *v);
+
+/* ---------------------------------------------------------------- gl_draw.c */
 
 /* What one frame shows. */
 typedef struct vw_frame {
@@ -86,5 +231,8 @@ int vw_feed_mode(hl_context *ctx, int readback_asked, char *buf, size_t size);
 
 /* "haarlight-view-NNN.png" in the current folder, the first not taken. */
 void vw_screenshot_name(char *buf, size_t size);
+
+/* The file name of a path (after its last '/'). */
+const char *vw_base_name(const char *path);
 
 #endif

@@ -3,6 +3,7 @@
 #define HL_CLI_H
 
 #include <stdint.h>
+#include <stdio.h>
 
 #include "haarlight.h"
 
@@ -86,5 +87,74 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
 int cmd_relight(int argc, char **argv);
 int cmd_check(int argc, char **argv);
 int cmd_bench(int argc, char **argv);
+
+/* ---------------------------------------------------------------- bench
+ * `haarlight bench` in two files: bench.c measures (options, references,
+ * timings), bench_out.c writes (bench.md, bench.csv, bench.gp, the plot).
+ */
+
+#define BENCH_MAX_FILES 8
+#define BENCH_MAX_ENVS 16
+#define BENCH_MAX_TERMS 16
+#define BENCH_NEWMAP_REPS 15 /* at most, for the time of taking a new map */
+/* rounds of (read bandwidth, dot products) for the speed summary */
+#define BENCH_ROUNDS 7
+/* subnormal lighting may take at most this many times the normal time */
+#define BENCH_SUBNORMAL_LIMIT 2.0
+
+typedef struct bench_env {
+    const char *name, *path;
+    hl_env *env;
+    double *exact;  /* K x 3 */
+    double *cont;   /* K2 x 3 */
+    double *ground; /* exact B of each ground vertex (G x 3), for banding */
+} bench_env;
+
+/* The speed summary of one transport file. */
+typedef struct bench_speed {
+    double rate;       /* lighting changes per second at M = 200 */
+    double newmap;     /* seconds to take a new map */
+    double dot, bytes, bw;
+    double frac[3];    /* median, least, most */
+    double sub_ms[2][2]; /* [OpenCL, reference][normal, subnormal] */
+} bench_speed;
+
+/* The output files: written as NAME.tmp.PID, renamed when complete. */
+enum { BENCH_CSV, BENCH_MD, BENCH_GP, BENCH_OUTS };
+typedef struct bench_out {
+    const char *dir;
+    char tmp[BENCH_OUTS][1200];
+    FILE *f[BENCH_OUTS];
+} bench_out;
+
+/* What the run measured, for the summary and the plot. */
+typedef struct bench_run {
+    const char *const *files;
+    int nfiles;
+    const bench_env *envs;
+    int nenvs;
+    const uint32_t *terms;
+    uint32_t nterms;
+    uint32_t first_select;
+    uint32_t reps;
+    const bench_speed *speed;
+} bench_run;
+
+const char *bench_base_name(const char *path);
+/* The files' temporary names in dir; nothing is opened yet. */
+void bench_out_names(bench_out *o, const char *dir);
+/* Opens bench.csv and bench.md and writes their headings (the md heading
+ * states the figures in `in`, K, K2 and the repetitions); failures are
+ * recorded on ref. */
+hl_result bench_out_open(bench_out *o, hl_context *ref, hl_context *cl, const hl_transport_info *in, uint32_t K,
+                         uint32_t K2, uint32_t reps, uint32_t ref_reps);
+/* Opens bench.gp (the plot's script, its series written as they come). */
+hl_result bench_out_open_plot(bench_out *o, hl_context *ref);
+/* The speed and subnormal tables (bench.md and stdout) and the plot's
+ * script. */
+void bench_out_summary(bench_out *o, const bench_run *run);
+/* Closes the files and renames them into place (when r is HL_OK, else
+ * removes them), then draws the plot; returns the command's exit code. */
+int bench_out_finish(bench_out *o, hl_result r, hl_context *cl, hl_context *ref);
 
 #endif

@@ -16,9 +16,7 @@
 
 #include "cli.h"
 #include "haarlight.h"
-#include "precompute.h"
-#include "rays.h"
-#include "transport_file.h"
+#include "haarlight_tools.h"
 #ifdef HL_HAVE_VIEWER
 #include "viewer.h"
 #endif
@@ -130,6 +128,110 @@ typedef struct pre_opts {
         v = argv[++i];                                                               \
     } while (0)
 
+/* The mesh options of argv[*i] (reading its value, advancing *i): 1 when
+ * it was one, 0 when not, 2 after a usage error. */
+static int pre_mesh_opt(int argc, char **argv, int *ip, const char *usage, pre_opts *o)
+{
+    int i = *ip;
+    const char *a = argv[i], *v = NULL;
+    if (!strcmp(a, "--ground")) o->ground = 1;
+    else if (!strcmp(a, "--ground-res")) {
+        NEED_ARG();
+        if (!parse_u32(v, &o->gd.resolution) || o->gd.resolution < 1 || o->gd.resolution > 4096)
+            return usage_error(usage, "--ground-res %s: expected 1 to 4096", v);
+        o->ground = 1;
+    } else if (!strcmp(a, "--albedo")) {
+        NEED_ARG();
+        float c[3];
+        int n = sscanf(v, "%f,%f,%f", &c[0], &c[1], &c[2]);
+        if (n == 1) c[1] = c[2] = c[0];
+        if ((n != 1 && n != 3) || !(c[0] >= 0 && c[0] <= 1 && c[1] >= 0 && c[1] <= 1 && c[2] >= 0 && c[2] <= 1))
+            return usage_error(usage, "--albedo %s: expected R or R,G,B in [0, 1]", v);
+        if (c[0] == 0 && c[1] == 0 && c[2] == 0)
+            return usage_error(usage, "--albedo %s: an all-black albedo would make every vertex black", v);
+        memcpy(o->ld.albedo, c, sizeof c);
+        memcpy(o->gd.albedo, c, sizeof c);
+    } else if (!strcmp(a, "--up")) {
+        NEED_ARG();
+        if (strcmp(v, "y") && strcmp(v, "z")) return usage_error(usage, "--up %s: expected y or z", v);
+        o->ld.up_axis = v[0];
+    } else if (!strcmp(a, "--keep-winding")) o->ld.keep_winding = 1;
+    else return 0;
+    *ip = i;
+    return 1;
+}
+
+/* The sampling, truncation and quantisation options, as pre_mesh_opt. */
+static int pre_transport_opt(int argc, char **argv, int *ip, const char *usage, pre_opts *o)
+{
+    int i = *ip;
+    const char *a = argv[i], *v = NULL;
+    if (!strcmp(a, "-C") || !strcmp(a, "--cube")) {
+        NEED_ARG();
+        if (!parse_u32(v, &o->pd.C) || o->pd.C < 4 || o->pd.C > 512)
+            return usage_error(usage, "-C %s: the cubemap resolution must be 4 to 512", v);
+    } else if (!strcmp(a, "-N") || !strcmp(a, "--para")) {
+        NEED_ARG();
+        if (!parse_u32(v, &o->pd.N) || o->pd.N < 8 || o->pd.N > 256 || (o->pd.N & (o->pd.N - 1)))
+            return usage_error(usage, "-N %s: the paraboloid resolution must be a power of two from 8 to 256", v);
+    } else if (!strcmp(a, "--supersample")) {
+        NEED_ARG();
+        if (!parse_u32(v, &o->pd.supersample) || o->pd.supersample < 1 || o->pd.supersample > 15)
+            return usage_error(usage, "--supersample %s: expected 1 to 15", v);
+    } else if (!strcmp(a, "--ray-offset")) {
+        NEED_ARG();
+        if (!strcmp(v, "robust")) o->pd.ray_offset = 0.0f;
+        else if (!parse_float(v, &o->pd.ray_offset) || !(o->pd.ray_offset > 0 && o->pd.ray_offset < 0.1f))
+            return usage_error(usage, "--ray-offset %s: expected `robust` or a number in (0, 0.1)", v);
+    } else if (!strcmp(a, "--energy")) {
+        NEED_ARG();
+        if (!parse_float(v, &o->pd.eps) || !(o->pd.eps > 0 && o->pd.eps < 1))
+            return usage_error(usage, "--energy %s: expected a fraction in (0, 1)", v);
+        o->energy_set = 1;
+    } else if (!strcmp(a, "--terms")) {
+        NEED_ARG();
+        if (!strcmp(v, "all")) o->terms_all = 1;
+        else if (!parse_u32(v, &o->pd.K) || o->pd.K < 1)
+            return usage_error(usage, "--terms %s: expected a count >= 1 or `all`", v);
+        o->terms_set = 1;
+    } else if (!strcmp(a, "--quant")) {
+        NEED_ARG();
+        if (!strcmp(v, "sqrt8")) o->pd.quant = HL_QUANT_SQRT8;
+        else if (!strcmp(v, "log8")) o->pd.quant = HL_QUANT_LOG8;
+        else if (!strcmp(v, "linear8")) o->pd.quant = HL_QUANT_LINEAR8;
+        else return usage_error(usage, "--quant %s: expected sqrt8, log8 or linear8", v);
+    } else return 0;
+    *ip = i;
+    return 1;
+}
+
+/* The running options, as pre_mesh_opt. */
+static int pre_running_opt(int argc, char **argv, int *ip, const char *usage, pre_opts *o)
+{
+    int i = *ip;
+    const char *a = argv[i], *v = NULL;
+    if (!strcmp(a, "--device")) {
+        NEED_ARG();
+        if (!parse_device(v, &o->cd)) return usage_error(usage, "--device %s: expected cl, ref or cl:PLATFORM:DEVICE", v);
+    } else if (!strcmp(a, "--device-memory")) {
+        NEED_ARG();
+        if (!parse_device_memory(v, &o->cd)) return usage_error(usage, "--device-memory %s: expected a byte count such as 512M or 2G", v);
+    } else if (!strcmp(a, "--threads")) {
+        NEED_ARG();
+        uint32_t t;
+        if (!parse_u32(v, &t) || t < 1 || t > 256) return usage_error(usage, "--threads %s: expected 1 to 256", v);
+        o->cd.threads = (int)t;
+    } else if (!strcmp(a, "--chunk")) {
+        NEED_ARG();
+        if (!parse_u32(v, &o->pd.chunk) || o->pd.chunk < 1 || o->pd.chunk > (1u << 20))
+            return usage_error(usage, "--chunk %s: expected 1 to 1048576", v);
+    } else if (!strcmp(a, "--resume")) o->pd.resume = 1;
+    else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) o->cd.quiet = 1;
+    else return 0;
+    *ip = i;
+    return 1;
+}
+
 static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
 {
     memset(o, 0, sizeof *o);
@@ -137,82 +239,13 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
     o->cd.cl_device = -1;
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i], *v = NULL;
+        int k;
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { fputs(usage, stdout); exit(0); }
         else if (!strcmp(a, "-o") || !strcmp(a, "--output")) { NEED_ARG(); o->out = v; }
-        else if (!strcmp(a, "--ground")) o->ground = 1;
-        else if (!strcmp(a, "--ground-res")) {
-            NEED_ARG();
-            if (!parse_u32(v, &o->gd.resolution) || o->gd.resolution < 1 || o->gd.resolution > 4096)
-                return usage_error(usage, "--ground-res %s: expected 1 to 4096", v);
-            o->ground = 1;
-        } else if (!strcmp(a, "--albedo")) {
-            NEED_ARG();
-            float c[3];
-            int n = sscanf(v, "%f,%f,%f", &c[0], &c[1], &c[2]);
-            if (n == 1) c[1] = c[2] = c[0];
-            if ((n != 1 && n != 3) || !(c[0] >= 0 && c[0] <= 1 && c[1] >= 0 && c[1] <= 1 && c[2] >= 0 && c[2] <= 1))
-                return usage_error(usage, "--albedo %s: expected R or R,G,B in [0, 1]", v);
-            if (c[0] == 0 && c[1] == 0 && c[2] == 0)
-                return usage_error(usage, "--albedo %s: an all-black albedo would make every vertex black", v);
-            memcpy(o->ld.albedo, c, sizeof c);
-            memcpy(o->gd.albedo, c, sizeof c);
-        } else if (!strcmp(a, "--up")) {
-            NEED_ARG();
-            if (strcmp(v, "y") && strcmp(v, "z")) return usage_error(usage, "--up %s: expected y or z", v);
-            o->ld.up_axis = v[0];
-        } else if (!strcmp(a, "--keep-winding")) o->ld.keep_winding = 1;
-        else if (!strcmp(a, "-C") || !strcmp(a, "--cube")) {
-            NEED_ARG();
-            if (!parse_u32(v, &o->pd.C) || o->pd.C < 4 || o->pd.C > 512)
-                return usage_error(usage, "-C %s: the cubemap resolution must be 4 to 512", v);
-        } else if (!strcmp(a, "-N") || !strcmp(a, "--para")) {
-            NEED_ARG();
-            if (!parse_u32(v, &o->pd.N) || o->pd.N < 8 || o->pd.N > 256 || (o->pd.N & (o->pd.N - 1)))
-                return usage_error(usage, "-N %s: the paraboloid resolution must be a power of two from 8 to 256", v);
-        } else if (!strcmp(a, "--supersample")) {
-            NEED_ARG();
-            if (!parse_u32(v, &o->pd.supersample) || o->pd.supersample < 1 || o->pd.supersample > 15)
-                return usage_error(usage, "--supersample %s: expected 1 to 15", v);
-        } else if (!strcmp(a, "--ray-offset")) {
-            NEED_ARG();
-            if (!strcmp(v, "robust")) o->pd.ray_offset = 0.0f;
-            else if (!parse_float(v, &o->pd.ray_offset) || !(o->pd.ray_offset > 0 && o->pd.ray_offset < 0.1f))
-                return usage_error(usage, "--ray-offset %s: expected `robust` or a number in (0, 0.1)", v);
-        } else if (!strcmp(a, "--energy")) {
-            NEED_ARG();
-            if (!parse_float(v, &o->pd.eps) || !(o->pd.eps > 0 && o->pd.eps < 1))
-                return usage_error(usage, "--energy %s: expected a fraction in (0, 1)", v);
-            o->energy_set = 1;
-        } else if (!strcmp(a, "--terms")) {
-            NEED_ARG();
-            if (!strcmp(v, "all")) o->terms_all = 1;
-            else if (!parse_u32(v, &o->pd.K) || o->pd.K < 1)
-                return usage_error(usage, "--terms %s: expected a count >= 1 or `all`", v);
-            o->terms_set = 1;
-        } else if (!strcmp(a, "--quant")) {
-            NEED_ARG();
-            if (!strcmp(v, "sqrt8")) o->pd.quant = HL_QUANT_SQRT8;
-            else if (!strcmp(v, "log8")) o->pd.quant = HL_QUANT_LOG8;
-            else if (!strcmp(v, "linear8")) o->pd.quant = HL_QUANT_LINEAR8;
-            else return usage_error(usage, "--quant %s: expected sqrt8, log8 or linear8", v);
-        } else if (!strcmp(a, "--device")) {
-            NEED_ARG();
-            if (!parse_device(v, &o->cd)) return usage_error(usage, "--device %s: expected cl, ref or cl:PLATFORM:DEVICE", v);
-        } else if (!strcmp(a, "--device-memory")) {
-            NEED_ARG();
-            if (!parse_device_memory(v, &o->cd)) return usage_error(usage, "--device-memory %s: expected a byte count such as 512M or 2G", v);
-        } else if (!strcmp(a, "--threads")) {
-            NEED_ARG();
-            uint32_t t;
-            if (!parse_u32(v, &t) || t < 1 || t > 256) return usage_error(usage, "--threads %s: expected 1 to 256", v);
-            o->cd.threads = (int)t;
-        } else if (!strcmp(a, "--chunk")) {
-            NEED_ARG();
-            if (!parse_u32(v, &o->pd.chunk) || o->pd.chunk < 1 || o->pd.chunk > (1u << 20))
-                return usage_error(usage, "--chunk %s: expected 1 to 1048576", v);
-        } else if (!strcmp(a, "--resume")) o->pd.resume = 1;
-        else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) o->cd.quiet = 1;
-        else if (a[0] == '-' && a[1]) return usage_error(usage, "unknown option %s", a);
+        else if ((k = pre_mesh_opt(argc, argv, &i, usage, o)) || (k = pre_transport_opt(argc, argv, &i, usage, o)) ||
+                 (k = pre_running_opt(argc, argv, &i, usage, o))) {
+            if (k != 1) return k;
+        } else if (a[0] == '-' && a[1]) return usage_error(usage, "unknown option %s", a);
         else if (!o->mesh) o->mesh = a;
         else return usage_error(usage, "unexpected argument %s", a);
     }
@@ -306,7 +339,7 @@ static int cmd_info(int argc, char **argv)
     hl_result r = hl_transport_load(ctx, argv[0], &t);
     int rc = 0;
     if (r != HL_OK) rc = cli_fail(ctx, r);
-    else hl_transport_describe(t, argv[0], stdout);
+    else hl_tools_transport_report(t, argv[0], stdout);
     hl_transport_destroy(t);
     hl_context_destroy(ctx);
     return rc;
@@ -334,6 +367,32 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* The precompute benchmark's table: every figure as a ratio to its limit. */
+static void print_precompute_bench(const pre_opts *o, hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *d,
+                                   const hl_precompute_stats *st, double raw, uint32_t nsample)
+{
+    double rate = (double)st->rays_cast / st->seconds_rays;
+    double per_vertex_seed = 30.0 * 60.0 / 40000.0; /* seed report: 30 min for 40k vertices */
+    printf("# precompute benchmark\n\n"
+           "mesh: %s%s, %u vertices; N = %u, C = %u, supersample %u; device: %s; %d threads\n\n",
+           o->mesh, o->ground ? " + ground" : "", mesh->vertex_count, d->N, d->C, d->supersample,
+           hl_context_device_name(ctx), hl_context_threads(ctx));
+    printf("| figure | value | limit or target | ratio |\n|---|---|---|---|\n");
+    printf("| ray casting | %.2f s, %.1f Mrays/s | Embree raw rtcOccluded16 on the same rays: %.1f Mrays/s (median of 5, %u vertices) | %.2f of raw (target >= 0.80) |\n",
+           st->seconds_rays, rate * 1e-6, raw * 1e-6, nsample, rate / raw);
+    printf("| waiting for the stages | %.2f s | | |\n", st->seconds_kernels);
+    printf("| total | %.2f s | ray-casting time %.2f s | %.2f x (target <= 1.30) |\n", st->seconds_total,
+           st->seconds_rays, st->seconds_total / st->seconds_rays);
+    printf("| total | %.2f s | 30 s | %.2f of the budget |\n", st->seconds_total, st->seconds_total / 30.0);
+    printf("| rays | %llu cast, %llu culled (%.1f%%) | | |\n", (unsigned long long)st->rays_cast,
+           (unsigned long long)st->rays_culled, 100.0 * (double)st->rays_culled / (double)(st->rays_cast + st->rays_culled));
+    printf("| coefficients kept | %.1f per vertex | %u slots | %.4f |\n", (double)st->coefficients_kept / mesh->vertex_count,
+           2 * d->N * d->N, (double)st->coefficients_kept / mesh->vertex_count / (2.0 * d->N * d->N));
+    printf("| seed report | 30 min for 40k vertices = %.1f ms/vertex | this run: %.3f ms/vertex | %.0f x faster |\n",
+           per_vertex_seed * 1e3, st->seconds_total / mesh->vertex_count * 1e3,
+           per_vertex_seed / (st->seconds_total / mesh->vertex_count));
+}
+
 /* Precompute once, then Embree's raw rate on the same rays (median of 5),
  * both in this run, and every figure as a ratio to its limit. */
 static int cmd_bench_precompute(int argc, char **argv)
@@ -355,48 +414,22 @@ static int cmd_bench_precompute(int argc, char **argv)
     }
     cli_watch(ctx, NULL);
     hl_mesh *mesh = NULL;
-    hl_geom *g = NULL;
-    hl_rt *rt = NULL;
     hl_precompute_stats st;
     double rates[5];
     hl_result r = load_scene(ctx, &o, &mesh);
     if (r == HL_OK) r = hl_precompute(ctx, mesh, &o.pd, o.out, &st);
     hl_precompute_desc d = o.pd;
-    if (r == HL_OK) r = hl_precompute_resolve(ctx, &d);
-    if (r == HL_OK) r = hl_geom_create(ctx, d.N, d.C, &g);
-    if (r == HL_OK) r = hl_rt_create(ctx, mesh, &rt);
+    if (r == HL_OK) r = hl_bench_precompute_resolve(ctx, &d);
     uint32_t nsample = mesh && mesh->vertex_count < 512 ? mesh->vertex_count : 512, verts[512];
     for (uint32_t i = 0; i < nsample; i++) verts[i] = (uint32_t)((uint64_t)i * mesh->vertex_count / nsample);
-    for (int k = 0; k < 5 && r == HL_OK; k++)
-        r = hl_rt_raw_rate(rt, g, mesh, verts, nsample, d.supersample, d.ray_offset * hl_mesh_query_diagonal(mesh), &rates[k]);
+    if (r == HL_OK) r = hl_bench_raw_ray_rates(ctx, mesh, &d, verts, nsample, 5, rates);
     int rc = 0;
     if (r != HL_OK) rc = cli_fail(ctx, r);
     else {
         qsort(rates, 5, sizeof rates[0], cmp_double);
-        double raw = rates[2], rate = (double)st.rays_cast / st.seconds_rays;
-        double per_vertex_seed = 30.0 * 60.0 / 40000.0; /* seed report: 30 min for 40k vertices */
-        printf("# precompute benchmark\n\n"
-               "mesh: %s%s, %u vertices; N = %u, C = %u, supersample %u; device: %s; %d threads\n\n",
-               o.mesh, o.ground ? " + ground" : "", mesh->vertex_count, d.N, d.C, d.supersample,
-               hl_context_device_name(ctx), hl_context_threads(ctx));
-        printf("| figure | value | limit or target | ratio |\n|---|---|---|---|\n");
-        printf("| ray casting | %.2f s, %.1f Mrays/s | Embree raw rtcOccluded16 on the same rays: %.1f Mrays/s (median of 5, %u vertices) | %.2f of raw (target >= 0.80) |\n",
-               st.seconds_rays, rate * 1e-6, raw * 1e-6, nsample, rate / raw);
-        printf("| waiting for the stages | %.2f s | | |\n", st.seconds_kernels);
-        printf("| total | %.2f s | ray-casting time %.2f s | %.2f x (target <= 1.30) |\n", st.seconds_total,
-               st.seconds_rays, st.seconds_total / st.seconds_rays);
-        printf("| total | %.2f s | 30 s | %.2f of the budget |\n", st.seconds_total, st.seconds_total / 30.0);
-        printf("| rays | %llu cast, %llu culled (%.1f%%) | | |\n", (unsigned long long)st.rays_cast,
-               (unsigned long long)st.rays_culled, 100.0 * (double)st.rays_culled / (double)(st.rays_cast + st.rays_culled));
-        printf("| coefficients kept | %.1f per vertex | %u slots | %.4f |\n", (double)st.coefficients_kept / mesh->vertex_count,
-               2 * d.N * d.N, (double)st.coefficients_kept / mesh->vertex_count / (2.0 * d.N * d.N));
-        printf("| seed report | 30 min for 40k vertices = %.1f ms/vertex | this run: %.3f ms/vertex | %.0f x faster |\n",
-               per_vertex_seed * 1e3, st.seconds_total / mesh->vertex_count * 1e3,
-               per_vertex_seed / (st.seconds_total / mesh->vertex_count));
+        print_precompute_bench(&o, ctx, mesh, &d, &st, rates[2], nsample);
     }
     if (o.out == tmp) remove(tmp);
-    hl_rt_destroy(rt);
-    hl_geom_destroy(g);
     hl_mesh_destroy(mesh);
     cli_unwatch();
     hl_context_destroy(ctx);

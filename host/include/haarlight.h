@@ -20,8 +20,6 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "hl_shared.h"
-
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -204,6 +202,35 @@ void hl_mesh_destroy(hl_mesh *mesh);
 
 /* ---------------------------------------------------------------- transport */
 
+/* Truncation rules (hl_precompute_desc.rule). The library and its kernels
+ * share these values with host/src/device/hl_shared.h, which repeats them
+ * for the OpenCL programs; host/src/tools/public_pins.c asserts that the
+ * two agree. */
+#define HL_TRUNC_DEFAULT 0u
+#define HL_TRUNC_ALL 1u    /* keep every non-zero coefficient */
+#define HL_TRUNC_TOPK 2u   /* keep the K largest |T_i| */
+#define HL_TRUNC_ENERGY 3u /* keep the fewest holding (1 - eps) of the energy,
+                              at most K when K > 0 */
+
+/* Quantisation schemes for the 8-bit stored value (hl_precompute_desc.quant). */
+#define HL_QUANT_DEFAULT 0u
+#define HL_QUANT_LINEAR8 1u /* linear between the row's min and max kept value */
+#define HL_QUANT_LOG8 2u    /* sign bit + 7-bit log magnitude */
+#define HL_QUANT_SQRT8 3u   /* sign bit + 7 bits uniform in sqrt(|v| / max kept |v|)
+                               (the default) */
+#define HL_QUANT_MAX 3u
+
+/* Selection of the lighting terms (hl_relight_desc.select): priority of
+ * coefficient i is |Y_i| times a weight, Y the luminance coefficient. */
+#define HL_SELECT_DEFAULT 0u
+#define HL_SELECT_AREA 1u        /* weight: solid angle of i's support */
+#define HL_SELECT_UNWEIGHTED 2u  /* weight 1 */
+#define HL_SELECT_TRANSPORT 3u   /* weight: mean |T_i| over the vertices */
+
+/* Per-vertex dequantisation parameters: a layout private to the library
+ * and its kernels (hl_shared.h), opaque here. */
+struct hl_row_quant;
+
 /* hl_precompute_desc fields and defaults:
  *   N             0: 64 (paraboloid map side, power of two, 8..256)
  *   C             0: 64 (cubemap face side, 4..512)
@@ -272,7 +299,7 @@ typedef struct hl_transport_info {
 typedef struct hl_transport {
     hl_transport_info info;
     hl_mesh *mesh;
-    hl_row_quant *row_quant;   /* vertex_count */
+    struct hl_row_quant *row_quant; /* vertex_count */
     uint16_t *block_counts;    /* vertex_count * block_count */
     uint64_t *row_offset;      /* vertex_count + 1, derived on load */
     uint8_t *entries;          /* 2 * coefficients_kept */

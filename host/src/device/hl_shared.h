@@ -55,6 +55,11 @@ HL_INLINE int hl_tile_walk_pays(HL_U64 entries, HL_U32 m, HL_U32 nt)
     return m > 0 && 8 * entries >= (HL_U64)5 * m * nt;
 }
 
+/* Truncation rules and quantisation schemes. They are public too:
+ * haarlight.h defines the same values for the host, and where it came
+ * first its definitions stand (host/src/tools/public_pins.c asserts that
+ * the two agree); the kernels, which see this file alone, get them here. */
+#ifndef HAARLIGHT_H
 /* Truncation rules. */
 #define HL_TRUNC_DEFAULT 0u
 #define HL_TRUNC_ALL 1u    /* keep every non-zero coefficient */
@@ -72,6 +77,7 @@ HL_INLINE int hl_tile_walk_pays(HL_U64 entries, HL_U32 m, HL_U32 nt)
 #define HL_QUANT_SQRT8 3u   /* sign bit + 7-bit magnitude, uniform in
                                sqrt(|v| / max kept |v|) (the default) */
 #define HL_QUANT_MAX 3u
+#endif
 
 /* One entry of the cubemap-to-paraboloid table: the part of a paraboloid
  * texel's footprint that falls in one cube texel. m is the first moment of
@@ -115,12 +121,14 @@ typedef struct hl_trunc_params {
 
 /* ---- lighting ---- */
 
+#ifndef HAARLIGHT_H /* as the truncation rules above */
 /* Selection of the lighting terms: priority of coefficient i is |Y_i|
  * times a weight, Y the luminance coefficient (RGB share one index set). */
 #define HL_SELECT_DEFAULT 0u
 #define HL_SELECT_AREA 1u        /* weight: solid angle of i's support */
 #define HL_SELECT_UNWEIGHTED 2u  /* weight 1 */
 #define HL_SELECT_TRANSPORT 3u   /* weight: mean |T_i| over the vertices */
+#endif
 
 /* One environment cell's share of a paraboloid texel (at rotation 0):
  * weight = the solid angle of the part of cell (row, col) inside the

@@ -1,0 +1,160 @@
+/* haarlight_tools.h - what the haarlight command's own tools need beyond
+ * the public API: `check` (every OpenCL stage against its plain-C twin),
+ * `bench` and `bench-precompute` (references, probes of the device and of
+ * Embree), `info` (the transport report) and the viewer (colours written
+ * straight into an OpenGL buffer).
+ *
+ * Not for general use: these are measuring instruments, their figures are
+ * for reports, and they may change with the engine. They take and return
+ * the public types, opaque handles and plain structs of numbers; the
+ * kernels' layouts stay inside the library (host/src/tools/ implements
+ * this header on top of the private modules).
+ */
+#ifndef HAARLIGHT_TOOLS_H
+#define HAARLIGHT_TOOLS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "haarlight.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---------------------------------------------------------------- common */
+
+/* Records a failure on ctx as the library's own (the message a command
+ * then prints with hl_context_last_error) and returns code. */
+hl_result hl_tools_fail(hl_context *ctx, hl_result code, const char *fmt, ...)
+#ifdef __GNUC__
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
+/* The library's monotonic wall clock, in seconds. */
+double hl_tools_now(void);
+
+/* Luminance of linear Rec.709 RGB, in float exactly as the library and
+ * its kernels compute it. */
+float hl_tools_luminance(float r, float g, float b);
+
+/* `haarlight info`: parameters, counts, per-vertex statistics, ray
+ * counters and sizes of a loaded transport, printed to file (a FILE *);
+ * path is only printed (and its size queried), it may be NULL. */
+void hl_tools_transport_report(const hl_transport *t, const char *path, void *file);
+
+/* ---------------------------------------------------------------- check */
+
+/* One stage compared: the worst difference (relative to the largest
+ * magnitude for float stages) against its tolerance, and the rows or
+ * values that differ out of those compared. */
+typedef struct hl_check_row {
+    const char *stage;
+    double worst, tolerance;
+    uint64_t mismatches, of;
+} hl_check_row;
+
+/* Called with each stage's row as soon as it is compared. */
+typedef void (*hl_check_report_fn)(void *user, const hl_check_row *row);
+
+/* What the lighting stages selected, for the closing summary. */
+typedef struct hl_check_summary {
+    uint32_t terms_kept, coefficients; /* kept of all lighting terms */
+    double energy_percent;             /* of the lighting's energy */
+    uint32_t blocks_used, blocks;
+    uint32_t precompute_vertices;      /* checked in the precompute stages */
+    uint32_t vertices;                 /* all, checked in the lighting stages */
+} hl_check_summary;
+
+/* The tables of a transport's N and C, made on ref (the reference
+ * context) before any stage runs. */
+typedef struct hl_stage_check hl_stage_check;
+hl_result hl_stage_check_create(hl_context *ref, const hl_transport *t, hl_stage_check **out);
+void hl_stage_check_destroy(hl_stage_check *c);
+
+/* The precompute stages (cube to paraboloid, Haar, truncation,
+ * quantisation and packing, and the rows the file stores) on `vertices`
+ * vertices spread over the mesh, their rays re-cast, on cl against the
+ * twins on ref; one row per stage to report. *ok is cleared when a stage
+ * differs. */
+hl_result hl_stage_check_precompute(hl_stage_check *c, hl_context *cl, uint32_t vertices, hl_check_report_fn report,
+                                    void *user, int *ok);
+
+/* The lighting stages (environment to paraboloid, Haar, selection, dot
+ * products) under env with rd's terms, selection and rotation, on every
+ * vertex; run after hl_stage_check_precompute. */
+hl_result hl_stage_check_lighting(hl_stage_check *c, hl_context *cl, const hl_env *env, const hl_relight_desc *rd,
+                                  hl_check_report_fn report, void *user, int *ok, hl_check_summary *summary);
+
+/* ---------------------------------------------------------------- bench */
+
+/* The benchmark's references for transports of one mesh, N and C (the
+ * first one's), made on a reference context: Embree scenes, the paraboloid
+ * and lighting tables, and the untruncated lighting of each environment. */
+typedef struct hl_bench_ref hl_bench_ref;
+hl_result hl_bench_ref_create(hl_context *ctx, const hl_transport *t, hl_bench_ref **out);
+void hl_bench_ref_destroy(hl_bench_ref *b);
+
+/* For n vertices idx, the colours (3 doubles per vertex) under each of
+ * the nenvs environments:
+ *   exact[e] (may not be NULL): untruncated, unquantised transport,
+ *     recomputed from the rays, dotted with untruncated lighting in
+ *     float64;
+ *   cont[e] (for the first n_cont of idx2; skipped when n_cont is 0): the
+ *     map integrated directly, one Embree ray per map pixel cast from the
+ *     vertex itself with its own triangles skipped (no ray offset).
+ * The environments' lighting is kept for hl_bench_ref_ground. */
+hl_result hl_bench_ref_colours(hl_bench_ref *b, const uint32_t *idx, uint32_t n, const uint32_t *idx2, uint32_t n_cont,
+                               const hl_env *const *envs, int nenvs, double *const *exact, double *const *cont);
+
+/* The exact colours (as above) of every ground vertex, in order, under
+ * each environment given to hl_bench_ref_colours: ground[e] gets 3
+ * doubles per ground vertex (allocated here; the caller frees them). */
+hl_result hl_bench_ref_ground(hl_bench_ref *b, double **ground);
+
+/* Probes of the OpenCL device a relighter runs on (HL_ERR_UNSUPPORTED on
+ * the reference backend): the bytes the dot products read for the last
+ * selection, the mean time of the dot-product kernel alone over reps
+ * launches on the current lighting, and the device's read bandwidth
+ * (median of reps passes over `bytes`). */
+hl_result hl_bench_bytes_read(hl_relighter *r, double *bytes);
+hl_result hl_bench_time_dots(hl_relighter *r, uint32_t reps, double *seconds);
+hl_result hl_bench_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, double *bytes_per_s);
+
+/* `bench-precompute`: d with its defaults filled in and checked (errors
+ * name the option), then Embree's raw occlusion rate (rays/s) on the rays
+ * the precompute casts for the listed vertices, `rounds` times. */
+hl_result hl_bench_precompute_resolve(hl_context *ctx, hl_precompute_desc *d);
+hl_result hl_bench_raw_ray_rates(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *resolved,
+                                 const uint32_t *verts, uint32_t nverts, uint32_t rounds, double *rays_per_s);
+
+/* ---------------------------------------------------------------- viewer */
+
+/* hl_relighter_run with the colours left in the relighter: *rgba points
+ * at 4 floats per vertex (the fourth: the lowest channel before the clamp,
+ * or 0), valid until the next run or destroy. */
+hl_result hl_view_run4(hl_relighter *r, const hl_relight_desc *desc, const float **rgba, hl_relight_stats *stats);
+
+/* The context properties that share buffers with a GLX context (for
+ * hl_context_desc.cl_properties): CL_GL_CONTEXT_KHR, CL_GLX_DISPLAY_KHR,
+ * then 0. */
+void hl_view_glx_properties(void *glx_context, void *x_display, intptr_t props[5]);
+
+/* An OpenGL buffer object seen by a context created with those
+ * properties; the dot products can write colours into it. Release it
+ * before the GL buffer and the GL context go. */
+typedef struct hl_gl_colours hl_gl_colours;
+hl_result hl_view_gl_colours_create(hl_context *ctx, unsigned gl_buffer, hl_gl_colours **out);
+void hl_view_gl_colours_destroy(hl_gl_colours *c);
+
+/* hl_relighter_run with the colours (4 floats per vertex, as
+ * hl_view_run4's) written into the GL buffer, which is acquired from
+ * OpenGL around the dot products (the caller has finished its GL work on
+ * it: glFinish). Nothing is copied to the host. */
+hl_result hl_view_run_gl(hl_relighter *r, const hl_relight_desc *desc, hl_gl_colours *c, hl_relight_stats *stats);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
