@@ -1,4 +1,7 @@
-/* cli.h - helpers shared by the haarlight subcommands. */
+/* cli.h - helpers shared by the haarlight subcommands (option parsing,
+ * contexts, Ctrl-C, errors), the commands' entry points, and the
+ * interfaces between bench.c and bench_out.c. Sees the library through
+ * haarlight.h (and its .c files through haarlight_tools.h) only. */
 #ifndef HL_CLI_H
 #define HL_CLI_H
 
