@@ -1,6 +1,7 @@
 /* lighting.h - tables for turning an environment into paraboloid lighting,
- * and the environment resampling. Depends only on N (and the cell grid
- * that N implies); build once per transport.
+ * and the environment resampling (light_tables.c). Depends only on N (and
+ * the cell grid that N implies); build once per transport. Also the
+ * relighter's calls beyond the public ones (lighting.c).
  */
 #ifndef HL_LIGHTING_H
 #define HL_LIGHTING_H
