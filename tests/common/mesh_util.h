@@ -2,7 +2,8 @@
  * context, paths into the optional shared meshes (have_data skips the case,
  * exit 77, where they are missing) and HL_TMP, file writing, statistics,
  * volume, normals and winding checks, bounding boxes, expected failures,
- * and the checks of a ground plane added to a mesh.
+ * the checks of a teapot tessellation, and those of a ground plane added
+ * to a mesh.
  * Depends on: hl_test.h, hl_internal.h, HL_TEST_DATA, HL_TMP.
  */
 #ifndef HL_TEST_MESH_UTIL_H
@@ -160,6 +161,37 @@ static inline hl_result load(hl_context *ctx, const char *path, const hl_mesh_lo
     return r;
 }
 
+
+/* A Utah teapot tessellation (the shared data README): tris file
+ * triangles, welded to vertices (the file's vertices less those that repeat
+ * a position), no position left twice, unit normals that follow the
+ * winding. what names it in the output. */
+static inline void check_teapot(hl_context *ctx, const char *what, const char *path, uint32_t tris, uint32_t vertices)
+{
+    hl_mesh *m = NULL;
+    hl_mesh_stats s;
+    HL_CHECK(load(ctx, path, NULL, &m, &s) == HL_OK, "load");
+    if (m) {
+        print_stats(what, m, &s);
+        HL_CHECK(s.file_triangles == tris, "file counts");
+        HL_CHECK(m->vertex_count == vertices, "vertices %u", m->vertex_count);
+        HL_CHECK(m->triangle_count == tris, "triangles %u", m->triangle_count);
+        HL_CHECK(!s.flipped, "an open mesh is never flipped");
+        /* Welded seams: no two output vertices share a position. */
+        uint32_t dup = 0;
+        for (uint32_t a = 0; a < m->vertex_count && dup == 0; a++)
+            for (uint32_t b = a + 1; b < m->vertex_count; b++)
+                if (memcmp(m->positions + 3 * (size_t)a, m->positions + 3 * (size_t)b, 12) == 0) dup++;
+        HL_CHECK(dup == 0, "positions still duplicated after welding");
+        char label[128];
+        snprintf(label, sizeof label, "%s normal length", what);
+        hl_check_error(label, check_sane(what, m), 1e-6);
+        double agree = winding_agreement(m);
+        printf("%s: %.4f of triangles agree with their vertex normals\n", what, agree);
+        HL_CHECK(agree > 0.99, "normals disagree with the winding");
+    }
+    hl_mesh_destroy(m);
+}
 
 /* ---------------------------------------------------------------- ground */
 

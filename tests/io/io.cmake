@@ -20,7 +20,7 @@ hl_test_cases(test_transport_hostile transport_hostile corrupt badappend)
 # orientation, normals, ground plane and bad input; mesh_shared reads the
 # optional shared meshes and skips without them.
 hl_test_exe(test_mesh ${CMAKE_CURRENT_LIST_DIR}/test_mesh.c)
-hl_test_cases(test_mesh mesh ground ply create obj_features obj_vs_ply)
+hl_test_cases(test_mesh mesh ground ply create obj_features obj_vs_ply teapot_lowres)
 hl_test_exe(test_mesh_shared ${CMAKE_CURRENT_LIST_DIR}/test_mesh_shared.c)
 hl_test_cases(test_mesh_shared mesh_shared bunny teapot horse_up_z horse_keep_winding normals ground)
 hl_test_exe(test_mesh_bad ${CMAKE_CURRENT_LIST_DIR}/test_mesh_bad.c)

@@ -1,8 +1,9 @@
 /* test_mesh.c - the mesh module on small meshes written here (suite
  * "mesh"): ground plane, PLY, meshes from memory, OBJ features, OBJ and
- * PLY alike.
+ * PLY alike, and the coarse teapot committed in tests/data.
  * Contexts use the reference backend, so no OpenCL device is needed.
- * Depends on: haarlight_core, tests/common/mesh_util.h, HL_TMP.
+ * Depends on: haarlight_core, tests/common/mesh_util.h, HL_TMP,
+ * HL_TEST_FIXTURES (tests/data).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <stdint.h>
@@ -287,6 +288,18 @@ static void test_obj_vs_ply(void)
     hl_context_destroy(ctx);
 }
 
+/* The coarse Utah teapot of tests/data (public domain, so committed; the
+ * shared data README's counts: 792 vertices of which 263 repeat a
+ * position, 992 faces), through the same checks as mesh_shared.teapot. */
+static void test_teapot_lowres(void)
+{
+    char path[1024];
+    snprintf(path, sizeof path, "%s/teapot_lowres.obj", hl_test_env("HL_TEST_FIXTURES", "tests/data"));
+    hl_context *ctx = make_ctx();
+    check_teapot(ctx, "teapot_lowres", path, 992, 792 - 263);
+    hl_context_destroy(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
@@ -295,6 +308,7 @@ int main(int argc, char **argv)
         {"create", test_create},
         {"obj_features", test_obj_features},
         {"obj_vs_ply", test_obj_vs_ply},
+        {"teapot_lowres", test_teapot_lowres},
         {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);

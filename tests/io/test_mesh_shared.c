@@ -63,28 +63,8 @@ static void test_teapot(void)
 {
     if (!have_data()) return;
     hl_context *ctx = make_ctx();
-    hl_mesh *m = NULL;
-    hl_mesh_stats s;
-    HL_CHECK(load(ctx, data_path("teapot.obj"), NULL, &m, &s) == HL_OK, "load");
-    if (m) {
-        print_stats("teapot", m, &s);
-        /* the README: 3,644 file vertices of which 403 repeat a position */
-        HL_CHECK(s.file_triangles == 6320, "file counts");
-        HL_CHECK(m->vertex_count == 3644 - 403, "vertices %u", m->vertex_count);
-        HL_CHECK(m->triangle_count == 6320, "triangles %u", m->triangle_count);
-        HL_CHECK(!s.flipped, "an open mesh is never flipped");
-        /* Welded seams: no two output vertices share a position. */
-        uint32_t dup = 0;
-        for (uint32_t a = 0; a < m->vertex_count && dup == 0; a++)
-            for (uint32_t b = a + 1; b < m->vertex_count; b++)
-                if (memcmp(m->positions + 3 * (size_t)a, m->positions + 3 * (size_t)b, 12) == 0) dup++;
-        HL_CHECK(dup == 0, "positions still duplicated after welding");
-        hl_check_error("teapot normal length", check_sane("teapot", m), 1e-6);
-        double agree = winding_agreement(m);
-        printf("teapot: %.4f of triangles agree with their vertex normals\n", agree);
-        HL_CHECK(agree > 0.99, "normals disagree with the winding");
-    }
-    hl_mesh_destroy(m);
+    /* the README: 3,644 file vertices of which 403 repeat a position */
+    check_teapot(ctx, "teapot", data_path("teapot.obj"), 6320, 3644 - 403);
     hl_context_destroy(ctx);
 }
 
