@@ -14,15 +14,11 @@
  * tests/common/{env_util,exr_build}.h, HL_TEST_FIXTURES (tests/data).
  */
 #define _POSIX_C_SOURCE 200809L
-#define _DEFAULT_SOURCE /* wait4 */
 #include <dirent.h>
 #include <errno.h>
 #include <stdint.h>
-#include <sys/resource.h>
 #include <sys/stat.h>
-#include <sys/time.h>
 #include <sys/types.h>
-#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 #include <zlib.h>

@@ -9,15 +9,7 @@
  * Depends on: haarlight_core, an OpenCL device (PoCL),
  * tests/common/stage_fixture.h.
  */
-#define _DEFAULT_SOURCE /* fork, setrlimit, mallopt */
-#include <signal.h>
 #include <stdint.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-#ifdef __GLIBC__
-#include <malloc.h>
-#endif
 
 #include "cl_backend.h"
 #include "geom.h"

@@ -12,16 +12,8 @@
  * Every check prints its tolerance and worst error (hl_check_error).
  * Depends on: haarlight_core, tests/common (maths_util.h, stage_fixture.h).
  */
-#define _DEFAULT_SOURCE /* fork, setrlimit, mallopt */
 #include <float.h>
-#include <signal.h>
 #include <stdint.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-#ifdef __GLIBC__
-#include <malloc.h>
-#endif
 
 #include "cl_backend.h"
 #include "geom.h"
@@ -32,6 +24,9 @@
 #include "maths_util.h"
 #include "stage_fixture.h"
 
+/* ================================================================ twin */
+
+/* The OpenCL stage against hl_ref_haar, rows of real visibility. */
 static void case_haar(void)
 {
     static const uint32_t Ns[] = {8, 16, 64, 256};
