@@ -443,7 +443,7 @@ static void case_env_sizes(void)
                 hl_check_error(w, worst, 1e-5);
                 for (size_t i = 0; i < (size_t)g.V * 3; i++) wb = fmax(wb, fabs(g.rgb[1][i] - 1.0));
                 /* the furnace at N = C = 16 (hl.analytic.furnace: moments
-                   1 / N^2) plus linear 8-bit steps (hl.light.furnace) */
+                   1 / N^2) plus linear 8-bit steps (hl.relight.furnace) */
                 snprintf(w, sizeof w, "%s: open quad |B - 1|", what);
                 hl_check_error(w, wb, 1.0 / 256 + 5e-3);
             } else {
