@@ -25,7 +25,7 @@ packages=(build-essential cmake pkg-config
           libgl1-mesa-dev libgl1-mesa-dri xvfb xauth valgrind
           clang libclang-rt-14-dev)
 # only `./setup.sh test` needs these: the model files of assimp's own test
-# suite, which hl.mesh.assimp_testmodels loads one by one
+# suite, which hl.assimp_models.testmodels loads one by one
 test_packages=(assimp-testmodels)
 if [ "$what" = test ]; then packages+=("${test_packages[@]}"); fi
 missing=()

@@ -124,10 +124,10 @@ interrupt)
 opencl_faults)
   # each OpenCL fault names its cause and suggests the plain-C reference
   m="$data/bunny_lowres.obj"
-  mkdir -p "$tmp/no_icds" "$tmp/k/kernels" "$tmp/k/host/src/device"
+  mkdir -p "$tmp/no_icds" "$tmp/k/kernels" "$tmp/k/host/src/core"
   OCL_ICD_VENDORS="$tmp/no_icds" expect_error no_platform 1 "no platform found.*--device ref" "$tmp/f1.hlt" -- precompute "$m" -o "$tmp/f1.hlt" "${small[@]}"
   cp -r "$src/kernels/." "$tmp/k/kernels/"
-  cp "$src/host/src/device/hl_shared.h" "$tmp/k/host/src/device/"
+  cp "$src/host/src/core/hl_shared.h" "$tmp/k/host/src/core/"
   echo "kernel void broken( { }" >>"$tmp/k/kernels/maps/haar.cl"
   HL_KERNEL_DIR="$tmp/k/kernels" expect_error build_failure 1 "kernel build failed" "$tmp/f2.hlt" -- precompute "$m" -o "$tmp/f2.hlt" "${small[@]}"
   grep -q "build log" "$tmp/err.txt" || fail "build_failure: no build log"

@@ -203,7 +203,7 @@ void hl_mesh_destroy(hl_mesh *mesh);
 /* ---------------------------------------------------------------- transport */
 
 /* Truncation rules (hl_precompute_desc.rule). The library and its kernels
- * share these values with host/src/device/hl_shared.h, which repeats them
+ * share these values with host/src/core/hl_shared.h, which repeats them
  * for the OpenCL programs; host/src/tools/public_pins.c asserts that the
  * two agree. */
 #define HL_TRUNC_DEFAULT 0u

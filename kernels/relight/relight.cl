@@ -2,7 +2,7 @@
  * kept lighting terms.
  *
  * The transport is held by column on the device (built on load from the
- * file's rows, see build_columns in host/src/device/cl_backend.c). The device
+ * file's rows, see build_columns in host/src/relight/cl_columns.c). The device
  * holds the vertices in its own order (order[p]: the vertex at position p;
  * see vertex_order), positions grouped in tiles of HL_TILE and tiles in
  * ranges, one range per work-item (range_start: position boundaries, whole

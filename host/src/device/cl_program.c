@@ -50,7 +50,7 @@ static hl_result assemble_source(hl_context *ctx, char **out)
         char *owned = NULL;
         char path[1200];
         if (i < 0) { /* the shared header first */
-            snprintf(path, sizeof path, "%s/../host/src/device/hl_shared.h", ctx->kernel_dir);
+            snprintf(path, sizeof path, "%s/../host/src/core/hl_shared.h", ctx->kernel_dir);
             text = hl_embedded_shared;
         } else {
             const hl_embedded_kernel *k = &hl_embedded_kernels[i];

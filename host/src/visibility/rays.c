@@ -35,7 +35,7 @@
  * triangles at any scale and position, while it stays far below the gaps
  * of real contacts and creases (a fixed fraction of the bounding-box
  * diagonal let origins pass through nearby geometry). 2^-16 is 256 units
- * in the last place of the coordinate; hl.analytic.ray_offset measures
+ * in the last place of the coordinate; hl.rays.offset measures
  * the choice. */
 #define HL_ROBUST_SHIFT 16
 

@@ -1,7 +1,7 @@
 /* relight.c - twin of kernels/relight/relight.cl: walks the whole row (the terms
  * not kept meet a zero light and add nothing), one fused multiply-add per
  * term as the kernel does, on the terms as the kernel holds them (decoded,
- * scaled by 2^-e and rounded to half precision: ../half.h), then scales
+ * scaled by 2^-e and rounded to half precision: core/half.h), then scales
  * the sums back by 2^e, times the albedo; then clamps each channel at zero
  * (unless keep_negative) and puts the lowest channel before the clamp, or
  * 0, in rgba[3], as the kernel does. */

@@ -8,6 +8,8 @@
  * None allocates, so none can fail: the two that sort take their scratch
  * from the caller (hl_ref_key, one per slot), which can own it across rows
  * and report an allocation that fails.
+ * It sits in maps/ because every twin takes the map geometry (geom.h),
+ * and the stages that hold twins all build on maps/.
  */
 #ifndef HL_TWINS_H
 #define HL_TWINS_H
