@@ -1,0 +1,108 @@
+/* shadow_raster.cl - orthographic depth maps of rigid objects, one per
+ * distant light: the nearest normalised depth at every texel centre a
+ * triangle covers. Twin: host/src/dynamic/twins/shadow_raster.c (the same
+ * float operations in the same order, contraction off).
+ *
+ * One work-item takes `per` consecutive triangles for one map (dimension
+ * 1 is the map). Each vertex is moved by its object's rigid transform and
+ * then into the map's texel space here, so a rigid motion changes only 12
+ * floats on the device. Depths are non-negative floats, which order like
+ * their bit patterns as unsigned integers, so atomic_min on the bits keeps
+ * the nearest; the caller fills the map with 1.0f (empty) first.
+ *
+ * Coverage: a texel centre p is covered when every edge function is
+ * positive, or zero on a top-left edge (of the triangle made
+ * counter-clockwise in texel space, x right, y up: an edge going down, or
+ * a horizontal edge going left). Each edge function is evaluated from the
+ * edge's lexicographically smaller end, so the two triangles sharing an
+ * edge get exactly opposite values and a centre on it belongs to one.
+ *
+ * Frame layout (16 floats per map): origin[3], right[3], up[3],
+ * toward_far[3], R / width, R / height, 1 / depth_range, unused.
+ */
+#pragma OPENCL FP_CONTRACT OFF
+
+/* Vertex v (3 floats at pos + 3 v) of an object with transform xf, in the
+ * texel space of frame fr: (column, row, normalised depth). */
+float4 hl_shadow_raster_vertex(global const float *pos, uint v, global const float *xf, global const float *fr)
+{
+    float px = pos[3 * (size_t)v], py = pos[3 * (size_t)v + 1], pz = pos[3 * (size_t)v + 2];
+    float wx = xf[0] * px + xf[1] * py + xf[2] * pz + xf[3];
+    float wy = xf[4] * px + xf[5] * py + xf[6] * pz + xf[7];
+    float wz = xf[8] * px + xf[9] * py + xf[10] * pz + xf[11];
+    float qx = wx - fr[0], qy = wy - fr[1], qz = wz - fr[2];
+    float x = (qx * fr[3] + qy * fr[4] + qz * fr[5]) * fr[12];
+    float y = (qx * fr[6] + qy * fr[7] + qz * fr[8]) * fr[13];
+    float z = (qx * fr[9] + qy * fr[10] + qz * fr[11]) * fr[14];
+    return (float4)(x, y, z, 0.0f);
+}
+
+/* The edge function of edge u -> v at (px, py), positive on its left,
+ * evaluated from the lexicographically smaller end. */
+float hl_shadow_raster_edge(float4 u, float4 v, float px, float py)
+{
+    int flip = v.x < u.x || (v.x == u.x && v.y < u.y);
+    float4 s = flip ? v : u, e = flip ? u : v;
+    float E = (e.x - s.x) * (py - s.y) - (e.y - s.y) * (px - s.x);
+    return flip ? -E : E;
+}
+
+/* Whether a centre with edge value E of edge u -> v is inside. */
+int hl_shadow_raster_inside(float E, float4 u, float4 v)
+{
+    float dx = v.x - u.x, dy = v.y - u.y;
+    return E > 0.0f || (E == 0.0f && (dy < 0.0f || (dy == 0.0f && dx < 0.0f)));
+}
+
+/* The first and last texel index whose centre (i + 0.5) lies in [lo, hi],
+ * clamped to the map (so the int conversions stay in range); *first >
+ * *last when none. */
+void hl_shadow_raster_span(float lo, float hi, uint R, int *first, int *last)
+{
+    float f = ceil(lo - 0.5f), l = floor(hi - 0.5f);
+    f = f > 0.0f ? f : 0.0f;
+    f = f < (float)R ? f : (float)R;
+    l = l > -1.0f ? l : -1.0f;
+    l = l < (float)R - 1.0f ? l : (float)R - 1.0f;
+    *first = (int)f;
+    *last = (int)l;
+}
+
+kernel void hl_shadow_raster(global const float *pos, global const uint *tri, uint ntris, global const float *xf,
+                             global const float *frames, uint R, uint per, global uint *depth)
+{
+    uint k = get_global_id(1);
+    global const float *fr = frames + 16 * (size_t)k;
+    global uint *map = depth + (size_t)k * R * R;
+    size_t t0 = get_global_id(0) * (size_t)per, t1 = t0 + per < ntris ? t0 + per : ntris;
+    for (size_t t = t0; t < t1; t++) {
+        global const uint *f = tri + 4 * t;
+        global const float *x = xf + 12 * (size_t)f[3];
+        float4 a = hl_shadow_raster_vertex(pos, f[0], x, fr);
+        float4 b = hl_shadow_raster_vertex(pos, f[1], x, fr);
+        float4 c = hl_shadow_raster_vertex(pos, f[2], x, fr);
+        float area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+        if (!(area != 0.0f)) continue; /* edge-on: covers no centre */
+        if (area < 0.0f) { float4 s = b; b = c; c = s; }
+        int i0, i1, j0, j1;
+        hl_shadow_raster_span(fmin(a.x, fmin(b.x, c.x)), fmax(a.x, fmax(b.x, c.x)), R, &i0, &i1);
+        hl_shadow_raster_span(fmin(a.y, fmin(b.y, c.y)), fmax(a.y, fmax(b.y, c.y)), R, &j0, &j1);
+        for (int j = j0; j <= j1; j++) {
+            float py = (float)j + 0.5f;
+            for (int i = i0; i <= i1; i++) {
+                float px = (float)i + 0.5f;
+                float ea = hl_shadow_raster_edge(b, c, px, py);
+                float eb = hl_shadow_raster_edge(c, a, px, py);
+                float ec = hl_shadow_raster_edge(a, b, px, py);
+                if (!hl_shadow_raster_inside(ea, b, c) || !hl_shadow_raster_inside(eb, c, a) ||
+                    !hl_shadow_raster_inside(ec, a, b))
+                    continue;
+                float sum = ea + eb + ec;
+                float d = sum > 0.0f ? (ea * a.z + eb * b.z + ec * c.z) / sum : fmin(a.z, fmin(b.z, c.z));
+                d = d > 0.0f ? d : 0.0f; /* also turns -0 into +0, whose bits order */
+                d = d < 1.0f ? d : 1.0f;
+                atomic_min(map + (size_t)j * R + (size_t)i, as_uint(d));
+            }
+        }
+    }
+}
