@@ -5,7 +5,7 @@
  * axis and angle), not the library's formula.
  *
  * scene.load     bodies, names, vertex counts, baked static scale, the
- *                hierarchy.
+ *                hierarchy, the rest pose, the animation by name, +Z up.
  * scene.anim     at key times, between keys, clamped before and after,
  *                the child following its parent (animated and moved by
  *                the program).
@@ -243,6 +243,30 @@ static void case_load(void)
         for (int n = 0; n < rest.nnodes; n++) rest.node[n].kt.n = rest.node[n].kr.n = 0;
         ref_xf(&rest, 2, 0, e);
         hl_check_error("rest pose: Cube at the node's static transform", xf_diff(o[1].xf, e), XF_TOL);
+        hl_dyn_scene_destroy(s);
+    }
+    /* the animation chosen by name */
+    d = (hl_dyn_scene_desc){.animation_name = "move"};
+    HL_CHECK(hl_dyn_scene_load_desc(ctx, hl_test_tmp_path("scene_main.gltf"), &d, &s) == HL_OK, "%s",
+             hl_context_last_error(ctx));
+    HL_CHECK(s && hl_dyn_scene_animation(s, NULL, NULL) && strcmp(hl_dyn_scene_animation(s, NULL, NULL), "move") == 0,
+             "animation by name");
+    hl_dyn_scene_destroy(s);
+    s = NULL;
+    /* +Z up: the whole scene turns by (x, y, z) -> (x, z, -y) */
+    d = (hl_dyn_scene_desc){.mesh = {.up_axis = 'z'}};
+    HL_CHECK(hl_dyn_scene_load_desc(ctx, hl_test_tmp_path("scene_main.gltf"), &d, &s) == HL_OK, "%s",
+             hl_context_last_error(ctx));
+    if (s) {
+        const double turn[12] = {1, 0, 0, 0, 0, 0, 1, 0, 0, -1, 0, 0};
+        double worst_z = 0, e[12], te[12];
+        for (double t = 0; t <= 3.5; t += 0.25) {
+            HL_CHECK(hl_dyn_scene_at(s, t, o) == HL_OK, "%s", hl_context_last_error(ctx));
+            ref_xf(&sc, 3, t, e);
+            xf_mul(turn, e, te);
+            worst_z = fmax(worst_z, xf_diff(o[2].xf, te));
+        }
+        hl_check_error("up axis z: Lid = turn x its +Y-up transform", worst_z, XF_TOL);
         hl_dyn_scene_destroy(s);
     }
     hl_context_destroy(ctx);

@@ -295,7 +295,8 @@ static hl_result count_meshes(hl_dyn_scene *s, const struct aiScene *as, const s
         const struct aiMesh *am = as->mMeshes[an->mMeshes[i]];
         if (s->anim_name && am->mNumBones)
             return hl_fail(s->ctx, HL_ERR_MESH,
-                           "%s: node \"%s\": the animation is not rigid: its mesh \"%s\" is skinned (%u bones)",
+                           "%s: node \"%s\": the animation is not rigid: its mesh \"%s\" is skinned (%u bones); "
+                           "without the animation (HL_DYN_NO_ANIMATION) it loads in its bind pose",
                            s->name, an->mName.data, am->mName.data, am->mNumBones);
         m->nv += am->mNumVertices;
         for (unsigned f = 0; f < am->mNumFaces; f++) {
