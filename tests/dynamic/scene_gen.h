@@ -212,7 +212,9 @@ static void sg_nodes(sg_json *j, const sg_scene *sc)
         const sg_node *n = &sc->node[i];
         sg_printf(j, "%s{\"name\":\"%s\"", i ? "," : "", n->name);
         if (n->mesh) sg_printf(j, ",\"mesh\":%d", n->mesh - 1);
-        if (sc->skin && n->mesh == SG_CUBE) sg_printf(j, ",\"skin\":0");
+        int first_cube = 1;
+        for (int k = 0; k < i; k++) first_cube &= sc->node[k].mesh != SG_CUBE;
+        if (sc->skin && n->mesh == SG_CUBE && first_cube) sg_printf(j, ",\"skin\":0");
         if (n->has_t) { sg_printf(j, ",\"translation\":["); sg_float_list(j, n->t, 3); sg_printf(j, "]"); }
         if (n->has_r) { sg_printf(j, ",\"rotation\":["); sg_float_list(j, n->r, 4); sg_printf(j, "]"); }
         if (n->has_s) { sg_printf(j, ",\"scale\":["); sg_float_list(j, n->s, 3); sg_printf(j, "]"); }

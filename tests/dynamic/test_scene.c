@@ -497,6 +497,13 @@ static void case_bad(void)
     main_scene(&sc);
     sc.skin = 2;
     expect_load(ctx, &sc, "scene_skin.gltf", HL_ERR_MESH, "skinned");
+    {
+        hl_dyn_scene_desc d = {.animation = HL_DYN_NO_ANIMATION};
+        hl_dyn_scene *bind = NULL;
+        HL_CHECK(hl_dyn_scene_load_desc(ctx, hl_test_tmp_path("scene_skin.gltf"), &d, &bind) == HL_OK,
+                 "skinned file without its animation: %s", hl_context_last_error(ctx));
+        hl_dyn_scene_destroy(bind);
+    }
     /* a morph target with its weights channel */
     main_scene(&sc);
     sc.node[0].mesh = SG_CUBE;
