@@ -1,0 +1,374 @@
+/* csm.c - convolution shadow maps for the dynamic method: a batch of
+ * lights' basis planes and summed-area tables (kept on the device between
+ * hl_csm_build and hl_csm_visibility), and per-receiver visibility with
+ * the filter width from the average blocker depth. The reference backend
+ * runs the twins (host/src/dynamic/twins/csm_*.c) on host memory.
+ * Depends on: csm.h, cl_internal.h (OpenCL: buffers, CL_TRY), dynamic.h.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cl_internal.h"
+#include "csm.h"
+
+/* floats of the eval kernel's parameter block (csm_eval.cl: prm) */
+#define CSM_PRM_FLOATS (10 + 2 * HL_CSM_M_MAX)
+
+struct hl_csm {
+    hl_context *ctx;
+    uint32_t R, M, Mb, P, K_max, K;
+    float *zmin;  /* per light of the last build */
+    float *stage; /* K_max R^2 depths, validated and clamped to [0, 1] */
+    /* reference backend */
+    float *img, *rowsum, *mean;
+    /* OpenCL */
+    cl_kernel kb, km, ks, ke;
+    cl_mem depth_d, img_d, rowsum_d, mean_d, prm_d, uvd_d, out_d;
+    size_t io_cap; /* receivers the uvd and out buffers hold */
+    float *out_h;  /* 2 per receiver, read back */
+};
+
+size_t hl_csm_bytes_per_light(uint32_t R, uint32_t M, uint32_t Mb)
+{
+    size_t P = hl_csm_planes(M, Mb), R2 = (size_t)R * R;
+    return 4 * (P * R2 + R2 + P * R + P);
+}
+
+uint32_t hl_csm_batch_fit(uint32_t R, uint32_t M, uint32_t Mb, uint64_t bytes)
+{
+    uint64_t per = hl_csm_bytes_per_light(R, M ? M : HL_CSM_M_DEFAULT, Mb ? Mb : (M ? M : HL_CSM_M_DEFAULT));
+    uint64_t k = bytes / per;
+    return k < 1 ? 1u : k > UINT32_MAX ? UINT32_MAX : (uint32_t)k;
+}
+
+void hl_csm_params(hl_csm_eval_params *p, uint32_t R, uint32_t M, uint32_t Mb, float zmin, float su, float sv)
+{
+    memset(p, 0, sizeof *p);
+    p->R = R;
+    p->M = M;
+    p->Mb = Mb;
+    p->zmin = zmin;
+    p->su = su;
+    p->sv = sv;
+    p->bias = HL_CSM_BIAS_M / (float)M;
+    p->eps = HL_CSM_BLOCKER_EPS;
+    p->wmin = HL_CSM_MIN_HALF_WIDTH;
+    p->leak_a = HL_CSM_LEAK_A;
+    p->leak_b = HL_CSM_LEAK_B;
+    const double h = HL_CSM_HALF_PERIOD;
+    p->c1 = (float)(HL_PI / h);
+    p->direct_half = HL_CSM_DIRECT_HALF;
+    for (uint32_t k = 1; k <= M; k++) {
+        double ck = HL_PI * (2.0 * k - 1.0) / h, x = (double)k / M, xb = (double)k / Mb;
+        p->coef[k - 1] = (float)(exp(-HL_CSM_ALPHA * x * x) * 2.0 / (h * ck));
+        if (k <= Mb) p->coefb[k - 1] = (float)(exp(-HL_CSM_ALPHA * xb * xb) * 2.0 / (h * ck));
+    }
+}
+
+void hl_csm_destroy(hl_csm *c)
+{
+    if (!c) return;
+    struct hl_cl *cl = c->ctx->cl;
+    if (cl) {
+        if (cl->queue) clFinish(cl->queue);
+        cl_mem *all[] = {&c->depth_d, &c->img_d, &c->rowsum_d, &c->mean_d, &c->prm_d, &c->uvd_d, &c->out_d};
+        for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(cl, all[i]);
+        cl_kernel ks[] = {c->kb, c->km, c->ks, c->ke};
+        for (size_t i = 0; i < 4; i++)
+            if (ks[i]) clReleaseKernel(ks[i]);
+    }
+    hl_free_big(c->img);
+    hl_free_big(c->stage);
+    free(c->rowsum);
+    free(c->mean);
+    free(c->zmin);
+    free(c->out_h);
+    free(c);
+}
+
+static hl_result create_device(hl_csm *c)
+{
+    hl_context *ctx = c->ctx;
+    struct hl_cl *cl = ctx->cl;
+    cl_int e;
+    const char *names[4] = {"hl_csm_basis", "hl_csm_sat_mean", "hl_csm_sat_scan", "hl_csm_eval"};
+    cl_kernel *ks[4] = {&c->kb, &c->km, &c->ks, &c->ke};
+    for (int i = 0; i < 4; i++) {
+        *ks[i] = clCreateKernel(cl->program, names[i], &e);
+        CL_TRY(ctx, e, names[i]);
+    }
+    size_t K = c->K_max, R2 = (size_t)c->R * c->R, P = c->P;
+    TRY(hl_cl_make_buf(ctx, &c->depth_d, CL_MEM_READ_ONLY, K * R2 * 4, NULL, "CSM depth maps"));
+    TRY(hl_cl_make_buf(ctx, &c->img_d, CL_MEM_READ_WRITE, K * P * R2 * 4, NULL, "CSM summed-area tables"));
+    TRY(hl_cl_make_buf(ctx, &c->rowsum_d, CL_MEM_READ_WRITE, K * P * c->R * 4, NULL, "CSM row sums"));
+    TRY(hl_cl_make_buf(ctx, &c->mean_d, CL_MEM_READ_WRITE, K * P * 4, NULL, "CSM plane means"));
+    TRY(hl_cl_make_buf(ctx, &c->prm_d, CL_MEM_READ_ONLY, CSM_PRM_FLOATS * 4, NULL, "CSM parameters"));
+    return HL_OK;
+}
+
+hl_result hl_csm_create(hl_context *ctx, uint32_t R, uint32_t M, uint32_t Mb, uint32_t K_max, hl_csm **out)
+{
+    if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_csm_create: no output pointer");
+    *out = NULL;
+    if (!ctx) return HL_ERR_INVALID_ARGUMENT;
+    if (M == 0) M = HL_CSM_M_DEFAULT;
+    if (Mb == 0) Mb = M;
+    if (M < HL_CSM_M_MIN || M > HL_CSM_M_MAX)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: order M = %u is outside %u..%u", M,
+                       HL_CSM_M_MIN, HL_CSM_M_MAX);
+    if (Mb < HL_CSM_M_MIN || Mb > M)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "convolution shadow maps: blocker-search order %u is outside %u..M (M = %u)", Mb,
+                       HL_CSM_M_MIN, M);
+    if (R < HL_CSM_R_MIN || R > HL_CSM_R_MAX || R % HL_CSM_SCAN_LANES)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "convolution shadow maps: map size R = %u must be a multiple of %u in %u..%u", R,
+                       HL_CSM_SCAN_LANES, HL_CSM_R_MIN, HL_CSM_R_MAX);
+    if (K_max == 0 || (uint64_t)K_max * hl_csm_bytes_per_light(R, M, Mb) > ((uint64_t)1 << 40))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "convolution shadow maps: a batch of %u lights is impossible (at least 1, at most 1 TiB)", K_max);
+    hl_csm *c = calloc(1, sizeof *c);
+    if (!c) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the shadow-map module");
+    c->ctx = ctx;
+    c->R = R;
+    c->M = M;
+    c->Mb = Mb;
+    c->P = hl_csm_planes(M, Mb);
+    c->K_max = K_max;
+    size_t R2 = (size_t)R * R, KP = (size_t)K_max * c->P;
+    hl_result r = HL_OK;
+    c->zmin = hl_malloc(ctx, K_max * sizeof *c->zmin, "shadow-map depth minima");
+    c->stage = c->zmin ? hl_alloc_big(ctx, K_max * R2 * 4, "shadow-map depths") : NULL;
+    if (!c->stage) r = HL_ERR_OUT_OF_MEMORY;
+    if (r == HL_OK && ctx->cl) {
+        r = create_device(c);
+    } else if (r == HL_OK) {
+        c->img = hl_alloc_big(ctx, KP * R2 * 4, "shadow-map summed-area tables");
+        c->rowsum = c->img ? hl_malloc(ctx, KP * R * 4, "shadow-map row sums") : NULL;
+        c->mean = c->rowsum ? hl_malloc(ctx, KP * 4, "shadow-map plane means") : NULL;
+        if (!c->mean) r = HL_ERR_OUT_OF_MEMORY;
+    }
+    if (r != HL_OK) { hl_csm_destroy(c); return r; }
+    *out = c;
+    return HL_OK;
+}
+
+/* Copies the maps into the staging area, depths above 1 as 1; refuses
+ * NaN, Inf and negative depths; records each map's smallest depth. */
+static hl_result stage_depths(hl_csm *c, const float *depth, uint32_t K)
+{
+    size_t R2 = (size_t)c->R * c->R;
+    for (uint32_t k = 0; k < K; k++) {
+        float zmin = 1.0f;
+        for (size_t i = 0; i < R2; i++) {
+            float z = depth[k * R2 + i];
+            if (!(z >= 0.0f) || isinf(z))
+                return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
+                               "convolution shadow maps: depth %g at texel (%zu, %zu) of map %u is not a depth "
+                               "in [0, 1] (NaN, Inf or negative)",
+                               (double)z, i % c->R, i / c->R, k);
+            if (z > 1.0f) z = 1.0f;
+            if (z < zmin) zmin = z;
+            c->stage[k * R2 + i] = z;
+        }
+        c->zmin[k] = zmin;
+    }
+    return HL_OK;
+}
+
+#define SETARG(k, i, v) CL_TRY(ctx, clSetKernelArg(k, i, sizeof(v), &(v)), "clSetKernelArg")
+
+static hl_result launch(hl_context *ctx, cl_kernel k, size_t global, size_t local, const char *what)
+{
+    CL_TRY(ctx, clEnqueueNDRangeKernel(ctx->cl->queue, k, 1, NULL, &global, local ? &local : NULL, 0, NULL, NULL),
+           what);
+    return HL_OK;
+}
+
+static hl_result build_device(hl_csm *c, uint32_t K, int upto)
+{
+    hl_context *ctx = c->ctx;
+    struct hl_cl *cl = ctx->cl;
+    cl_uint R = c->R, M = c->M, Mb = c->Mb, nrows = K * c->R, np = K * c->P;
+    cl_float c1 = (float)(HL_PI / HL_CSM_HALF_PERIOD);
+    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->depth_d, CL_FALSE, 0, (size_t)K * R * R * 4, c->stage, 0, NULL, NULL),
+           "shadow-map upload");
+    SETARG(c->kb, 0, c->depth_d); SETARG(c->kb, 1, R); SETARG(c->kb, 2, M); SETARG(c->kb, 3, Mb);
+    SETARG(c->kb, 4, c1); SETARG(c->kb, 5, nrows); SETARG(c->kb, 6, c->img_d); SETARG(c->kb, 7, c->rowsum_d);
+    TRY(launch(ctx, c->kb, nrows, 0, "hl_csm_basis"));
+    SETARG(c->km, 0, c->rowsum_d); SETARG(c->km, 1, R); SETARG(c->km, 2, np); SETARG(c->km, 3, c->mean_d);
+    TRY(launch(ctx, c->km, np, 0, "hl_csm_sat_mean"));
+    /* rows (minus the mean), then columns */
+    for (cl_uint pass = 0; (int)pass < upto - 1; pass++) {
+        cl_uint step = pass ? R : 1, line_step = pass ? 1 : R, sub = pass ? 0 : 1;
+        SETARG(c->ks, 0, c->img_d); SETARG(c->ks, 1, c->mean_d); SETARG(c->ks, 2, R); SETARG(c->ks, 3, step);
+        SETARG(c->ks, 4, line_step); SETARG(c->ks, 5, sub);
+        CL_TRY(ctx, clSetKernelArg(c->ks, 6, 2 * HL_CSM_SCAN_LANES * sizeof(float), NULL), "clSetKernelArg");
+        TRY(launch(ctx, c->ks, (size_t)np * R * HL_CSM_SCAN_LANES, HL_CSM_SCAN_LANES, "hl_csm_sat_scan"));
+    }
+    CL_TRY(ctx, clFinish(cl->queue), "shadow-map build");
+    return HL_OK;
+}
+
+static void build_ref(hl_csm *c, uint32_t K, int upto)
+{
+    const uint32_t R = c->R, P = c->P;
+    const size_t R2 = (size_t)R * R;
+    const float c1 = (float)(HL_PI / HL_CSM_HALF_PERIOD);
+    for (uint32_t k = 0; k < K; k++) {
+        float *img = c->img + (size_t)k * P * R2, *rs = c->rowsum + (size_t)k * P * R, *mean = c->mean + (size_t)k * P;
+        for (uint32_t row = 0; row < R; row++) hl_ref_csm_basis(c->stage + k * R2, R, c->M, c->Mb, c1, row, img, rs);
+        for (uint32_t p = 0; p < P; p++) {
+            mean[p] = hl_ref_csm_sat_mean(rs + (size_t)p * R, R);
+            for (uint32_t row = 0; upto >= 2 && row < R; row++)
+                hl_ref_csm_sat_scan(img + p * R2 + (size_t)row * R, 1, R, mean[p]);
+            for (uint32_t col = 0; upto >= 3 && col < R; col++) hl_ref_csm_sat_scan(img + p * R2 + col, R, R, 0.0f);
+        }
+    }
+}
+
+hl_result hl_csm_build(hl_csm *c, const float *depth, uint32_t K)
+{
+    return hl_csm_build_upto(c, depth, K, HL_CSM_UPTO_ALL);
+}
+
+hl_result hl_csm_build_upto(hl_csm *c, const float *depth, uint32_t K, int upto)
+{
+    if (!c) return HL_ERR_INVALID_ARGUMENT;
+    if (!depth || K == 0 || K > c->K_max)
+        return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
+                       "convolution shadow maps: build of %u maps (%s); the batch holds 1..%u", K,
+                       depth ? "given" : "no depth array", c->K_max);
+    c->K = 0;
+    TRY(stage_depths(c, depth, K));
+    if (c->ctx->cl) TRY(build_device(c, K, upto));
+    else build_ref(c, K, upto);
+    c->K = K;
+    return HL_OK;
+}
+
+hl_result hl_csm_read_planes(hl_csm *c, uint32_t k, float *planes, float *means)
+{
+    if (k >= c->K) return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: no light %u", k);
+    size_t n = (size_t)c->P * c->R * c->R, off = (size_t)k * n;
+    if (!c->ctx->cl) {
+        memcpy(planes, c->img + off, n * 4);
+        memcpy(means, c->mean + (size_t)k * c->P, (size_t)c->P * 4);
+        return HL_OK;
+    }
+    hl_context *ctx = c->ctx;
+    CL_TRY(ctx, clEnqueueReadBuffer(ctx->cl->queue, c->img_d, CL_TRUE, off * 4, n * 4, planes, 0, NULL, NULL),
+           "read-back");
+    CL_TRY(ctx, clEnqueueReadBuffer(ctx->cl->queue, c->mean_d, CL_TRUE, (size_t)k * c->P * 4, (size_t)c->P * 4, means, 0,
+                                    NULL, NULL), "read-back");
+    return HL_OK;
+}
+
+const float *hl_csm_depth(const hl_csm *c, uint32_t k) { return c->stage + (size_t)k * c->R * c->R; }
+
+void hl_csm_sizes(const hl_csm *c, uint32_t *R, uint32_t *M, uint32_t *Mb, uint32_t *P)
+{
+    if (R) *R = c->R;
+    if (M) *M = c->M;
+    if (Mb) *Mb = c->Mb;
+    if (P) *P = c->P;
+}
+
+static hl_result check_frame(hl_csm *c, float theta, const hl_shadow_frame *f)
+{
+    if (!f) return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: no shadow frame");
+    if (!(theta >= 0.0f) || !(theta < (float)(HL_PI / 2)))
+        return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
+                       "convolution shadow maps: light half-extent %g rad is outside [0, pi/2)", (double)theta);
+    if (f->R != c->R)
+        return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: frame of %u texels, module of %u",
+                       f->R, c->R);
+    float dims[3] = {f->width, f->height, f->depth_range};
+    for (int i = 0; i < 3; i++)
+        if (!(dims[i] > 0.0f) || isinf(dims[i]))
+            return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
+                           "convolution shadow maps: frame width, height and depth range must be positive and finite "
+                           "(%g, %g, %g)", (double)f->width, (double)f->height, (double)f->depth_range);
+    return HL_OK;
+}
+
+static hl_result eval_device(hl_csm *c, uint32_t k, const hl_csm_eval_params *p, const float *uvd, uint32_t n)
+{
+    hl_context *ctx = c->ctx;
+    struct hl_cl *cl = ctx->cl;
+    if (n > c->io_cap) {
+        hl_cl_release_buf(cl, &c->uvd_d);
+        hl_cl_release_buf(cl, &c->out_d);
+        free(c->out_h);
+        c->io_cap = 0;
+        c->out_h = hl_malloc(ctx, (size_t)n * 8, "shadow-map visibility");
+        if (!c->out_h) return HL_ERR_OUT_OF_MEMORY;
+        TRY(hl_cl_make_buf(ctx, &c->uvd_d, CL_MEM_READ_ONLY, (size_t)n * 12, NULL, "CSM receivers"));
+        TRY(hl_cl_make_buf(ctx, &c->out_d, CL_MEM_WRITE_ONLY, (size_t)n * 8, NULL, "CSM visibility"));
+        c->io_cap = n;
+    }
+    float prm[CSM_PRM_FLOATS] = {p->zmin, p->su, p->sv, p->bias, p->eps, p->wmin, p->leak_a, p->leak_b, p->c1};
+    memcpy(prm + 9, p->coef, sizeof p->coef);
+    memcpy(prm + 9 + HL_CSM_M_MAX, p->coefb, sizeof p->coefb);
+    prm[9 + 2 * HL_CSM_M_MAX] = p->direct_half;
+    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->prm_d, CL_FALSE, 0, sizeof prm, prm, 0, NULL, NULL), "upload");
+    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->uvd_d, CL_FALSE, 0, (size_t)n * 12, uvd, 0, NULL, NULL), "upload");
+    cl_uint light = k, R = c->R, M = c->M, Mb = c->Mb, nn = n;
+    SETARG(c->ke, 0, c->img_d); SETARG(c->ke, 1, c->mean_d); SETARG(c->ke, 2, c->depth_d); SETARG(c->ke, 3, light);
+    SETARG(c->ke, 4, R); SETARG(c->ke, 5, M); SETARG(c->ke, 6, Mb); SETARG(c->ke, 7, c->prm_d);
+    SETARG(c->ke, 8, c->uvd_d); SETARG(c->ke, 9, nn); SETARG(c->ke, 10, c->out_d);
+    TRY(launch(ctx, c->ke, n, 0, "hl_csm_eval"));
+    CL_TRY(ctx, clEnqueueReadBuffer(cl->queue, c->out_d, CL_TRUE, 0, (size_t)n * 8, c->out_h, 0, NULL, NULL),
+           "read-back");
+    return HL_OK;
+}
+
+hl_result hl_csm_visibility(hl_csm *c, uint32_t k, float theta, const hl_shadow_frame *f, const float *uvd, uint32_t n,
+                            float *V, float *zavg)
+{
+    if (!c) return HL_ERR_INVALID_ARGUMENT;
+    if (k >= c->K)
+        return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
+                       "convolution shadow maps: light %u is not in the last build (%u lights)", k, c->K);
+    TRY(check_frame(c, theta, f));
+    if (n == 0) return HL_OK;
+    if (!uvd || !V) return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: no receiver arrays");
+    for (size_t i = 0; i < 3 * (size_t)n; i++)
+        if (!isfinite(uvd[i]))
+            return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
+                           "convolution shadow maps: receiver %zu has a non-finite coordinate (%g)", i / 3,
+                           (double)uvd[i]);
+    double t = tan((double)theta) * f->depth_range * c->R;
+    hl_csm_eval_params p;
+    hl_csm_params(&p, c->R, c->M, c->Mb, c->zmin[k], (float)(t / f->width), (float)(t / f->height));
+    float o[2];
+    if (c->ctx->cl) TRY(eval_device(c, k, &p, uvd, n));
+    const size_t lp = (size_t)k * c->P;
+    for (uint32_t i = 0; i < n; i++) {
+        const float *oi = o;
+        if (c->ctx->cl) oi = c->out_h + 2 * (size_t)i;
+        else
+            hl_ref_csm_eval(c->img + lp * c->R * c->R, c->mean + lp, c->stage + (size_t)k * c->R * c->R, &p,
+                            uvd + 3 * (size_t)i, o);
+        V[i] = oi[0];
+        if (zavg) zavg[i] = oi[1];
+    }
+    return HL_OK;
+}
+
+void hl_csm_project(const hl_shadow_frame *f, const float *pos, uint32_t n, float *uvd)
+{
+    for (uint32_t i = 0; i < n; i++) {
+        double q[3], a = 0, b = 0, d = 0;
+        for (int j = 0; j < 3; j++) q[j] = (double)pos[3 * i + j] - f->origin[j];
+        for (int j = 0; j < 3; j++) {
+            a += q[j] * f->right[j];
+            b += q[j] * f->up[j];
+            d += q[j] * f->toward_far[j];
+        }
+        uvd[3 * i] = (float)(a / f->width * f->R);
+        uvd[3 * i + 1] = (float)(b / f->height * f->R);
+        uvd[3 * i + 2] = (float)(d / f->depth_range);
+    }
+}

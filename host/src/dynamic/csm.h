@@ -1,0 +1,179 @@
+/* csm.h - convolution shadow maps (Annen et al. EGSR 2007) with the filter
+ * width from the average blocker depth (Annen et al. SIGGRAPH 2008): the
+ * module's API, its named constants and the plain-C twins of its kernels
+ * (kernels/dynamic/csm_basis.cl, csm_sat.cl, csm_eval.cl).
+ *
+ * The shadow test f(d, z) = [z >= d] is expanded as
+ *     f ~= 1/2 + sum_k s_k (2 / (h c_k)) sin(c_k (z - d)),  c_k = pi (2k - 1) / h
+ * a square wave of period 2h in t = z - d. DYNAMIC.md's h = 1 (period 2)
+ * is wrong at |t| = 1 (f = 1/2 at d = 0, z = 1: a receiver on the near
+ * plane under empty texels), so h = HL_CSM_HALF_PERIOD > 1 keeps the
+ * second jump, at |t| = h, out of t in [-1, 1] (test_csm_basis.c, series).
+ *
+ * Images of one light (planes of R x R floats, row-major, row = v):
+ *   0                      z
+ *   1 + 2 (k - 1), 2 + 2 (k - 1)          S_k = sin(c_k z), C_k = cos(c_k z), k = 1..M
+ *   1 + 2M + 2 (k - 1), 2 + 2M + 2 (k - 1)  z S_k, z C_k, k = 1..Mb (blocker search)
+ * so 2M + 2Mb + 1 planes; each is turned into a summed-area table of its
+ * values minus the plane's mean (the mean is kept beside it).
+ *
+ * Depends on: hl_internal.h (core), dynamic.h (hl_shadow_frame).
+ */
+#ifndef HL_CSM_H
+#define HL_CSM_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "dynamic.h"
+#include "hl_internal.h"
+
+/* ---- constants (each: default and reason) ---- */
+
+/* Order limits: below 4 the transition band is wider than half the depth
+ * range; above 16 the image count (and memory) outgrows what a frame can
+ * afford (DYNAMIC.md section 4). */
+#define HL_CSM_M_MIN 4u
+#define HL_CSM_M_MAX 16u
+#define HL_CSM_M_DEFAULT 16u
+/* Map sizes: a multiple of HL_CSM_SCAN_LANES; 4096 keeps one plane's SAT
+ * under float's exact-integer range of texel counts (2^24) and a batch
+ * addressable. */
+#define HL_CSM_R_MIN 16u
+#define HL_CSM_R_MAX 4096u
+/* Lanes of one prefix-sum work-group (kernel and twin alike: the twin
+ * repeats the lanes' order of additions so both round the same). Each
+ * lane sums a contiguous run of R / 16 values, then the 16 partial sums are
+ * scanned in 4 tree steps: a run of at most 256 keeps the sequential part
+ * short for precision, and 16 lanes fill a CPU core's vector. */
+#define HL_CSM_SCAN_LANES 16u
+/* Half-period h of the square wave (see the top): 1.25 keeps the second
+ * jump 0.25 beyond |t| = 1; at M = 16 that leaves 0.004 of error at
+ * |t| = 1, where h = 1 gives 0.5 (test_csm_basis.c, series). Larger h
+ * widens the transition at t = 0 in proportion. */
+#define HL_CSM_HALF_PERIOD 1.25f
+/* Damping s_k = exp(-alpha (k/M)^2): alpha = 2 cuts the ringing
+ * overshoot from 0.09 (no damping) to 0.001 at M = 16 and 0.007 at M = 8
+ * while the band around t = 0 widens by about a third (measured in
+ * test_csm_basis.c, series, over alpha = 0, 1, 2, 4). */
+#define HL_CSM_ALPHA 1.0f
+/* Receiver depth bias against self-shadowing: d' = d - bias, bias =
+ * HL_CSM_BIAS_M / M (normalised depth): the smooth test reaches 0.986 at
+ * t = 1/16 for M = 16, 0.97 at t = 1/8 for M = 8, so a lit surface that is
+ * itself in the map is not half-shadowed by its own texels
+ * (test_csm_eval.c, plane: acne). */
+#define HL_CSM_BIAS_M 1.0f
+/* A search region whose blocker fraction (box average of 1 - f) is below
+ * this has no blocker: fully lit. Above the series' worst residual for an
+ * all-lit region (about 0.01 at M = 16 outside the band) and far below a
+ * single blocker texel's share in a small region. */
+#define HL_CSM_BLOCKER_EPS 0.02f
+/* Smallest filter half-width, texels: half a texel, a one-texel box, the
+ * map's own resolution (a narrower box only interpolates one texel). */
+#define HL_CSM_MIN_HALF_WIDTH 0.5f
+/* Boxes of half-width up to 4 texels (9 x 9 texels at most) are summed
+ * texel by texel from the depth map, the series evaluated per texel: a
+ * table's corner difference carries about eps x 1e4 = 1e-3 of rounding at
+ * R = 256 (test_csm_sat.c), which a box of a few texels would turn into
+ * 1e-3..1e-4 of noise in each basis value, and V would not be monotone
+ * across a narrow penumbra. At 4 texels the tables' noise is below 1e-4
+ * per value, and the direct sum's cost (81 texels x M terms) is still
+ * near the tables' (16 reads x 6M + 1 planes). */
+#define HL_CSM_DIRECT_HALF 4.0f
+/* Contact-leak exponent V^p, p = 1 + A exp(-B (d - z_avg)): A = 30
+ * (Annen's thesis) darkens V = 0.9 to 0.04 at contact. B = 20, chosen in
+ * test_csm_eval.c (contact) as the largest of 5, 10, 15, 20 that keeps
+ * receivers 3/4 of the bias to 0.03 beyond it behind a blocker dark
+ * (V < 0.05; 0.037 at B = 20): the largest bends a penumbra further from
+ * its blocker least (p - 1 = 0.55 at d - z_avg = 0.2, 0.01 at 0.4; B = 10
+ * gives 4.1 and 0.55). */
+#define HL_CSM_LEAK_A 30.0f
+#define HL_CSM_LEAK_B 20.0f
+
+/* planes of one light */
+static inline uint32_t hl_csm_planes(uint32_t M, uint32_t Mb) { return 2 * M + 2 * Mb + 1; }
+/* bytes of one light's SATs and means on the device */
+size_t hl_csm_bytes_per_light(uint32_t R, uint32_t M, uint32_t Mb);
+
+/* ---- module API ---- */
+
+typedef struct hl_csm hl_csm;
+
+/* Creates a module for maps of R x R texels, order M (4..16; 0: 16) and
+ * blocker-search order Mb (4..M; 0: M), holding up to K_max lights at once
+ * (one batch). On an OpenCL context the batch lives on the device between
+ * hl_csm_build and hl_csm_visibility; on the reference backend in host
+ * memory (the twins). Fails (HL_ERR_OUT_OF_MEMORY) when a batch does not
+ * fit the device memory limit: choose K_max with hl_csm_batch_fit. */
+hl_result hl_csm_create(hl_context *ctx, uint32_t R, uint32_t M, uint32_t Mb, uint32_t K_max, hl_csm **out);
+/* The most lights a batch can hold within `bytes` (at least 1). */
+uint32_t hl_csm_batch_fit(uint32_t R, uint32_t M, uint32_t Mb, uint64_t bytes);
+void hl_csm_destroy(hl_csm *c);
+
+/* Basis images and summed-area tables of K (<= K_max) maps of R x R
+ * normalised depths (K R^2 floats, light after light, row-major). Depths
+ * above 1 count as 1 (nothing blocks); NaN, Inf or negative depths fail. */
+hl_result hl_csm_build(hl_csm *c, const float *depth, uint32_t K);
+
+/* For the tests: hl_csm_build stopped after stage `upto` (1: basis planes
+ * and plane means, 2: and the row sums, 3: all: the tables), and a copy of
+ * light k's planes (P R^2 floats) and means (P) from the device or the
+ * host. */
+enum { HL_CSM_UPTO_BASIS = 1, HL_CSM_UPTO_ROWS = 2, HL_CSM_UPTO_ALL = 3 };
+hl_result hl_csm_build_upto(hl_csm *c, const float *depth, uint32_t K, int upto);
+hl_result hl_csm_read_planes(hl_csm *c, uint32_t k, float *planes, float *means);
+/* light k's depth map as built (clamped to [0, 1]: R^2 floats) */
+const float *hl_csm_depth(const hl_csm *c, uint32_t k);
+/* module sizes (after defaults): R, M, Mb, planes per light */
+void hl_csm_sizes(const hl_csm *c, uint32_t *R, uint32_t *M, uint32_t *Mb, uint32_t *P);
+
+/* Visibility of light k (< K of the last build) at n receivers: uvd holds
+ * 3 floats each (texel coordinates u, v, continuous, texel (i, j) covering
+ * [i, i+1) x [j, j+1), and normalised depth d, as hl_csm_project gives).
+ * theta: the light's angular half-extent (radians, [0, pi/2)); f its
+ * frame (width, height, depth_range; f->R must equal the module's R).
+ * V gets n values in [0, 1]; zavg, when not NULL, gets the average
+ * blocker depth (-1 where no blocker was found). */
+hl_result hl_csm_visibility(hl_csm *c, uint32_t k, float theta, const hl_shadow_frame *f, const float *uvd, uint32_t n,
+                            float *V, float *zavg);
+
+/* World positions (3 floats each) to (u, v, d) in f: u, v in texels, d in
+ * normalised depth (unclamped). */
+void hl_csm_project(const hl_shadow_frame *f, const float *pos, uint32_t n, float *uvd);
+
+/* ---- twins (kernels/dynamic/csm_*.cl), one work-item each ---- */
+
+/* Eval parameters of one light, computed on the host for both sides. */
+typedef struct hl_csm_eval_params {
+    uint32_t R, M, Mb;
+    float zmin;      /* the map's smallest depth: z_near of the search */
+    float su, sv;    /* texels per unit of normalised depth behind a
+                        blocker: depth_range tan(theta) R / width (height) */
+    float bias, eps, wmin, leak_a, leak_b;
+    float c1;        /* c_1 = pi / h */
+    float direct_half; /* boxes up to this half-width (texels) are summed
+                          texel by texel */
+    float coef[HL_CSM_M_MAX];  /* s_k 2 / (h c_k), order M */
+    float coefb[HL_CSM_M_MAX]; /* the same with s_k over Mb */
+} hl_csm_eval_params;
+
+void hl_csm_params(hl_csm_eval_params *p, uint32_t R, uint32_t M, uint32_t Mb, float zmin, float su, float sv);
+
+/* hl_csm_basis: one row of one map: depth (R values) to the planes
+ * (img + plane * R * R + row * R) and each plane's row sum
+ * (rowsum[plane * R + row]). c1 = pi / h. */
+void hl_ref_csm_basis(const float *depth, uint32_t R, uint32_t M, uint32_t Mb, float c1, uint32_t row, float *img,
+                      float *rowsum);
+/* hl_csm_sat_mean: a plane's mean from its R row sums. */
+float hl_ref_csm_sat_mean(const float *rowsum, uint32_t R);
+/* hl_csm_sat_scan: inclusive prefix sum of one line of R values at
+ * base[i * step], minus `sub` first (0 for the column pass), in
+ * HL_CSM_SCAN_LANES runs and a tree over the runs' sums. */
+void hl_ref_csm_sat_scan(float *base, size_t step, uint32_t R, float sub);
+/* hl_csm_eval: one receiver (u, v, d) against one light's SATs (planes of
+ * R x R), means and depth map (zmap, R x R); out[0] = V, out[1] = z_avg
+ * or -1. */
+void hl_ref_csm_eval(const float *sat, const float *mean, const float *zmap, const hl_csm_eval_params *p,
+                     const float uvd[3], float out[2]);
+
+#endif

@@ -1,0 +1,43 @@
+/* csm_basis.c - twin of kernels/dynamic/csm_basis.cl: one row of one
+ * depth map to the basis planes (z, S_k, C_k, z S_k, z C_k) and their row
+ * sums, with the kernel's rotation recurrence and order of additions.
+ * Depends on: csm.h. */
+#include <math.h>
+
+#include "csm.h"
+
+void hl_ref_csm_basis(const float *depth, uint32_t R, uint32_t M, uint32_t Mb, float c1, uint32_t row, float *img,
+                      float *rowsum)
+{
+    const uint32_t P = hl_csm_planes(M, Mb);
+    const size_t plane = (size_t)R * R;
+    const float *z_row = depth + (size_t)row * R;
+    float *out = img + (size_t)row * R;
+    float acc[2 * HL_CSM_M_MAX + 2 * HL_CSM_M_MAX + 1];
+    for (uint32_t p = 0; p < P; p++) acc[p] = 0.0f;
+    for (uint32_t i = 0; i < R; i++) {
+        float z = z_row[i];
+        float ph = c1 * z;
+        float s = sinf(ph), c = cosf(ph);
+        float rs = 2.0f * s * c, rc = c * c - s * s;
+        out[i] = z;
+        acc[0] += z;
+        for (uint32_t k = 0; k < M; k++) {
+            out[(size_t)(1 + 2 * k) * plane + i] = s;
+            out[(size_t)(2 + 2 * k) * plane + i] = c;
+            acc[1 + 2 * k] += s;
+            acc[2 + 2 * k] += c;
+            if (k < Mb) {
+                float zs = z * s, zc = z * c;
+                out[(size_t)(1 + 2 * M + 2 * k) * plane + i] = zs;
+                out[(size_t)(2 + 2 * M + 2 * k) * plane + i] = zc;
+                acc[1 + 2 * M + 2 * k] += zs;
+                acc[2 + 2 * M + 2 * k] += zc;
+            }
+            float s2 = s * rc + c * rs, c2 = c * rc - s * rs;
+            s = s2;
+            c = c2;
+        }
+    }
+    for (uint32_t p = 0; p < P; p++) rowsum[(size_t)p * R + row] = acc[p];
+}

@@ -1,0 +1,161 @@
+/* csm_eval.c - twin of kernels/dynamic/csm_eval.cl: one receiver of one
+ * light: blocker search, average blocker depth, filtered shadow test over
+ * the penumbra box (from the tables, or texel by texel for a small box),
+ * contact-leak exponent; the kernel's formulas and order of additions.
+ * Depends on: csm.h. */
+#include <math.h>
+
+#include "csm.h"
+
+static float clampf(float x, float lo, float hi) { return x < lo ? lo : x > hi ? hi : x; }
+
+/* the kernel's hl_csm_box_taps */
+static void box_taps(float cx, float cy, float wu, float wv, uint32_t R, uint32_t *idx, float *w)
+{
+    float fR = (float)R;
+    float u0 = fmaxf(cx - wu, 0.0f), u1 = fminf(cx + wu, fR);
+    float v0 = fmaxf(cy - wv, 0.0f), v1 = fminf(cy + wv, fR);
+    float inv = 1.0f / ((u1 - u0) * (v1 - v0));
+    float xs[2] = {u0, u1}, ys[2] = {v0, v1};
+    for (uint32_t c = 0; c < 4; c++) {
+        float x = xs[c & 1], y = ys[c >> 1];
+        float sg = (c == 0 || c == 3) ? inv : -inv;
+        uint32_t X = (uint32_t)x < R - 1 ? (uint32_t)x : R - 1, Y = (uint32_t)y < R - 1 ? (uint32_t)y : R - 1;
+        float fx = x - (float)X, fy = y - (float)Y;
+        for (uint32_t t = 0; t < 4; t++) {
+            uint32_t xi = X + (t & 1), yi = Y + (t >> 1);
+            float wx = (t & 1) ? fx : 1.0f - fx, wy = (t >> 1) ? fy : 1.0f - fy;
+            uint32_t k = 4 * c + t;
+            int live = xi > 0 && yi > 0;
+            idx[k] = live ? (yi - 1) * R + (xi - 1) : 0;
+            w[k] = live ? sg * (wx * wy) : 0.0f;
+        }
+    }
+}
+
+static float box(const float *plane, float mean, const uint32_t *idx, const float *w)
+{
+    float s = 0.0f;
+    for (uint32_t t = 0; t < 16; t++) s += w[t] * plane[idx[t]];
+    return s + mean;
+}
+
+/* the kernel's hl_csm_direct: box averages of f_n, z and f_n z texel by texel */
+static void direct(const float *zmap, uint32_t R, float cx, float cy, float wu, float wv, float db, float c1,
+                   const float *coef, uint32_t n, float *out)
+{
+    float fR = (float)R;
+    float u0 = fmaxf(cx - wu, 0.0f), u1 = fminf(cx + wu, fR);
+    float v0 = fmaxf(cy - wv, 0.0f), v1 = fminf(cy + wv, fR);
+    uint32_t i0 = (uint32_t)u0, i1 = (uint32_t)ceilf(u1), j0 = (uint32_t)v0, j1 = (uint32_t)ceilf(v1);
+    if (i1 > R) i1 = R;
+    if (j1 > R) j1 = R;
+    float af = 0.0f, az = 0.0f, afz = 0.0f;
+    for (uint32_t j = j0; j < j1; j++) {
+        float wy = fminf((float)(j + 1), v1) - fmaxf((float)j, v0);
+        for (uint32_t i = i0; i < i1; i++) {
+            float ov = (fminf((float)(i + 1), u1) - fmaxf((float)i, u0)) * wy;
+            float z = zmap[(size_t)j * R + i];
+            float ph = c1 * (z - db), s = sinf(ph), c = cosf(ph);
+            float rs = 2.0f * s * c, rc = c * c - s * s, f = 0.5f;
+            for (uint32_t k = 0; k < n; k++) {
+                f += coef[k] * s;
+                float s2 = s * rc + c * rs, c2 = c * rc - s * rs;
+                s = s2;
+                c = c2;
+            }
+            af += ov * f;
+            az += ov * z;
+            afz += ov * (f * z);
+        }
+    }
+    float inv = 1.0f / ((u1 - u0) * (v1 - v0));
+    out[0] = af * inv;
+    out[1] = az * inv;
+    out[2] = afz * inv;
+}
+
+/* the kernel's hl_csm_search: box averages of fbar and fbar z */
+static void search(const float *sat, const float *mean, const float *zmap, const hl_csm_eval_params *p, float cx,
+                   float cy, float wu, float wv, float db, const float *cs, const float *sn, float *out)
+{
+    const uint32_t R = p->R, M = p->M;
+    float dv[3];
+    if (wu <= p->direct_half && wv <= p->direct_half) {
+        direct(zmap, R, cx, cy, wu, wv, db, p->c1, p->coefb, p->Mb, dv);
+        out[0] = 1.0f - dv[0];
+        out[1] = dv[1] - dv[2];
+        return;
+    }
+    size_t plane = (size_t)R * R;
+    uint32_t idx[16];
+    float w[16];
+    box_taps(cx, cy, wu, wv, R, idx, w);
+    float fb = 0.5f, fz = 0.5f * box(sat, mean[0], idx, w);
+    for (uint32_t k = 0; k < p->Mb; k++) {
+        uint32_t a = 1 + 2 * k, q = 1 + 2 * M + 2 * k;
+        float S = box(sat + a * plane, mean[a], idx, w), C = box(sat + (a + 1) * plane, mean[a + 1], idx, w);
+        float ZS = box(sat + q * plane, mean[q], idx, w), ZC = box(sat + (q + 1) * plane, mean[q + 1], idx, w);
+        fb -= p->coefb[k] * (cs[k] * S - sn[k] * C);
+        fz -= p->coefb[k] * (cs[k] * ZS - sn[k] * ZC);
+    }
+    out[0] = fb;
+    out[1] = fz;
+}
+
+/* the kernel's hl_csm_filter: the filtered test, unclamped */
+static float filter(const float *sat, const float *mean, const float *zmap, const hl_csm_eval_params *p, float cx,
+                    float cy, float wu, float wv, float db, const float *cs, const float *sn)
+{
+    const uint32_t R = p->R;
+    float dv[3];
+    if (wu <= p->direct_half && wv <= p->direct_half) {
+        direct(zmap, R, cx, cy, wu, wv, db, p->c1, p->coef, p->M, dv);
+        return dv[0];
+    }
+    size_t plane = (size_t)R * R;
+    uint32_t idx[16];
+    float w[16];
+    box_taps(cx, cy, wu, wv, R, idx, w);
+    float V = 0.5f;
+    for (uint32_t k = 0; k < p->M; k++) {
+        uint32_t a = 1 + 2 * k;
+        float S = box(sat + a * plane, mean[a], idx, w), C = box(sat + (a + 1) * plane, mean[a + 1], idx, w);
+        V += p->coef[k] * (cs[k] * S - sn[k] * C);
+    }
+    return V;
+}
+
+void hl_ref_csm_eval(const float *sat, const float *mean, const float *zmap, const hl_csm_eval_params *p,
+                     const float uvd[3], float out[2])
+{
+    const uint32_t R = p->R, M = p->M;
+    float u = uvd[0], v = uvd[1], d = uvd[2];
+    float db = d - p->bias;
+    out[0] = 1.0f;
+    out[1] = -1.0f;
+    if (!(d > p->zmin)) return; /* nothing in the map is nearer: lit */
+    float fR = (float)R;
+    float cx = clampf(u, 0.0f, fR), cy = clampf(v, 0.0f, fR);
+    float cs[HL_CSM_M_MAX], sn[HL_CSM_M_MAX];
+    float ph = p->c1 * db, s = sinf(ph), c = cosf(ph);
+    float rs = 2.0f * s * c, rc = c * c - s * s;
+    for (uint32_t k = 0; k < M; k++) {
+        sn[k] = s;
+        cs[k] = c;
+        float s2 = s * rc + c * rs, c2 = c * rc - s * rs;
+        s = s2;
+        c = c2;
+    }
+    float ws = d - p->zmin, sr[2];
+    search(sat, mean, zmap, p, cx, cy, clampf(ws * p->su, p->wmin, fR), clampf(ws * p->sv, p->wmin, fR), db, cs, sn, sr);
+    if (!(sr[0] >= p->eps)) return;
+    float za = clampf(sr[1] / sr[0], p->zmin, d);
+    float wp = d - za;
+    float V = filter(sat, mean, zmap, p, cx, cy, clampf(wp * p->su, p->wmin, fR), clampf(wp * p->sv, p->wmin, fR), db,
+                     cs, sn);
+    V = clampf(V, 0.0f, 1.0f);
+    float pw = 1.0f + p->leak_a * expf(-p->leak_b * wp);
+    out[0] = V > 0.0f ? powf(V, pw) : 0.0f;
+    out[1] = za;
+}

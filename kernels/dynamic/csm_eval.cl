@@ -1,0 +1,178 @@
+/* csm_eval.cl - convolution shadow map visibility, one receiver of one
+ * light per work-item (Annen et al. 2008): a blocker search over a box of
+ * half-width (d - z_near) tan(theta), the average blocker depth z_avg from
+ * the z-weighted planes, a box of half-width (d - z_avg) tan(theta) for
+ * the filtered test, then V^p against contact leaks. Boxes read the
+ * summed-area tables (csm_sat.cl) at fractional corners: the table of a
+ * piecewise-constant image is bilinear inside each texel, so bilinear
+ * interpolation between integer corners is exact (16 reads a plane).
+ * A box no wider than 2 dh texels (dh = prm[41]) is summed texel by
+ * texel from the depth map instead (the series evaluated at each texel,
+ * weighted by its overlap): the tables' entries reach 1e4 at R = 256, so
+ * a corner difference carries about 1e-3 of rounding, too much once
+ * divided by a box of a few texels (test_csm_sat.c, precision).
+ * prm (floats): zmin su sv bias eps wmin leak_a leak_b c1, coef[16],
+ * coefb[16] (hl_csm_eval_params in host/src/dynamic/csm.h).
+ * Twin: host/src/dynamic/twins/csm_eval.c. Depends on: hl_shared.h.
+ */
+
+/* 16 taps of a box [u0, u1] x [v0, v1] (clipped to [0, R]): index into a
+ * plane and weight (corner sign / area times the bilinear weight). */
+static void hl_csm_box_taps(float cx, float cy, float wu, float wv, uint R, uint *idx, float *w)
+{
+    float fR = (float)R;
+    float u0 = fmax(cx - wu, 0.0f), u1 = fmin(cx + wu, fR);
+    float v0 = fmax(cy - wv, 0.0f), v1 = fmin(cy + wv, fR);
+    float inv = 1.0f / ((u1 - u0) * (v1 - v0));
+    float xs[2] = {u0, u1}, ys[2] = {v0, v1};
+    for (uint c = 0; c < 4; c++) {
+        float x = xs[c & 1], y = ys[c >> 1];
+        float sg = ((c == 0 || c == 3) ? inv : -inv);
+        uint X = min((uint)x, R - 1), Y = min((uint)y, R - 1);
+        float fx = x - (float)X, fy = y - (float)Y;
+        for (uint t = 0; t < 4; t++) {
+            uint xi = X + (t & 1), yi = Y + (t >> 1);
+            float wx = (t & 1) ? fx : 1.0f - fx, wy = (t >> 1) ? fy : 1.0f - fy;
+            uint k = 4 * c + t;
+            int live = xi > 0 && yi > 0;
+            idx[k] = live ? (yi - 1) * R + (xi - 1) : 0;
+            w[k] = live ? sg * (wx * wy) : 0.0f;
+        }
+    }
+}
+
+/* Box averages of f_n(db, z), z and f_n z over [u0, u1] x [v0, v1],
+ * texel by texel, with f_n = 1/2 + sum_k coef[k] sin((2k-1) c1 (z - db)). */
+static void hl_csm_direct(__global const float *zmap, uint R, float cx, float cy, float wu, float wv, float db,
+                          float c1, __constant float *coef, uint n, float *out)
+{
+    float fR = (float)R;
+    float u0 = fmax(cx - wu, 0.0f), u1 = fmin(cx + wu, fR);
+    float v0 = fmax(cy - wv, 0.0f), v1 = fmin(cy + wv, fR);
+    uint i0 = (uint)u0, i1 = min((uint)ceil(u1), R), j0 = (uint)v0, j1 = min((uint)ceil(v1), R);
+    float af = 0.0f, az = 0.0f, afz = 0.0f;
+    for (uint j = j0; j < j1; j++) {
+        float wy = fmin((float)(j + 1), v1) - fmax((float)j, v0);
+        for (uint i = i0; i < i1; i++) {
+            float ov = (fmin((float)(i + 1), u1) - fmax((float)i, u0)) * wy;
+            float z = zmap[(size_t)j * R + i];
+            float ph = c1 * (z - db), s = sin(ph), c = cos(ph);
+            float rs = 2.0f * s * c, rc = c * c - s * s, f = 0.5f;
+            for (uint k = 0; k < n; k++) {
+                f += coef[k] * s;
+                float s2 = s * rc + c * rs, c2 = c * rc - s * rs;
+                s = s2;
+                c = c2;
+            }
+            af += ov * f;
+            az += ov * z;
+            afz += ov * (f * z);
+        }
+    }
+    float inv = 1.0f / ((u1 - u0) * (v1 - v0));
+    out[0] = af * inv;
+    out[1] = az * inv;
+    out[2] = afz * inv;
+}
+
+static float hl_csm_box(__global const float *plane, float mean, const uint *idx, const float *w)
+{
+    float s = 0.0f;
+    for (uint t = 0; t < 16; t++) s += w[t] * plane[idx[t]];
+    return s + mean;
+}
+
+/* The blocker search's box averages of fbar = 1 - f and fbar z (order
+ * Mb), out[0], out[1]. */
+static void hl_csm_search(__global const float *sat, __global const float *mean, __global const float *zmap, uint R,
+                          uint M, uint Mb, float cx, float cy, float wu, float wv, float db, float c1, float dh,
+                          __constant float *coefb, const float *cs, const float *sn, float *out)
+{
+    float dv[3];
+    if (wu <= dh && wv <= dh) {
+        hl_csm_direct(zmap, R, cx, cy, wu, wv, db, c1, coefb, Mb, dv);
+        out[0] = 1.0f - dv[0];
+        out[1] = dv[1] - dv[2];
+        return;
+    }
+    size_t plane = (size_t)R * R;
+    uint idx[16];
+    float w[16];
+    hl_csm_box_taps(cx, cy, wu, wv, R, idx, w);
+    float fb = 0.5f, fz = 0.5f * hl_csm_box(sat, mean[0], idx, w);
+    for (uint k = 0; k < Mb; k++) {
+        uint p = 1 + 2 * k, q = 1 + 2 * M + 2 * k;
+        float S = hl_csm_box(sat + p * plane, mean[p], idx, w), C = hl_csm_box(sat + (p + 1) * plane, mean[p + 1], idx, w);
+        float ZS = hl_csm_box(sat + q * plane, mean[q], idx, w), ZC = hl_csm_box(sat + (q + 1) * plane, mean[q + 1], idx, w);
+        fb -= coefb[k] * (cs[k] * S - sn[k] * C);
+        fz -= coefb[k] * (cs[k] * ZS - sn[k] * ZC);
+    }
+    out[0] = fb;
+    out[1] = fz;
+}
+
+/* The filtered test over the penumbra box (order M), unclamped. */
+static float hl_csm_filter(__global const float *sat, __global const float *mean, __global const float *zmap, uint R,
+                           uint M, float cx, float cy, float wu, float wv, float db, float c1, float dh,
+                           __constant float *coef, const float *cs, const float *sn)
+{
+    float dv[3];
+    if (wu <= dh && wv <= dh) {
+        hl_csm_direct(zmap, R, cx, cy, wu, wv, db, c1, coef, M, dv);
+        return dv[0];
+    }
+    size_t plane = (size_t)R * R;
+    uint idx[16];
+    float w[16];
+    hl_csm_box_taps(cx, cy, wu, wv, R, idx, w);
+    float V = 0.5f;
+    for (uint k = 0; k < M; k++) {
+        uint p = 1 + 2 * k;
+        float S = hl_csm_box(sat + p * plane, mean[p], idx, w), C = hl_csm_box(sat + (p + 1) * plane, mean[p + 1], idx, w);
+        V += coef[k] * (cs[k] * S - sn[k] * C);
+    }
+    return V;
+}
+
+__kernel void hl_csm_eval(__global const float *sats, __global const float *means, __global const float *depth,
+                          uint light, uint R, uint M, uint Mb, __constant float *prm, __global const float *uvd, uint n,
+                          __global float *out)
+{
+    size_t r = get_global_id(0);
+    if (r >= n) return;
+    uint P = 2 * M + 2 * Mb + 1;
+    __global const float *sat = sats + (size_t)light * P * R * R, *mean = means + (size_t)light * P;
+    __global const float *zmap = depth + (size_t)light * R * R;
+    float zmin = prm[0], su = prm[1], sv = prm[2], bias = prm[3], eps = prm[4], wmin = prm[5];
+    float la = prm[6], lb = prm[7], c1 = prm[8], dh = prm[41];
+    __constant float *coef = prm + 9, *coefb = prm + 25;
+    float u = uvd[3 * r], v = uvd[3 * r + 1], d = uvd[3 * r + 2];
+    float db = d - bias;
+    /* nothing in the map is nearer than the receiver: lit */
+    if (!(d > zmin)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }
+    float fR = (float)R;
+    float cx = clamp(u, 0.0f, fR), cy = clamp(v, 0.0f, fR);
+    /* phases c_k db, by the same rotation as csm_basis.cl */
+    float cs[16], sn[16];
+    float ph = c1 * db, s = sin(ph), c = cos(ph);
+    float rs = 2.0f * s * c, rc = c * c - s * s;
+    for (uint k = 0; k < M; k++) {
+        sn[k] = s;
+        cs[k] = c;
+        float s2 = s * rc + c * rs, c2 = c * rc - s * rs;
+        s = s2;
+        c = c2;
+    }
+    float ws = d - zmin, sr[2];
+    hl_csm_search(sat, mean, zmap, R, M, Mb, cx, cy, clamp(ws * su, wmin, fR), clamp(ws * sv, wmin, fR), db, c1, dh,
+                  coefb, cs, sn, sr);
+    if (!(sr[0] >= eps)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }
+    float za = clamp(sr[1] / sr[0], zmin, d);
+    float wp = d - za;
+    float V = hl_csm_filter(sat, mean, zmap, R, M, cx, cy, clamp(wp * su, wmin, fR), clamp(wp * sv, wmin, fR), db, c1,
+                            dh, coef, cs, sn);
+    V = clamp(V, 0.0f, 1.0f);
+    float pw = 1.0f + la * exp(-lb * wp);
+    out[2 * r] = V > 0.0f ? pow(V, pw) : 0.0f;
+    out[2 * r + 1] = za;
+}

@@ -1,0 +1,327 @@
+/* test_csm_eval.c - convolution shadow map visibility
+ * (kernels/dynamic/csm_eval.cl, twin host/src/dynamic/twins/csm_eval.c,
+ * module host/src/dynamic/csm.c), suite "csm_eval".
+ *
+ * csm_eval.twin       the kernel against the twin on the device's own
+ *                     tables, and the reference backend end to end.
+ * csm_eval.plane      a receiver plane at d = 0.8 under a square blocker at
+ *                     z = 0.4: lit outside, dark in the umbra, monotone
+ *                     across the penumbra, whose width follows
+ *                     (d - z_avg) tan(theta) for two theta and two d; no
+ *                     acne where the plane itself is in the map.
+ * csm_eval.contact    receivers just behind the blocker: dark with the
+ *                     leak exponent, leaking without; B chosen here.
+ * csm_eval.bad_input  orders, sizes, NaN depths and receivers, frames.
+ * Depends on: csm.h, hl_test.h.
+ */
+#include <float.h>
+
+#include "csm.h"
+#include "hl_test.h"
+
+static double rng_unit(void) { return (double)(hl_rng_next() >> 11) / 9007199254740992.0; }
+
+static hl_context *cl_context(void)
+{
+    hl_context_desc d = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1};
+    hl_context *ctx = NULL;
+    char err[1024];
+    if (hl_context_create(&d, &ctx, err, sizeof err) != HL_OK) {
+        fprintf(stderr, "OpenCL context: %s\n", err);
+        return NULL;
+    }
+    return ctx;
+}
+
+/* a frame looking down -z: 10 x 10 world units, depth range 10 */
+static hl_shadow_frame frame_of(uint32_t R)
+{
+    hl_shadow_frame f = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, 10.0f, 10.0f, 10.0f, R};
+    return f;
+}
+
+/* z_in inside texels [i0, i1) x [i0, i1), z_out elsewhere */
+static void square_map(float *z, uint32_t R, uint32_t i0, uint32_t i1, float z_in, float z_out)
+{
+    for (uint32_t j = 0; j < R; j++)
+        for (uint32_t i = 0; i < R; i++) z[(size_t)j * R + i] = (i >= i0 && i < i1 && j >= i0 && j < i1) ? z_in : z_out;
+}
+
+static void case_twin(void)
+{
+    hl_context *ctx = cl_context(), *ref = hl_test_ref_context(1);
+    if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
+    const uint32_t R = 128, M = 16, Mb = 8, n = 4000;
+    const size_t R2 = (size_t)R * R;
+    uint32_t P = hl_csm_planes(M, Mb);
+    hl_csm *c = NULL, *cr = NULL;
+    HL_CHECK(hl_csm_create(ctx, R, M, Mb, 2, &c) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(hl_csm_create(ref, R, M, Mb, 2, &cr) == HL_OK, "%s", hl_context_last_error(ref));
+    if (!c || !cr) return;
+    float *z = malloc(2 * R2 * 4), *uvd = malloc(n * 12), *V = malloc(n * 4), *za = malloc(n * 4);
+    float *Vr = malloc(n * 4), *sat = malloc(P * R2 * 4), *mean = malloc(P * 4);
+    square_map(z, R, 30, 70, 0.3f, 1.0f);
+    for (uint32_t j = 80; j < 110; j++)
+        for (uint32_t i = 20; i < 120; i++) z[(size_t)j * R + i] = 0.5f + 0.3f * (float)i / (float)R;
+    for (size_t i = 0; i < R2; i++) z[R2 + i] = (float)(0.2 + 0.8 * rng_unit());
+    HL_CHECK(hl_csm_build(c, z, 2) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(hl_csm_build(cr, z, 2) == HL_OK, "%s", hl_context_last_error(ref));
+    hl_shadow_frame f = frame_of(R);
+    double worst = 0, worst_za = 0, worst_ref = 0;
+    for (uint32_t k = 0; k < 2; k++) {
+        for (uint32_t i = 0; i < n; i++) {
+            uvd[3 * i] = (float)(rng_unit() * (R + 8) - 4);
+            uvd[3 * i + 1] = (float)(rng_unit() * (R + 8) - 4);
+            uvd[3 * i + 2] = (float)rng_unit();
+        }
+        float theta = k ? 0.02f : 0.08f;
+        HL_CHECK(hl_csm_visibility(c, k, theta, &f, uvd, n, V, za) == HL_OK, "%s", hl_context_last_error(ctx));
+        HL_CHECK(hl_csm_visibility(cr, k, theta, &f, uvd, n, Vr, NULL) == HL_OK, "%s", hl_context_last_error(ref));
+        hl_csm_read_planes(c, k, sat, mean);
+        float zmin = 1.0f;
+        for (size_t i = 0; i < R2; i++) zmin = fminf(zmin, z[k * R2 + i]);
+        double t = tan((double)theta) * f.depth_range * R;
+        hl_csm_eval_params p;
+        hl_csm_params(&p, R, M, Mb, zmin, (float)(t / f.width), (float)(t / f.height));
+        for (uint32_t i = 0; i < n; i++) {
+            float o[2];
+            hl_ref_csm_eval(sat, mean, hl_csm_depth(c, k), &p, uvd + 3 * i, o);
+            worst = fmax(worst, fabs((double)o[0] - V[i]));
+            worst_za = fmax(worst_za, fabs((double)o[1] - za[i]));
+            worst_ref = fmax(worst_ref, fabs((double)Vr[i] - V[i]));
+        }
+    }
+    /* Same tables, same float operations in the same order: they differ by
+     * PoCL's sin, cos, exp and pow against libm's (an ulp or two); the
+     * phases' recurrence carries that to about 1e-6 in V before the leak
+     * exponent (up to 31) multiplies it: 31 x 2e-6 = 6e-5. */
+    hl_check_error("V, kernel vs twin on the kernel's tables, absolute", worst, 1e-4);
+    hl_check_error("z_avg, kernel vs twin on the kernel's tables, absolute", worst_za, 1e-4);
+    /* End to end the tables differ too (basis planes by up to 8e-6, so
+     * entries by up to R^2 x 8e-6 in the worst case): measured only. */
+    printf("V, OpenCL module vs reference backend end to end: worst difference %.3g\n", worst_ref);
+    free(z); free(uvd); free(V); free(za); free(Vr); free(sat); free(mean);
+    hl_csm_destroy(c);
+    hl_csm_destroy(cr);
+    hl_context_destroy(ctx);
+    hl_context_destroy(ref);
+}
+
+enum { PR = 256, PN = 513 }; /* map size; receivers on u = 0 .. 128 every 1/4 texel */
+
+/* V along v = PR/2, u = 0 .. 128 at depth d (the blocker's edge is at
+ * u = 96: texels 96..159 hold the square) */
+static void profile(hl_csm *c, float theta, float d, float *V, float *za)
+{
+    hl_shadow_frame f = frame_of(PR);
+    float uvd[3 * PN];
+    for (uint32_t i = 0; i < PN; i++) {
+        uvd[3 * i] = 0.25f * (float)i;
+        uvd[3 * i + 1] = PR / 2.0f;
+        uvd[3 * i + 2] = d;
+    }
+    HL_CHECK(hl_csm_visibility(c, 0, theta, &f, uvd, PN, V, za) == HL_OK, "visibility failed");
+}
+
+/* u where V falls through level (linear between samples), -1 if never */
+static double crossing(const float *V, float level)
+{
+    for (uint32_t i = 0; i + 1 < PN; i++)
+        if (V[i] >= level && V[i + 1] < level) return 0.25 * (i + (V[i] - level) / (double)(V[i] - V[i + 1]));
+    return -1;
+}
+
+static void case_plane(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    hl_csm *c = NULL;
+    HL_CHECK(hl_csm_create(ctx, PR, 16, 16, 1, &c) == HL_OK, "%s", hl_context_last_error(ctx));
+    if (!c) return;
+    float *z = malloc((size_t)PR * PR * 4), V[PN], za[PN];
+    square_map(z, PR, 96, 160, 0.4f, 1.0f);
+    HL_CHECK(hl_csm_build(c, z, 1) == HL_OK, "%s", hl_context_last_error(ctx));
+    /* tan(theta) 0.05 and 0.1 at d = 0.8, then 0.1 at d = 0.6 */
+    const double tans[3] = {0.05, 0.1, 0.1}, ds[3] = {0.8, 0.8, 0.6};
+    double width[3], worst_lit = 0, worst_dark = 0, worst_rise = 0, rise_near = 0, worst_w = 0, worst_za = 0;
+    for (int s = 0; s < 3; s++) {
+        profile(c, (float)atan(tans[s]), (float)ds[s], V, za);
+        double wp = (ds[s] - 0.4) * PR * tans[s]; /* half-width in texels: (d - z) tan(theta) R / width x range */
+        for (uint32_t i = 0; i < PN; i++) {
+            double u = 0.25 * i;
+            if (u < 96 - wp - 2) worst_lit = fmax(worst_lit, 1.0 - V[i]);
+            if (u > 96 + wp + 2) worst_dark = fmax(worst_dark, V[i]);
+            if (i + 1 < PN && s < 2) worst_rise = fmax(worst_rise, (double)V[i + 1] - V[i]);
+            if (i + 1 < PN && s == 2) rise_near = fmax(rise_near, (double)V[i + 1] - V[i]);
+            /* z_avg where the blocker fills at least a quarter of the search box */
+            if (u > 96 - wp / 2 && u < 96 + wp) worst_za = fmax(worst_za, fabs(za[i] - 0.4));
+        }
+        /* The box filter of the edge is a ramp over [96 - wp, 96 + wp]
+         * and the leak exponent p bends it: V = ramp^p. Undo p with the
+         * module's own z_avg, then the ramp's 10%-90% width is 0.8 x 2 wp. */
+        float ramp[PN];
+        for (uint32_t i = 0; i < PN; i++) {
+            double p = 1.0 + HL_CSM_LEAK_A * exp(-HL_CSM_LEAK_B * (ds[s] - za[i]));
+            ramp[i] = za[i] < 0 ? V[i] : (float)pow(V[i], 1 / p);
+        }
+        double expect = 1.6 * wp;
+        width[s] = crossing(ramp, 0.1f) - crossing(ramp, 0.9f);
+        printf("tan(theta) %.2f d %.1f: ramp's 10%%-90%% width %.3f texels, expected %.3f (half-width %.2f); V's %.3f\n",
+               tans[s], ds[s], width[s], expect, wp, crossing(V, 0.1f) - crossing(V, 0.9f));
+        worst_w = fmax(worst_w, fabs(width[s] / expect - 1));
+    }
+    /* lit and dark to the series' residual (0.011 at M = 16 outside the band) and the clamp */
+    hl_check_error("lit receivers outside the penumbra, 1 - V", worst_lit, 0.02);
+    hl_check_error("receivers in the umbra, V", worst_dark, 0.02);
+    /* monotone at d = 0.8: the ramp of a box over an edge only falls;
+     * float noise of the tables only */
+    hl_check_error("d = 0.8: V rising along the path into the shadow", worst_rise, 1e-4);
+    /* At d = 0.6 the outer fringe is not: where the blocker fraction is
+     * just above HL_CSM_BLOCKER_EPS, the lit texels' residual (about 0.01
+     * of 1 - f) pulls z_avg up, p = 1 + A exp(-B (d - z_avg)) grows, and V
+     * dips before the ramp (a known limit, printed). */
+    printf("d = 0.6: V rising along the path into the shadow (not asserted): %.4g\n", rise_near);
+    /* z_avg where the blocker fills a quarter of the search box or more:
+     * the lit texels' residual 0.01 x (1 - 1/4) / (1/4) x (1 - 0.4) = 0.018 at most */
+    hl_check_error("|z_avg - 0.4| in the penumbra", worst_za, 0.02);
+    /* widths follow the formula: the series' smooth edge and the
+     * texel-sized minimum blur it by about a texel out of 4 to 8 */
+    hl_check_error("penumbra width / formula - 1", worst_w, 0.15);
+    /* and scale as tan(theta): twice the tangent, twice the width (same p) */
+    hl_check_error("width ratio tan 0.1 / tan 0.05, minus 2", fabs(width[1] / width[0] - 2), 0.2);
+
+    /* acne: the receiver plane itself in the map (z = 0.8 outside the square) */
+    square_map(z, PR, 96, 160, 0.4f, 0.8f);
+    HL_CHECK(hl_csm_build(c, z, 1) == HL_OK, "%s", hl_context_last_error(ctx));
+    profile(c, (float)atan(0.1), 0.8f, V, za);
+    double acne = 0;
+    for (uint32_t i = 0; i < PN; i++)
+        if (0.25 * i < 96 - 10.24 - 2) acne = fmax(acne, 1.0 - V[i]);
+    hl_check_error("plane in its own map (self-shadowing), 1 - V", acne, 0.02);
+    free(z);
+    hl_csm_destroy(c);
+    hl_context_destroy(ctx);
+}
+
+/* V at the centre of the umbra for a receiver delta behind the blocker
+ * (z = 0.4), with leak parameters a, b, from the module's own tables */
+static float contact_v(const float *sat, const float *mean, const float *zmap, uint32_t R, float delta, float a, float b)
+{
+    hl_csm_eval_params p;
+    double t = tan(0.05) * 10.0 * R / 10.0;
+    hl_csm_params(&p, R, 16, 16, 0.4f, (float)t, (float)t);
+    p.leak_a = a;
+    p.leak_b = b;
+    float uvd[3] = {(float)R / 2.0f, (float)R / 2.0f, 0.4f + delta}, o[2];
+    hl_ref_csm_eval(sat, mean, zmap, &p, uvd, o);
+    return o[0];
+}
+
+static void case_contact(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    const uint32_t R = 64, P = hl_csm_planes(16, 16);
+    hl_csm *c = NULL;
+    HL_CHECK(hl_csm_create(ctx, R, 16, 16, 1, &c) == HL_OK, "%s", hl_context_last_error(ctx));
+    if (!c) return;
+    float *z = malloc((size_t)R * R * 4), *sat = malloc((size_t)P * R * R * 4), mean[65];
+    square_map(z, R, 16, 48, 0.4f, 1.0f);
+    HL_CHECK(hl_csm_build(c, z, 1) == HL_OK, "%s", hl_context_last_error(ctx));
+    hl_csm_read_planes(c, 0, sat, mean);
+    const float bias = HL_CSM_BIAS_M / 16.0f;
+    /* receivers from 3/4 of the bias to 0.03 beyond it; closer than that a
+     * receiver cannot be told from the blocker's own surface (which must
+     * stay lit: csm_eval.plane, acne): printed, not asserted */
+    const float deltas[4] = {0.75f * bias, bias, bias + 0.01f, bias + 0.03f};
+    for (int i = 1; i <= 4; i++) {
+        float dl = bias * (float)i / 8;
+        printf("d - z = %.4f (not asserted): V %.4g with the leak exponent, %.4g without\n", dl,
+               contact_v(sat, mean, hl_csm_depth(c, 0), R, dl, HL_CSM_LEAK_A, HL_CSM_LEAK_B),
+               contact_v(sat, mean, hl_csm_depth(c, 0), R, dl, 0.0f, HL_CSM_LEAK_B));
+    }
+    double with = 0, without = 1;
+    for (int i = 0; i < 4; i++) {
+        float v1 = contact_v(sat, mean, hl_csm_depth(c, 0), R, deltas[i], HL_CSM_LEAK_A, HL_CSM_LEAK_B);
+        float v0 = contact_v(sat, mean, hl_csm_depth(c, 0), R, deltas[i], 0.0f, HL_CSM_LEAK_B);
+        printf("d - z = %.4f: V %.4g with the leak exponent, %.4g without\n", deltas[i], v1, v0);
+        with = fmax(with, v1);
+        if (i < 2) without = fmin(without, v0);
+    }
+    hl_check_error("contact receivers with the leak exponent, V", with, 0.05);
+    /* without it the same receivers leak: at least 0.3 of the light at 3/4 of the bias and at the bias */
+    HL_CHECK(without > 0.3, "without the exponent contact receivers should leak (V %.4g)", without);
+    printf("contact receivers without the exponent, least V at d - z <= bias: %.4g (leaks)\n", without);
+    /* B: the largest of 5, 10, 15, 20 that keeps every contact receiver
+     * dark (V < 0.05): the largest B bends a penumbra further behind its
+     * blocker least (p - 1 = 30 exp(-B (d - z_avg))). */
+    static const float Bs[4] = {5, 10, 15, 20};
+    float chosen = 0;
+    for (int b = 0; b < 4; b++) {
+        double worst = 0;
+        for (int i = 0; i < 4; i++) worst = fmax(worst, contact_v(sat, mean, hl_csm_depth(c, 0), R, deltas[i], HL_CSM_LEAK_A, Bs[b]));
+        printf("B %.0f: darkest-case contact V %.4g, p - 1 at d - z_avg = 0.2: %.3f\n", Bs[b], worst,
+               HL_CSM_LEAK_A * exp(-Bs[b] * 0.2));
+        if (worst < 0.05) chosen = Bs[b];
+    }
+    hl_check_error("HL_CSM_LEAK_B minus the B chosen here", fabs(chosen - HL_CSM_LEAK_B), 0.0);
+    free(z); free(sat);
+    hl_csm_destroy(c);
+    hl_context_destroy(ctx);
+}
+
+#define EXPECT_FAIL(call, ctx)                                                                  \
+    do {                                                                                        \
+        hl_result r_ = (call);                                                                  \
+        HL_CHECK(r_ == HL_ERR_INVALID_ARGUMENT, "%s should fail (got %d)", #call, (int)r_);     \
+        printf("%s -> %s\n", #call, hl_context_last_error(ctx));                                \
+        bad += r_ != HL_ERR_INVALID_ARGUMENT;                                                   \
+    } while (0)
+
+static void case_bad_input(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    hl_csm *c = NULL;
+    int bad = 0;
+    EXPECT_FAIL(hl_csm_create(ctx, 64, 3, 0, 1, &c), ctx);
+    EXPECT_FAIL(hl_csm_create(ctx, 64, 17, 0, 1, &c), ctx);
+    EXPECT_FAIL(hl_csm_create(ctx, 64, 8, 2, 1, &c), ctx);
+    EXPECT_FAIL(hl_csm_create(ctx, 64, 8, 12, 1, &c), ctx);
+    EXPECT_FAIL(hl_csm_create(ctx, 8, 8, 0, 1, &c), ctx);
+    EXPECT_FAIL(hl_csm_create(ctx, 100, 8, 0, 1, &c), ctx);
+    EXPECT_FAIL(hl_csm_create(ctx, 8192, 8, 0, 1, &c), ctx);
+    EXPECT_FAIL(hl_csm_create(ctx, 64, 8, 0, 0, &c), ctx);
+    HL_CHECK(hl_csm_create(ctx, 32, 0, 0, 2, &c) == HL_OK, "%s", hl_context_last_error(ctx));
+    if (!c) return;
+    float z[2 * 32 * 32];
+    for (int i = 0; i < 2 * 32 * 32; i++) z[i] = 0.5f;
+    EXPECT_FAIL(hl_csm_build(c, z, 3), ctx);
+    z[100] = NAN;
+    EXPECT_FAIL(hl_csm_build(c, z, 2), ctx);
+    z[100] = -0.25f;
+    EXPECT_FAIL(hl_csm_build(c, z, 2), ctx);
+    z[100] = INFINITY;
+    EXPECT_FAIL(hl_csm_build(c, z, 2), ctx);
+    z[100] = 3.0f; /* beyond the far plane: nothing blocks, accepted */
+    HL_CHECK(hl_csm_build(c, z, 1) == HL_OK, "%s", hl_context_last_error(ctx));
+    hl_shadow_frame f = frame_of(32), f2 = frame_of(64), f3 = frame_of(32);
+    f3.depth_range = NAN;
+    float uvd[6] = {1, 1, 0.5f, 2, 2, NAN}, V[2];
+    EXPECT_FAIL(hl_csm_visibility(c, 0, 0.1f, &f, uvd, 2, V, NULL), ctx);
+    EXPECT_FAIL(hl_csm_visibility(c, 1, 0.1f, &f, uvd, 1, V, NULL), ctx);
+    EXPECT_FAIL(hl_csm_visibility(c, 0, -0.1f, &f, uvd, 1, V, NULL), ctx);
+    EXPECT_FAIL(hl_csm_visibility(c, 0, 1.6f, &f, uvd, 1, V, NULL), ctx);
+    EXPECT_FAIL(hl_csm_visibility(c, 0, NAN, &f, uvd, 1, V, NULL), ctx);
+    EXPECT_FAIL(hl_csm_visibility(c, 0, 0.1f, &f2, uvd, 1, V, NULL), ctx);
+    EXPECT_FAIL(hl_csm_visibility(c, 0, 0.1f, &f3, uvd, 1, V, NULL), ctx);
+    HL_CHECK(hl_csm_visibility(c, 0, 0.1f, &f, uvd, 1, V, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(V[0] >= 0.0f && V[0] <= 1.0f, "V %g out of [0, 1]", V[0]);
+    hl_check_error("bad inputs accepted", bad, 0);
+    hl_csm_destroy(c);
+    hl_context_destroy(ctx);
+}
+
+int main(int argc, char **argv)
+{
+    static const hl_test_case cases[] = {{"twin", case_twin}, {"plane", case_plane}, {"contact", case_contact},
+                                         {"bad_input", case_bad_input}, {NULL, NULL}};
+    return hl_test_main(argc, argv, cases);
+}
