@@ -1,8 +1,8 @@
 /* csm_basis.cl - the basis images of convolution shadow maps, one row of
  * one light's depth map per work-item: z, S_k = sin(c_k z), C_k =
- * cos(c_k z) (k = 1..M), z S_k, z C_k (k = 1..Mb), planes laid out as
- * host/src/dynamic/csm.h says, and each plane's row sum (for the plane's
- * mean, csm_sat.cl). c_k = (2k - 1) c1: the odd multiples come from one
+ * cos(c_k z) (k = 1..M), z S_k, z C_k (k = 1..Mb), interleaved by texel
+ * as host/src/dynamic/csm.h says, and each plane's row sum (for the
+ * plane's mean, csm_sat.cl). c_k = (2k - 1) c1: the odd multiples come from one
  * sine and cosine by rotating through 2 c1 z (6 flops a term instead of
  * two library calls; the drift is a few ulps per step, measured in
  * test_csm_basis.c). Twin: host/src/dynamic/twins/csm_basis.c.
@@ -21,7 +21,7 @@ __kernel void hl_csm_basis(__global const float *depth, uint R, uint M, uint Mb,
     uint P = 2 * M + 2 * Mb + 1;
     size_t plane = (size_t)R * R;
     __global const float *z_row = depth + (size_t)light * plane + (size_t)row * R;
-    __global float *out = img + (size_t)light * P * plane + (size_t)row * R;
+    __global float *out = img + ((size_t)light * plane + (size_t)row * R) * P;
     float acc[HL_CSM_BASIS_MAX_PLANES];
     for (uint p = 0; p < P; p++) acc[p] = 0.0f;
     for (uint i = 0; i < R; i++) {
@@ -30,17 +30,18 @@ __kernel void hl_csm_basis(__global const float *depth, uint R, uint M, uint Mb,
         float s = sin(ph), c = cos(ph);
         /* rotation by 2 c1 z: (2k+1) c1 z = (2k-1) c1 z + 2 c1 z */
         float rs = 2.0f * s * c, rc = c * c - s * s;
-        out[i] = z;
+        __global float *o = out + (size_t)i * P;
+        o[0] = z;
         acc[0] += z;
         for (uint k = 0; k < M; k++) {
-            out[(size_t)(1 + 2 * k) * plane + i] = s;
-            out[(size_t)(2 + 2 * k) * plane + i] = c;
+            o[1 + 2 * k] = s;
+            o[2 + 2 * k] = c;
             acc[1 + 2 * k] += s;
             acc[2 + 2 * k] += c;
             if (k < Mb) {
                 float zs = z * s, zc = z * c;
-                out[(size_t)(1 + 2 * M + 2 * k) * plane + i] = zs;
-                out[(size_t)(2 + 2 * M + 2 * k) * plane + i] = zc;
+                o[1 + 2 * M + 2 * k] = zs;
+                o[2 + 2 * M + 2 * k] = zc;
                 acc[1 + 2 * M + 2 * k] += zs;
                 acc[2 + 2 * M + 2 * k] += zc;
             }

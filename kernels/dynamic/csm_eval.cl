@@ -18,6 +18,9 @@
 
 /* 16 taps of a box [u0, u1] x [v0, v1] (clipped to [0, R]): index into a
  * plane and weight (corner sign / area times the bilinear weight). */
+/* the most planes of one light: 2 M + 2 Mb + 1 with M, Mb <= 16 */
+#define HL_CSM_MAX_PLANES 65
+
 static void hl_csm_box_taps(float cx, float cy, float wu, float wv, uint R, uint *idx, float *w)
 {
     float fR = (float)R;
@@ -75,11 +78,17 @@ static void hl_csm_direct(__global const float *zmap, uint R, float cx, float cy
     out[2] = afz * inv;
 }
 
-static float hl_csm_box(__global const float *plane, float mean, const uint *idx, const float *w)
+/* Box sums of planes p0..p1-1 into acc[p] (plus each plane's mean): the
+ * planes are interleaved by texel, so each tap reads them in one run. */
+static void hl_csm_box(__global const float *sat, __global const float *mean, uint P, const uint *idx, const float *w, uint p0, uint p1,
+                       float *acc)
 {
-    float s = 0.0f;
-    for (uint t = 0; t < 16; t++) s += w[t] * plane[idx[t]];
-    return s + mean;
+    for (uint p = p0; p < p1; p++) acc[p] = 0.0f;
+    for (uint t = 0; t < 16; t++) {
+        __global const float *row = sat + (size_t)idx[t] * P;
+        for (uint p = p0; p < p1; p++) acc[p] += w[t] * row[p];
+    }
+    for (uint p = p0; p < p1; p++) acc[p] += mean[p];
 }
 
 /* The blocker search's box averages of fbar = 1 - f and fbar z (order
@@ -95,17 +104,16 @@ static void hl_csm_search(__global const float *sat, __global const float *mean,
         out[1] = dv[1] - dv[2];
         return;
     }
-    size_t plane = (size_t)R * R;
-    uint idx[16];
-    float w[16];
+    uint P = 2 * M + 2 * Mb + 1, idx[16];
+    float w[16], a[HL_CSM_MAX_PLANES];
     hl_csm_box_taps(cx, cy, wu, wv, R, idx, w);
-    float fb = 0.5f, fz = 0.5f * hl_csm_box(sat, mean[0], idx, w);
+    hl_csm_box(sat, mean, P, idx, w, 0, 1 + 2 * Mb, a);
+    hl_csm_box(sat, mean, P, idx, w, 1 + 2 * M, P, a);
+    float fb = 0.5f, fz = 0.5f * a[0];
     for (uint k = 0; k < Mb; k++) {
         uint p = 1 + 2 * k, q = 1 + 2 * M + 2 * k;
-        float S = hl_csm_box(sat + p * plane, mean[p], idx, w), C = hl_csm_box(sat + (p + 1) * plane, mean[p + 1], idx, w);
-        float ZS = hl_csm_box(sat + q * plane, mean[q], idx, w), ZC = hl_csm_box(sat + (q + 1) * plane, mean[q + 1], idx, w);
-        fb -= coefb[k] * (cs[k] * S - sn[k] * C);
-        fz -= coefb[k] * (cs[k] * ZS - sn[k] * ZC);
+        fb -= coefb[k] * (cs[k] * a[p] - sn[k] * a[p + 1]);
+        fz -= coefb[k] * (cs[k] * a[q] - sn[k] * a[q + 1]);
     }
     out[0] = fb;
     out[1] = fz;
@@ -113,7 +121,7 @@ static void hl_csm_search(__global const float *sat, __global const float *mean,
 
 /* The filtered test over the penumbra box (order M), unclamped. */
 static float hl_csm_filter(__global const float *sat, __global const float *mean, __global const float *zmap, uint R,
-                           uint M, float cx, float cy, float wu, float wv, float db, float c1, float dh,
+                           uint M, uint Mb, float cx, float cy, float wu, float wv, float db, float c1, float dh,
                            __constant float *coef, const float *cs, const float *sn)
 {
     float dv[3];
@@ -121,16 +129,12 @@ static float hl_csm_filter(__global const float *sat, __global const float *mean
         hl_csm_direct(zmap, R, cx, cy, wu, wv, db, c1, coef, M, dv);
         return dv[0];
     }
-    size_t plane = (size_t)R * R;
-    uint idx[16];
-    float w[16];
+    uint P = 2 * M + 2 * Mb + 1, idx[16];
+    float w[16], a[HL_CSM_MAX_PLANES];
     hl_csm_box_taps(cx, cy, wu, wv, R, idx, w);
+    hl_csm_box(sat, mean, P, idx, w, 1, 1 + 2 * M, a);
     float V = 0.5f;
-    for (uint k = 0; k < M; k++) {
-        uint p = 1 + 2 * k;
-        float S = hl_csm_box(sat + p * plane, mean[p], idx, w), C = hl_csm_box(sat + (p + 1) * plane, mean[p + 1], idx, w);
-        V += coef[k] * (cs[k] * S - sn[k] * C);
-    }
+    for (uint k = 0; k < M; k++) V += coef[k] * (cs[k] * a[1 + 2 * k] - sn[k] * a[2 + 2 * k]);
     return V;
 }
 
@@ -169,7 +173,7 @@ __kernel void hl_csm_eval(__global const float *sats, __global const float *mean
     if (!(sr[0] >= eps)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }
     float za = clamp(sr[1] / sr[0], zmin, d);
     float wp = d - za;
-    float V = hl_csm_filter(sat, mean, zmap, R, M, cx, cy, clamp(wp * su, wmin, fR), clamp(wp * sv, wmin, fR), db, c1,
+    float V = hl_csm_filter(sat, mean, zmap, R, M, Mb, cx, cy, clamp(wp * su, wmin, fR), clamp(wp * sv, wmin, fR), db, c1,
                             dh, coef, cs, sn);
     V = clamp(V, 0.0f, 1.0f);
     float pw = 1.0f + la * exp(-lb * wp);

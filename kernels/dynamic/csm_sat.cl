@@ -20,16 +20,18 @@ __kernel void hl_csm_sat_mean(__global const float *rowsum, uint R, uint nplanes
     mean[p] = s / ((float)R * (float)R);
 }
 
-/* Group g scans line g % R of plane g / R: elements base + i * step,
- * base = plane * R * R + line * line_step. mean: subtracted first when
- * sub is 1 (rows), not when 0 (columns). part: 2 L floats. */
-__kernel void hl_csm_sat_scan(__global float *buf, __global const float *mean, uint R, uint step, uint line_step,
-                              uint sub, __local float *part)
+/* Group g scans line (g / P) % R of plane g % P of light g / (P R) (so
+ * neighbouring groups share cache lines of the interleaved planes):
+ * elements base + i * step, base = light * P * R * R + line * line_step +
+ * plane. mean: subtracted first when sub is 1 (rows), not when 0
+ * (columns). part: 2 L floats. */
+__kernel void hl_csm_sat_scan(__global float *buf, __global const float *mean, uint R, uint P, uint step,
+                              uint line_step, uint sub, __local float *part)
 {
     uint g = (uint)get_group_id(0), l = (uint)get_local_id(0), L = (uint)get_local_size(0);
-    uint plane = g / R, line = g % R;
-    __global float *b = buf + (size_t)plane * R * R + (size_t)line * line_step;
-    float m = sub ? mean[plane] : 0.0f;
+    uint plane = g % P, line = (g / P) % R, light = g / (P * R);
+    __global float *b = buf + (size_t)light * P * R * R + (size_t)line * line_step + plane;
+    float m = sub ? mean[(size_t)light * P + plane] : 0.0f;
     uint run = R / L, i0 = l * run;
     float acc = 0.0f;
     for (uint i = i0; i < i0 + run; i++) {

@@ -77,8 +77,8 @@ static void case_twin(void)
                     double zz = z[k * R2 + i];
                     for (uint32_t m = 1; m <= M; m++) {
                         double ph = (2.0 * m - 1.0) * (double)c1 * zz;
-                        double e1 = fabs(ref[(size_t)(2 * m - 1) * R2 + i] - sin(ph));
-                        double e2 = fabs(ref[(size_t)(2 * m) * R2 + i] - cos(ph));
+                        double e1 = fabs(ref[i * P + 2 * m - 1] - sin(ph));
+                        double e2 = fabs(ref[i * P + 2 * m] - cos(ph));
                         if (e1 > worst_rec) worst_rec = e1;
                         if (e2 > worst_rec) worst_rec = e2;
                     }
@@ -104,7 +104,7 @@ static void case_twin(void)
 }
 
 /* f(d, z) from basis values of z (order M, half-period h, damping alpha),
- * in double from the float planes. */
+ * in double from the float planes: S_k at S[2 (k - 1) stride]. */
 static double series(const float *S, const float *C, size_t stride, uint32_t M, double h, double alpha, double d)
 {
     double f = 0.5;
@@ -128,12 +128,11 @@ static void grid_error(uint32_t M, double h, double alpha, double band, double *
     hl_ref_csm_basis(z, R, M, 4 < M ? 4 : M, (float)(HL_PI / h), 0, img, rs);
     *err = 0;
     *ring = 0;
-    size_t plane = (size_t)R * R;
     for (uint32_t a = 0; a < G; a++) {
         double d = (double)a / (G - 1);
         for (uint32_t i = 0; i < G; i++) {
             double zz = (double)i / (G - 1);
-            double f = series(img + plane + i, img + 2 * plane + i, plane, M, h, alpha, d);
+            double f = series(img + (size_t)i * P + 1, img + (size_t)i * P + 2, 1, M, h, alpha, d);
             if (f - 1 > *ring) *ring = f - 1;
             if (-f > *ring) *ring = -f;
             if (fabs(zz - d) < band) continue;

@@ -44,12 +44,15 @@ static void make_map(float *z, uint32_t R)
         }
 }
 
+/* the module's scans, rows then columns, on interleaved planes */
 static void twin_scans(float *planes, const float *means, uint32_t R, uint32_t P, int sub)
 {
     size_t R2 = (size_t)R * R;
+    (void)R2;
     for (uint32_t p = 0; p < P; p++) {
-        for (uint32_t row = 0; row < R; row++) hl_ref_csm_sat_scan(planes + p * R2 + (size_t)row * R, 1, R, sub ? means[p] : 0.0f);
-        for (uint32_t col = 0; col < R; col++) hl_ref_csm_sat_scan(planes + p * R2 + col, R, R, 0.0f);
+        for (uint32_t row = 0; row < R; row++)
+            hl_ref_csm_sat_scan(planes + (size_t)row * R * P + p, P, R, sub ? means[p] : 0.0f);
+        for (uint32_t col = 0; col < R; col++) hl_ref_csm_sat_scan(planes + (size_t)col * P + p, (size_t)R * P, R, 0.0f);
     }
 }
 
@@ -140,18 +143,25 @@ static void case_precision(void)
         memcpy(raw, basis, P * R2 * 4);
         twin_scans(raw, zero, R, P, 0);
         double worst = 0, worst_raw = 0, big = 0, big_raw = 0;
+        float *xs = malloc(R2 * 4), *ss = malloc(R2 * 4), *rr = malloc(R2 * 4);
         for (uint32_t p = 0; p < P; p++) {
-            const float *x = basis + p * R2;
+            for (size_t i = 0; i < R2; i++) {
+                xs[i] = basis[i * P + p];
+                ss[i] = sat[i * P + p];
+                rr[i] = raw[i * P + p];
+            }
+            const float *x = xs;
             for (uint32_t j = 0; j < R; j++)
                 for (uint32_t i = 0; i < R; i++)
                     D[(size_t)(j + 1) * (R + 1) + i + 1] = (double)x[(size_t)j * R + i] + D[(size_t)j * (R + 1) + i + 1] +
                                                            D[(size_t)(j + 1) * (R + 1) + i] - D[(size_t)j * (R + 1) + i];
             double m1, m2;
-            worst = fmax(worst, box_error(sat + p * R2, mean[p], D, R, &m1));
-            worst_raw = fmax(worst_raw, box_error(raw + p * R2, 0.0f, D, R, &m2));
+            worst = fmax(worst, box_error(ss, mean[p], D, R, &m1));
+            worst_raw = fmax(worst_raw, box_error(rr, 0.0f, D, R, &m2));
             big = fmax(big, m1);
             big_raw = fmax(big_raw, m2);
         }
+        free(xs); free(ss); free(rr);
         printf("R=%u: largest table entry %.1f with the mean subtracted, %.1f without; worst box-sum error without: %.3g\n",
                R, big, big_raw, worst_raw);
         /* Bound: each corner entry has rounded about 2 (R/16 + 4) times

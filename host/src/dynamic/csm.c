@@ -199,12 +199,13 @@ static hl_result build_device(hl_csm *c, uint32_t K, int upto)
     TRY(launch(ctx, c->kb, nrows, 0, "hl_csm_basis"));
     SETARG(c->km, 0, c->rowsum_d); SETARG(c->km, 1, R); SETARG(c->km, 2, np); SETARG(c->km, 3, c->mean_d);
     TRY(launch(ctx, c->km, np, 0, "hl_csm_sat_mean"));
-    /* rows (minus the mean), then columns */
+    /* rows (minus the mean), then columns; planes interleaved by texel */
+    cl_uint P = c->P;
     for (cl_uint pass = 0; (int)pass < upto - 1; pass++) {
-        cl_uint step = pass ? R : 1, line_step = pass ? 1 : R, sub = pass ? 0 : 1;
-        SETARG(c->ks, 0, c->img_d); SETARG(c->ks, 1, c->mean_d); SETARG(c->ks, 2, R); SETARG(c->ks, 3, step);
-        SETARG(c->ks, 4, line_step); SETARG(c->ks, 5, sub);
-        CL_TRY(ctx, clSetKernelArg(c->ks, 6, 2 * HL_CSM_SCAN_LANES * sizeof(float), NULL), "clSetKernelArg");
+        cl_uint step = pass ? R * P : P, line_step = pass ? P : R * P, sub = pass ? 0 : 1;
+        SETARG(c->ks, 0, c->img_d); SETARG(c->ks, 1, c->mean_d); SETARG(c->ks, 2, R); SETARG(c->ks, 3, P);
+        SETARG(c->ks, 4, step); SETARG(c->ks, 5, line_step); SETARG(c->ks, 6, sub);
+        CL_TRY(ctx, clSetKernelArg(c->ks, 7, 2 * HL_CSM_SCAN_LANES * sizeof(float), NULL), "clSetKernelArg");
         TRY(launch(ctx, c->ks, (size_t)np * R * HL_CSM_SCAN_LANES, HL_CSM_SCAN_LANES, "hl_csm_sat_scan"));
     }
     CL_TRY(ctx, clFinish(cl->queue), "shadow-map build");
@@ -222,9 +223,10 @@ static void build_ref(hl_csm *c, uint32_t K, int upto)
         for (uint32_t p = 0; p < P; p++) {
             mean[p] = hl_ref_csm_sat_mean(rs + (size_t)p * R, R);
             for (uint32_t row = 0; upto >= 2 && row < R; row++)
-                hl_ref_csm_sat_scan(img + p * R2 + (size_t)row * R, 1, R, mean[p]);
-            for (uint32_t col = 0; upto >= 3 && col < R; col++) hl_ref_csm_sat_scan(img + p * R2 + col, R, R, 0.0f);
+                hl_ref_csm_sat_scan(img + (size_t)row * R * P + p, P, R, mean[p]);
         }
+        for (uint32_t p = 0; upto >= 3 && p < P; p++)
+            for (uint32_t col = 0; col < R; col++) hl_ref_csm_sat_scan(img + (size_t)col * P + p, (size_t)R * P, R, 0.0f);
     }
 }
 

@@ -10,12 +10,14 @@
  * plane under empty texels), so h = HL_CSM_HALF_PERIOD > 1 keeps the
  * second jump, at |t| = h, out of t in [-1, 1] (test_csm_basis.c, series).
  *
- * Images of one light (planes of R x R floats, row-major, row = v):
- *   0                      z
- *   1 + 2 (k - 1), 2 + 2 (k - 1)          S_k = sin(c_k z), C_k = cos(c_k z), k = 1..M
- *   1 + 2M + 2 (k - 1), 2 + 2M + 2 (k - 1)  z S_k, z C_k, k = 1..Mb (blocker search)
- * so 2M + 2Mb + 1 planes; each is turned into a summed-area table of its
- * values minus the plane's mean (the mean is kept beside it).
+ * Images of one light: P = 2M + 2Mb + 1 planes of R x R floats,
+ * interleaved by texel (texel (i, j) holds its P values at
+ * ((j R + i) P + p), so one table corner is one run of P floats):
+ *   p = 0                                   z
+ *   p = 1 + 2 (k - 1), 2 + 2 (k - 1)        S_k = sin(c_k z), C_k = cos(c_k z), k = 1..M
+ *   p = 1 + 2M + 2 (k - 1), 2 + 2M + 2 (k - 1)  z S_k, z C_k, k = 1..Mb (blocker search)
+ * Each plane becomes a summed-area table of its values minus the plane's
+ * mean (the mean is kept beside it).
  *
  * Depends on: hl_internal.h (core), dynamic.h (hl_shadow_frame).
  */
@@ -117,8 +119,8 @@ hl_result hl_csm_build(hl_csm *c, const float *depth, uint32_t K);
 
 /* For the tests: hl_csm_build stopped after stage `upto` (1: basis planes
  * and plane means, 2: and the row sums, 3: all: the tables), and a copy of
- * light k's planes (P R^2 floats) and means (P) from the device or the
- * host. */
+ * light k's planes (P R^2 floats, interleaved as above) and means (P)
+ * from the device or the host. */
 enum { HL_CSM_UPTO_BASIS = 1, HL_CSM_UPTO_ROWS = 2, HL_CSM_UPTO_ALL = 3 };
 hl_result hl_csm_build_upto(hl_csm *c, const float *depth, uint32_t K, int upto);
 hl_result hl_csm_read_planes(hl_csm *c, uint32_t k, float *planes, float *means);
@@ -159,9 +161,9 @@ typedef struct hl_csm_eval_params {
 
 void hl_csm_params(hl_csm_eval_params *p, uint32_t R, uint32_t M, uint32_t Mb, float zmin, float su, float sv);
 
-/* hl_csm_basis: one row of one map: depth (R values) to the planes
- * (img + plane * R * R + row * R) and each plane's row sum
- * (rowsum[plane * R + row]). c1 = pi / h. */
+/* hl_csm_basis: one row of one map (depth: the light's R x R map) to its
+ * texels' P values (img: the light's interleaved planes) and each plane's
+ * row sum (rowsum[plane * R + row]). c1 = pi / h. */
 void hl_ref_csm_basis(const float *depth, uint32_t R, uint32_t M, uint32_t Mb, float c1, uint32_t row, float *img,
                       float *rowsum);
 /* hl_csm_sat_mean: a plane's mean from its R row sums. */

@@ -10,9 +10,8 @@ void hl_ref_csm_basis(const float *depth, uint32_t R, uint32_t M, uint32_t Mb, f
                       float *rowsum)
 {
     const uint32_t P = hl_csm_planes(M, Mb);
-    const size_t plane = (size_t)R * R;
     const float *z_row = depth + (size_t)row * R;
-    float *out = img + (size_t)row * R;
+    float *out = img + (size_t)row * R * P;
     float acc[2 * HL_CSM_M_MAX + 2 * HL_CSM_M_MAX + 1];
     for (uint32_t p = 0; p < P; p++) acc[p] = 0.0f;
     for (uint32_t i = 0; i < R; i++) {
@@ -20,17 +19,18 @@ void hl_ref_csm_basis(const float *depth, uint32_t R, uint32_t M, uint32_t Mb, f
         float ph = c1 * z;
         float s = sinf(ph), c = cosf(ph);
         float rs = 2.0f * s * c, rc = c * c - s * s;
-        out[i] = z;
+        float *o = out + (size_t)i * P;
+        o[0] = z;
         acc[0] += z;
         for (uint32_t k = 0; k < M; k++) {
-            out[(size_t)(1 + 2 * k) * plane + i] = s;
-            out[(size_t)(2 + 2 * k) * plane + i] = c;
+            o[1 + 2 * k] = s;
+            o[2 + 2 * k] = c;
             acc[1 + 2 * k] += s;
             acc[2 + 2 * k] += c;
             if (k < Mb) {
                 float zs = z * s, zc = z * c;
-                out[(size_t)(1 + 2 * M + 2 * k) * plane + i] = zs;
-                out[(size_t)(2 + 2 * M + 2 * k) * plane + i] = zc;
+                o[1 + 2 * M + 2 * k] = zs;
+                o[2 + 2 * M + 2 * k] = zc;
                 acc[1 + 2 * M + 2 * k] += zs;
                 acc[2 + 2 * M + 2 * k] += zc;
             }

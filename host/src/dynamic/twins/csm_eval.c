@@ -33,11 +33,17 @@ static void box_taps(float cx, float cy, float wu, float wv, uint32_t R, uint32_
     }
 }
 
-static float box(const float *plane, float mean, const uint32_t *idx, const float *w)
+/* Box sums of planes p0..p1-1 into acc[p] (plus each plane's mean): the
+ * planes are interleaved by texel, so each tap reads them in one run. */
+static void box(const float *sat, const float *mean, uint32_t P, const uint32_t *idx, const float *w, uint32_t p0, uint32_t p1,
+                       float *acc)
 {
-    float s = 0.0f;
-    for (uint32_t t = 0; t < 16; t++) s += w[t] * plane[idx[t]];
-    return s + mean;
+    for (uint32_t p = p0; p < p1; p++) acc[p] = 0.0f;
+    for (uint32_t t = 0; t < 16; t++) {
+        const float *row = sat + (size_t)idx[t] * P;
+        for (uint32_t p = p0; p < p1; p++) acc[p] += w[t] * row[p];
+    }
+    for (uint32_t p = p0; p < p1; p++) acc[p] += mean[p];
 }
 
 /* the kernel's hl_csm_direct: box averages of f_n, z and f_n z texel by texel */
@@ -87,17 +93,17 @@ static void search(const float *sat, const float *mean, const float *zmap, const
         out[1] = dv[1] - dv[2];
         return;
     }
-    size_t plane = (size_t)R * R;
+    const uint32_t Mb = p->Mb, P = hl_csm_planes(M, Mb);
     uint32_t idx[16];
-    float w[16];
+    float w[16], a[4 * HL_CSM_M_MAX + 1];
     box_taps(cx, cy, wu, wv, R, idx, w);
-    float fb = 0.5f, fz = 0.5f * box(sat, mean[0], idx, w);
-    for (uint32_t k = 0; k < p->Mb; k++) {
-        uint32_t a = 1 + 2 * k, q = 1 + 2 * M + 2 * k;
-        float S = box(sat + a * plane, mean[a], idx, w), C = box(sat + (a + 1) * plane, mean[a + 1], idx, w);
-        float ZS = box(sat + q * plane, mean[q], idx, w), ZC = box(sat + (q + 1) * plane, mean[q + 1], idx, w);
-        fb -= p->coefb[k] * (cs[k] * S - sn[k] * C);
-        fz -= p->coefb[k] * (cs[k] * ZS - sn[k] * ZC);
+    box(sat, mean, P, idx, w, 0, 1 + 2 * Mb, a);
+    box(sat, mean, P, idx, w, 1 + 2 * M, P, a);
+    float fb = 0.5f, fz = 0.5f * a[0];
+    for (uint32_t k = 0; k < Mb; k++) {
+        uint32_t s = 1 + 2 * k, q = 1 + 2 * M + 2 * k;
+        fb -= p->coefb[k] * (cs[k] * a[s] - sn[k] * a[s + 1]);
+        fz -= p->coefb[k] * (cs[k] * a[q] - sn[k] * a[q + 1]);
     }
     out[0] = fb;
     out[1] = fz;
@@ -113,16 +119,13 @@ static float filter(const float *sat, const float *mean, const float *zmap, cons
         direct(zmap, R, cx, cy, wu, wv, db, p->c1, p->coef, p->M, dv);
         return dv[0];
     }
-    size_t plane = (size_t)R * R;
+    const uint32_t M = p->M, P = hl_csm_planes(M, p->Mb);
     uint32_t idx[16];
-    float w[16];
+    float w[16], a[4 * HL_CSM_M_MAX + 1];
     box_taps(cx, cy, wu, wv, R, idx, w);
+    box(sat, mean, P, idx, w, 1, 1 + 2 * M, a);
     float V = 0.5f;
-    for (uint32_t k = 0; k < p->M; k++) {
-        uint32_t a = 1 + 2 * k;
-        float S = box(sat + a * plane, mean[a], idx, w), C = box(sat + (a + 1) * plane, mean[a + 1], idx, w);
-        V += p->coef[k] * (cs[k] * S - sn[k] * C);
-    }
+    for (uint32_t k = 0; k < M; k++) V += p->coef[k] * (cs[k] * a[1 + 2 * k] - sn[k] * a[2 + 2 * k]);
     return V;
 }
 
