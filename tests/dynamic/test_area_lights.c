@@ -27,6 +27,11 @@ static double lum(const double *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.07
 static double lumf(const float *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
 
 static hl_context *make_ctx(void) { return hl_test_ref_context(0); }
+static void die(hl_context *ctx, const char *what)
+{
+    fprintf(stderr, "%s: %s\n", what, hl_context_last_error(ctx));
+    exit(1);
+}
 
 /* docs/CONVENTIONS.md: pixel row j's solid angle and a (u, v) direction. */
 static double pixel_omega(uint32_t W, uint32_t H, uint32_t j)
@@ -66,10 +71,7 @@ static hl_env *load_city(hl_context *ctx)
     snprintf(path, sizeof path, "%s/city.exr", hl_test_env("HL_REPO_DATA", "data"));
     hl_env *env = NULL;
     hl_env_stats st;
-    if (hl_env_load(ctx, path, &env, &st) != HL_OK) {
-        fprintf(stderr, "%s: %s\n", path, hl_context_last_error(ctx));
-        exit(1);
-    }
+    if (hl_env_load(ctx, path, &env, &st) != HL_OK) die(ctx, path);
     return env;
 }
 
@@ -85,15 +87,14 @@ static hl_light_split *split(hl_context *ctx, const hl_env *env, uint32_t F, flo
     hl_light_split_defaults(&p);
     p.rule = g_rule;
     if (F) p.face_res = F;
-    if (g_rule == HL_SPLIT_OF_LIGHT) p.threshold = t > 0.0f ? fminf(0.9f, 100.0f * t) : HL_LIGHTS_DEFAULT_THRESHOLD_OF_LIGHT;
-    else if (t > 0.0f) p.threshold = t;
+    if (g_rule == HL_SPLIT_OF_LIGHT)
+        p.threshold = t > 0.0f ? fminf(0.9f, 100.0f * t) : HL_LIGHTS_DEFAULT_THRESHOLD_OF_LIGHT;
+    else if (t > 0.0f)
+        p.threshold = t;
     p.lights = K;
     p.rotate_deg = rot;
     hl_light_split *s = NULL;
-    if (hl_area_lights_split(ctx, env, &p, &s) != HL_OK) {
-        fprintf(stderr, "split: %s\n", hl_context_last_error(ctx));
-        exit(1);
-    }
+    if (hl_area_lights_split(ctx, env, &p, &s) != HL_OK) die(ctx, "split");
     return s;
 }
 
@@ -103,7 +104,8 @@ static hl_light_split *split(hl_context *ctx, const hl_env *env, uint32_t F, flo
 static hl_env *sun_env(hl_context *ctx, uint32_t W, uint32_t H, const double d[3], float sky, float Ls, uint32_t F,
                        uint32_t *si, uint32_t *sj)
 {
-    double u = 0.5 + atan2(d[2], d[0]) / (2.0 * PI), v = acos(d[1] / sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])) / PI;
+    double u = 0.5 + atan2(d[2], d[0]) / (2.0 * PI), v = acos(d[1] / sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]));
+    v /= PI;
     int i0 = (int)floor(u * W), j0 = (int)floor(v * H), found = 0;
     for (int r = 0; r < 3 && !found; r++)
         for (int dj = -r; dj <= r && !found; dj++)
@@ -138,7 +140,8 @@ static void sun_dir(int k, uint32_t F, double d[3])
     static const int face[3] = {0, 2, 5}, col[3] = {16, 10, 5}, row[3] = {16, 20, 25};
     float f[3];
     uint32_t c = (uint32_t)col[k] * F / 32, r = (uint32_t)row[k] * F / 32;
-    hl_cube_face_dir(face[k], 2.0f * ((float)c + 0.5f) / (float)F - 1.0f, 2.0f * ((float)r + 0.5f) / (float)F - 1.0f, f);
+    hl_cube_face_dir(face[k], 2.0f * ((float)c + 0.5f) / (float)F - 1.0f, 2.0f * ((float)r + 0.5f) / (float)F - 1.0f,
+                     f);
     for (int i = 0; i < 3; i++) d[i] = f[i];
 }
 
@@ -159,7 +162,8 @@ static void energy_of(const hl_env *env, const hl_light_split *s, const char *wh
         double e[3] = {l[c], cube[c], s->stats.total_energy[c]};
         for (int k = 0; k < 3; k++)
             if (!(fabs(e[k] - m[c]) / m[c] <= *worst)) *worst = fabs(e[k] - m[c]) / m[c]; /* NaN too */
-        if (!(*worst <= 1e-4)) printf("  %s channel %d: map %.9g, lights+folded %.9g, cube %.9g\n", what, c, m[c], l[c], cube[c]);
+        if (!(*worst <= 1e-4))
+            printf("  %s channel %d: map %.9g, lights+folded %.9g, cube %.9g\n", what, c, m[c], l[c], cube[c]);
     }
 }
 
@@ -243,7 +247,10 @@ static void case_energy_shared(void)
         snprintf(path, sizeof path, "%s/envmaps/%s.exr", data, names[k]);
         hl_env *env = NULL;
         hl_env_stats st;
-        if (hl_env_load(ctx, path, &env, &st) != HL_OK) { HL_CHECK(0, "%s: %s", path, hl_context_last_error(ctx)); continue; }
+        if (hl_env_load(ctx, path, &env, &st) != HL_OK) {
+            HL_CHECK(0, "%s: %s", path, hl_context_last_error(ctx));
+            continue;
+        }
         for (int r = 0; r < 2; r++) {
             g_rule = r ? HL_SPLIT_OF_LIGHT : HL_SPLIT_OF_MAP;
             hl_light_split *s = split(ctx, env, 0, 0.0f, HL_LIGHTS_DEFAULT_KEEP, 0.0f);
@@ -418,7 +425,8 @@ static double fast_vs_ref(const hl_light_split *s, int per_light, uint64_t *stra
         for (int i = 0; i < per_light; i++) {
             float n[3], a[3], b[3];
             if (i % 3 == 0) random_unit(n);
-            else normal_at(l->dir, (i % 3 == 1 ? 1.0 : -1.0) * se * (0.9 + 0.2 * urand()), n); /* at the horizon's edge */
+            else /* about the cone's tangent to the horizon */
+                normal_at(l->dir, (i % 3 == 1 ? 1.0 : -1.0) * se * (0.9 + 0.2 * urand()), n);
             float nd = n[0] * l->dir[0] + n[1] * l->dir[1] + n[2] * l->dir[2];
             if (fabs(nd) < se) (*straddle)++;
             hl_area_light_irradiance(s, k, n, a);
@@ -627,8 +635,8 @@ static void case_rotation(void)
            checked, its energy below over all its lights */
         check_sun(s, env, si, sj, rots[k], &dir_err, &dir_tol, &ign);
         dir_of_uv((si + 0.5) / 256.0, (sj + 0.5) / 128.0, pd);
-        float w[3] = {(float)(pd[0] * cos(a) + pd[2] * sin(a)), (float)pd[1], (float)(-pd[0] * sin(a) + pd[2] * cos(a))},
-              c[3];
+        float c[3], w[3] = {(float)(pd[0] * cos(a) + pd[2] * sin(a)), (float)pd[1],
+                            (float)(-pd[0] * sin(a) + pd[2] * cos(a))};
         hl_env_query(env, w, (float)rots[k], c);
         q_err = fmax(q_err, fabs(c[0] - 1e5) / 1e5);
         double sun = 1e5 * pixel_omega(256, 128, sj), got = 0.0;

@@ -376,7 +376,8 @@ static void texel_geometry(hl_light_split *s)
                 double d[3];
                 face_point(face, 2.0 * (x + 0.5) / F - 1.0, 2.0 * (y + 0.5) / F - 1.0, d);
                 normalise(d);
-                for (int k = 0; k < 3; k++) s->texel_dir[3 * ((size_t)face * F * F + y * F + x) + (size_t)k] = (float)d[k];
+                float *o = s->texel_dir + 3 * ((size_t)face * F * F + y * F + x);
+                for (int k = 0; k < 3; k++) o[k] = (float)d[k];
             }
         }
 }
