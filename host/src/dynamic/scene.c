@@ -247,8 +247,7 @@ typedef struct merged {
     int normals, colors;
 } merged;
 
-static hl_result merge_meshes(hl_dyn_scene *s, const struct aiScene *as, const struct aiNode *an, const double K[9],
-                              merged *m)
+static void merge_meshes(const struct aiScene *as, const struct aiNode *an, const double K[9], merged *m)
 {
     double kinv[9];
     hl_dyn_inv3_(K, kinv); /* K is invertible: hl_dyn_polar_ succeeded */
@@ -284,8 +283,6 @@ static hl_result merge_meshes(hl_dyn_scene *s, const struct aiScene *as, const s
         }
         base += am->mNumVertices;
     }
-    (void)s;
-    return HL_OK;
 }
 
 static hl_result count_meshes(hl_dyn_scene *s, const struct aiScene *as, const struct aiNode *an, merged *m)
@@ -347,7 +344,7 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
     if (!m.pos || !m.idx || (m.normals && !m.nrm) || (m.colors && !m.col) || !name) r = HL_ERR_OUT_OF_MEMORY;
     if (r == HL_OK) {
         snprintf(name, nlen, "%s (node \"%s\")", s->name, an->mName.data);
-        merge_meshes(s, as, an, K, &m);
+        merge_meshes(as, an, K, &m);
         r = hl_mesh_build_(ctx, name, (uint32_t)m.nv, m.pos, m.nrm, m.col, (uint32_t)m.nt, m.idx, desc, &mesh, NULL);
     }
     if (r == HL_OK) {

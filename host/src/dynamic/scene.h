@@ -7,12 +7,19 @@
  * welded and given normals by the shared mesh builder, in the node's own
  * coordinates with the static scale of its world transform baked in (the
  * stretch K of the polar decomposition M = Q K of its world matrix at
- * rest; for a node under parents without scale that is the node's own
- * scale). Its world transform at time t is then rigid: xf = world(t) K^-1.
+ * the animation's first key time, or at rest without one; for a node
+ * under parents without scale that is the node's own scale; a mirror
+ * goes into K, with the winding reversed). Its world transform at time t
+ * is then rigid: xf = world(t) K^-1. Bodies are numbered in depth-first
+ * order of the nodes and named as the importer names the node (assimp
+ * 5.2 names an unnamed glTF node "nodes[N]" and adds a node "ROOT" above
+ * a glTF scene's several roots).
  *
  * Motion:
- * - the file's node animation (one chosen at load): position keys and
- *   scaling keys linear, rotation keys slerp on the shorter arc, clamped:
+ * - the file's node animation (one chosen at load): position keys
+ *   linear, rotation keys slerp on the shorter arc (so a key pair more
+ *   than half a turn apart turns the short way), scaling keys constant
+ *   (a constant scale is baked like a static one), clamped:
  *   before a channel's first key it holds the first key, after its last
  *   key the last (the file's pre/post states are not used). Key times are
  *   ticks / ticks-per-second, 25 ticks a second where the file gives 0
@@ -22,7 +29,8 @@
  *   transform in world space applied after the animation:
  *   world = P world_anim(t), and the nodes under the body's node move
  *   with it.
- * Refused: bones (skinning) or mesh/morph channels with an animation,
+ * Refused: bones (skinning) or mesh/morph channels with an animation
+ * (a skinned file loads in its bind pose with HL_DYN_NO_ANIMATION),
  * scaling keys that change over time, a rotating node under a
  * non-uniformly scaled one (that shears), non-finite keys or node
  * transforms, key times that go backwards, a scene without triangles.
@@ -97,7 +105,8 @@ const char *hl_dyn_scene_animation(const hl_dyn_scene *scene, double *start, dou
 
 /* ------------------------------------------------------------ motion */
 
-/* Every body at time t (seconds, finite and >= 0): out[b] for b <
+/* Every body at time t (seconds, finite and >= 0; the part of an
+ * animation before 0 s, which some formats write, is not sampled): out[b] for b <
  * body_count, pos/normal/tri pointing at the scene's arrays (valid until
  * it is destroyed) and xf its rigid world transform. */
 hl_result hl_dyn_scene_at(hl_dyn_scene *scene, double t, hl_dyn_object *out);
