@@ -245,6 +245,33 @@ static void case_load(void)
         hl_check_error("rest pose: Cube at the node's static transform", xf_diff(o[1].xf, e), XF_TOL);
         hl_dyn_scene_destroy(s);
     }
+    /* a mirroring scale: the body stays rigid, its world vertices are the
+       mirrored quad and its (open) winding still faces +Y */
+    sg_scene mir;
+    memset(&mir, 0, sizeof mir);
+    mir.nnodes = 1;
+    mir.node[0] = (sg_node){.name = "Mirror", .parent = -1, .mesh = SG_GROUND, .has_s = 1, .s = {2, 1, -3}};
+    s = load_gen(ctx, &mir, "scene_mirror.gltf");
+    if (s) {
+        HL_CHECK(hl_dyn_scene_at(s, 0.0, o) == HL_OK, "%s", hl_context_last_error(ctx));
+        const float *x = o[0].xf;
+        double wm = 0, det = (double)x[0] * ((double)x[5] * x[10] - (double)x[6] * x[9]) -
+                             (double)x[1] * ((double)x[4] * x[10] - (double)x[6] * x[8]) +
+                             (double)x[2] * ((double)x[4] * x[9] - (double)x[5] * x[8]);
+        wm = fabs(det - 1.0);
+        for (uint32_t v = 0; v < o[0].nverts; v++) {
+            const float *p = o[0].pos + 3 * v, *n = o[0].normal + 3 * v;
+            double w[3], wn[3];
+            for (int i = 0; i < 3; i++) {
+                w[i] = x[4 * i] * p[0] + x[4 * i + 1] * p[1] + x[4 * i + 2] * p[2] + x[4 * i + 3];
+                wn[i] = x[4 * i] * n[0] + x[4 * i + 1] * n[1] + x[4 * i + 2] * n[2];
+            }
+            wm = fmax(wm, fmax(fabs(fabs(w[0]) - 2), fmax(fabs(w[1]), fabs(fabs(w[2]) - 3))));
+            wm = fmax(wm, fmax(fabs(wn[0]), fmax(fabs(wn[1] - 1), fabs(wn[2]))));
+        }
+        hl_check_error("mirror scale (2, 1, -3): det, world corners, world normal +Y", wm, XF_TOL);
+        hl_dyn_scene_destroy(s);
+    }
     /* the animation chosen by name */
     d = (hl_dyn_scene_desc){.animation_name = "move"};
     HL_CHECK(hl_dyn_scene_load_desc(ctx, hl_test_tmp_path("scene_main.gltf"), &d, &s) == HL_OK, "%s",
