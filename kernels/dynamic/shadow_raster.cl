@@ -37,22 +37,37 @@ float4 hl_shadow_raster_vertex(global const float *pos, uint v, global const flo
     return (float4)(x, y, z, 0.0f);
 }
 
-/* The edge function of edge u -> v at (px, py), positive on its left,
- * evaluated from the lexicographically smaller end. */
-float hl_shadow_raster_edge(float4 u, float4 v, float px, float py)
+/* Edge u -> v set up once per triangle: evaluated from its
+ * lexicographically smaller end s, E = ex (py - sy) - ey (px - sx),
+ * negated when u is not that end; tl: the edge is top-left. */
+typedef struct hl_shadow_raster_edge_t { float sx, sy, ex, ey; int flip, tl; } hl_shadow_raster_edge_t;
+
+hl_shadow_raster_edge_t hl_shadow_raster_edge_setup(float4 u, float4 v)
 {
-    int flip = v.x < u.x || (v.x == u.x && v.y < u.y);
-    float4 s = flip ? v : u, e = flip ? u : v;
-    float E = (e.x - s.x) * (py - s.y) - (e.y - s.y) * (px - s.x);
-    return flip ? -E : E;
+    hl_shadow_raster_edge_t g;
+    g.flip = v.x < u.x || (v.x == u.x && v.y < u.y);
+    float4 s = g.flip ? v : u, e = g.flip ? u : v;
+    g.sx = s.x;
+    g.sy = s.y;
+    g.ex = e.x - s.x;
+    g.ey = e.y - s.y;
+    float dx = v.x - u.x, dy = v.y - u.y;
+    g.tl = dy < 0.0f || (dy == 0.0f && dx < 0.0f);
+    return g;
 }
 
-/* Whether a centre with edge value E of edge u -> v is inside. */
-int hl_shadow_raster_inside(float E, float4 u, float4 v)
+/* E at column centre px given the row's term ex (py - sy); inside: E > 0,
+ * or E == 0 on a top-left edge. */
+int hl_shadow_raster_edge_at(const hl_shadow_raster_edge_t *g, float row, float px, float *E)
 {
-    float dx = v.x - u.x, dy = v.y - u.y;
-    return E > 0.0f || (E == 0.0f && (dy < 0.0f || (dy == 0.0f && dx < 0.0f)));
+    float e = row - g->ey * (px - g->sx);
+    e = g->flip ? -e : e;
+    *E = e;
+    return e > 0.0f || (e == 0.0f && g->tl);
 }
+
+float hl_shadow_raster_min3(float a, float b, float c) { float m = a < b ? a : b; return m < c ? m : c; }
+float hl_shadow_raster_max3(float a, float b, float c) { float m = a > b ? a : b; return m > c ? m : c; }
 
 /* The first and last texel index whose centre (i + 0.5) lies in [lo, hi],
  * clamped to the map (so the int conversions stay in range); *first >
@@ -85,20 +100,21 @@ kernel void hl_shadow_raster(global const float *pos, global const uint *tri, ui
         if (!(area != 0.0f)) continue; /* edge-on: covers no centre */
         if (area < 0.0f) { float4 s = b; b = c; c = s; }
         int i0, i1, j0, j1;
-        hl_shadow_raster_span(fmin(a.x, fmin(b.x, c.x)), fmax(a.x, fmax(b.x, c.x)), R, &i0, &i1);
-        hl_shadow_raster_span(fmin(a.y, fmin(b.y, c.y)), fmax(a.y, fmax(b.y, c.y)), R, &j0, &j1);
+        hl_shadow_raster_span(hl_shadow_raster_min3(a.x, b.x, c.x), hl_shadow_raster_max3(a.x, b.x, c.x), R, &i0, &i1);
+        hl_shadow_raster_span(hl_shadow_raster_min3(a.y, b.y, c.y), hl_shadow_raster_max3(a.y, b.y, c.y), R, &j0, &j1);
+        hl_shadow_raster_edge_t ga = hl_shadow_raster_edge_setup(b, c), gb = hl_shadow_raster_edge_setup(c, a),
+                                gc = hl_shadow_raster_edge_setup(a, b);
         for (int j = j0; j <= j1; j++) {
             float py = (float)j + 0.5f;
+            float ra = ga.ex * (py - ga.sy), rb = gb.ex * (py - gb.sy), rc = gc.ex * (py - gc.sy);
             for (int i = i0; i <= i1; i++) {
-                float px = (float)i + 0.5f;
-                float ea = hl_shadow_raster_edge(b, c, px, py);
-                float eb = hl_shadow_raster_edge(c, a, px, py);
-                float ec = hl_shadow_raster_edge(a, b, px, py);
-                if (!hl_shadow_raster_inside(ea, b, c) || !hl_shadow_raster_inside(eb, c, a) ||
-                    !hl_shadow_raster_inside(ec, a, b))
+                float px = (float)i + 0.5f, ea, eb, ec;
+                if (!hl_shadow_raster_edge_at(&ga, ra, px, &ea) || !hl_shadow_raster_edge_at(&gb, rb, px, &eb) ||
+                    !hl_shadow_raster_edge_at(&gc, rc, px, &ec))
                     continue;
                 float sum = ea + eb + ec;
-                float d = sum > 0.0f ? (ea * a.z + eb * b.z + ec * c.z) / sum : fmin(a.z, fmin(b.z, c.z));
+                float d = sum > 0.0f ? (ea * a.z + eb * b.z + ec * c.z) / sum
+                                     : hl_shadow_raster_min3(a.z, b.z, c.z);
                 d = d > 0.0f ? d : 0.0f; /* also turns -0 into +0, whose bits order */
                 d = d < 1.0f ? d : 1.0f;
                 atomic_min(map + (size_t)j * R + (size_t)i, as_uint(d));

@@ -153,6 +153,7 @@ typedef struct depth_job {
     uint32_t K, R;
     float *depth;
     atomic_uint next; /* the next row, over all maps: k R + j */
+    atomic_int no_memory; /* a thread could not get its packet */
 } depth_job;
 
 /* Row j of map k, 16 texels a packet. */
@@ -197,6 +198,7 @@ static void *depth_worker(void *arg)
     struct RTCRayHit16 *rh = aligned_alloc(64, sizeof *rh);
     int *valid = aligned_alloc(64, 64);
     const uint32_t rows = job->K * job->R;
+    if (!rh || !valid) atomic_store(&job->no_memory, 1);
     for (;;) {
         if (!rh || !valid) break;
         uint32_t r0 = atomic_fetch_add(&job->next, HL_INST_ROWS_PER_TAKE);
@@ -224,7 +226,10 @@ hl_result hl_inst_depth_maps(hl_inst_scene *s, const hl_inst_ortho *frames, uint
     }
     depth_job job = {.s = s, .frames = frames, .K = K, .R = R, .depth = depth};
     atomic_init(&job.next, 0u);
+    atomic_init(&job.no_memory, 0);
     hl_run_threads(s->ctx->threads, depth_worker, &job);
+    /* another thread may have done the rows, but not surely all of them */
+    if (atomic_load(&job.no_memory)) return hl_fail(s->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for ray packets");
     if (s->err[0]) return hl_fail(s->ctx, HL_ERR_EMBREE, "Embree: %s", s->err);
     if (hl_context_cancelled(s->ctx)) return hl_fail(s->ctx, HL_ERR_INTERRUPTED, "interrupted");
     return HL_OK;

@@ -6,7 +6,7 @@
  * rule (top-left, edges evaluated from their lexicographically smaller
  * end) is described in the kernel. Depends on: shadow_map.h.
  */
-#include <math.h>
+#include <math.h> /* ceilf, floorf */
 
 #include "shadow_map.h"
 
@@ -26,19 +26,37 @@ static tv raster_vertex(const float *pos, uint32_t v, const float *xf, const flo
     return o;
 }
 
-static float raster_edge(tv u, tv v, float px, float py)
+/* Edge u -> v set up once per triangle: evaluated from its
+ * lexicographically smaller end s, E = ex (py - sy) - ey (px - sx),
+ * negated when u is not that end; tl: the edge is top-left. */
+typedef struct edge { float sx, sy, ex, ey; int flip, tl; } edge;
+
+static edge raster_edge_setup(tv u, tv v)
 {
-    int flip = v.x < u.x || (v.x == u.x && v.y < u.y);
-    tv s = flip ? v : u, e = flip ? u : v;
-    float E = (e.x - s.x) * (py - s.y) - (e.y - s.y) * (px - s.x);
-    return flip ? -E : E;
+    edge g;
+    g.flip = v.x < u.x || (v.x == u.x && v.y < u.y);
+    tv s = g.flip ? v : u, e = g.flip ? u : v;
+    g.sx = s.x;
+    g.sy = s.y;
+    g.ex = e.x - s.x;
+    g.ey = e.y - s.y;
+    float dx = v.x - u.x, dy = v.y - u.y;
+    g.tl = dy < 0.0f || (dy == 0.0f && dx < 0.0f);
+    return g;
 }
 
-static int raster_inside(float E, tv u, tv v)
+/* E at column centre px given the row's term ex (py - sy); inside: E > 0,
+ * or E == 0 on a top-left edge. */
+static int raster_edge_at(const edge *g, float row, float px, float *E)
 {
-    float dx = v.x - u.x, dy = v.y - u.y;
-    return E > 0.0f || (E == 0.0f && (dy < 0.0f || (dy == 0.0f && dx < 0.0f)));
+    float e = row - g->ey * (px - g->sx);
+    e = g->flip ? -e : e;
+    *E = e;
+    return e > 0.0f || (e == 0.0f && g->tl);
 }
+
+static float min3(float a, float b, float c) { float m = a < b ? a : b; return m < c ? m : c; }
+static float max3(float a, float b, float c) { float m = a > b ? a : b; return m > c ? m : c; }
 
 static void raster_span(float lo, float hi, uint32_t R, int *first, int *last)
 {
@@ -62,16 +80,18 @@ void hl_ref_shadow_raster(const float *pos, const uint32_t *tri, uint32_t t0, ui
         if (!(area != 0.0f)) continue;
         if (area < 0.0f) { tv s = b; b = c; c = s; }
         int i0, i1, j0, j1;
-        raster_span(fminf(a.x, fminf(b.x, c.x)), fmaxf(a.x, fmaxf(b.x, c.x)), R, &i0, &i1);
-        raster_span(fminf(a.y, fminf(b.y, c.y)), fmaxf(a.y, fmaxf(b.y, c.y)), R, &j0, &j1);
+        raster_span(min3(a.x, b.x, c.x), max3(a.x, b.x, c.x), R, &i0, &i1);
+        raster_span(min3(a.y, b.y, c.y), max3(a.y, b.y, c.y), R, &j0, &j1);
+        edge ga = raster_edge_setup(b, c), gb = raster_edge_setup(c, a), gc = raster_edge_setup(a, b);
         for (int j = j0; j <= j1; j++) {
             float py = (float)j + 0.5f;
+            float ra = ga.ex * (py - ga.sy), rb = gb.ex * (py - gb.sy), rc = gc.ex * (py - gc.sy);
             for (int i = i0; i <= i1; i++) {
-                float px = (float)i + 0.5f;
-                float ea = raster_edge(b, c, px, py), eb = raster_edge(c, a, px, py), ec = raster_edge(a, b, px, py);
-                if (!raster_inside(ea, b, c) || !raster_inside(eb, c, a) || !raster_inside(ec, a, b)) continue;
+                float px = (float)i + 0.5f, ea, eb, ec;
+                if (!raster_edge_at(&ga, ra, px, &ea) || !raster_edge_at(&gb, rb, px, &eb) || !raster_edge_at(&gc, rc, px, &ec))
+                    continue;
                 float sum = ea + eb + ec;
-                float d = sum > 0.0f ? (ea * a.z + eb * b.z + ec * c.z) / sum : fminf(a.z, fminf(b.z, c.z));
+                float d = sum > 0.0f ? (ea * a.z + eb * b.z + ec * c.z) / sum : min3(a.z, b.z, c.z);
                 d = d > 0.0f ? d : 0.0f;
                 d = d < 1.0f ? d : 1.0f;
                 float *m = map + (size_t)j * R + (size_t)i;
