@@ -372,6 +372,28 @@ static void case_anim(void)
     hl_check_error("program's pose: Cube and Lid move by P", wmove, XF_TOL);
     hl_check_error("program's pose: Ground unchanged", xf_diff(o[0].xf, eg), 0.0);
     hl_dyn_scene_destroy(s);
+    /* a uniform scale on the Pivot scales its children's offsets and is
+       baked into their vertices (Cube 2, Lid 2 x 0.5) */
+    sg_scene big = sc;
+    big.node[1].has_s = 1;
+    big.node[1].s[0] = big.node[1].s[1] = big.node[1].s[2] = 2;
+    s = load_gen(ctx, &big, "scene_anim_scaled.gltf");
+    if (s) {
+        double wb = 0;
+        for (double t = 0; t <= 3.5; t += 0.125) {
+            HL_CHECK(hl_dyn_scene_at(s, t, o) == HL_OK, "%s", hl_context_last_error(ctx));
+            for (int b = 0; b < 3; b++) {
+                double e[12];
+                ref_xf(&big, node_of[b], t, e);
+                wb = fmax(wb, xf_diff(o[b].xf, e));
+            }
+        }
+        hl_check_error("Pivot scaled 2: every body over the animation", wb, XF_TOL);
+        double half = 0;
+        for (uint32_t v = 0; v < o[1].nverts; v++) half = fmax(half, fabs((double)o[1].pos[3 * v]));
+        hl_check_error("Pivot scaled 2: the Cube's baked half extent is 2", fabs(half - 2.0), 0.0);
+        hl_dyn_scene_destroy(s);
+    }
     hl_context_destroy(ctx);
 }
 
