@@ -205,8 +205,8 @@ static hl_result build_device(hl_csm *c, uint32_t K, int upto)
         cl_uint step = pass ? R * P : P, line_step = pass ? P : R * P, sub = pass ? 0 : 1;
         SETARG(c->ks, 0, c->img_d); SETARG(c->ks, 1, c->mean_d); SETARG(c->ks, 2, R); SETARG(c->ks, 3, P);
         SETARG(c->ks, 4, step); SETARG(c->ks, 5, line_step); SETARG(c->ks, 6, sub);
-        CL_TRY(ctx, clSetKernelArg(c->ks, 7, 2 * HL_CSM_SCAN_LANES * sizeof(float), NULL), "clSetKernelArg");
-        TRY(launch(ctx, c->ks, (size_t)np * R * HL_CSM_SCAN_LANES, HL_CSM_SCAN_LANES, "hl_csm_sat_scan"));
+        CL_TRY(ctx, clSetKernelArg(c->ks, 7, 2 * HL_CSM_SCAN_LANES * P * sizeof(float), NULL), "clSetKernelArg");
+        TRY(launch(ctx, c->ks, (size_t)K * R * HL_CSM_SCAN_LANES, HL_CSM_SCAN_LANES, "hl_csm_sat_scan"));
     }
     CL_TRY(ctx, clFinish(cl->queue), "shadow-map build");
     return HL_OK;
