@@ -6,9 +6,11 @@
  * first moment (the integral of w dw) have closed forms, and each sub-cell
  * goes whole to the cube texel holding its centre, so the cube keeps the
  * map's energy exactly (to double rounding) and each texel its moment.
- * Each face is then split greedily into rectangles, the lights sorted by
- * luminance of energy, the K strongest kept and the rest projected onto
- * 9 spherical harmonics (an unshadowed term).
+ * Each face is then split greedily into rectangles (seeds by radiance
+ * luminance, rings grown against the map's energy as DYNAMIC.md says, or
+ * against the light's own, hl_split_rule), the lights sorted by luminance
+ * of energy, the K strongest kept and the rest projected onto 9 spherical
+ * harmonics (an unshadowed term).
  *
  * Plain C on the host, no kernel: the split runs once per environment or
  * rotation, is sequential and greedy, and its output is small (tens of

@@ -16,7 +16,7 @@
 /* Cube face resolution F. 32: the 2008 paper split small cube maps; at 32
  * a texel is about 2.8 degrees, finer than the penumbrae a shadow map of
  * one light resolves, and the greedy split of 6 x 32^2 texels takes
- * milliseconds. 2..256: below 2 a face has no inside, above 256 a texel
+ * under a millisecond (the resampling of a 1024 x 512 map about 40 ms). 2..256: below 2 a face has no inside, above 256 a texel
  * (0.35 degrees) is finer than the pixels of a 1024 x 512 map. */
 #define HL_LIGHTS_DEFAULT_FACE 32u
 #define HL_LIGHTS_MIN_FACE 2u
@@ -24,18 +24,19 @@
 /* Split threshold t for HL_SPLIT_OF_MAP (a ring is added while it brings
  * more than t of the map's energy): 1e-3. On the eight shared maps at
  * F = 32, 3e-3 and above leave most of the energy in thousands of
- * one-texel lights (K = 32 folds 10-93% of it), 3e-4 and below make
- * nearly every face one light (6-70 lights); 1e-3 puts 90% of the energy
- * in 4-6 lights (110 for sunset.exr) and K = 32 folds 2.5-12%. Its large
- * lights are still whole faces (city.exr: the +Y face, 57% of the energy
- * with the sun in it). */
+ * one-texel lights (K = 32 folds 10-93% of it); 3e-4 and below fold
+ * 0-2% but merge still more into face-sized lights (city.exr: 38 lights
+ * at 3e-4, 6 at 1e-4, one a face); 1e-3 puts 90% of the energy in 4-6
+ * lights (110 for sunset.exr) and K = 32 folds 2.5-12%. Its large lights
+ * are still whole faces (city.exr: the +Y face, 57% of the energy, with
+ * the sun in it). */
 #define HL_LIGHTS_DEFAULT_THRESHOLD 1e-3f
 /* t for HL_SPLIT_OF_LIGHT (a ring is added while it brings more than t of
  * the light's energy so far): 0.1, an even sky grows about 2 / t = 20
  * rings, past a face. On the eight shared maps at F = 32 it makes 53-126
  * lights, 90% of the energy in 5-23 of them, K = 32 folds 0.6-4.3%;
  * city.exr's sun is a one-texel light with 24% of the energy. 0.2 makes
- * 150-250 lights with K = 32 folding up to 19%; 0.05 makes 28-80 larger
+ * 148-243 lights with K = 32 folding up to 19%; 0.05 makes 28-80 larger
  * lights. */
 #define HL_LIGHTS_DEFAULT_THRESHOLD_OF_LIGHT 0.1f
 /* Lights kept K (0: all). 32: DYNAMIC.md section 4 costs the shadow maps
@@ -47,7 +48,7 @@
  * DYNAMIC.md section 1 says. Since a ring grows with the light, a ring
  * that passes is mostly followed by larger ones that pass, so on real maps
  * the lights come out as whole faces plus one-texel lights (a sun and its
- * glow inside a face-sized light); see the report in area_lights.c.
+ * glow inside a face-sized light; HL_LIGHTS_DEFAULT_THRESHOLD's numbers).
  * HL_SPLIT_OF_LIGHT: E_delta / E_light > t, the light's energy so far: a
  * sun stops at its glow's edge, an even sky grows about 2 / t rings. */
 typedef enum hl_split_rule { HL_SPLIT_OF_MAP = 0, HL_SPLIT_OF_LIGHT = 1 } hl_split_rule;
@@ -101,7 +102,7 @@ hl_result hl_area_lights_split(hl_context *ctx, const hl_env *env, const hl_ligh
                                hl_light_split **out);
 void hl_light_split_destroy(hl_light_split *s);
 
-/* Irradiance of light k (any of the total) on unit normal n: n . evec
+/* Irradiance of light k (any of the total: k < s->total) on unit normal n: n . evec
  * where the whole rectangle is above n's horizon (n . dir >= sin extent),
  * 0 where all of it is below, else the texel sum. */
 void hl_area_light_irradiance(const hl_light_split *s, uint32_t k, const float n[3], float rgb[3]);
