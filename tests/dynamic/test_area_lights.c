@@ -13,13 +13,14 @@
  *   bad_input      bad parameters and NaN/Inf/negative maps fail, naming the option.
  * Every check prints its tolerance and worst error (hl_check_error).
  * Depends on: haarlight_core, area_lights.h, geom.h (hl_dir_to_cube and hl_cube_face_dir, an
- * independent face mapping), HL_REPO_DATA, HL_TEST_DATA (optional).
+ * independent face mapping), lighting.h (relight's rotation), HL_REPO_DATA, HL_TEST_DATA (optional).
  */
 #include <stdint.h>
 
 #include "area_lights.h"
 #include "geom.h"
 #include "hl_test.h"
+#include "lighting.h" /* hl_rotation_to_shift: how relight turns a map */
 
 #define PI 3.14159265358979323846
 
@@ -606,8 +607,11 @@ static void case_rotation(void)
     static const int ks[] = {3, 128, -300};
     for (int i = 0; i < 3; i++) {
         g_rule = i == 1 ? HL_SPLIT_OF_LIGHT : HL_SPLIT_OF_MAP;
-        float deg = (float)(360.0 * ks[i] / 1024.0);
-        hl_env *turned = turn_columns(ctx, city, (uint32_t)((ks[i] + 1024) % 1024));
+        float deg = (float)(360.0 * ks[i] / 1024.0), f;
+        uint32_t s0; /* the relighter's own shift for --rotate deg */
+        hl_rotation_to_shift(deg, 1024, &s0, &f);
+        HL_CHECK(f == 0.0f && s0 == (uint32_t)((ks[i] + 1024) % 1024), "relight's shift %u + %g", s0, (double)f);
+        hl_env *turned = turn_columns(ctx, city, s0);
         hl_light_split *a = split(ctx, city, 0, 0.0f, HL_LIGHTS_DEFAULT_KEEP, deg);
         hl_light_split *b = split(ctx, turned, 0, 0.0f, HL_LIGHTS_DEFAULT_KEEP, 0.0f);
         double d = split_diff(a, b);
