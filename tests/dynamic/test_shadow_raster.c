@@ -7,7 +7,8 @@
  *            several lights, before and after a motion: bit-identical.
  * analytic   two tilted squares: depth at texel centres against the
  *            ray-plane intersection in double; centres outside are empty;
- *            all three ways (OpenCL, twin, Embree).
+ *            all three ways (OpenCL, twin, Embree). Then the coverage
+ *            rule on a square whose edges pass exactly through centres.
  * embree     rasteriser against Embree rays on the bunny and ground:
  *            the texels that differ are few and lie on projected edges.
  * motion     a rigid motion by hl_shadow_maps_set_transform against the
@@ -305,6 +306,49 @@ static void analytic_one(hl_context *ctx, hl_shadow_method m, const char *name, 
     free(d);
 }
 
+/* The coverage rule on exact numbers: a square of side 2 seen from +Y in
+ * a frame of 1/64 texels shifted by half a texel, so its four edges and
+ * its diagonal pass exactly through texel centres. The top-left rule
+ * covers the left column (x = 64.5) and the top row (y = 192.5), not the
+ * right and bottom ones: 128 x 128 texels, and no hole on the diagonal
+ * the two triangles share. Embree's tie rule is its own: only its
+ * interior (no hole on the diagonal) is checked. */
+static void edge_rule(hl_context *ctx, hl_shadow_method m, const char *name)
+{
+    square q;
+    make_square(&q, 1.0f);
+    hl_dyn_object o = {.pos = q.pos, .nverts = 4, .tri = q.tri, .ntris = 2};
+    memcpy(o.xf, XF_ID, 48);
+    const float lo = -2.0078125f; /* -2 - half a texel of 1/64 */
+    hl_shadow_frame f = {.origin = {lo, 1.0f, lo}, .right = {1, 0, 0}, .up = {0, 0, 1}, .toward_far = {0, -1, 0},
+                         .width = 4.0f, .height = 4.0f, .depth_range = 2.0f, .R = R_TEST};
+    hl_shadow_maps *sm = NULL;
+    float *d = malloc((size_t)R_TEST * R_TEST * 4);
+    HL_CHECK(hl_shadow_maps_create(ctx, &o, 1, R_TEST, m, &sm) == HL_OK, "%s", hl_context_last_error(ctx));
+    if (sm && hl_shadow_maps_render_in(sm, &f, 1, d) == HL_OK) {
+        size_t count = 0, rule = 0, holes = 0;
+        for (uint32_t j = 0; j < R_TEST; j++)
+            for (uint32_t i = 0; i < R_TEST; i++) {
+                int cov = d[(size_t)j * R_TEST + i] < HL_SHADOW_EMPTY;
+                count += (size_t)cov;
+                int want = i >= 64 && i <= 191 && j >= 65 && j <= 192;
+                rule += (size_t)(cov != want);
+                if (i > 64 && i < 192 && j > 64 && j < 192) holes += (size_t)!cov;
+            }
+        char w[160];
+        snprintf(w, sizeof w, "%s: uncovered centres inside the square (the shared diagonal among them)", name);
+        hl_check_error(w, (double)holes, 0.0);
+        printf("%s: %zu centres covered (128 x 128 = 16384 under the top-left rule)\n", name, count);
+        if (m == HL_SHADOW_RASTER) {
+            snprintf(w, sizeof w, "%s: centres against the top-left rule", name);
+            hl_check_error(w, (double)rule, 0.0);
+        }
+    } else
+        HL_CHECK(0, "%s: %s", name, hl_context_last_error(ctx));
+    hl_shadow_maps_destroy(sm);
+    free(d);
+}
+
 static void case_analytic(void)
 {
     square a, b;
@@ -323,6 +367,9 @@ static void case_analytic(void)
     analytic_one(ref, HL_SHADOW_EMBREE, "Embree", o, h, (const float(*)[3])dirs, 4);
     HL_CHECK(cl != NULL, "no OpenCL device");
     if (cl) analytic_one(cl, HL_SHADOW_RASTER, "OpenCL", o, h, (const float(*)[3])dirs, 4);
+    edge_rule(ref, HL_SHADOW_RASTER, "edge rule, twin");
+    edge_rule(ref, HL_SHADOW_EMBREE, "edge rule, Embree");
+    if (cl) edge_rule(cl, HL_SHADOW_RASTER, "edge rule, OpenCL");
     hl_context_destroy(cl);
     hl_context_destroy(ref);
 }
