@@ -83,7 +83,7 @@ static uint32_t texel_of(const double d[3], uint32_t F)
         m = az; t = -d[1];
         if (d[2] >= 0) { face = 4; s = d[0]; } else { face = 5; s = -d[0]; }
     }
-    double cs = floor((s / m + 1.0) * 0.5 * F), ct = floor((t / m + 1.0) * 0.5 * F);
+    double h = 0.5 * F / m, cs = floor(s * h + 0.5 * F), ct = floor(t * h + 0.5 * F);
     uint32_t col = cs < 0 ? 0 : cs >= F ? F - 1 : (uint32_t)cs;
     uint32_t row = ct < 0 ? 0 : ct >= F ? F - 1 : (uint32_t)ct;
     return face * F * F + row * F + col;
@@ -201,7 +201,22 @@ static void sub_tables(uint32_t W, uint32_t H, uint32_t S, float rotate_deg, sub
         }
 }
 
-/* Adds every sub-cell's energy (3) and moment (9) to its cube texel. */
+/* Adds a run of sub-cells of one sub-row R that fell in texel t: a holds
+ * per channel the sums of L, L icos and L isin, which the row's factors
+ * turn into energy and moment. */
+static void flush_run(uint32_t t, const double *a, const sub_row *R, double dphi, double *energy, double *moment)
+{
+    for (int c = 0; c < 3; c++) {
+        energy[3 * (size_t)t + c] += a[3 * c] * dphi * R->dz;
+        moment[9 * (size_t)t + 3 * c] += R->is2 * a[3 * c + 1];
+        moment[9 * (size_t)t + 3 * c + 1] += R->isc * dphi * a[3 * c];
+        moment[9 * (size_t)t + 3 * c + 2] += R->is2 * a[3 * c + 2];
+    }
+}
+
+/* Adds every sub-cell's energy (3) and moment (9) to its cube texel. Along
+ * a sub-row the solid angle and the theta integrals are constant, so runs
+ * of sub-cells in one texel are summed first. */
 static void resample(const hl_env *env, uint32_t F, uint32_t S, const sub_row *rows, const sub_col *cols,
                      double *energy, double *moment)
 {
@@ -210,19 +225,27 @@ static void resample(const hl_env *env, uint32_t F, uint32_t S, const sub_row *r
     for (uint32_t r = 0; r < H * S; r++) {
         const sub_row *R = rows + r;
         const float *line = env->rgb + (size_t)(r / S) * W * 3;
+        uint32_t cur = UINT32_MAX;
+        double a[9] = {0};
         for (uint32_t q = 0; q < W * S; q++) {
             const sub_col *C = cols + q;
             const float *L = line + (size_t)C->src * 3;
             if (L[0] == 0.0f && L[1] == 0.0f && L[2] == 0.0f) continue;
             double d[3] = {R->st * C->cp, R->ct, R->st * C->sp};
             uint32_t t = texel_of(d, F);
-            double om = dphi * R->dz, m[3] = {R->is2 * C->icos, R->isc * dphi, R->is2 * C->isin};
+            if (t != cur) {
+                if (cur != UINT32_MAX) flush_run(cur, a, R, dphi, energy, moment);
+                memset(a, 0, sizeof a);
+                cur = t;
+            }
             for (int c = 0; c < 3; c++) {
                 double l = L[c];
-                energy[3 * (size_t)t + c] += l * om;
-                for (int k = 0; k < 3; k++) moment[9 * (size_t)t + 3 * c + k] += l * m[k];
+                a[3 * c] += l;
+                a[3 * c + 1] += l * C->icos;
+                a[3 * c + 2] += l * C->isin;
             }
         }
+        if (cur != UINT32_MAX) flush_run(cur, a, R, dphi, energy, moment);
     }
 }
 
