@@ -1,8 +1,9 @@
 /* csm_basis.cl - the basis images of convolution shadow maps, one row of
  * one light's depth map per work-item: z, S_k = sin(c_k z), C_k =
  * cos(c_k z) (k = 1..M), z S_k, z C_k (k = 1..Mb), interleaved by texel
- * as host/src/dynamic/csm.h says, and each plane's row sum (for the
- * plane's mean, csm_sat.cl). c_k = (2k - 1) c1: the odd multiples come from one
+ * as host/src/dynamic/csm.h says, each plane's row sum (for the
+ * plane's mean, csm_sat.cl), and per texel (z, sin(c1 z), cos(c1 z), 0)
+ * for the evaluation's texel-by-texel boxes (csm_eval.cl). c_k = (2k - 1) c1: the odd multiples come from one
  * sine and cosine by rotating through 2 c1 z (6 flops a term instead of
  * two library calls; the drift is a few ulps per step, measured in
  * test_csm_basis.c). Twin: host/src/dynamic/twins/csm_basis.c.
@@ -13,7 +14,7 @@
 #define HL_CSM_BASIS_MAX_PLANES 65
 
 __kernel void hl_csm_basis(__global const float *depth, uint R, uint M, uint Mb, float c1,
-                           uint nrows, __global float *img, __global float *rowsum)
+                           uint nrows, __global float *img, __global float *rowsum, __global float *zsc)
 {
     size_t gid = get_global_id(0);
     if (gid >= nrows) return;
@@ -22,6 +23,7 @@ __kernel void hl_csm_basis(__global const float *depth, uint R, uint M, uint Mb,
     size_t plane = (size_t)R * R;
     __global const float *z_row = depth + (size_t)light * plane + (size_t)row * R;
     __global float *out = img + ((size_t)light * plane + (size_t)row * R) * P;
+    __global float *t4 = zsc + ((size_t)light * plane + (size_t)row * R) * 4;
     float acc[HL_CSM_BASIS_MAX_PLANES];
     for (uint p = 0; p < P; p++) acc[p] = 0.0f;
     for (uint i = 0; i < R; i++) {
@@ -31,6 +33,10 @@ __kernel void hl_csm_basis(__global const float *depth, uint R, uint M, uint Mb,
         /* rotation by 2 c1 z: (2k+1) c1 z = (2k-1) c1 z + 2 c1 z */
         float rs = 2.0f * s * c, rc = c * c - s * s;
         __global float *o = out + (size_t)i * P;
+        t4[4 * i] = z;
+        t4[4 * i + 1] = s;
+        t4[4 * i + 2] = c;
+        t4[4 * i + 3] = 0.0f;
         o[0] = z;
         acc[0] += z;
         for (uint k = 0; k < M; k++) {

@@ -7,7 +7,7 @@
  * piecewise-constant image is bilinear inside each texel, so bilinear
  * interpolation between integer corners is exact (16 reads a plane).
  * A box no wider than 2 dh texels (dh = prm[41]) is summed texel by
- * texel from the depth map instead (the series evaluated at each texel,
+ * texel from the texels' (z, sin(c1 z), cos(c1 z)) (csm_basis.cl) instead (the series evaluated at each texel,
  * weighted by its overlap): the tables' entries reach 1e4 at R = 256, so
  * a corner difference carries about 1e-3 of rounding, too much once
  * divided by a box of a few texels (test_csm_sat.c, precision).
@@ -45,9 +45,10 @@ static void hl_csm_box_taps(float cx, float cy, float wu, float wv, uint R, uint
 }
 
 /* Box averages of f_n(db, z), z and f_n z over [u0, u1] x [v0, v1],
- * texel by texel, with f_n = 1/2 + sum_k coef[k] sin((2k-1) c1 (z - db)). */
-static void hl_csm_direct(__global const float *zmap, uint R, float cx, float cy, float wu, float wv, float db,
-                          float c1, __constant float *coef, uint n, float *out)
+ * texel by texel, with f_n = 1/2 + sum_k coef[k] sin((2k-1) c1 (z - db)).
+ * zsc: per texel z, sin(c1 z), cos(c1 z); (s0, c0) = (sin, cos)(c1 db). */
+static void hl_csm_direct(__global const float *zsc, uint R, float cx, float cy, float wu, float wv, float s0,
+                          float c0, __constant float *coef, uint n, float *out)
 {
     float fR = (float)R;
     float u0 = fmax(cx - wu, 0.0f), u1 = fmin(cx + wu, fR);
@@ -58,8 +59,10 @@ static void hl_csm_direct(__global const float *zmap, uint R, float cx, float cy
         float wy = fmin((float)(j + 1), v1) - fmax((float)j, v0);
         for (uint i = i0; i < i1; i++) {
             float ov = (fmin((float)(i + 1), u1) - fmax((float)i, u0)) * wy;
-            float z = zmap[(size_t)j * R + i];
-            float ph = c1 * (z - db), s = sin(ph), c = cos(ph);
+            __global const float *t4 = zsc + 4 * ((size_t)j * R + i);
+            float z = t4[0];
+            /* sin and cos of c1 (z - db) by the difference formulas */
+            float s = t4[1] * c0 - t4[2] * s0, c = t4[2] * c0 + t4[1] * s0;
             float rs = 2.0f * s * c, rc = c * c - s * s, f = 0.5f;
             for (uint k = 0; k < n; k++) {
                 f += coef[k] * s;
@@ -93,13 +96,13 @@ static void hl_csm_box(__global const float *sat, __global const float *mean, ui
 
 /* The blocker search's box averages of fbar = 1 - f and fbar z (order
  * Mb), out[0], out[1]. */
-static void hl_csm_search(__global const float *sat, __global const float *mean, __global const float *zmap, uint R,
-                          uint M, uint Mb, float cx, float cy, float wu, float wv, float db, float c1, float dh,
+static void hl_csm_search(__global const float *sat, __global const float *mean, __global const float *zsc, uint R,
+                          uint M, uint Mb, float cx, float cy, float wu, float wv, float dh,
                           __constant float *coefb, const float *cs, const float *sn, float *out)
 {
     float dv[3];
     if (wu <= dh && wv <= dh) {
-        hl_csm_direct(zmap, R, cx, cy, wu, wv, db, c1, coefb, Mb, dv);
+        hl_csm_direct(zsc, R, cx, cy, wu, wv, sn[0], cs[0], coefb, Mb, dv);
         out[0] = 1.0f - dv[0];
         out[1] = dv[1] - dv[2];
         return;
@@ -120,13 +123,13 @@ static void hl_csm_search(__global const float *sat, __global const float *mean,
 }
 
 /* The filtered test over the penumbra box (order M), unclamped. */
-static float hl_csm_filter(__global const float *sat, __global const float *mean, __global const float *zmap, uint R,
-                           uint M, uint Mb, float cx, float cy, float wu, float wv, float db, float c1, float dh,
+static float hl_csm_filter(__global const float *sat, __global const float *mean, __global const float *zsc, uint R,
+                           uint M, uint Mb, float cx, float cy, float wu, float wv, float dh,
                            __constant float *coef, const float *cs, const float *sn)
 {
     float dv[3];
     if (wu <= dh && wv <= dh) {
-        hl_csm_direct(zmap, R, cx, cy, wu, wv, db, c1, coef, M, dv);
+        hl_csm_direct(zsc, R, cx, cy, wu, wv, sn[0], cs[0], coef, M, dv);
         return dv[0];
     }
     uint P = 2 * M + 2 * Mb + 1, idx[16];
@@ -138,7 +141,7 @@ static float hl_csm_filter(__global const float *sat, __global const float *mean
     return V;
 }
 
-__kernel void hl_csm_eval(__global const float *sats, __global const float *means, __global const float *depth,
+__kernel void hl_csm_eval(__global const float *sats, __global const float *means, __global const float *zscs,
                           uint light, uint R, uint M, uint Mb, __constant float *prm, __global const float *uvd, uint n,
                           __global float *out)
 {
@@ -146,7 +149,7 @@ __kernel void hl_csm_eval(__global const float *sats, __global const float *mean
     if (r >= n) return;
     uint P = 2 * M + 2 * Mb + 1;
     __global const float *sat = sats + (size_t)light * P * R * R, *mean = means + (size_t)light * P;
-    __global const float *zmap = depth + (size_t)light * R * R;
+    __global const float *zsc = zscs + (size_t)light * R * R * 4;
     float zmin = prm[0], su = prm[1], sv = prm[2], bias = prm[3], eps = prm[4], wmin = prm[5];
     float la = prm[6], lb = prm[7], c1 = prm[8], dh = prm[41];
     __constant float *coef = prm + 9, *coefb = prm + 25;
@@ -168,13 +171,13 @@ __kernel void hl_csm_eval(__global const float *sats, __global const float *mean
         c = c2;
     }
     float ws = d - zmin, sr[2];
-    hl_csm_search(sat, mean, zmap, R, M, Mb, cx, cy, clamp(ws * su, wmin, fR), clamp(ws * sv, wmin, fR), db, c1, dh,
-                  coefb, cs, sn, sr);
+    hl_csm_search(sat, mean, zsc, R, M, Mb, cx, cy, clamp(ws * su, wmin, fR), clamp(ws * sv, wmin, fR), dh, coefb, cs,
+                  sn, sr);
     if (!(sr[0] >= eps)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }
     float za = clamp(sr[1] / sr[0], zmin, d);
     float wp = d - za;
-    float V = hl_csm_filter(sat, mean, zmap, R, M, Mb, cx, cy, clamp(wp * su, wmin, fR), clamp(wp * sv, wmin, fR), db, c1,
-                            dh, coef, cs, sn);
+    float V = hl_csm_filter(sat, mean, zsc, R, M, Mb, cx, cy, clamp(wp * su, wmin, fR), clamp(wp * sv, wmin, fR), dh,
+                            coef, cs, sn);
     V = clamp(V, 0.0f, 1.0f);
     float pw = 1.0f + la * exp(-lb * wp);
     out[2 * r] = V > 0.0f ? pow(V, pw) : 0.0f;

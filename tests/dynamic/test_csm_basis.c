@@ -57,13 +57,17 @@ static void case_twin(void)
             HL_CHECK(hl_csm_create(ctx, R, M, Mb, K, &c) == HL_OK, "%s", hl_context_last_error(ctx));
             if (!c) continue;
             float *z = malloc(K * R2 * 4), *dev = malloc(P * R2 * 4), *ref = malloc(P * R2 * 4);
-            float *dm = malloc(P * 4), *rs = malloc((size_t)P * R * 4);
+            float *dm = malloc(P * 4), *rs = malloc((size_t)P * R * 4), *t4d = malloc(R2 * 16), *t4r = malloc(R2 * 16);
             for (uint32_t k = 0; k < K; k++) make_map(z + k * R2, R, (int)k);
             HL_CHECK(hl_csm_build_upto(c, z, K, HL_CSM_UPTO_BASIS) == HL_OK, "%s", hl_context_last_error(ctx));
             float c1 = (float)(HL_PI / HL_CSM_HALF_PERIOD);
             for (uint32_t k = 0; k < K; k++) {
-                HL_CHECK(hl_csm_read_planes(c, k, dev, dm) == HL_OK, "%s", hl_context_last_error(ctx));
-                for (uint32_t row = 0; row < R; row++) hl_ref_csm_basis(z + k * R2, R, M, Mb, c1, row, ref, rs);
+                HL_CHECK(hl_csm_read_planes(c, k, dev, dm, t4d) == HL_OK, "%s", hl_context_last_error(ctx));
+                for (uint32_t row = 0; row < R; row++) hl_ref_csm_basis(z + k * R2, R, M, Mb, c1, row, ref, rs, t4r);
+                for (size_t i = 0; i < 4 * R2; i++) {
+                    double e = fabs((double)t4d[i] - t4r[i]);
+                    if (!(e <= worst)) worst = e;
+                }
                 for (size_t i = 0; i < P * R2; i++) {
                     double e = fabs((double)dev[i] - ref[i]);
                     if (!(e <= worst)) worst = e;
@@ -84,7 +88,7 @@ static void case_twin(void)
                     }
                 }
             }
-            free(z); free(dev); free(ref); free(dm); free(rs);
+            free(z); free(dev); free(ref); free(dm); free(rs); free(t4d); free(t4r);
             hl_csm_destroy(c);
         }
     /* The kernel and twin do the same float operations in the same order
@@ -92,7 +96,7 @@ static void case_twin(void)
      * differ from libm's (an ulp or two, 1.2e-7 each); 15 rotation steps
      * carry that at most linearly: 16 x 2 ulps x 2 (sine and cosine) of
      * values below 1 is 7.6e-6. */
-    hl_check_error("basis planes, kernel vs twin, absolute", worst, 8e-6);
+    hl_check_error("basis planes and texel phases, kernel vs twin, absolute", worst, 8e-6);
     /* A mean is a sum of R row sums of R values in [-1, 1], divided by
      * R^2: a row sum's error times R / R^2, about the same 8e-6. */
     hl_check_error("plane means, kernel vs twin, absolute", worst_mean, 8e-6);
@@ -124,8 +128,9 @@ static void grid_error(uint32_t M, double h, double alpha, double band, double *
     const uint32_t R = 272; /* one row of a map holds the grid's z (a multiple of 16) */
     const uint32_t P = hl_csm_planes(M, 4 < M ? 4 : M);
     float *z = calloc(R, 4), *img = malloc((size_t)P * R * R * 4), *rs = malloc((size_t)P * R * 4);
+    float *t4 = malloc((size_t)R * R * 16);
     for (uint32_t i = 0; i < G; i++) z[i] = (float)i / (G - 1);
-    hl_ref_csm_basis(z, R, M, 4 < M ? 4 : M, (float)(HL_PI / h), 0, img, rs);
+    hl_ref_csm_basis(z, R, M, 4 < M ? 4 : M, (float)(HL_PI / h), 0, img, rs, t4);
     *err = 0;
     *ring = 0;
     for (uint32_t a = 0; a < G; a++) {
@@ -140,7 +145,7 @@ static void grid_error(uint32_t M, double h, double alpha, double band, double *
             if (e > *err) *err = e;
         }
     }
-    free(z); free(img); free(rs);
+    free(z); free(img); free(rs); free(t4);
 }
 
 static double band_of(uint32_t M) { return 1.6 / M; } /* the transition band's half-width */

@@ -59,7 +59,7 @@ static void case_twin(void)
     HL_CHECK(hl_csm_create(ref, R, M, Mb, 2, &cr) == HL_OK, "%s", hl_context_last_error(ref));
     if (!c || !cr) return;
     float *z = malloc(2 * R2 * 4), *uvd = malloc(n * 12), *V = malloc(n * 4), *za = malloc(n * 4);
-    float *Vr = malloc(n * 4), *sat = malloc(P * R2 * 4), *mean = malloc(P * 4);
+    float *Vr = malloc(n * 4), *sat = malloc(P * R2 * 4), *mean = malloc(P * 4), *t4 = malloc(R2 * 16);
     square_map(z, R, 30, 70, 0.3f, 1.0f);
     for (uint32_t j = 80; j < 110; j++)
         for (uint32_t i = 20; i < 120; i++) z[(size_t)j * R + i] = 0.5f + 0.3f * (float)i / (float)R;
@@ -77,7 +77,7 @@ static void case_twin(void)
         float theta = k ? 0.02f : 0.08f;
         HL_CHECK(hl_csm_visibility(c, k, theta, &f, uvd, n, V, za) == HL_OK, "%s", hl_context_last_error(ctx));
         HL_CHECK(hl_csm_visibility(cr, k, theta, &f, uvd, n, Vr, NULL) == HL_OK, "%s", hl_context_last_error(ref));
-        hl_csm_read_planes(c, k, sat, mean);
+        hl_csm_read_planes(c, k, sat, mean, t4);
         float zmin = 1.0f;
         for (size_t i = 0; i < R2; i++) zmin = fminf(zmin, z[k * R2 + i]);
         double t = tan((double)theta) * f.depth_range * R;
@@ -85,7 +85,7 @@ static void case_twin(void)
         hl_csm_params(&p, R, M, Mb, zmin, (float)(t / f.width), (float)(t / f.height));
         for (uint32_t i = 0; i < n; i++) {
             float o[2];
-            hl_ref_csm_eval(sat, mean, hl_csm_depth(c, k), &p, uvd + 3 * i, o);
+            hl_ref_csm_eval(sat, mean, t4, &p, uvd + 3 * i, o);
             worst = fmax(worst, fabs((double)o[0] - V[i]));
             worst_za = fmax(worst_za, fabs((double)o[1] - za[i]));
             worst_ref = fmax(worst_ref, fabs((double)Vr[i] - V[i]));
@@ -100,7 +100,7 @@ static void case_twin(void)
     /* End to end the tables differ too (basis planes by up to 8e-6, so
      * entries by up to R^2 x 8e-6 in the worst case): measured only. */
     printf("V, OpenCL module vs reference backend end to end: worst difference %.3g\n", worst_ref);
-    free(z); free(uvd); free(V); free(za); free(Vr); free(sat); free(mean);
+    free(z); free(uvd); free(V); free(za); free(Vr); free(sat); free(mean); free(t4);
     hl_csm_destroy(c);
     hl_csm_destroy(cr);
     hl_context_destroy(ctx);
@@ -204,7 +204,7 @@ static void case_plane(void)
 
 /* V at the centre of the umbra for a receiver delta behind the blocker
  * (z = 0.4), with leak parameters a, b, from the module's own tables */
-static float contact_v(const float *sat, const float *mean, const float *zmap, uint32_t R, float delta, float a, float b)
+static float contact_v(const float *sat, const float *mean, const float *zsc, uint32_t R, float delta, float a, float b)
 {
     hl_csm_eval_params p;
     double t = tan(0.05) * 10.0 * R / 10.0;
@@ -212,7 +212,7 @@ static float contact_v(const float *sat, const float *mean, const float *zmap, u
     p.leak_a = a;
     p.leak_b = b;
     float uvd[3] = {(float)R / 2.0f, (float)R / 2.0f, 0.4f + delta}, o[2];
-    hl_ref_csm_eval(sat, mean, zmap, &p, uvd, o);
+    hl_ref_csm_eval(sat, mean, zsc, &p, uvd, o);
     return o[0];
 }
 
@@ -224,9 +224,10 @@ static void case_contact(void)
     HL_CHECK(hl_csm_create(ctx, R, 16, 16, 1, &c) == HL_OK, "%s", hl_context_last_error(ctx));
     if (!c) return;
     float *z = malloc((size_t)R * R * 4), *sat = malloc((size_t)P * R * R * 4), mean[65];
+    float *t4 = malloc((size_t)R * R * 16);
     square_map(z, R, 16, 48, 0.4f, 1.0f);
     HL_CHECK(hl_csm_build(c, z, 1) == HL_OK, "%s", hl_context_last_error(ctx));
-    hl_csm_read_planes(c, 0, sat, mean);
+    hl_csm_read_planes(c, 0, sat, mean, t4);
     const float bias = HL_CSM_BIAS_M / 16.0f;
     /* receivers from 3/4 of the bias to 0.03 beyond it; closer than that a
      * receiver cannot be told from the blocker's own surface (which must
@@ -235,13 +236,13 @@ static void case_contact(void)
     for (int i = 1; i <= 4; i++) {
         float dl = bias * (float)i / 8;
         printf("d - z = %.4f (not asserted): V %.4g with the leak exponent, %.4g without\n", dl,
-               contact_v(sat, mean, hl_csm_depth(c, 0), R, dl, HL_CSM_LEAK_A, HL_CSM_LEAK_B),
-               contact_v(sat, mean, hl_csm_depth(c, 0), R, dl, 0.0f, HL_CSM_LEAK_B));
+               contact_v(sat, mean, t4, R, dl, HL_CSM_LEAK_A, HL_CSM_LEAK_B),
+               contact_v(sat, mean, t4, R, dl, 0.0f, HL_CSM_LEAK_B));
     }
     double with = 0, without = 1;
     for (int i = 0; i < 4; i++) {
-        float v1 = contact_v(sat, mean, hl_csm_depth(c, 0), R, deltas[i], HL_CSM_LEAK_A, HL_CSM_LEAK_B);
-        float v0 = contact_v(sat, mean, hl_csm_depth(c, 0), R, deltas[i], 0.0f, HL_CSM_LEAK_B);
+        float v1 = contact_v(sat, mean, t4, R, deltas[i], HL_CSM_LEAK_A, HL_CSM_LEAK_B);
+        float v0 = contact_v(sat, mean, t4, R, deltas[i], 0.0f, HL_CSM_LEAK_B);
         printf("d - z = %.4f: V %.4g with the leak exponent, %.4g without\n", deltas[i], v1, v0);
         with = fmax(with, v1);
         if (i < 2) without = fmin(without, v0);
@@ -257,13 +258,13 @@ static void case_contact(void)
     float chosen = 0;
     for (int b = 0; b < 4; b++) {
         double worst = 0;
-        for (int i = 0; i < 4; i++) worst = fmax(worst, contact_v(sat, mean, hl_csm_depth(c, 0), R, deltas[i], HL_CSM_LEAK_A, Bs[b]));
+        for (int i = 0; i < 4; i++) worst = fmax(worst, contact_v(sat, mean, t4, R, deltas[i], HL_CSM_LEAK_A, Bs[b]));
         printf("B %.0f: darkest-case contact V %.4g, p - 1 at d - z_avg = 0.2: %.3f\n", Bs[b], worst,
                HL_CSM_LEAK_A * exp(-Bs[b] * 0.2));
         if (worst < 0.05) chosen = Bs[b];
     }
     hl_check_error("HL_CSM_LEAK_B minus the B chosen here", fabs(chosen - HL_CSM_LEAK_B), 0.0);
-    free(z); free(sat);
+    free(z); free(sat); free(t4);
     hl_csm_destroy(c);
     hl_context_destroy(ctx);
 }

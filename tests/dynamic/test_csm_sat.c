@@ -71,11 +71,11 @@ static void case_twin(void)
         float *m1 = malloc(K * P * 4), *m3 = malloc(P * 4);
         for (uint32_t k = 0; k < K; k++) make_map(z + k * R2, R);
         HL_CHECK(hl_csm_build_upto(c, z, K, HL_CSM_UPTO_BASIS) == HL_OK, "%s", hl_context_last_error(ctx));
-        for (uint32_t k = 0; k < K; k++) hl_csm_read_planes(c, k, basis + k * P * R2, m1 + k * P);
+        for (uint32_t k = 0; k < K; k++) hl_csm_read_planes(c, k, basis + k * P * R2, m1 + k * P, NULL);
         HL_CHECK(hl_csm_build(c, z, K) == HL_OK, "%s", hl_context_last_error(ctx));
         double worst = 0;
         for (uint32_t k = 0; k < K; k++) {
-            hl_csm_read_planes(c, k, dev, m3);
+            hl_csm_read_planes(c, k, dev, m3, NULL);
             twin_scans(basis + k * P * R2, m1 + k * P, R, P, 1);
             for (size_t i = 0; i < P * R2; i++) {
                 double e = fabs((double)dev[i] - basis[k * P * R2 + i]);
@@ -137,9 +137,9 @@ static void case_precision(void)
         double *D = calloc((R + 1) * (R + 1), sizeof *D);
         make_map(z, R);
         HL_CHECK(hl_csm_build_upto(c, z, 1, HL_CSM_UPTO_BASIS) == HL_OK, "%s", hl_context_last_error(ctx));
-        hl_csm_read_planes(c, 0, basis, mean);
+        hl_csm_read_planes(c, 0, basis, mean, NULL);
         HL_CHECK(hl_csm_build(c, z, 1) == HL_OK, "%s", hl_context_last_error(ctx));
-        hl_csm_read_planes(c, 0, sat, mean);
+        hl_csm_read_planes(c, 0, sat, mean, NULL);
         memcpy(raw, basis, P * R2 * 4);
         twin_scans(raw, zero, R, P, 0);
         double worst = 0, worst_raw = 0, big = 0, big_raw = 0;

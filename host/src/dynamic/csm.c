@@ -21,10 +21,10 @@ struct hl_csm {
     float *zmin;  /* per light of the last build */
     float *stage; /* K_max R^2 depths, validated and clamped to [0, 1] */
     /* reference backend */
-    float *img, *rowsum, *mean;
+    float *img, *rowsum, *mean, *zsc;
     /* OpenCL */
     cl_kernel kb, km, ks, ke;
-    cl_mem depth_d, img_d, rowsum_d, mean_d, prm_d, uvd_d, out_d;
+    cl_mem depth_d, img_d, rowsum_d, mean_d, zsc_d, prm_d, uvd_d, out_d;
     size_t io_cap; /* receivers the uvd and out buffers hold */
     float *out_h;  /* 2 per receiver, read back */
 };
@@ -32,7 +32,7 @@ struct hl_csm {
 size_t hl_csm_bytes_per_light(uint32_t R, uint32_t M, uint32_t Mb)
 {
     size_t P = hl_csm_planes(M, Mb), R2 = (size_t)R * R;
-    return 4 * (P * R2 + R2 + P * R + P);
+    return 4 * (P * R2 + R2 + 4 * R2 + P * R + P);
 }
 
 uint32_t hl_csm_batch_fit(uint32_t R, uint32_t M, uint32_t Mb, uint64_t bytes)
@@ -72,7 +72,7 @@ void hl_csm_destroy(hl_csm *c)
     struct hl_cl *cl = c->ctx->cl;
     if (cl) {
         if (cl->queue) clFinish(cl->queue);
-        cl_mem *all[] = {&c->depth_d, &c->img_d, &c->rowsum_d, &c->mean_d, &c->prm_d, &c->uvd_d, &c->out_d};
+        cl_mem *all[] = {&c->depth_d, &c->img_d, &c->rowsum_d, &c->mean_d, &c->zsc_d, &c->prm_d, &c->uvd_d, &c->out_d};
         for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(cl, all[i]);
         cl_kernel ks[] = {c->kb, c->km, c->ks, c->ke};
         for (size_t i = 0; i < 4; i++)
@@ -82,6 +82,7 @@ void hl_csm_destroy(hl_csm *c)
     hl_free_big(c->stage);
     free(c->rowsum);
     free(c->mean);
+    hl_free_big(c->zsc);
     free(c->zmin);
     free(c->out_h);
     free(c);
@@ -103,6 +104,7 @@ static hl_result create_device(hl_csm *c)
     TRY(hl_cl_make_buf(ctx, &c->img_d, CL_MEM_READ_WRITE, K * P * R2 * 4, NULL, "CSM summed-area tables"));
     TRY(hl_cl_make_buf(ctx, &c->rowsum_d, CL_MEM_READ_WRITE, K * P * c->R * 4, NULL, "CSM row sums"));
     TRY(hl_cl_make_buf(ctx, &c->mean_d, CL_MEM_READ_WRITE, K * P * 4, NULL, "CSM plane means"));
+    TRY(hl_cl_make_buf(ctx, &c->zsc_d, CL_MEM_READ_WRITE, K * R2 * 16, NULL, "CSM texel phases"));
     TRY(hl_cl_make_buf(ctx, &c->prm_d, CL_MEM_READ_ONLY, CSM_PRM_FLOATS * 4, NULL, "CSM parameters"));
     return HL_OK;
 }
@@ -147,7 +149,8 @@ hl_result hl_csm_create(hl_context *ctx, uint32_t R, uint32_t M, uint32_t Mb, ui
         c->img = hl_alloc_big(ctx, KP * R2 * 4, "shadow-map summed-area tables");
         c->rowsum = c->img ? hl_malloc(ctx, KP * R * 4, "shadow-map row sums") : NULL;
         c->mean = c->rowsum ? hl_malloc(ctx, KP * 4, "shadow-map plane means") : NULL;
-        if (!c->mean) r = HL_ERR_OUT_OF_MEMORY;
+        c->zsc = c->mean ? hl_alloc_big(ctx, K_max * R2 * 16, "shadow-map texel phases") : NULL;
+        if (!c->zsc) r = HL_ERR_OUT_OF_MEMORY;
     }
     if (r != HL_OK) { hl_csm_destroy(c); return r; }
     *out = c;
@@ -196,6 +199,7 @@ static hl_result build_device(hl_csm *c, uint32_t K, int upto)
            "shadow-map upload");
     SETARG(c->kb, 0, c->depth_d); SETARG(c->kb, 1, R); SETARG(c->kb, 2, M); SETARG(c->kb, 3, Mb);
     SETARG(c->kb, 4, c1); SETARG(c->kb, 5, nrows); SETARG(c->kb, 6, c->img_d); SETARG(c->kb, 7, c->rowsum_d);
+    SETARG(c->kb, 8, c->zsc_d);
     TRY(launch(ctx, c->kb, nrows, 0, "hl_csm_basis"));
     SETARG(c->km, 0, c->rowsum_d); SETARG(c->km, 1, R); SETARG(c->km, 2, np); SETARG(c->km, 3, c->mean_d);
     TRY(launch(ctx, c->km, np, 0, "hl_csm_sat_mean"));
@@ -219,7 +223,8 @@ static void build_ref(hl_csm *c, uint32_t K, int upto)
     const float c1 = (float)(HL_PI / HL_CSM_HALF_PERIOD);
     for (uint32_t k = 0; k < K; k++) {
         float *img = c->img + (size_t)k * P * R2, *rs = c->rowsum + (size_t)k * P * R, *mean = c->mean + (size_t)k * P;
-        for (uint32_t row = 0; row < R; row++) hl_ref_csm_basis(c->stage + k * R2, R, c->M, c->Mb, c1, row, img, rs);
+        float *zsc = c->zsc + 4 * k * R2;
+        for (uint32_t row = 0; row < R; row++) hl_ref_csm_basis(c->stage + k * R2, R, c->M, c->Mb, c1, row, img, rs, zsc);
         for (uint32_t p = 0; p < P; p++) {
             mean[p] = hl_ref_csm_sat_mean(rs + (size_t)p * R, R);
             for (uint32_t row = 0; upto >= 2 && row < R; row++)
@@ -250,24 +255,25 @@ hl_result hl_csm_build_upto(hl_csm *c, const float *depth, uint32_t K, int upto)
     return HL_OK;
 }
 
-hl_result hl_csm_read_planes(hl_csm *c, uint32_t k, float *planes, float *means)
+hl_result hl_csm_read_planes(hl_csm *c, uint32_t k, float *planes, float *means, float *zsc)
 {
     if (k >= c->K) return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: no light %u", k);
-    size_t n = (size_t)c->P * c->R * c->R, off = (size_t)k * n;
+    size_t n = (size_t)c->P * c->R * c->R, off = (size_t)k * n, R2 = (size_t)c->R * c->R;
     if (!c->ctx->cl) {
         memcpy(planes, c->img + off, n * 4);
         memcpy(means, c->mean + (size_t)k * c->P, (size_t)c->P * 4);
+        if (zsc) memcpy(zsc, c->zsc + 4 * k * R2, R2 * 16);
         return HL_OK;
     }
     hl_context *ctx = c->ctx;
-    CL_TRY(ctx, clEnqueueReadBuffer(ctx->cl->queue, c->img_d, CL_TRUE, off * 4, n * 4, planes, 0, NULL, NULL),
+    cl_command_queue q = ctx->cl->queue;
+    CL_TRY(ctx, clEnqueueReadBuffer(q, c->img_d, CL_TRUE, off * 4, n * 4, planes, 0, NULL, NULL), "read-back");
+    CL_TRY(ctx, clEnqueueReadBuffer(q, c->mean_d, CL_TRUE, (size_t)k * c->P * 4, (size_t)c->P * 4, means, 0, NULL, NULL),
            "read-back");
-    CL_TRY(ctx, clEnqueueReadBuffer(ctx->cl->queue, c->mean_d, CL_TRUE, (size_t)k * c->P * 4, (size_t)c->P * 4, means, 0,
-                                    NULL, NULL), "read-back");
+    if (zsc)
+        CL_TRY(ctx, clEnqueueReadBuffer(q, c->zsc_d, CL_TRUE, k * R2 * 16, R2 * 16, zsc, 0, NULL, NULL), "read-back");
     return HL_OK;
 }
-
-const float *hl_csm_depth(const hl_csm *c, uint32_t k) { return c->stage + (size_t)k * c->R * c->R; }
 
 void hl_csm_sizes(const hl_csm *c, uint32_t *R, uint32_t *M, uint32_t *Mb, uint32_t *P)
 {
@@ -317,7 +323,7 @@ static hl_result eval_device(hl_csm *c, uint32_t k, const hl_csm_eval_params *p,
     CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->prm_d, CL_FALSE, 0, sizeof prm, prm, 0, NULL, NULL), "upload");
     CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->uvd_d, CL_FALSE, 0, (size_t)n * 12, uvd, 0, NULL, NULL), "upload");
     cl_uint light = k, R = c->R, M = c->M, Mb = c->Mb, nn = n;
-    SETARG(c->ke, 0, c->img_d); SETARG(c->ke, 1, c->mean_d); SETARG(c->ke, 2, c->depth_d); SETARG(c->ke, 3, light);
+    SETARG(c->ke, 0, c->img_d); SETARG(c->ke, 1, c->mean_d); SETARG(c->ke, 2, c->zsc_d); SETARG(c->ke, 3, light);
     SETARG(c->ke, 4, R); SETARG(c->ke, 5, M); SETARG(c->ke, 6, Mb); SETARG(c->ke, 7, c->prm_d);
     SETARG(c->ke, 8, c->uvd_d); SETARG(c->ke, 9, nn); SETARG(c->ke, 10, c->out_d);
     TRY(launch(ctx, c->ke, n, 0, "hl_csm_eval"));
@@ -351,7 +357,7 @@ hl_result hl_csm_visibility(hl_csm *c, uint32_t k, float theta, const hl_shadow_
         const float *oi = o;
         if (c->ctx->cl) oi = c->out_h + 2 * (size_t)i;
         else
-            hl_ref_csm_eval(c->img + lp * c->R * c->R, c->mean + lp, c->stage + (size_t)k * c->R * c->R, &p,
+            hl_ref_csm_eval(c->img + lp * c->R * c->R, c->mean + lp, c->zsc + 4 * (size_t)k * c->R * c->R, &p,
                             uvd + 3 * (size_t)i, o);
         V[i] = oi[0];
         if (zavg) zavg[i] = oi[1];

@@ -74,7 +74,8 @@
  * map's own resolution (a narrower box only interpolates one texel). */
 #define HL_CSM_MIN_HALF_WIDTH 0.5f
 /* Boxes of half-width up to 4 texels (9 x 9 texels at most) are summed
- * texel by texel from the depth map, the series evaluated per texel: a
+ * texel by texel, the series evaluated per texel from its z, sin(c1 z)
+ * and cos(c1 z) (kept beside the tables, 4 floats a texel): a
  * table's corner difference carries about eps x 1e4 = 1e-3 of rounding at
  * R = 256 (test_csm_sat.c), which a box of a few texels would turn into
  * 1e-3..1e-4 of noise in each basis value, and V would not be monotone
@@ -119,13 +120,12 @@ hl_result hl_csm_build(hl_csm *c, const float *depth, uint32_t K);
 
 /* For the tests: hl_csm_build stopped after stage `upto` (1: basis planes
  * and plane means, 2: and the row sums, 3: all: the tables), and a copy of
- * light k's planes (P R^2 floats, interleaved as above) and means (P)
- * from the device or the host. */
+ * light k's planes (P R^2 floats, interleaved as above), means (P) and,
+ * when zsc is not NULL, texels' (z, sin, cos, 0) (4 R^2) from the device
+ * or the host. */
 enum { HL_CSM_UPTO_BASIS = 1, HL_CSM_UPTO_ROWS = 2, HL_CSM_UPTO_ALL = 3 };
 hl_result hl_csm_build_upto(hl_csm *c, const float *depth, uint32_t K, int upto);
-hl_result hl_csm_read_planes(hl_csm *c, uint32_t k, float *planes, float *means);
-/* light k's depth map as built (clamped to [0, 1]: R^2 floats) */
-const float *hl_csm_depth(const hl_csm *c, uint32_t k);
+hl_result hl_csm_read_planes(hl_csm *c, uint32_t k, float *planes, float *means, float *zsc);
 /* module sizes (after defaults): R, M, Mb, planes per light */
 void hl_csm_sizes(const hl_csm *c, uint32_t *R, uint32_t *M, uint32_t *Mb, uint32_t *P);
 
@@ -162,20 +162,21 @@ typedef struct hl_csm_eval_params {
 void hl_csm_params(hl_csm_eval_params *p, uint32_t R, uint32_t M, uint32_t Mb, float zmin, float su, float sv);
 
 /* hl_csm_basis: one row of one map (depth: the light's R x R map) to its
- * texels' P values (img: the light's interleaved planes) and each plane's
- * row sum (rowsum[plane * R + row]). c1 = pi / h. */
+ * texels' P values (img: the light's interleaved planes), each plane's
+ * row sum (rowsum[plane * R + row]) and the texels' (z, sin(c1 z),
+ * cos(c1 z), 0) (zsc, 4 R^2 floats a light). c1 = pi / h. */
 void hl_ref_csm_basis(const float *depth, uint32_t R, uint32_t M, uint32_t Mb, float c1, uint32_t row, float *img,
-                      float *rowsum);
+                      float *rowsum, float *zsc);
 /* hl_csm_sat_mean: a plane's mean from its R row sums. */
 float hl_ref_csm_sat_mean(const float *rowsum, uint32_t R);
 /* hl_csm_sat_scan: inclusive prefix sum of one line of R values at
  * base[i * step], minus `sub` first (0 for the column pass), in
  * HL_CSM_SCAN_LANES runs and a tree over the runs' sums. */
 void hl_ref_csm_sat_scan(float *base, size_t step, uint32_t R, float sub);
-/* hl_csm_eval: one receiver (u, v, d) against one light's SATs (planes of
- * R x R), means and depth map (zmap, R x R); out[0] = V, out[1] = z_avg
- * or -1. */
-void hl_ref_csm_eval(const float *sat, const float *mean, const float *zmap, const hl_csm_eval_params *p,
+/* hl_csm_eval: one receiver (u, v, d) against one light's tables, means
+ * and texels' (z, sin(c1 z), cos(c1 z), 0) (zsc); out[0] = V, out[1] =
+ * z_avg or -1. */
+void hl_ref_csm_eval(const float *sat, const float *mean, const float *zsc, const hl_csm_eval_params *p,
                      const float uvd[3], float out[2]);
 
 #endif

@@ -1,17 +1,19 @@
 /* csm_basis.c - twin of kernels/dynamic/csm_basis.cl: one row of one
  * depth map to the basis planes (z, S_k, C_k, z S_k, z C_k) and their row
- * sums, with the kernel's rotation recurrence and order of additions.
+ * sums and the texels' (z, sin(c1 z), cos(c1 z), 0), with the kernel's
+ * rotation recurrence and order of additions.
  * Depends on: csm.h. */
 #include <math.h>
 
 #include "csm.h"
 
 void hl_ref_csm_basis(const float *depth, uint32_t R, uint32_t M, uint32_t Mb, float c1, uint32_t row, float *img,
-                      float *rowsum)
+                      float *rowsum, float *zsc)
 {
     const uint32_t P = hl_csm_planes(M, Mb);
     const float *z_row = depth + (size_t)row * R;
     float *out = img + (size_t)row * R * P;
+    float *t4 = zsc + (size_t)row * R * 4;
     float acc[2 * HL_CSM_M_MAX + 2 * HL_CSM_M_MAX + 1];
     for (uint32_t p = 0; p < P; p++) acc[p] = 0.0f;
     for (uint32_t i = 0; i < R; i++) {
@@ -20,6 +22,10 @@ void hl_ref_csm_basis(const float *depth, uint32_t R, uint32_t M, uint32_t Mb, f
         float s = sinf(ph), c = cosf(ph);
         float rs = 2.0f * s * c, rc = c * c - s * s;
         float *o = out + (size_t)i * P;
+        t4[4 * i] = z;
+        t4[4 * i + 1] = s;
+        t4[4 * i + 2] = c;
+        t4[4 * i + 3] = 0.0f;
         o[0] = z;
         acc[0] += z;
         for (uint32_t k = 0; k < M; k++) {

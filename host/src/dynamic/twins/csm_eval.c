@@ -46,8 +46,10 @@ static void box(const float *sat, const float *mean, uint32_t P, const uint32_t 
     for (uint32_t p = p0; p < p1; p++) acc[p] += mean[p];
 }
 
-/* the kernel's hl_csm_direct: box averages of f_n, z and f_n z texel by texel */
-static void direct(const float *zmap, uint32_t R, float cx, float cy, float wu, float wv, float db, float c1,
+/* the kernel's hl_csm_direct: box averages of f_n, z and f_n z texel by
+ * texel, from the texels' (z, sin(c1 z), cos(c1 z)) and (s0, c0) =
+ * (sin, cos)(c1 db) */
+static void direct(const float *zsc, uint32_t R, float cx, float cy, float wu, float wv, float s0, float c0,
                    const float *coef, uint32_t n, float *out)
 {
     float fR = (float)R;
@@ -61,8 +63,9 @@ static void direct(const float *zmap, uint32_t R, float cx, float cy, float wu, 
         float wy = fminf((float)(j + 1), v1) - fmaxf((float)j, v0);
         for (uint32_t i = i0; i < i1; i++) {
             float ov = (fminf((float)(i + 1), u1) - fmaxf((float)i, u0)) * wy;
-            float z = zmap[(size_t)j * R + i];
-            float ph = c1 * (z - db), s = sinf(ph), c = cosf(ph);
+            const float *t4 = zsc + 4 * ((size_t)j * R + i);
+            float z = t4[0];
+            float s = t4[1] * c0 - t4[2] * s0, c = t4[2] * c0 + t4[1] * s0;
             float rs = 2.0f * s * c, rc = c * c - s * s, f = 0.5f;
             for (uint32_t k = 0; k < n; k++) {
                 f += coef[k] * s;
@@ -82,13 +85,13 @@ static void direct(const float *zmap, uint32_t R, float cx, float cy, float wu, 
 }
 
 /* the kernel's hl_csm_search: box averages of fbar and fbar z */
-static void search(const float *sat, const float *mean, const float *zmap, const hl_csm_eval_params *p, float cx,
-                   float cy, float wu, float wv, float db, const float *cs, const float *sn, float *out)
+static void search(const float *sat, const float *mean, const float *zsc, const hl_csm_eval_params *p, float cx,
+                   float cy, float wu, float wv, const float *cs, const float *sn, float *out)
 {
     const uint32_t R = p->R, M = p->M;
     float dv[3];
     if (wu <= p->direct_half && wv <= p->direct_half) {
-        direct(zmap, R, cx, cy, wu, wv, db, p->c1, p->coefb, p->Mb, dv);
+        direct(zsc, R, cx, cy, wu, wv, sn[0], cs[0], p->coefb, p->Mb, dv);
         out[0] = 1.0f - dv[0];
         out[1] = dv[1] - dv[2];
         return;
@@ -110,13 +113,13 @@ static void search(const float *sat, const float *mean, const float *zmap, const
 }
 
 /* the kernel's hl_csm_filter: the filtered test, unclamped */
-static float filter(const float *sat, const float *mean, const float *zmap, const hl_csm_eval_params *p, float cx,
-                    float cy, float wu, float wv, float db, const float *cs, const float *sn)
+static float filter(const float *sat, const float *mean, const float *zsc, const hl_csm_eval_params *p, float cx,
+                    float cy, float wu, float wv, const float *cs, const float *sn)
 {
     const uint32_t R = p->R;
     float dv[3];
     if (wu <= p->direct_half && wv <= p->direct_half) {
-        direct(zmap, R, cx, cy, wu, wv, db, p->c1, p->coef, p->M, dv);
+        direct(zsc, R, cx, cy, wu, wv, sn[0], cs[0], p->coef, p->M, dv);
         return dv[0];
     }
     const uint32_t M = p->M, P = hl_csm_planes(M, p->Mb);
@@ -129,7 +132,7 @@ static float filter(const float *sat, const float *mean, const float *zmap, cons
     return V;
 }
 
-void hl_ref_csm_eval(const float *sat, const float *mean, const float *zmap, const hl_csm_eval_params *p,
+void hl_ref_csm_eval(const float *sat, const float *mean, const float *zsc, const hl_csm_eval_params *p,
                      const float uvd[3], float out[2])
 {
     const uint32_t R = p->R, M = p->M;
@@ -151,12 +154,12 @@ void hl_ref_csm_eval(const float *sat, const float *mean, const float *zmap, con
         c = c2;
     }
     float ws = d - p->zmin, sr[2];
-    search(sat, mean, zmap, p, cx, cy, clampf(ws * p->su, p->wmin, fR), clampf(ws * p->sv, p->wmin, fR), db, cs, sn, sr);
+    search(sat, mean, zsc, p, cx, cy, clampf(ws * p->su, p->wmin, fR), clampf(ws * p->sv, p->wmin, fR), cs, sn, sr);
     if (!(sr[0] >= p->eps)) return;
     float za = clampf(sr[1] / sr[0], p->zmin, d);
     float wp = d - za;
-    float V = filter(sat, mean, zmap, p, cx, cy, clampf(wp * p->su, p->wmin, fR), clampf(wp * p->sv, p->wmin, fR), db,
-                     cs, sn);
+    float V = filter(sat, mean, zsc, p, cx, cy, clampf(wp * p->su, p->wmin, fR), clampf(wp * p->sv, p->wmin, fR), cs,
+                     sn);
     V = clampf(V, 0.0f, 1.0f);
     float pw = 1.0f + p->leak_a * expf(-p->leak_b * wp);
     out[0] = V > 0.0f ? powf(V, pw) : 0.0f;
