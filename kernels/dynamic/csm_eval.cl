@@ -153,7 +153,7 @@ __kernel void hl_csm_eval(__global const float *sats, __global const float *mean
     float zmin = prm[0], su = prm[1], sv = prm[2], bias = prm[3], eps = prm[4], wmin = prm[5];
     float la = prm[6], lb = prm[7], c1 = prm[8], dh = prm[41];
     __constant float *coef = prm + 9, *coefb = prm + 25;
-    float u = uvd[3 * r], v = uvd[3 * r + 1], d = uvd[3 * r + 2];
+    float u = uvd[3 * r], v = uvd[3 * r + 1], d = fmin(uvd[3 * r + 2], 1.0f); /* beyond the far plane: on it */
     float db = d - bias;
     /* nothing in the map is nearer than the receiver: lit */
     if (!(d > zmin)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }

@@ -189,6 +189,16 @@ static void case_plane(void)
     /* and scale as tan(theta): twice the tangent, twice the width (same p) */
     hl_check_error("width ratio tan 0.1 / tan 0.05, minus 2", fabs(width[1] / width[0] - 2), 0.2);
 
+    /* beyond the far plane (d = 1.2, taken as 1): lit beside the blocker, dark under it */
+    profile(c, (float)atan(0.05), 1.2f, V, za);
+    double far_err = 0;
+    for (uint32_t i = 0; i < PN; i++) {
+        double u = 0.25 * i, wp = 0.6 * PR * 0.05;
+        if (u < 96 - wp - 2) far_err = fmax(far_err, 1.0 - V[i]);
+        if (u > 96 + wp + 2) far_err = fmax(far_err, V[i]);
+    }
+    hl_check_error("receivers beyond the far plane: |V - lit or dark|", far_err, 0.02);
+
     /* acne: the receiver plane itself in the map (z = 0.8 outside the square) */
     square_map(z, PR, 96, 160, 0.4f, 0.8f);
     HL_CHECK(hl_csm_build(c, z, 1) == HL_OK, "%s", hl_context_last_error(ctx));

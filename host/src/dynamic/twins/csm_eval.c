@@ -136,7 +136,7 @@ void hl_ref_csm_eval(const float *sat, const float *mean, const float *zsc, cons
                      const float uvd[3], float out[2])
 {
     const uint32_t R = p->R, M = p->M;
-    float u = uvd[0], v = uvd[1], d = uvd[2];
+    float u = uvd[0], v = uvd[1], d = fminf(uvd[2], 1.0f); /* beyond the far plane: on it */
     float db = d - p->bias;
     out[0] = 1.0f;
     out[1] = -1.0f;
