@@ -11,7 +11,12 @@
  *                     acne where the plane itself is in the map.
  * csm_eval.contact    receivers just behind the blocker: dark with the
  *                     leak exponent, leaking without; B chosen here.
- * csm_eval.bad_input  orders, sizes, NaN depths and receivers, frames.
+ * csm_eval.bad_input  orders, sizes, NaN depths and receivers, frames; a
+ *                     batch beyond the device memory limit.
+ * timing              not a ctest case (it asserts nothing): build time per
+ *                     light at R = 256, M = 16 and evaluation time per 10^4
+ *                     receivers per light on the OpenCL device (argument
+ *                     "timing"), or the reference backend ("timing ref").
  * Depends on: csm.h, hl_test.h.
  */
 #include <float.h>
@@ -325,7 +330,71 @@ static void case_bad_input(void)
     EXPECT_FAIL(hl_csm_visibility(c, 0, 0.1f, &f3, uvd, 1, V, NULL), ctx);
     HL_CHECK(hl_csm_visibility(c, 0, 0.1f, &f, uvd, 1, V, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
     HL_CHECK(V[0] >= 0.0f && V[0] <= 1.0f, "V %g out of [0, 1]", V[0]);
+    hl_csm_destroy(c);
+    /* batches: 65 planes of 256^2 floats and the texels' phases, 18.4 MB a
+     * light; a device limit of 64 MiB holds 3 */
+    size_t per = hl_csm_bytes_per_light(256, 16, 16);
+    HL_CHECK(per == 4 * (65 * 65536 + 5 * 65536 + 65 * 256 + 65), "bytes per light %zu", per);
+    HL_CHECK(hl_csm_batch_fit(256, 16, 16, 64ull << 20) == 3, "batch fit %u", hl_csm_batch_fit(256, 16, 16, 64ull << 20));
+    hl_context_desc dl = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1,
+                          .device_memory = 64ull << 20};
+    hl_context *cl = NULL;
+    char err[1024];
+    if (hl_context_create(&dl, &cl, err, sizeof err) == HL_OK) {
+        hl_result r = hl_csm_create(cl, 256, 16, 16, 4, &c);
+        HL_CHECK(r == HL_ERR_OUT_OF_MEMORY, "4 lights beyond a 64 MiB device limit should fail (got %d)", (int)r);
+        printf("4 lights in 64 MiB -> %s\n", hl_context_last_error(cl));
+        bad += r != HL_ERR_OUT_OF_MEMORY;
+        hl_csm_destroy(c);
+        c = NULL;
+        HL_CHECK(hl_csm_create(cl, 256, 16, 16, 3, &c) == HL_OK, "%s", hl_context_last_error(cl));
+        hl_csm_destroy(c);
+        hl_context_destroy(cl);
+    } else {
+        HL_CHECK(0, "OpenCL context: %s", err);
+    }
     hl_check_error("bad inputs accepted", bad, 0);
+    hl_context_destroy(ctx);
+}
+
+/* build and evaluation times on a scene of 12 square blockers a light */
+static void run_timing(int ref)
+{
+    hl_context *ctx = ref ? hl_test_ref_context(1) : cl_context();
+    if (!ctx) return;
+    const uint32_t R = 256, K = 4, n = 10000;
+    const size_t R2 = (size_t)R * R;
+    hl_csm *c = NULL;
+    if (hl_csm_create(ctx, R, 16, 16, K, &c) != HL_OK) { printf("%s\n", hl_context_last_error(ctx)); return; }
+    float *z = malloc(K * R2 * 4), *uvd = malloc(n * 12), *V = malloc(n * 4);
+    for (uint32_t k = 0; k < K; k++) {
+        for (size_t i = 0; i < R2; i++) z[k * R2 + i] = 1.0f;
+        for (int b = 0; b < 12; b++) {
+            uint32_t x0 = (uint32_t)(rng_unit() * 200), y0 = (uint32_t)(rng_unit() * 200), w = (uint32_t)(10 + rng_unit() * 50);
+            float zz = (float)(0.1 + 0.5 * rng_unit());
+            for (uint32_t j = y0; j < y0 + w && j < R; j++)
+                for (uint32_t i = x0; i < x0 + w && i < R; i++) z[k * R2 + j * R + i] = zz;
+        }
+    }
+    for (uint32_t i = 0; i < n; i++) {
+        uvd[3 * i] = (float)(rng_unit() * R);
+        uvd[3 * i + 1] = (float)(rng_unit() * R);
+        uvd[3 * i + 2] = (float)(0.3 + 0.7 * rng_unit());
+    }
+    hl_csm_build(c, z, K); /* warm-up */
+    double t0 = hl_now();
+    for (int rep = 0; rep < 3; rep++) hl_csm_build(c, z, K);
+    printf("%s: build (basis + tables) %.2f ms per light, R = 256, M = 16, %.1f MB a light\n", ref ? "reference" : "OpenCL",
+           1e3 * (hl_now() - t0) / (3 * K), (double)hl_csm_bytes_per_light(R, 16, 16) / 1e6);
+    hl_shadow_frame f = frame_of(R);
+    static const float thetas[3] = {0.01f, 0.05f, 0.2f};
+    for (int t = 0; t < 3; t++) {
+        hl_csm_visibility(c, 0, thetas[t], &f, uvd, n, V, NULL);
+        t0 = hl_now();
+        for (uint32_t k = 0; k < K; k++) hl_csm_visibility(c, k, thetas[t], &f, uvd, n, V, NULL);
+        printf("  theta %.2f: %.2f ms per 10^4 receivers per light\n", thetas[t], 1e3 * (hl_now() - t0) / K);
+    }
+    free(z); free(uvd); free(V);
     hl_csm_destroy(c);
     hl_context_destroy(ctx);
 }
@@ -334,5 +403,9 @@ int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {{"twin", case_twin}, {"plane", case_plane}, {"contact", case_contact},
                                          {"bad_input", case_bad_input}, {NULL, NULL}};
+    if (argc >= 2 && strcmp(argv[1], "timing") == 0) {
+        run_timing(argc >= 3 && strcmp(argv[2], "ref") == 0);
+        return 0;
+    }
     return hl_test_main(argc, argv, cases);
 }
