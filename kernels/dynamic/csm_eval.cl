@@ -12,7 +12,8 @@
  * a corner difference carries about 1e-3 of rounding, too much once
  * divided by a box of a few texels (test_csm_sat.c, precision).
  * prm (floats): zmin su sv bias eps wmin leak_a leak_b c1, coef[16],
- * coefb[16] (hl_csm_eval_params in host/src/dynamic/csm.h).
+ * coefb[16], direct_half, bias_b (hl_csm_eval_params in
+ * host/src/dynamic/csm.h).
  * Twin: host/src/dynamic/twins/csm_eval.c. Depends on: hl_shared.h.
  */
 
@@ -141,6 +142,20 @@ static float hl_csm_filter(__global const float *sat, __global const float *mean
     return V;
 }
 
+/* sin and cos of (2k - 1) ph, k = 1..n, by the rotation of csm_basis.cl */
+static void hl_csm_phases(float ph, uint n, float *cs, float *sn)
+{
+    float s = sin(ph), c = cos(ph);
+    float rs = 2.0f * s * c, rc = c * c - s * s;
+    for (uint k = 0; k < n; k++) {
+        sn[k] = s;
+        cs[k] = c;
+        float s2 = s * rc + c * rs, c2 = c * rc - s * rs;
+        s = s2;
+        c = c2;
+    }
+}
+
 __kernel void hl_csm_eval(__global const float *sats, __global const float *means, __global const float *zscs,
                           uint light, uint R, uint M, uint Mb, __constant float *prm, __global const float *uvd, uint n,
                           __global float *out)
@@ -151,7 +166,7 @@ __kernel void hl_csm_eval(__global const float *sats, __global const float *mean
     __global const float *sat = sats + (size_t)light * P * R * R, *mean = means + (size_t)light * P;
     __global const float *zsc = zscs + (size_t)light * R * R * 4;
     float zmin = prm[0], su = prm[1], sv = prm[2], bias = prm[3], eps = prm[4], wmin = prm[5];
-    float la = prm[6], lb = prm[7], c1 = prm[8], dh = prm[41];
+    float la = prm[6], lb = prm[7], c1 = prm[8], dh = prm[41], bias_b = prm[42];
     __constant float *coef = prm + 9, *coefb = prm + 25;
     float u = uvd[3 * r], v = uvd[3 * r + 1], d = fmin(uvd[3 * r + 2], 1.0f); /* beyond the far plane: on it */
     float db = d - bias;
@@ -159,20 +174,14 @@ __kernel void hl_csm_eval(__global const float *sats, __global const float *mean
     if (!(d > zmin)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }
     float fR = (float)R;
     float cx = clamp(u, 0.0f, fR), cy = clamp(v, 0.0f, fR);
-    /* phases c_k db, by the same rotation as csm_basis.cl */
-    float cs[16], sn[16];
-    float ph = c1 * db, s = sin(ph), c = cos(ph);
-    float rs = 2.0f * s * c, rc = c * c - s * s;
-    for (uint k = 0; k < M; k++) {
-        sn[k] = s;
-        cs[k] = c;
-        float s2 = s * rc + c * rs, c2 = c * rc - s * rs;
-        s = s2;
-        c = c2;
-    }
+    /* phases c_k d' for the filter (bias 1/M) and the search (1/Mb: its
+     * band is as wide as its order makes it) */
+    float cs[16], sn[16], csb[16], snb[16];
+    hl_csm_phases(c1 * db, M, cs, sn);
+    hl_csm_phases(c1 * (d - bias_b), Mb, csb, snb);
     float ws = d - zmin, sr[2];
-    hl_csm_search(sat, mean, zsc, R, M, Mb, cx, cy, clamp(ws * su, wmin, fR), clamp(ws * sv, wmin, fR), dh, coefb, cs,
-                  sn, sr);
+    hl_csm_search(sat, mean, zsc, R, M, Mb, cx, cy, clamp(ws * su, wmin, fR), clamp(ws * sv, wmin, fR), dh, coefb, csb,
+                  snb, sr);
     if (!(sr[0] >= eps)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }
     float za = clamp(sr[1] / sr[0], zmin, d);
     float wp = d - za;

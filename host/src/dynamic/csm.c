@@ -13,7 +13,7 @@
 #include "csm.h"
 
 /* floats of the eval kernel's parameter block (csm_eval.cl: prm) */
-#define CSM_PRM_FLOATS (10 + 2 * HL_CSM_M_MAX)
+#define CSM_PRM_FLOATS (11 + 2 * HL_CSM_M_MAX)
 
 struct hl_csm {
     hl_context *ctx;
@@ -52,6 +52,7 @@ void hl_csm_params(hl_csm_eval_params *p, uint32_t R, uint32_t M, uint32_t Mb, f
     p->su = su;
     p->sv = sv;
     p->bias = HL_CSM_BIAS_M / (float)M;
+    p->bias_b = HL_CSM_BIAS_M / (float)Mb;
     p->eps = HL_CSM_BLOCKER_EPS;
     p->wmin = HL_CSM_MIN_HALF_WIDTH;
     p->leak_a = HL_CSM_LEAK_A;
@@ -320,6 +321,7 @@ static hl_result eval_device(hl_csm *c, uint32_t k, const hl_csm_eval_params *p,
     memcpy(prm + 9, p->coef, sizeof p->coef);
     memcpy(prm + 9 + HL_CSM_M_MAX, p->coefb, sizeof p->coefb);
     prm[9 + 2 * HL_CSM_M_MAX] = p->direct_half;
+    prm[10 + 2 * HL_CSM_M_MAX] = p->bias_b;
     CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->prm_d, CL_FALSE, 0, sizeof prm, prm, 0, NULL, NULL), "upload");
     CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->uvd_d, CL_FALSE, 0, (size_t)n * 12, uvd, 0, NULL, NULL), "upload");
     cl_uint light = k, R = c->R, M = c->M, Mb = c->Mb, nn = n;

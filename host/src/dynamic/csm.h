@@ -156,7 +156,9 @@ typedef struct hl_csm_eval_params {
     float zmin;      /* the map's smallest depth: z_near of the search */
     float su, sv;    /* texels per unit of normalised depth behind a
                         blocker: depth_range tan(theta) R / width (height) */
-    float bias, eps, wmin, leak_a, leak_b;
+    float bias, bias_b; /* receiver depth bias of the filter (1/M) and the
+                           search (1/Mb) */
+    float eps, wmin, leak_a, leak_b;
     float c1;        /* c_1 = pi / h */
     float direct_half; /* boxes up to this half-width (texels) are summed
                           texel by texel */

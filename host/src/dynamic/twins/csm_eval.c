@@ -132,6 +132,20 @@ static float filter(const float *sat, const float *mean, const float *zsc, const
     return V;
 }
 
+/* the kernel's hl_csm_phases */
+static void phases(float ph, uint32_t n, float *cs, float *sn)
+{
+    float s = sinf(ph), c = cosf(ph);
+    float rs = 2.0f * s * c, rc = c * c - s * s;
+    for (uint32_t k = 0; k < n; k++) {
+        sn[k] = s;
+        cs[k] = c;
+        float s2 = s * rc + c * rs, c2 = c * rc - s * rs;
+        s = s2;
+        c = c2;
+    }
+}
+
 void hl_ref_csm_eval(const float *sat, const float *mean, const float *zsc, const hl_csm_eval_params *p,
                      const float uvd[3], float out[2])
 {
@@ -143,18 +157,11 @@ void hl_ref_csm_eval(const float *sat, const float *mean, const float *zsc, cons
     if (!(d > p->zmin)) return; /* nothing in the map is nearer: lit */
     float fR = (float)R;
     float cx = clampf(u, 0.0f, fR), cy = clampf(v, 0.0f, fR);
-    float cs[HL_CSM_M_MAX], sn[HL_CSM_M_MAX];
-    float ph = p->c1 * db, s = sinf(ph), c = cosf(ph);
-    float rs = 2.0f * s * c, rc = c * c - s * s;
-    for (uint32_t k = 0; k < M; k++) {
-        sn[k] = s;
-        cs[k] = c;
-        float s2 = s * rc + c * rs, c2 = c * rc - s * rs;
-        s = s2;
-        c = c2;
-    }
+    float cs[HL_CSM_M_MAX], sn[HL_CSM_M_MAX], csb[HL_CSM_M_MAX], snb[HL_CSM_M_MAX];
+    phases(p->c1 * db, M, cs, sn);
+    phases(p->c1 * (d - p->bias_b), p->Mb, csb, snb);
     float ws = d - p->zmin, sr[2];
-    search(sat, mean, zsc, p, cx, cy, clampf(ws * p->su, p->wmin, fR), clampf(ws * p->sv, p->wmin, fR), cs, sn, sr);
+    search(sat, mean, zsc, p, cx, cy, clampf(ws * p->su, p->wmin, fR), clampf(ws * p->sv, p->wmin, fR), csb, snb, sr);
     if (!(sr[0] >= p->eps)) return;
     float za = clampf(sr[1] / sr[0], p->zmin, d);
     float wp = d - za;
