@@ -32,9 +32,9 @@
 
 /* ---- constants (each: default and reason) ---- */
 
-/* Order limits: below 4 the transition band is wider than half the depth
- * range; above 16 the image count (and memory) outgrows what a frame can
- * afford (DYNAMIC.md section 4). */
+/* Order limits: below 4 the transition band (about 1.6 / M each side of
+ * z = d) covers most of the depth range; above 16 the image count (and
+ * memory) outgrows what a frame can afford (DYNAMIC.md section 4). */
 #define HL_CSM_M_MIN 4u
 #define HL_CSM_M_MAX 16u
 #define HL_CSM_M_DEFAULT 16u
@@ -47,9 +47,9 @@
 #define HL_CSM_R_MAX 1024u
 /* Lanes of one prefix-sum work-group (kernel and twin alike: the twin
  * repeats the lanes' order of additions so both round the same). Each
- * lane sums a contiguous run of R / 16 values, then the 16 partial sums are
- * scanned in 4 tree steps: a run of at most 256 keeps the sequential part
- * short for precision, and 16 lanes fill a CPU core's vector. */
+ * lane sums a contiguous run of R / 16 values (at most 64), then the 16
+ * partial sums are scanned in 4 tree steps: short sequential runs keep
+ * the rounding down, and 16 lanes fill a CPU core's vector. */
 #define HL_CSM_SCAN_LANES 16u
 /* Half-period h of the square wave (see the top): 1.25 keeps the second
  * jump 0.25 beyond |t| = 1; at M = 16 that leaves 0.004 of error at
@@ -100,7 +100,8 @@
 
 /* planes of one light */
 static inline uint32_t hl_csm_planes(uint32_t M, uint32_t Mb) { return 2 * M + 2 * Mb + 1; }
-/* bytes of one light's SATs and means on the device */
+/* bytes of one light on the device: tables, depth map, texel phases
+ * (4 floats a texel), row sums and means */
 size_t hl_csm_bytes_per_light(uint32_t R, uint32_t M, uint32_t Mb);
 
 /* ---- module API ---- */
@@ -113,10 +114,13 @@ typedef struct hl_csm hl_csm;
  * of the memory (49 planes, not 65) and 5 to 20% of the evaluation on
  * PoCL, but its wider band misses blockers within 1/8 of the receiver:
  * against Mb = 16, V moves by 0.01 on average and 0.13 to 0.37 at the
- * 99th percentile on a scene of square blockers; hence the default Mb = M. On an OpenCL context the batch lives on the device between
+ * 99th percentile on a scene of square blockers; hence the default
+ * Mb = M. On an OpenCL context the batch lives on the device between
  * hl_csm_build and hl_csm_visibility; on the reference backend in host
  * memory (the twins). Fails (HL_ERR_OUT_OF_MEMORY) when a batch does not
- * fit the device memory limit: choose K_max with hl_csm_batch_fit. */
+ * fit the device memory limit: choose K_max with hl_csm_batch_fit, then
+ * build and evaluate the lights K_max at a time (18.4 MB a light at
+ * R = 256, M = Mb = 16: 32 lights would need 589 MB). */
 hl_result hl_csm_create(hl_context *ctx, uint32_t R, uint32_t M, uint32_t Mb, uint32_t K_max, hl_csm **out);
 /* The most lights a batch can hold within `bytes` (at least 1). */
 uint32_t hl_csm_batch_fit(uint32_t R, uint32_t M, uint32_t Mb, uint64_t bytes);
