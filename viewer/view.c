@@ -39,7 +39,8 @@ static const char *const usage_view =
     "and how the colours reach OpenGL.\n"
     "\n"
     "lighting:\n"
-    "  --env ENV.exr        an equirectangular OpenEXR; repeat for more (keys 1..9)\n"
+    "  --env ENV.exr        an equirectangular OpenEXR or Radiance .hdr; repeat for more\n"
+    "                       (keys 1..9)\n"
     "  --sky                the built-in sun and sky (the default without --env)\n"
     CLI_USAGE_SKY
     CLI_USAGE_LIGHTING

@@ -21,7 +21,7 @@ static const char *const usage_check =
     "if a float stage differs by more than 1e-5 (relative) or an integer stage\n"
     "differs at all.\n"
     "\n"
-    "  --env ENV.exr      environment (default: the procedural sky)\n"
+    "  --env ENV.exr      environment, OpenEXR or .hdr (default: the procedural sky)\n"
     "  --sky              the procedural sky\n"
     "  --terms M|all      lighting terms (default 200)\n"
     "  --select S         selection weights: transport (default, as relight), area\n"

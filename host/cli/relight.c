@@ -17,7 +17,8 @@ static const char *const usage_relight =
     ".png (tone-mapped image). Images are rendered headless with Embree.\n"
     "\n"
     "lighting:\n"
-    "  --env ENV.exr        equirectangular OpenEXR (any compression, DWAB included)\n"
+    "  --env ENV.exr|.hdr   equirectangular OpenEXR (any compression, DWAB included) or\n"
+    "                       Radiance .hdr (run-length or flat)\n"
     "  --sky                the built-in procedural sun and sky (the default without --env)\n"
     CLI_USAGE_SKY
     CLI_USAGE_LIGHTING

@@ -352,7 +352,10 @@ typedef struct hl_env_stats {
     uint64_t negative_pixels;  /* pixels with a channel < 0, clamped to 0 */
 } hl_env_stats;
 
-/* Reads an equirectangular OpenEXR (any compression the OpenEXR library
+/* Reads an equirectangular map: a Radiance .hdr (RGBE, run-length or flat,
+ * the header's EXPOSURE divided out; decoded by stb_image behind the
+ * project's own header and truncation checks, see host/src/io/hdr_io.c),
+ * or else an OpenEXR (any compression the OpenEXR library
  * reads, DWAB included; float channels at full precision where OpenEXRCore
  * decodes the file, see host/src/io/exr_io.c). Refuses files that are not 2:1
  * or that hold a channel above HL_MAX_RADIANCE, or a tiled or multi-part

@@ -1,10 +1,12 @@
-# Input and output (host/src/io): environments, EXR files written byte by
+# Input and output (host/src/io): environments (EXR and Radiance .hdr), EXR files written byte by
 # byte, images and tone mapping, transport files, meshes, PLY output.
 # zlib (a dependency of libopenexr-dev already) deflates the ZIP chunks
 # that hl.exr_chunks.hostile writes byte by byte.
 find_package(ZLIB REQUIRED)
 hl_test_exe(test_env ${CMAKE_CURRENT_LIST_DIR}/test_env.c)
 hl_test_cases(test_env env convention solid_angle load_shared bad_files nan_repair sky float_files)
+hl_test_exe(test_hdr ${CMAKE_CURRENT_LIST_DIR}/test_hdr.c)
+hl_test_cases(test_hdr hdr read exposure same_as_exr bad)
 hl_test_exe(test_exr_headers ${CMAKE_CURRENT_LIST_DIR}/test_exr_headers.c)
 hl_test_cases(test_exr_headers exr_headers hostile)
 hl_test_exe(test_exr_chunks ${CMAKE_CURRENT_LIST_DIR}/test_exr_chunks.c)

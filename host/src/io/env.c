@@ -6,13 +6,16 @@
  * Every pixel that leaves this file is finite, >= 0 and <= HL_MAX_RADIANCE:
  * NaN/Inf channels become 0 and negative ones are clamped, and the counts
  * are reported; maps brighter than that are refused.
- * Depends on: exr_io.c for the file format.
+ * Depends on: exr_io.c and hdr_io.c for the file formats (OpenEXR, Radiance
+ * .hdr).
  */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "exr_io.h"
+#include "hdr_io.h"
 #include "hl_internal.h"
 
 /* Sets NaN/Inf and negative channels to 0 and counts the pixels touched;
@@ -66,6 +69,28 @@ static hl_result wrap(hl_context *ctx, uint32_t width, uint32_t height, float *r
     return HL_OK;
 }
 
+/* The format comes from the file's first bytes, not its name: a Radiance
+ * header, or anything else for OpenEXR (whose reader names a bad magic). */
+static hl_result read_map(hl_context *ctx, const char *path, uint32_t *w, uint32_t *h, float **rgb)
+{
+    uint8_t head[16] = {0};
+    size_t n = 0;
+    FILE *f = fopen(path, "rb");
+    if (f) {
+        n = fread(head, 1, sizeof head, f);
+        fclose(f);
+    }
+    if (!hl_hdr_sniff_(head, n)) return hl_exr_read_rgb_(ctx, path, HL_EXR_REQUIRE_2TO1, w, h, rgb);
+    hl_result r = hl_hdr_read_rgb_(ctx, path, w, h, rgb);
+    if (r == HL_OK && *w != 2 * *h) {
+        free(*rgb);
+        *rgb = NULL;
+        return hl_fail(ctx, HL_ERR_FORMAT, "%s: %u x %u pixels is not an equirectangular map (width must be 2 x height)",
+                       path, *w, *h);
+    }
+    return r;
+}
+
 hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_stats *stats)
 {
     if (stats) memset(stats, 0, sizeof *stats);
@@ -74,7 +99,7 @@ hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_st
     if (!path || !*path) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_env_load: no path given");
     uint32_t w, h;
     float *rgb;
-    hl_result r = hl_exr_read_rgb_(ctx, path, HL_EXR_REQUIRE_2TO1, &w, &h, &rgb);
+    hl_result r = read_map(ctx, path, &w, &h, &rgb);
     if (r != HL_OK) return r;
     r = repair(ctx, path, rgb, (size_t)w * h, stats);
     if (r != HL_OK) {
