@@ -501,12 +501,20 @@ static hl_result split_all(hl_context *ctx, const hl_env *env, const hl_light_sp
     s->texel_dir = hl_malloc(ctx, n * 3 * sizeof(float), "area lights: cube texels");
     s->owner = hl_malloc(ctx, n * sizeof(uint32_t), "area lights: cube texels");
     s->texel_omega = hl_malloc(ctx, (size_t)s->F * s->F * sizeof(double), "area lights: cube texels");
-    if (!s->texel_energy || !s->texel_moment || !s->texel_radiance || !s->texel_dir || !s->owner || !s->texel_omega)
+    s->row_moment = hl_malloc(ctx, (size_t)6 * s->F * (s->F + 1) * 9 * sizeof(double), "area lights: cube rows");
+    if (!s->texel_energy || !s->texel_moment || !s->texel_radiance || !s->texel_dir || !s->owner || !s->texel_omega ||
+        !s->row_moment)
         return HL_ERR_OUT_OF_MEMORY;
     memset(s->owner, 0xFF, n * sizeof(uint32_t)); /* no light yet */
     texel_geometry(s);
     hl_result res = build_cube(ctx, env, p->rotate_deg, s);
     if (res != HL_OK) return res;
+    for (size_t row = 0; row < (size_t)6 * s->F; row++) { /* the stored float moments, summed in double */
+        double *P = s->row_moment + row * (s->F + 1) * 9;
+        for (int k = 0; k < 9; k++) P[k] = 0.0;
+        for (uint32_t x = 0; x < s->F; x++)
+            for (int k = 0; k < 9; k++) P[9 * (x + 1) + k] = P[9 * x + k] + s->texel_moment[9 * (row * s->F + x) + k];
+    }
     /* a black map has nothing to tell regions apart: every ring is added,
        one light a face */
     double tot = lum3(s->stats.total_energy), thr = tot > 0.0 ? (double)p->threshold * tot : -1.0;
@@ -558,6 +566,7 @@ void hl_light_split_destroy(hl_light_split *s)
     free(s->texel_dir);
     free(s->owner);
     free(s->texel_omega);
+    free(s->row_moment);
     free(s);
 }
 
@@ -579,6 +588,67 @@ void hl_area_light_irradiance_ref(const hl_light_split *s, uint32_t k, const flo
     for (int c = 0; c < 3; c++) rgb[c] = (float)acc[c];
 }
 
+/* The first texel index x with s_x = 2 x / F - 1 >= v (ceil) or the last
+ * with s_x <= v (floor), clamped to [lo, hi]; v may be huge. */
+static uint32_t texel_edge(double v, uint32_t F, int up, uint32_t lo, uint32_t hi)
+{
+    double x = (v + 1.0) * 0.5 * F;
+    x = up ? ceil(x) : floor(x);
+    return x <= lo ? lo : x >= hi ? hi : (uint32_t)x;
+}
+
+/* The texel sum of light l on n, one row at a time. On a face,
+ * n . face_point(s, t) = g0 + gs s + gt t; in row y its least value over
+ * the row's two t edges is lo + gs s, its largest hi + gs s. Texels whose
+ * corners are all above are one run [a0, a1), those all below another;
+ * the run above is summed from the prefix sums, the rest one by one. A
+ * texel put in a run by rounding has a corner within rounding of the
+ * horizon, so its n . moment is 0 to that rounding either way. */
+static void straddle_sum(const hl_light_split *s, const hl_area_light *l, const float n[3], double acc[3])
+{
+    const uint32_t F = s->F;
+    double o[3], e[3], f[3], g0 = 0.0, gs = 0.0, gt = 0.0;
+    face_point(l->face, 0.0, 0.0, o);
+    face_point(l->face, 1.0, 0.0, e);
+    face_point(l->face, 0.0, 1.0, f);
+    for (int k = 0; k < 3; k++) {
+        g0 += n[k] * o[k];
+        gs += n[k] * (e[k] - o[k]);
+        gt += n[k] * (f[k] - o[k]);
+    }
+    for (uint32_t y = l->y0; y < l->y1; y++) {
+        double t0 = 2.0 * y / F - 1.0, t1 = 2.0 * (y + 1) / F - 1.0;
+        double lo = g0 + (gt > 0 ? gt * t0 : gt * t1), hi = g0 + (gt > 0 ? gt * t1 : gt * t0);
+        uint32_t a0 = l->x0, a1 = l->x0, b0 = l->x0, b1 = l->x0; /* runs above and below */
+        if (gs == 0.0) {
+            if (lo >= 0.0) a1 = l->x1;
+            else if (hi <= 0.0) b1 = l->x1;
+        } else if (gs > 0.0) { /* above: s_x >= -lo / gs; below: s_(x+1) <= -hi / gs */
+            a0 = texel_edge(-lo / gs, F, 1, l->x0, l->x1), a1 = l->x1;
+            b1 = texel_edge(-hi / gs, F, 0, l->x0 + 1, l->x1 + 1) - 1;
+        } else { /* above: s_(x+1) <= -lo / gs; below: s_x >= -hi / gs */
+            a1 = texel_edge(-lo / gs, F, 0, l->x0 + 1, l->x1 + 1) - 1;
+            b0 = texel_edge(-hi / gs, F, 1, l->x0, l->x1), b1 = l->x1;
+        }
+        if (a1 < a0) a1 = a0;
+        if (b1 < b0) b1 = b0;
+        const double *P = s->row_moment + ((size_t)l->face * F + y) * (F + 1) * 9;
+        for (int c = 0; c < 3; c++)
+            for (int k = 0; k < 3; k++) acc[c] += n[k] * (P[9 * a1 + 3 * c + k] - P[9 * a0 + 3 * c + k]);
+        for (uint32_t x = l->x0; x < l->x1; x++) {
+            if (x >= a0 && x < a1) x = a1; /* skip the runs */
+            if (x >= b0 && x < b1) x = b1;
+            if (x >= a0 && x < a1) x = a1;
+            if (x >= l->x1) break;
+            const float *m = s->texel_moment + 9 * ((size_t)l->face * F * F + y * F + x);
+            for (int c = 0; c < 3; c++) {
+                double d = (double)n[0] * m[3 * c] + (double)n[1] * m[3 * c + 1] + (double)n[2] * m[3 * c + 2];
+                if (d > 0.0) acc[c] += d;
+            }
+        }
+    }
+}
+
 void hl_area_light_irradiance(const hl_light_split *s, uint32_t k, const float n[3], float rgb[3])
 {
     const hl_area_light *l = &s->lights[k];
@@ -595,7 +665,9 @@ void hl_area_light_irradiance(const hl_light_split *s, uint32_t k, const float n
     } else if (nd <= -se) {
         rgb[0] = rgb[1] = rgb[2] = 0.0f;
     } else {
-        hl_area_light_irradiance_ref(s, k, n, rgb);
+        double acc[3] = {0, 0, 0};
+        straddle_sum(s, l, n, acc);
+        for (int c = 0; c < 3; c++) rgb[c] = acc[c] > 0.0 ? (float)acc[c] : 0.0f;
     }
 }
 

@@ -92,6 +92,8 @@ typedef struct hl_light_split {
     float *texel_energy, *texel_moment, *texel_radiance, *texel_dir;
     uint32_t *owner;
     double *texel_omega;    /* F^2, one face (all six are alike) */
+    double *row_moment;     /* 6 F rows of F + 1: prefix sums of the
+                               moments (9) along each face row */
     hl_light_split_stats stats;
 } hl_light_split;
 
@@ -104,7 +106,10 @@ void hl_light_split_destroy(hl_light_split *s);
 
 /* Irradiance of light k (any of the total: k < s->total) on unit normal n: n . evec
  * where the whole rectangle is above n's horizon (n . dir >= sin extent),
- * 0 where all of it is below, else the texel sum. */
+ * 0 where all of it is below, else the texel sum, row by row: the horizon
+ * cuts a face along a straight line, so each row's texels wholly above it
+ * are one run, summed from row_moment, and only the few it cuts are
+ * summed one by one. */
 void hl_area_light_irradiance(const hl_light_split *s, uint32_t k, const float n[3], float rgb[3]);
 /* Reference: the sum over the light's texels of max(0, n . moment). */
 void hl_area_light_irradiance_ref(const hl_light_split *s, uint32_t k, const float n[3], float rgb[3]);
