@@ -17,9 +17,9 @@
  * a texel spans about 3.6 degrees at a face's centre and 1.7 at its
  * corners, so a sun (0.5 degrees) fits in one or two, and the greedy split
  * of 6 x 32^2 texels takes under a millisecond (the resampling of a
- * 1024 x 512 map about 40 ms). 2..256: below 2 a face has no inside,
- * above 256 a texel (0.45 degrees at most) is finer than the pixels of a
- * 1024 x 512 map (0.35 degrees). */
+ * 1024 x 512 map about 40 ms). 2..256: below 2 a face has no inside; at
+ * 256 a texel (0.45 degrees at most) is near the pixels of a 1024 x 512
+ * map (0.35 degrees), so finer faces add no detail from such maps. */
 #define HL_LIGHTS_DEFAULT_FACE 32u
 #define HL_LIGHTS_MIN_FACE 2u
 #define HL_LIGHTS_MAX_FACE 256u
