@@ -188,13 +188,20 @@ relight_bad)
   printf 'not an exr' >"$tmp/bad.exr"
   head -c 5000 "$data/city.exr" >"$tmp/trunc.exr"
   "$bin" relight "$tmp/b.hlt" --sky --size 10x10 -o "$tmp/square.exr" -q || fail "writing a 10x10 EXR"
+  "$bin" relight "$tmp/b.hlt" --sky --size 10x7 -o "$tmp/odd.exr" -q || fail "writing a 10x7 EXR"
   # a transport file from another format version (the version follows the 8-byte magic)
   cp "$tmp/b.hlt" "$tmp/v2.hlt"
   printf '\x63' | dd of="$tmp/v2.hlt" bs=1 seek=8 conv=notrunc 2>/dev/null
   expect_error missing_env 1 "nosuch.exr" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/nosuch.exr" -o "$tmp/o.ply"
   expect_error corrupt_env 1 "bad.exr" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/bad.exr" -o "$tmp/o.ply"
   expect_error truncated_env 1 "trunc.exr" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/trunc.exr" -o "$tmp/o.ply"
-  expect_error square_env 1 "square.exr" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/square.exr" -o "$tmp/o.ply"
+  # no layout is 10:7; a square map is an angular light probe, but not an
+  # equirectangular map when --layout says so; --layout takes known names
+  expect_error odd_shape_env 1 "odd.exr.*angular map.*cube cross" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/odd.exr" -o "$tmp/o.ply"
+  expect_error square_as_equirect 1 "square.exr.*not an equirectangular" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/square.exr" --layout equirect -o "$tmp/o.ply"
+  expect_error bad_layout 2 "--layout" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$tmp/square.exr" --layout globe -o "$tmp/o.ply"
+  "$bin" relight "$tmp/b.hlt" --env "$tmp/square.exr" -o "$tmp/o.ply" -q || fail "a square map (angular light probe) was refused"
+  rm -f "$tmp/o.ply"
   expect_error terms_zero 2 "--terms" "$tmp/o.ply" -- relight "$tmp/b.hlt" --sky --terms 0 -o "$tmp/o.ply"
   expect_error other_version 1 "v2.hlt" "$tmp/o.ply" -- relight "$tmp/v2.hlt" --sky -o "$tmp/o.ply"
   expect_error bad_ext 2 "o.jpg" "$tmp/o.jpg" -- relight "$tmp/b.hlt" --sky -o "$tmp/o.jpg"

@@ -43,6 +43,7 @@ static const char *const usage_view =
     "                       (keys 1..9)\n"
     "  --sky                the built-in sun and sky (the default without --env)\n"
     CLI_USAGE_SKY
+    CLI_USAGE_LAYOUT
     CLI_USAGE_LIGHTING
     "display:\n"
     "  --exposure EV        scale by 2^EV before the sRGB curve (default: automatic,\n"
@@ -213,7 +214,7 @@ static int load(viewer *v, const char **env_args, int n_env_args)
     v->sky_slot = -1;
     for (int i = 0; i < n_env_args; i++) {
         hl_env *env = NULL;
-        hl_result r = env_args[i] ? cli_env_load(v->ctx, env_args[i], &env, 0) : vw_make_sky(v, &env);
+        hl_result r = env_args[i] ? cli_env_load(v->ctx, env_args[i], v->o.layout, &env, 0) : vw_make_sky(v, &env);
         if (r != HL_OK) {
             cli_fail(v->ctx, r);
             return 0;

@@ -52,7 +52,7 @@ void vw_drop_file(viewer *v, const char *path)
 {
     hl_env *env = NULL;
     hl_env_stats es;
-    if (hl_env_load(v->ctx, path, &env, &es) != HL_OK) {
+    if (hl_env_load_layout(v->ctx, path, v->o.layout, &env, &es) != HL_OK) {
         vw_say(v, 1, "%s (keeping the current lighting)", hl_context_last_error(v->ctx));
         return;
     }

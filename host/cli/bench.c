@@ -50,6 +50,8 @@ static const char *const usage_bench =
     "bandwidth (7 rounds of each, alternating; the fraction pairs each round's two),\n"
     "and the time of a change at M = all under the first map made subnormal against it.\n"
     "\n"
+    "  --layout L           how the --env maps are laid out: auto (by size), equirect,\n"
+    "                       angular, cross-h or cross-v\n"
     "  --env ENV.exr        an environment, OpenEXR or .hdr (repeat for more); --sky adds\n"
     "                       the procedural sky\n"
     "  -o, --output DIR     where bench.md, bench.csv, bench.gp and bench.svg go (default\n"
@@ -77,6 +79,7 @@ typedef struct bench_opts {
     uint32_t terms[BENCH_MAX_TERMS], nterms, selects[3], nsel;
     uint32_t K, K2, reps, ref_reps;
     hl_context_desc cd;
+    hl_env_layout layout;
 } bench_opts;
 
 /* Everything one run holds. */
@@ -153,6 +156,7 @@ static int parse_bench(int argc, char **argv, bench *b)
         int e = 0;
 #define NEED() do { if (i + 1 >= argc) return usage_error(usage, "option %s needs a value", a); v = argv[++i]; } while (0)
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { fputs(usage, stdout); return 0; }
+        else if (!strcmp(a, "--layout")) { NEED(); if (!parse_layout(v, &o->layout)) return usage_error(usage, "--layout %s: expected auto, equirect, angular, cross-h or cross-v", v); }
         else if (!strcmp(a, "--env")) {
             NEED();
             if (o->nenvs == BENCH_MAX_ENVS) return usage_error(usage, "%s", "at most 16 environments");
@@ -207,7 +211,7 @@ static hl_result load(bench *b)
     for (int e = 0; e < o->nenvs && r == HL_OK; e++) {
         hl_sky_desc sky = {0};
         bench_env *en = &b->envs[e];
-        r = en->path ? cli_env_load(b->ref, en->path, &en->env, 0) : hl_env_create_sky(b->ref, &sky, &en->env);
+        r = en->path ? cli_env_load(b->ref, en->path, b->o.layout, &en->env, 0) : hl_env_create_sky(b->ref, &sky, &en->env);
     }
     if (r == HL_OK) r = hl_bench_ref_create(b->ref, b->t[0], &b->br);
     return r;

@@ -22,6 +22,7 @@ static const char *const usage_check =
     "differs at all.\n"
     "\n"
     "  --env ENV.exr      environment, OpenEXR or .hdr (default: the procedural sky)\n"
+    "  --layout L         auto (by size), equirect, angular, cross-h or cross-v\n"
     "  --sky              the procedural sky\n"
     "  --terms M|all      lighting terms (default 200)\n"
     "  --select S         selection weights: transport (default, as relight), area\n"
@@ -34,6 +35,7 @@ static const char *const usage_check =
 
 typedef struct check_opts {
     const char *scene, *env_path;
+    hl_env_layout layout;
     hl_context_desc cd;
     hl_relight_desc rd;
     uint32_t K;
@@ -51,6 +53,7 @@ static int parse_check(int argc, char **argv, check_opts *o)
 #define NEED() do { if (i + 1 >= argc) return usage_error(usage, "option %s needs a value", a); v = argv[++i]; } while (0)
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { fputs(usage, stdout); return 0; }
         else if (!strcmp(a, "--env")) { NEED(); o->env_path = v; }
+        else if (!strcmp(a, "--layout")) { NEED(); if (!parse_layout(v, &o->layout)) return usage_error(usage, "--layout %s: expected auto, equirect, angular, cross-h or cross-v", v); }
         else if (!strcmp(a, "--sky")) o->env_path = NULL;
         else if (!strcmp(a, "--terms")) {
             NEED();
@@ -119,7 +122,7 @@ int cmd_check(int argc, char **argv)
     hl_stage_check *chk = NULL;
     hl_sky_desc sky = {0};
     hl_result r = hl_transport_load(ref, o.scene, &t);
-    if (r == HL_OK) r = o.env_path ? cli_env_load(ref, o.env_path, &env, 0) : hl_env_create_sky(ref, &sky, &env);
+    if (r == HL_OK) r = o.env_path ? cli_env_load(ref, o.env_path, o.layout, &env, 0) : hl_env_create_sky(ref, &sky, &env);
     if (r == HL_OK) r = hl_stage_check_create(ref, t, &chk);
     int rc, all_ok = 1;
     if (r != HL_OK) rc = cli_fail(ref, r); /* nothing printed yet */

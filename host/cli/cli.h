@@ -22,6 +22,8 @@ int parse_device_memory(const char *s, hl_context_desc *cd);
 int parse_vec3(const char *s, float v[3]);
 /* "transport", "area" or "unweighted" to HL_SELECT_*; 0 when none. */
 int parse_select(const char *s, uint32_t *out);
+/* auto, equirect, angular, cross-h or cross-v. */
+int parse_layout(const char *s, hl_env_layout *out);
 /* HL_SELECT_* to its name (HL_SELECT_DEFAULT: "transport"). */
 const char *select_name(uint32_t scheme);
 /* An OpenCL context from cl_desc and a reference context beside it (for
@@ -36,7 +38,7 @@ void cli_unwatch(void);
 int cli_fail(hl_context *ctx, hl_result r);
 /* hl_env_load, then (unless quiet) a line on stderr saying how many
  * pixels were repaired, when any were. */
-hl_result cli_env_load(hl_context *ctx, const char *path, hl_env **out, int quiet);
+hl_result cli_env_load(hl_context *ctx, const char *path, hl_env_layout layout, hl_env **out, int quiet);
 
 /* Options shared by `relight` and `view` (cli_scene.c). */
 typedef struct cli_scene_opts {
@@ -49,6 +51,7 @@ typedef struct cli_scene_opts {
     int sky_set;    /* a --sun-* option was given */
     int eye_set;    /* --eye was given */
     int target_set; /* --target was given */
+    hl_env_layout layout; /* --layout */
 } cli_scene_opts;
 
 void cli_scene_opts_init(cli_scene_opts *o);
@@ -68,6 +71,9 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
     "  --sun-elevation DEG  sun height above the horizon (default 35)\n"                  \
     "  --sun-azimuth DEG    sun direction: +X turned about +Y by DEG (default 0)\n"       \
     "  --sun-size DEG       sun angular diameter (default 2)\n"
+#define CLI_USAGE_LAYOUT                                                                  \
+    "  --layout L           how --env maps lay out the sphere: auto (by size: 2:1, 1:1,\n" \
+    "                       4:3, 3:4), equirect, angular (light probe), cross-h, cross-v\n"
 #define CLI_USAGE_LIGHTING                                                                \
     "  --rotate DEG         turn the environment about +Y (Blender's world Z rotation)\n" \
     "  --terms M|all        lighting wavelet terms kept (default 200)\n"                  \

@@ -44,7 +44,7 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
     const char *a = argv[*i], *v = NULL;
     static const char *const with_value[] = {
         "--sun-elevation", "--sun-azimuth", "--sun-size", "--rotate", "--terms", "--select", "--exposure",
-        "--size", "--fov", "--eye", "--target", "--up", "--device", "--device-memory", "--threads", NULL};
+        "--size", "--fov", "--eye", "--target", "--up", "--device", "--device-memory", "--threads", "--layout", NULL};
     int known = 0;
     for (int k = 0; with_value[k]; k++) known |= !strcmp(a, with_value[k]);
     if (known) {
@@ -63,6 +63,9 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
         if (!parse_float(v, &o->sky.sun_size_deg) || !(o->sky.sun_size_deg > 0.0f && o->sky.sun_size_deg <= 90.0f))
             return -usage_error(usage, "--sun-size %s: expected (0, 90] degrees", v);
         o->sky_set = 1;
+    } else if (!strcmp(a, "--layout")) {
+        if (!parse_layout(v, &o->layout))
+            return -usage_error(usage, "--layout %s: expected auto, equirect, angular, cross-h or cross-v", v);
     } else if (!strcmp(a, "--rotate")) {
         if (!parse_float(v, &o->rd.rotate_deg)) return -usage_error(usage, "--rotate %s: expected degrees", v);
     } else if (!strcmp(a, "--terms")) {

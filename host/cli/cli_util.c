@@ -57,6 +57,17 @@ int parse_device(const char *s, hl_context_desc *cd)
 }
 
 
+int parse_layout(const char *s, hl_env_layout *out)
+{
+    static const char *const names[] = {"auto", "equirect", "angular", "cross-h", "cross-v"};
+    for (int k = 0; k < 5; k++)
+        if (!strcmp(s, names[k])) {
+            *out = (hl_env_layout)k;
+            return 1;
+        }
+    return 0;
+}
+
 int parse_select(const char *s, uint32_t *out)
 {
     if (!strcmp(s, "transport")) *out = HL_SELECT_TRANSPORT;
@@ -83,10 +94,10 @@ int cli_fail(hl_context *ctx, hl_result r)
     return r == HL_ERR_INTERRUPTED ? 130 : 1;
 }
 
-hl_result cli_env_load(hl_context *ctx, const char *path, hl_env **out, int quiet)
+hl_result cli_env_load(hl_context *ctx, const char *path, hl_env_layout layout, hl_env **out, int quiet)
 {
     hl_env_stats es = {0, 0};
-    hl_result r = hl_env_load(ctx, path, out, &es);
+    hl_result r = hl_env_load_layout(ctx, path, layout, out, &es);
     if (r == HL_OK && !quiet && (es.nonfinite_pixels || es.negative_pixels))
         fprintf(stderr, "%s: %llu pixels with NaN or Inf set to 0, %llu pixels with negative values clamped to 0\n", path,
                 (unsigned long long)es.nonfinite_pixels, (unsigned long long)es.negative_pixels);

@@ -21,6 +21,7 @@ static const char *const usage_relight =
     "                       Radiance .hdr (run-length or flat)\n"
     "  --sky                the built-in procedural sun and sky (the default without --env)\n"
     CLI_USAGE_SKY
+    CLI_USAGE_LAYOUT
     CLI_USAGE_LIGHTING
     "output:\n"
     "  --exposure EV        scale by 2^EV before tone mapping (PNG, 8-bit PLY; default:\n"
@@ -86,7 +87,7 @@ int cmd_relight(int argc, char **argv)
     float *rgb = NULL;
     hl_relight_stats st;
     hl_result r = hl_transport_load(ctx, scene, &t);
-    if (r == HL_OK) r = env_path ? cli_env_load(ctx, env_path, &env, cd.quiet) : hl_env_create_sky(ctx, &o.sky, &env);
+    if (r == HL_OK) r = env_path ? cli_env_load(ctx, env_path, o.layout, &env, cd.quiet) : hl_env_create_sky(ctx, &o.sky, &env);
     if (r == HL_OK) r = hl_relighter_create(ctx, t, &rl);
     if (r == HL_OK) r = hl_relighter_set_env(rl, env);
     if (r == HL_OK) {

@@ -352,18 +352,36 @@ typedef struct hl_env_stats {
     uint64_t negative_pixels;  /* pixels with a channel < 0, clamped to 0 */
 } hl_env_stats;
 
-/* Reads an equirectangular map: a Radiance .hdr (RGBE, run-length or flat,
+/* Reads an environment map: a Radiance .hdr (RGBE, run-length or flat,
  * the header's EXPOSURE divided out; decoded by stb_image behind the
  * project's own header and truncation checks, see host/src/io/hdr_io.c),
- * or else an OpenEXR (any compression the OpenEXR library
- * reads, DWAB included; float channels at full precision where OpenEXRCore
- * decodes the file, see host/src/io/exr_io.c). Refuses files that are not 2:1
- * or that hold a channel above HL_MAX_RADIANCE, or a tiled or multi-part
- * float file with a value that half floats cannot hold (HL_ERR_FORMAT);
- * NaN/Inf channels are set
- * to 0 and negative ones clamped, and stats says how many pixels were
+ * or else an OpenEXR (any compression the OpenEXR library reads, DWAB
+ * included; float channels at full precision where OpenEXRCore decodes
+ * the file, see host/src/io/exr_io.c). The layout comes from the size:
+ * 2:1 equirectangular, 1:1 angular map, 4:3 or 3:4 cube cross (the last
+ * three resampled to equirectangular, see hl_env_load_layout); other
+ * sizes are refused. So are maps that hold a channel above
+ * HL_MAX_RADIANCE, and tiled or multi-part float files with a value that
+ * half floats cannot hold (HL_ERR_FORMAT). NaN/Inf channels are set to 0
+ * and negative ones clamped, and stats says how many pixels were
  * affected. Errors name the file. */
 hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_stats *stats);
+
+/* How a map file lays out the sphere (docs/CONVENTIONS.md, "Map layouts";
+ * every layout is resampled onto the equirectangular grid on loading). */
+typedef enum hl_env_layout {
+    HL_LAYOUT_AUTO = 0,   /* from the size: 2:1, 1:1, 4:3 or 3:4 */
+    HL_LAYOUT_EQUIRECT,   /* latitude-longitude, 2:1 */
+    HL_LAYOUT_ANGULAR,    /* Debevec's angular light probe, 1:1 */
+    HL_LAYOUT_CROSS_H,    /* horizontal cube cross, 4:3 */
+    HL_LAYOUT_CROSS_V     /* vertical cube cross, 3:4 */
+} hl_env_layout;
+
+/* hl_env_load with the layout given (HL_LAYOUT_AUTO: hl_env_load's
+ * choice by size). A file whose size is not its layout's is refused
+ * (HL_ERR_FORMAT, naming the file and the sizes each layout takes). */
+hl_result hl_env_load_layout(hl_context *ctx, const char *path, hl_env_layout layout, hl_env **out,
+                             hl_env_stats *stats);
 
 /* hl_sky_desc fields and defaults (a procedural sun and sky):
  *   sun_elevation_deg  0: 35 degrees above the horizon (use -90..90;

@@ -7,7 +7,7 @@
  * NaN/Inf channels become 0 and negative ones are clamped, and the counts
  * are reported; maps brighter than that are refused.
  * Depends on: exr_io.c and hdr_io.c for the file formats (OpenEXR, Radiance
- * .hdr).
+ * .hdr), env_layout.c for light-probe layouts.
  */
 #include <math.h>
 #include <stdio.h>
@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "exr_io.h"
+#include "env_layout.h"
 #include "hdr_io.h"
 #include "hl_internal.h"
 
@@ -80,33 +81,47 @@ static hl_result read_map(hl_context *ctx, const char *path, uint32_t *w, uint32
         n = fread(head, 1, sizeof head, f);
         fclose(f);
     }
-    if (!hl_hdr_sniff_(head, n)) return hl_exr_read_rgb_(ctx, path, HL_EXR_REQUIRE_2TO1, w, h, rgb);
-    hl_result r = hl_hdr_read_rgb_(ctx, path, w, h, rgb);
-    if (r == HL_OK && *w != 2 * *h) {
-        free(*rgb);
-        *rgb = NULL;
-        return hl_fail(ctx, HL_ERR_FORMAT, "%s: %u x %u pixels is not an equirectangular map (width must be 2 x height)",
-                       path, *w, *h);
-    }
-    return r;
+    if (hl_hdr_sniff_(head, n)) return hl_hdr_read_rgb_(ctx, path, w, h, rgb);
+    return hl_exr_read_rgb_(ctx, path, 0, w, h, rgb);
 }
 
-hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_stats *stats)
+hl_result hl_env_load_layout(hl_context *ctx, const char *path, hl_env_layout layout, hl_env **out,
+                             hl_env_stats *stats)
 {
     if (stats) memset(stats, 0, sizeof *stats);
     if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_env_load: out is NULL");
     *out = NULL;
     if (!path || !*path) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_env_load: no path given");
+    if ((int)layout < HL_LAYOUT_AUTO || (int)layout > HL_LAYOUT_CROSS_V)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_env_load: unknown layout %d", (int)layout);
     uint32_t w, h;
     float *rgb;
     hl_result r = read_map(ctx, path, &w, &h, &rgb);
     if (r != HL_OK) return r;
-    r = repair(ctx, path, rgb, (size_t)w * h, stats);
+    const hl_env_layout found = hl_env_layout_of_size_(w, h);
+    if (layout == HL_LAYOUT_AUTO) layout = found;
+    if (layout == HL_LAYOUT_AUTO || (layout == HL_LAYOUT_EQUIRECT && found != layout))
+        r = hl_fail(ctx, HL_ERR_FORMAT,
+                    "%s: %u x %u pixels is not an equirectangular map (width must be 2 x height)%s", path, w, h,
+                    layout == HL_LAYOUT_AUTO ? ", an angular map (1:1) or a cube cross (4:3 or 3:4)" : "");
+    /* repaired before any resampling, so that averages stay finite */
+    if (r == HL_OK) r = repair(ctx, path, rgb, (size_t)w * h, stats);
+    if (r == HL_OK && layout != HL_LAYOUT_EQUIRECT) {
+        float *eq = NULL;
+        r = hl_env_resample_layout_(ctx, path, layout, w, h, rgb, &w, &h, &eq);
+        free(rgb);
+        rgb = eq;
+    }
     if (r != HL_OK) {
         free(rgb);
         return r;
     }
     return wrap(ctx, w, h, rgb, out);
+}
+
+hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_stats *stats)
+{
+    return hl_env_load_layout(ctx, path, HL_LAYOUT_AUTO, out, stats);
 }
 
 hl_result hl_env_create(hl_context *ctx, uint32_t width, uint32_t height, const float *rgb,

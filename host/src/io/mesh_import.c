@@ -1,6 +1,7 @@
 /* mesh_import.c - hl_mesh_load: reading mesh files through assimp.
  *
- * With assimp_guard.c, the only file that includes assimp. Every format
+ * With assimp_guard.c and dynamic/scene.c (scenes of moving bodies), the only
+ * files that include assimp. Every format
  * (OBJ, PLY, glTF, ...) goes through aiImportFile; the raw arrays then go
  * to hl_mesh_build_ in mesh.c, which welds, drops degenerates and computes
  * normals. assimp's OBJ importer gives each face corner its own vertex and
