@@ -13,7 +13,8 @@ static const char *const usage_relight =
     "usage: haarlight relight SCENE.hlt (--env ENV.exr | --sky) -o OUT [options]\n"
     "\n"
     "Relights a transport file from `haarlight precompute` under an environment.\n"
-    "OUT by extension: .ply (mesh with per-vertex colours), .exr (linear image),\n"
+    "OUT by extension: .ply (mesh with per-vertex colours), .glb (binary glTF 2.0: linear\n"
+    "colours in COLOR_0, tone-mapped ones in COLOR_1), .exr (linear image),\n"
     ".png (tone-mapped image). Images are rendered headless with Embree.\n"
     "\n"
     "lighting:\n"
@@ -67,11 +68,12 @@ int cmd_relight(int argc, char **argv)
     float exposure = o.exposure;
     want_sky |= o.sky_set;
     if (!scene) return usage_error(usage, "%s", "no SCENE.hlt given");
-    if (!out) return usage_error(usage, "%s", "no output given (-o OUT.ply|.exr|.png)");
+    if (!out) return usage_error(usage, "%s", "no output given (-o OUT.ply|.glb|.exr|.png)");
     if (env_path && want_sky) return usage_error(usage, "%s", "--env and the sky options contradict each other");
     const char *ext = ext_of(out);
-    int is_ply = !strcasecmp(ext, ".ply"), is_img = !strcasecmp(ext, ".exr") || !strcasecmp(ext, ".png");
-    if (!is_ply && !is_img) return usage_error(usage, "output %s: expected a .ply, .exr or .png name", out);
+    int is_ply = !strcasecmp(ext, ".ply"), is_glb = !strcasecmp(ext, ".glb"),
+        is_img = !strcasecmp(ext, ".exr") || !strcasecmp(ext, ".png");
+    if (!is_ply && !is_glb && !is_img) return usage_error(usage, "output %s: expected a .ply, .glb, .exr or .png name", out);
 
     char err[4096];
     hl_context *ctx = NULL;
@@ -107,9 +109,10 @@ int cmd_relight(int argc, char **argv)
                 100.0 * st.most_negative);
     if (r == HL_OK && !o.exposure_set) {
         exposure = hl_exposure_auto(t->mesh, rgb);
-        if (!cd.quiet && (ply8 || !strcasecmp(ext, ".png"))) fprintf(stderr, "exposure: %+.2f EV (automatic)\n", (double)exposure);
+        if (!cd.quiet && (ply8 || is_glb || !strcasecmp(ext, ".png"))) fprintf(stderr, "exposure: %+.2f EV (automatic)\n", (double)exposure);
     }
     if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, t->mesh, rgb, out, ply8, exposure);
+    if (r == HL_OK && is_glb) r = hl_mesh_save_glb(ctx, t->mesh, rgb, out, exposure);
     if (r == HL_OK && is_img) r = cli_camera_complete(ctx, t->mesh, &o);
     if (r == HL_OK && is_img) r = hl_render(ctx, t->mesh, rgb, no_bg ? NULL : env, rd.rotate_deg, &o.cam, &img);
     if (r == HL_OK && is_img) r = hl_image_save(ctx, img, out, exposure);

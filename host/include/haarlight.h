@@ -533,6 +533,13 @@ hl_result hl_render(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rg
 hl_result hl_mesh_save_ply(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
                            const char *path, int tonemapped8, float exposure_ev);
 
+/* Writes the mesh as binary glTF 2.0 (.glb) through assimp's exporter:
+ * positions, normals, COLOR_0 the linear colours (alpha 1) and COLOR_1
+ * the same tone-mapped for display (2^exposure_ev, then the sRGB curve, in
+ * [0, 1]). Colours must be finite and >= 0. Atomic. */
+hl_result hl_mesh_save_glb(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb, const char *path,
+                           float exposure_ev);
+
 /* ---------------------------------------------------------------- viewer support
  *
  * What the interactive viewer (viewer/, `haarlight view`) needs so that it

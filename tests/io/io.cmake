@@ -30,5 +30,7 @@ hl_test_cases(test_mesh_shared mesh_shared bunny teapot horse_up_z horse_keep_wi
 hl_test_exe(test_mesh_bad ${CMAKE_CURRENT_LIST_DIR}/test_mesh_bad.c)
 hl_test_cases(test_mesh_bad mesh_bad
   nan index no_faces not_mesh counts missing empty args no_placed_mesh placed_overflow import_memory)
+hl_test_exe(test_gltf_out ${CMAKE_CURRENT_LIST_DIR}/test_gltf_out.c)
+hl_test_cases(test_gltf_out gltf_out roundtrip bad blender)
 hl_test_exe(test_ply_out ${CMAKE_CURRENT_LIST_DIR}/test_ply_out.c)
 hl_test_cases(test_ply_out ply_out roundtrip atomic)
