@@ -101,8 +101,7 @@ static int scene_load(hl_context *ctx, scene *s)
 static void scene_free(scene *s)
 {
     hl_mesh_destroy(s->bunny);
-    free(s->gpos);
-    free(s->gtri);
+    free(s->gpos); free(s->gtri);
 }
 
 static void unit3(float *d)
@@ -215,12 +214,7 @@ static void case_twin(void)
         HL_CHECK(hl_shadow_maps_render(sr, (const float(*)[3])dirs, K, b, NULL) == HL_OK, "%s", hl_context_last_error(ref));
         twin_compare("bunny turned and moved", a, b, n);
     }
-    hl_shadow_maps_destroy(sc);
-    hl_shadow_maps_destroy(sr);
-    free(a);
-    free(b);
-    scene_free(&s);
-    hl_context_destroy(cl);
+    hl_shadow_maps_destroy(sc); hl_shadow_maps_destroy(sr); free(a); free(b); scene_free(&s); hl_context_destroy(cl);
     hl_context_destroy(ref);
 }
 
@@ -345,8 +339,7 @@ static void edge_rule(hl_context *ctx, hl_shadow_method m, const char *name)
         }
     } else
         HL_CHECK(0, "%s: %s", name, hl_context_last_error(ctx));
-    hl_shadow_maps_destroy(sm);
-    free(d);
+    hl_shadow_maps_destroy(sm); free(d);
 }
 
 static void case_analytic(void)
@@ -370,8 +363,7 @@ static void case_analytic(void)
     edge_rule(ref, HL_SHADOW_RASTER, "edge rule, twin");
     edge_rule(ref, HL_SHADOW_EMBREE, "edge rule, Embree");
     if (cl) edge_rule(cl, HL_SHADOW_RASTER, "edge rule, OpenCL");
-    hl_context_destroy(cl);
-    hl_context_destroy(ref);
+    hl_context_destroy(cl); hl_context_destroy(ref);
 }
 
 /* ================================================================ embree */
@@ -445,10 +437,7 @@ static void case_embree(void)
         hl_check_error("raster vs Embree: fraction of covered texels that differ", frac, 1e-4);
         HL_CHECK(covered > (size_t)K * R_TEST * R_TEST / 10, "only %zu texels covered", covered);
     }
-    free(a);
-    free(b);
-    scene_free(&s);
-    hl_context_destroy(ref);
+    free(a); free(b); scene_free(&s); hl_context_destroy(ref);
 }
 
 /* ================================================================ motion */
@@ -508,11 +497,7 @@ static void motion_one(hl_context *ctx, hl_shadow_method m, scene *s, const floa
         HL_CHECK(commits0 == 1 && commits1 == 2, "%s: top-level commits %llu, %llu (want 1, 2)", what,
                  (unsigned long long)commits0, (unsigned long long)commits1);
     }
-    hl_shadow_maps_destroy(sa);
-    hl_shadow_maps_destroy(sb);
-    free(p);
-    free(a);
-    free(b);
+    hl_shadow_maps_destroy(sa); hl_shadow_maps_destroy(sb); free(p); free(a); free(b);
 }
 
 static void case_motion(void)
@@ -538,9 +523,7 @@ static void case_motion(void)
     hl_context *cl = cl_ctx();
     HL_CHECK(cl != NULL, "no OpenCL device");
     if (cl) motion_one(cl, HL_SHADOW_RASTER, &s, xf, "OpenCL raster, any rotation", 1e-5, 1e-4);
-    hl_context_destroy(cl);
-    scene_free(&s);
-    hl_context_destroy(ref);
+    hl_context_destroy(cl); scene_free(&s); hl_context_destroy(ref);
 }
 
 /* ================================================================= frame */
@@ -629,9 +612,7 @@ static void case_frame(void)
     hl_check_error("frames: vertex depth outside [5e-4, 1 - 5e-4]", fmax(depth_out, 0.0), 0.0);
     hl_check_error("frames: the boxes' span against R - 2 margin texels, centred (texels)", span_err, 1e-3);
     hl_check_error("frames: covered texels on the border ring", (double)border, 0.0);
-    free(d);
-    scene_free(&s);
-    hl_context_destroy(ref);
+    free(d); scene_free(&s); hl_context_destroy(ref);
 }
 
 /* ============================================================= bad input */
@@ -708,8 +689,7 @@ static void case_bad_input(void)
         for (size_t i = 0; i < 64 * 64; i++) cov += depth[i] < HL_SHADOW_EMPTY;
         HL_CHECK(cov > 1000, "the square seen from above covers %zu texels", cov);
     }
-    hl_shadow_maps_destroy(sm);
-    hl_context_destroy(ref);
+    hl_shadow_maps_destroy(sm); hl_context_destroy(ref);
 }
 
 int main(int argc, char **argv)
