@@ -21,7 +21,7 @@ case "$what" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exi
 
 packages=(build-essential cmake pkg-config
           pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
-          libembree-dev libopenexr-dev libpng-dev libglfw3-dev libxrandr-dev libassimp-dev libstb-dev gnuplot-nox
+          libembree-dev libopenexr-dev libpng-dev libglfw3-dev libxrandr-dev libassimp-dev libstb-dev gnuplot-nox help2man
           libgl1-mesa-dev libgl1-mesa-dri xvfb xauth valgrind
           clang libclang-rt-14-dev)
 # only `./setup.sh test` needs these: the model files of assimp's own test

@@ -5,7 +5,7 @@
 # (ImfCRgbaFile.h), which decodes DWAB where Debian 12's OpenEXRCore cannot,
 # and OpenEXRCore (openexr.h), which reads and writes 32-bit floats.
 # Found through pkg-config (OpenEXR.pc) when available, else from the
-# explicit Debian paths. When the haarlight_core target already exists it is
+# explicit Debian paths. When the haarlight_objs target already exists it is
 # linked here, so the top level needs only include() after that target.
 if(NOT TARGET hl_openexr)
   add_library(hl_openexr INTERFACE)
@@ -33,6 +33,6 @@ if(NOT TARGET hl_openexr)
                           ${HL_IMATH_LIB})
   endif()
 endif()
-if(TARGET haarlight_core)
-  target_link_libraries(haarlight_core PRIVATE hl_openexr)
+if(TARGET haarlight_objs)
+  target_link_libraries(haarlight_objs PUBLIC hl_openexr)
 endif()

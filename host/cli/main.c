@@ -28,13 +28,14 @@ static const char *const usage_main =
     "  precompute MESH -o SCENE.hlt   mesh to compressed wavelet transport\n"
     "  info SCENE.hlt                 what a transport file holds\n"
     "  devices                        list OpenCL platforms and devices\n"
-    "  relight SCENE.hlt -o OUT       relight under an environment: .ply, .exr or .png\n"
+    "  relight SCENE.hlt -o OUT       relight under an environment: .ply, .glb, .exr or .png\n"
     "  view SCENE.hlt                 interactive relighting in a window (GLFW viewer)\n"
     "  check SCENE.hlt                OpenCL stages against the plain-C reference\n"
     "  bench SCENE.hlt --env ENV.exr  error against run time for M, selection and quantisation\n"
     "  bench-precompute MESH          time the precompute against Embree's raw rate\n"
     "\n"
-    "`haarlight COMMAND --help` lists a command's options.\n";
+    "`haarlight COMMAND --help` lists a command's options; `haarlight --version`\n"
+    "prints the version.\n";
 
 static const char *const usage_precompute =
     "usage: haarlight precompute MESH -o SCENE.hlt [options]\n"
@@ -443,6 +444,10 @@ int main(int argc, char **argv)
     if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
         fputs(usage_main, argc < 2 ? stderr : stdout);
         return argc < 2 ? 2 : 0;
+    }
+    if (!strcmp(argv[1], "--version")) {
+        printf("haarlight %s\n", HL_VERSION);
+        return 0;
     }
     const char *cmd = argv[1];
     if (!strcmp(cmd, "precompute")) return cmd_precompute(argc - 2, argv + 2);

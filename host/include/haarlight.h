@@ -24,6 +24,14 @@
 extern "C" {
 #endif
 
+/* The functions of the shared library (libhaarlight.so); everything else
+ * in it is hidden. */
+#if defined(__GNUC__) && defined(HL_BUILDING_LIBRARY)
+#define HL_API __attribute__((visibility("default")))
+#else
+#define HL_API
+#endif
+
 /* ---------------------------------------------------------------- results */
 
 typedef enum hl_result {
@@ -41,7 +49,7 @@ typedef enum hl_result {
 } hl_result;
 
 /* Short fixed description of a result code; never NULL. */
-const char *hl_result_string(hl_result r);
+HL_API const char *hl_result_string(hl_result r);
 
 /* ---------------------------------------------------------------- context */
 
@@ -88,9 +96,9 @@ typedef struct hl_context hl_context;
 /* Creates a context. With the OpenCL backend the device is opened and the
  * kernels are built here; on failure *out is NULL and, when err/err_size
  * are given, the message is copied there. */
-hl_result hl_context_create(const hl_context_desc *desc, hl_context **out,
+HL_API hl_result hl_context_create(const hl_context_desc *desc, hl_context **out,
                             char *err, size_t err_size);
-void hl_context_destroy(hl_context *ctx);
+HL_API void hl_context_destroy(hl_context *ctx);
 /* Cancellation. hl_context_cancel asks the long work running on ctx to
  * stop: the ray casting and the chunks of hl_precompute (which keeps its
  * .partial file for --resume), hl_render's pixel chunks and the viewer's
@@ -104,26 +112,26 @@ void hl_context_destroy(hl_context *ctx);
  * is not lock-free), so a SIGINT handler may call it, provided ctx is not
  * being destroyed meanwhile. hl_context_cancelled returns 1 once the
  * context was cancelled, else 0 (also for NULL). */
-void hl_context_cancel(hl_context *ctx);
-int hl_context_cancelled(const hl_context *ctx);
+HL_API void hl_context_cancel(hl_context *ctx);
+HL_API int hl_context_cancelled(const hl_context *ctx);
 /* Reads a byte count: digits with an optional K, M or G suffix (powers of
  * 1024). Returns 1 and sets *out when the whole string is one, at least 1
  * and below 2^63; 0 otherwise. */
-int hl_parse_bytes(const char *s, uint64_t *out);
+HL_API int hl_parse_bytes(const char *s, uint64_t *out);
 /* Message of the last failure on this context ("" when none). */
-const char *hl_context_last_error(const hl_context *ctx);
+HL_API const char *hl_context_last_error(const hl_context *ctx);
 /* Human-readable name of the compute device ("reference (plain C)" or the
  * OpenCL platform and device names). */
-const char *hl_context_device_name(const hl_context *ctx);
-hl_backend hl_context_backend(const hl_context *ctx);
+HL_API const char *hl_context_device_name(const hl_context *ctx);
+HL_API hl_backend hl_context_backend(const hl_context *ctx);
 /* 1 when the context's OpenCL device lists the extension (e.g.
  * "cl_khr_gl_sharing"); 0 otherwise and on the reference backend. */
-int hl_context_device_has_extension(const hl_context *ctx, const char *name);
-int hl_context_threads(const hl_context *ctx);
+HL_API int hl_context_device_has_extension(const hl_context *ctx, const char *name);
+HL_API int hl_context_threads(const hl_context *ctx);
 
 /* Prints the OpenCL platforms and devices to the given FILE* (void* to keep
  * stdio out of this header). Works without a context. */
-hl_result hl_list_devices(void *file, char *err, size_t err_size);
+HL_API hl_result hl_list_devices(void *file, char *err, size_t err_size);
 
 /* ---------------------------------------------------------------- meshes */
 
@@ -167,13 +175,13 @@ typedef struct hl_mesh_stats {
 
 /* Loads OBJ, PLY, glTF and anything else the importer reads. Errors name
  * the file and the problem (HL_ERR_IO, HL_ERR_FORMAT, HL_ERR_MESH). */
-hl_result hl_mesh_load(hl_context *ctx, const char *path,
+HL_API hl_result hl_mesh_load(hl_context *ctx, const char *path,
                        const hl_mesh_load_desc *desc, hl_mesh **out,
                        hl_mesh_stats *stats);
 
 /* Builds a mesh from arrays (copied). normals may be NULL (computed),
  * albedo may be NULL (constant). Validates like hl_mesh_load. */
-hl_result hl_mesh_create(hl_context *ctx, uint32_t vertex_count,
+HL_API hl_result hl_mesh_create(hl_context *ctx, uint32_t vertex_count,
                          const float *positions, const float *normals,
                          const float *albedo, uint32_t triangle_count,
                          const uint32_t *indices, hl_mesh **out);
@@ -192,13 +200,13 @@ typedef struct hl_ground_desc {
 
 /* Appends a finely tessellated ground plane, +Y normal, at the mesh's lowest
  * point, sized to its footprint. */
-hl_result hl_mesh_add_ground(hl_context *ctx, hl_mesh *mesh,
+HL_API hl_result hl_mesh_add_ground(hl_context *ctx, hl_mesh *mesh,
                              const hl_ground_desc *desc);
 
 /* Length of the bounding-box diagonal (scale for ray offsets). */
-float hl_mesh_query_diagonal(const hl_mesh *mesh);
+HL_API float hl_mesh_query_diagonal(const hl_mesh *mesh);
 
-void hl_mesh_destroy(hl_mesh *mesh);
+HL_API void hl_mesh_destroy(hl_mesh *mesh);
 
 /* ---------------------------------------------------------------- transport */
 
@@ -310,25 +318,25 @@ typedef struct hl_transport {
  * out_path when complete. An interrupted run (HL_ERR_INTERRUPTED) keeps the
  * partial file for desc->resume; any other failure removes it. The mesh
  * must already carry any ground plane. stats may be NULL. */
-hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh,
+HL_API hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh,
                         const hl_precompute_desc *desc, const char *out_path,
                         hl_precompute_stats *stats);
 
 /* Reads a transport file; every size is bounded before allocation and
  * every section's checksum is verified. */
-hl_result hl_transport_load(hl_context *ctx, const char *path,
+HL_API hl_result hl_transport_load(hl_context *ctx, const char *path,
                             hl_transport **out);
-void hl_transport_destroy(hl_transport *t);
+HL_API void hl_transport_destroy(hl_transport *t);
 
 /* Dequantises vertex v's kept coefficients into a dense row of 2 N^2
  * floats (zero elsewhere). */
-void hl_transport_query_row(const hl_transport *t, uint32_t v, float *dense);
+HL_API void hl_transport_query_row(const hl_transport *t, uint32_t v, float *dense);
 
 /* The same row as the dot products add it (both backends): each term
  * dequantised, then rounded to half precision at a per-row power-of-two
  * scale (within 2^-11 of the term, or 2^-24 of the row's largest
  * magnitude), and scaled back. */
-void hl_transport_query_terms(const hl_transport *t, uint32_t v, float *dense);
+HL_API void hl_transport_query_terms(const hl_transport *t, uint32_t v, float *dense);
 
 /* ---------------------------------------------------------------- environments */
 
@@ -365,7 +373,7 @@ typedef struct hl_env_stats {
  * half floats cannot hold (HL_ERR_FORMAT). NaN/Inf channels are set to 0
  * and negative ones clamped, and stats says how many pixels were
  * affected. Errors name the file. */
-hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_stats *stats);
+HL_API hl_result hl_env_load(hl_context *ctx, const char *path, hl_env **out, hl_env_stats *stats);
 
 /* How a map file lays out the sphere (docs/CONVENTIONS.md, "Map layouts";
  * every layout is resampled onto the equirectangular grid on loading). */
@@ -380,7 +388,7 @@ typedef enum hl_env_layout {
 /* hl_env_load with the layout given (HL_LAYOUT_AUTO: hl_env_load's
  * choice by size). A file whose size is not its layout's is refused
  * (HL_ERR_FORMAT, naming the file and the sizes each layout takes). */
-hl_result hl_env_load_layout(hl_context *ctx, const char *path, hl_env_layout layout, hl_env **out,
+HL_API hl_result hl_env_load_layout(hl_context *ctx, const char *path, hl_env_layout layout, hl_env **out,
                              hl_env_stats *stats);
 
 /* hl_sky_desc fields and defaults (a procedural sun and sky):
@@ -408,20 +416,20 @@ typedef struct hl_sky_desc {
     uint32_t width;
 } hl_sky_desc;
 
-hl_result hl_env_create_sky(hl_context *ctx, const hl_sky_desc *desc, hl_env **out);
+HL_API hl_result hl_env_create_sky(hl_context *ctx, const hl_sky_desc *desc, hl_env **out);
 
 /* Builds an environment from a copy of rgb (3 * width * height floats),
  * repairing like hl_env_load. width must be 2 * height, height >= 1. */
-hl_result hl_env_create(hl_context *ctx, uint32_t width, uint32_t height, const float *rgb,
+HL_API hl_result hl_env_create(hl_context *ctx, uint32_t width, uint32_t height, const float *rgb,
                         hl_env **out, hl_env_stats *stats);
 
 /* Radiance seen in direction w (need not be unit) with the content turned
  * by rotate_deg about +Y (docs/CONVENTIONS.md): nearest pixel. */
-void hl_env_query(const hl_env *env, const float w[3], float rotate_deg, float rgb[3]);
+HL_API void hl_env_query(const hl_env *env, const float w[3], float rotate_deg, float rgb[3]);
 /* The same, bilinear between pixel centres (for display). */
-void hl_env_query_smooth(const hl_env *env, const float w[3], float rotate_deg, float rgb[3]);
+HL_API void hl_env_query_smooth(const hl_env *env, const float w[3], float rotate_deg, float rgb[3]);
 
-void hl_env_destroy(hl_env *env);
+HL_API void hl_env_destroy(hl_env *env);
 
 /* ---------------------------------------------------------------- relighting */
 
@@ -471,16 +479,16 @@ typedef struct hl_relight_stats {
     int reused;                   /* 1: nothing changed, no work was done */
 } hl_relight_stats;
 
-hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out);
+HL_API hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out);
 /* Takes a new environment (resampled once here; rotations are cheap). The
  * environment is copied, the caller keeps ownership. */
-hl_result hl_relighter_set_env(hl_relighter *r, const hl_env *env);
+HL_API hl_result hl_relighter_set_env(hl_relighter *r, const hl_env *env);
 /* Vertex colours (3 floats per vertex: outgoing radiance, albedo
  * included) for the current environment. Repeating the same settings
  * does no work (stats->reused). */
-hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb,
+HL_API hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb,
                            hl_relight_stats *stats);
-void hl_relighter_destroy(hl_relighter *r);
+HL_API void hl_relighter_destroy(hl_relighter *r);
 
 /* ---------------------------------------------------------------- images */
 
@@ -489,16 +497,16 @@ typedef struct hl_image {
     float *rgb; /* 3 * width * height, linear, row 0 at the top */
 } hl_image;
 
-hl_result hl_image_create(hl_context *ctx, uint32_t width, uint32_t height, hl_image **out);
-void hl_image_destroy(hl_image *img);
+HL_API hl_result hl_image_create(hl_context *ctx, uint32_t width, uint32_t height, hl_image **out);
+HL_API void hl_image_destroy(hl_image *img);
 
 /* Writes by extension: .exr linear 32-bit float RGB (ZIP), .png 8-bit
  * tone-mapped (scale by 2^exposure_ev, then the sRGB transfer curve).
  * Atomic: written to a temporary name and renamed. */
-hl_result hl_image_save(hl_context *ctx, const hl_image *img, const char *path, float exposure_ev);
+HL_API hl_result hl_image_save(hl_context *ctx, const hl_image *img, const char *path, float exposure_ev);
 
 /* Linear radiance to an 8-bit sRGB code after scaling by 2^exposure_ev. */
-uint8_t hl_tonemap_srgb8(float linear, float exposure_ev);
+HL_API uint8_t hl_tonemap_srgb8(float linear, float exposure_ev);
 
 /* ---------------------------------------------------------------- rendering */
 
@@ -523,21 +531,21 @@ typedef struct hl_camera_desc {
 /* Renders the mesh with per-vertex linear RGB colours (3 per vertex),
  * interpolated with barycentrics, from Embree primary rays; pixels that
  * miss show the environment (may be NULL: black) turned by rotate_deg. */
-hl_result hl_render(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
+HL_API hl_result hl_render(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
                     const hl_env *background, float rotate_deg, const hl_camera_desc *camera,
                     hl_image **out);
 
 /* Writes the mesh as binary PLY with per-vertex colours: float red, green,
  * blue (linear radiance) by default, or 8-bit tone-mapped uchar colours
  * when tonemapped8 is set (exposure_ev then applies). Atomic. */
-hl_result hl_mesh_save_ply(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
+HL_API hl_result hl_mesh_save_ply(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
                            const char *path, int tonemapped8, float exposure_ev);
 
 /* Writes the mesh as binary glTF 2.0 (.glb) through assimp's exporter:
  * positions, normals, COLOR_0 the linear colours (alpha 1) and COLOR_1
  * the same tone-mapped for display (2^exposure_ev, then the sRGB curve, in
  * [0, 1]). Colours must be finite and >= 0. Atomic. */
-hl_result hl_mesh_save_glb(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb, const char *path,
+HL_API hl_result hl_mesh_save_glb(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb, const char *path,
                            float exposure_ev);
 
 /* ---------------------------------------------------------------- viewer support
@@ -560,13 +568,13 @@ typedef struct hl_camera_view {
 } hl_camera_view;
 
 /* Fails like hl_render on an impossible camera (HL_ERR_INVALID_ARGUMENT). */
-hl_result hl_camera_query_view(hl_context *ctx, const hl_mesh *mesh, const hl_camera_desc *desc,
+HL_API hl_result hl_camera_query_view(hl_context *ctx, const hl_mesh *mesh, const hl_camera_desc *desc,
                                hl_camera_view *out);
 
 /* The automatic exposure of `haarlight relight` (EV, in [-64, 64]): puts the
  * 90th percentile of vertex luminance (ground included) at 0.8; 0 when the
  * colours are all black or memory runs out. */
-float hl_exposure_auto(const hl_mesh *mesh, const float *vertex_rgb);
+HL_API float hl_exposure_auto(const hl_mesh *mesh, const float *vertex_rgb);
 
 #ifdef __cplusplus
 }
