@@ -8,7 +8,7 @@ hl_test_cases(test_env env convention solid_angle load_shared bad_files nan_repa
 hl_test_exe(test_hdr ${CMAKE_CURRENT_LIST_DIR}/test_hdr.c)
 hl_test_cases(test_hdr hdr read exposure same_as_exr bad)
 hl_test_exe(test_env_layout ${CMAKE_CURRENT_LIST_DIR}/test_env_layout.c)
-hl_test_cases(test_env_layout env_layout orientation energy explicit)
+hl_test_cases(test_env_layout env_layout orientation energy explicit relight)
 hl_test_exe(test_exr_headers ${CMAKE_CURRENT_LIST_DIR}/test_exr_headers.c)
 hl_test_cases(test_exr_headers exr_headers hostile)
 hl_test_exe(test_exr_chunks ${CMAKE_CURRENT_LIST_DIR}/test_exr_chunks.c)

@@ -8,15 +8,19 @@
  * at every equirectangular pixel: a face or axis in the wrong place
  * costs most of a channel), energy (a small bright lobe keeps its energy
  * through each layout), explicit (--layout's choice is honoured, and a
- * size that is not the layout's is refused naming the file).
+ * size that is not the layout's is refused naming the file), relight (the
+ * bunny on its ground relit under each layout and under the same map as
+ * equirectangular EXR agree).
  * Depends on: haarlight.h (hl_env_load_layout, hl_image_save), hl_test.h.
  */
+#define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "hl_test.h"
+#include "relight_compare.h"
 
 #define PI 3.14159265358979323846
 
@@ -71,18 +75,32 @@ static int cross_dir(const tface *faces, uint32_t F, uint32_t x, uint32_t y, dou
     return 0;
 }
 
-/* Draws the environment in layout L (1 angular, 2 horizontal cross, 3
- * vertical cross) at about `res` pixels a face or disc and saves it. */
+/* Equirectangular pixel -> direction (docs/CONVENTIONS.md). */
+static int equirect_dir(uint32_t w, uint32_t h, uint32_t x, uint32_t y, double d[3])
+{
+    const double th = PI * (y + 0.5) / h, ph = 2.0 * PI * ((x + 0.5) / w - 0.5);
+    d[0] = sin(th) * cos(ph);
+    d[1] = cos(th);
+    d[2] = sin(th) * sin(ph);
+    return 1;
+}
+
+/* Draws the environment in layout L (0 equirectangular, 1 angular, 2
+ * horizontal cross, 3 vertical cross) at about `res` pixels a face or
+ * disc and saves it. */
 static const char *draw(hl_context *ctx, int L, uint32_t res, int lobe, const char *name)
 {
     /* an angular map of diameter 4 res has the pixel angle of a cube face
-       of res (pi / 2 / res) */
-    const uint32_t w = L == 1 ? 4 * res : (L == 2 ? 4 * res : 3 * res), h = L == 1 ? 4 * res : (L == 2 ? 3 * res : 4 * res);
+       of res (pi / 2 / res), and so has an equirectangular map 4 res wide */
+    static const uint32_t W[4] = {4, 4, 4, 3}, H[4] = {2, 4, 3, 4};
+    const uint32_t w = W[L] * res, h = H[L] * res;
     hl_image img = {w, h, calloc((size_t)w * h * 3, sizeof(float))};
     for (uint32_t y = 0; y < h; y++)
         for (uint32_t x = 0; x < w; x++) {
             double d[3];
-            const int in = L == 1 ? angular_dir(w, x, y, d) : cross_dir(L == 2 ? TH : TV, res, x, y, d);
+            const int in = L == 0   ? equirect_dir(w, h, x, y, d)
+                           : L == 1 ? angular_dir(w, x, y, d)
+                                    : cross_dir(L == 2 ? TH : TV, res, x, y, d);
             if (in) env_fn(d, lobe, img.rgb + 3 * ((size_t)y * w + x));
         }
     const char *path = hl_test_tmp_path(name);
@@ -91,15 +109,9 @@ static const char *draw(hl_context *ctx, int L, uint32_t res, int lobe, const ch
     return path;
 }
 
-static void pixel_dir(const hl_env *e, uint32_t i, uint32_t j, double d[3])
-{
-    const double th = PI * (j + 0.5) / e->height, ph = 2.0 * PI * ((i + 0.5) / e->width - 0.5);
-    d[0] = sin(th) * cos(ph);
-    d[1] = cos(th);
-    d[2] = sin(th) * sin(ph);
-}
+static void pixel_dir(const hl_env *e, uint32_t i, uint32_t j, double d[3]) { equirect_dir(e->width, e->height, i, j, d); }
 
-static const char *const NAMES[4] = {"", "angular map", "horizontal cross", "vertical cross"};
+static const char *const NAMES[4] = {"equirectangular map", "angular map", "horizontal cross", "vertical cross"};
 
 static void case_orientation(void)
 {
@@ -190,9 +202,42 @@ static void case_explicit(void)
     hl_context_destroy(ctx);
 }
 
+/* The same scene under the same sky with a sun-like lobe, once from an
+ * equirectangular EXR and once from each layout. */
+static void case_relight(void)
+{
+    hl_context *ctx = hl_test_ref_context(2);
+    hl_transport *t = compare_scene(ctx);
+    HL_CHECK(t != NULL, "the comparison scene");
+    float *want = NULL;
+    for (int L = 0; t && L <= 3; L++) {
+        const char *path = draw(ctx, L, 64, 1, "layout_relight.exr");
+        hl_env *e = NULL;
+        HL_CHECK(hl_env_load(ctx, path, &e, NULL) == HL_OK && e, "%s: %s", NAMES[L], hl_context_last_error(ctx));
+        float *rgb = e ? compare_relight(ctx, t, e) : NULL;
+        hl_env_destroy(e);
+        if (L == 0) {
+            want = rgb;
+            continue;
+        }
+        char what[160];
+        snprintf(what, sizeof what, "vertex colours under the %s against the equirectangular EXR (relative to the brightest)",
+                 NAMES[L]);
+        /* both maps hold the same function to about a pixel's worth of its
+           gradient (hl.env_layout.orientation) and the lobe's energy to a
+           few percent of itself (.energy), a few percent of the light */
+        if (rgb && want) hl_check_error(what, compare_worst(want, rgb, 3 * (size_t)t->info.vertex_count), 0.03);
+        free(rgb);
+    }
+    free(want);
+    hl_transport_destroy(t);
+    hl_context_destroy(ctx);
+}
+
 int main(int argc, char **argv)
 {
-    static const hl_test_case cases[] = {
-        {"orientation", case_orientation}, {"energy", case_energy}, {"explicit", case_explicit}, {NULL, NULL}};
+    static const hl_test_case cases[] = {{"orientation", case_orientation}, {"energy", case_energy},
+                                         {"explicit", case_explicit},       {"relight", case_relight},
+                                         {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

@@ -4,18 +4,20 @@
  * encoder of the test's own give back their values to RGBE's precision,
  * and values RGBE holds exactly come back exactly), exposure (EXPOSURE
  * divides the pixels), same_as_exr (the same map as .hdr and as float EXR
- * loads alike), bad (truncated pixels, a foreign magic, XYZE, another
+ * loads alike, and lights the bunny on its ground alike), bad (truncated pixels, a foreign magic, XYZE, another
  * orientation, no end of header, a size beyond the file, a shape no
  * layout has: each a
  * clear error naming the file, never a map).
  * Depends on: haarlight.h (hl_env_load, hl_image_save), hl_test.h.
  */
+#define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "hl_test.h"
+#include "relight_compare.h"
 
 /* RGBE of one pixel, as Radiance writes it: the shared exponent of the
  * largest channel, mantissas truncated to 8 bits. */
@@ -187,6 +189,18 @@ static void case_same_as_exr(void)
     HL_CHECK(hl_env_load(ctx, exr, &b, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
     if (a && b) hl_check_error(".hdr against the float EXR of the same map (relative to the pixel's largest channel)",
                                worst_relative(a, b->rgb, (size_t)w * h), 1.0 / 128.0);
+    /* the same scene lit by both: a colour is a sum of pixels times
+       non-negative transport, so it keeps the pixels' 2^-7, and the
+       selection of the lighting terms differs only where two terms tie */
+    hl_transport *t = compare_scene(ctx);
+    HL_CHECK(t != NULL, "the comparison scene");
+    float *ca = t && a ? compare_relight(ctx, t, a) : NULL, *cb = t && b ? compare_relight(ctx, t, b) : NULL;
+    if (ca && cb)
+        hl_check_error("vertex colours under the .hdr against the EXR (relative to the brightest)",
+                       compare_worst(cb, ca, 3 * (size_t)t->info.vertex_count), 1.0 / 128.0);
+    free(ca);
+    free(cb);
+    hl_transport_destroy(t);
     hl_env_destroy(a);
     hl_env_destroy(b);
     free(rgb);
