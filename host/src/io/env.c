@@ -103,7 +103,7 @@ hl_result hl_env_load_layout(hl_context *ctx, const char *path, hl_env_layout la
     if (layout == HL_LAYOUT_AUTO || (layout == HL_LAYOUT_EQUIRECT && found != layout))
         r = hl_fail(ctx, HL_ERR_FORMAT,
                     "%s: %u x %u pixels is not an equirectangular map (width must be 2 x height)%s", path, w, h,
-                    layout == HL_LAYOUT_AUTO ? ", an angular map (1:1) or a cube cross (4:3 or 3:4)" : "");
+                    layout == HL_LAYOUT_AUTO ? ", an angular map (1:1, at least 8 x 8) or a cube cross (4:3 or 3:4)" : "");
     /* repaired before any resampling, so that averages stay finite */
     if (r == HL_OK) r = repair(ctx, path, rgb, (size_t)w * h, stats);
     if (r == HL_OK && layout != HL_LAYOUT_EQUIRECT) {

@@ -82,12 +82,18 @@ static size_t source_pixel(hl_env_layout layout, uint32_t w, uint32_t h, const f
     return ((size_t)fc->row * F + py) * w + (size_t)fc->col * F + px;
 }
 
+/* The smallest light probes taken: an angular map of fewer pixels, or a
+ * cross of smaller faces, holds no more than a handful of directions and
+ * is far likelier a mistake than a map. */
+#define HL_MIN_PROBE_SIDE 8u
+#define HL_MIN_CROSS_FACE 2u
+
 hl_env_layout hl_env_layout_of_size_(uint32_t w, uint32_t h)
 {
     if (w == 2 * h) return HL_LAYOUT_EQUIRECT;
-    if (w == h) return HL_LAYOUT_ANGULAR;
-    if (w % 4 == 0 && 3 * w == 4 * h) return HL_LAYOUT_CROSS_H;
-    if (w % 3 == 0 && 4 * w == 3 * h) return HL_LAYOUT_CROSS_V;
+    if (w == h && w >= HL_MIN_PROBE_SIDE) return HL_LAYOUT_ANGULAR;
+    if (w % 4 == 0 && 3 * w == 4 * h && w / 4 >= HL_MIN_CROSS_FACE) return HL_LAYOUT_CROSS_H;
+    if (w % 3 == 0 && 4 * w == 3 * h && w / 3 >= HL_MIN_CROSS_FACE) return HL_LAYOUT_CROSS_V;
     return HL_LAYOUT_AUTO;
 }
 
@@ -95,9 +101,9 @@ const char *hl_env_layout_name_(hl_env_layout layout)
 {
     switch (layout) {
     case HL_LAYOUT_EQUIRECT: return "equirectangular (2:1)";
-    case HL_LAYOUT_ANGULAR: return "angular map (1:1)";
-    case HL_LAYOUT_CROSS_H: return "horizontal cross (4:3)";
-    case HL_LAYOUT_CROSS_V: return "vertical cross (3:4)";
+    case HL_LAYOUT_ANGULAR: return "angular map (1:1, at least 8 x 8)";
+    case HL_LAYOUT_CROSS_H: return "horizontal cross (4:3, faces of at least 2 pixels)";
+    case HL_LAYOUT_CROSS_V: return "vertical cross (3:4, faces of at least 2 pixels)";
     default: return "unknown";
     }
 }
