@@ -90,8 +90,8 @@ static hl_light_split *split(hl_context *ctx, const hl_env *env, uint32_t F, flo
     if (F) p.face_res = F;
     if (g_rule == HL_SPLIT_OF_LIGHT)
         p.threshold = t > 0.0f ? fminf(0.9f, 100.0f * t) : HL_LIGHTS_DEFAULT_THRESHOLD_OF_LIGHT;
-    else if (t > 0.0f)
-        p.threshold = t;
+    else
+        p.threshold = t > 0.0f ? t : HL_LIGHTS_DEFAULT_THRESHOLD;
     p.lights = K;
     p.rotate_deg = rot;
     hl_light_split *s = NULL;

@@ -40,10 +40,14 @@ static double lum3f(const float *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0
 
 void hl_light_split_defaults(hl_light_split_params *p)
 {
+    /* the light-relative rule: the map-relative one of DYNAMIC.md grows
+       the bright lights into whole faces and leaves a sun inside a face
+       (HL_LIGHTS_DEFAULT_THRESHOLD's numbers), and a shadow's sharpness
+       comes from its light's extent */
     p->face_res = HL_LIGHTS_DEFAULT_FACE;
-    p->threshold = HL_LIGHTS_DEFAULT_THRESHOLD;
+    p->threshold = HL_LIGHTS_DEFAULT_THRESHOLD_OF_LIGHT;
     p->lights = HL_LIGHTS_DEFAULT_KEEP;
-    p->rule = HL_SPLIT_OF_MAP;
+    p->rule = HL_SPLIT_OF_LIGHT;
     p->rotate_deg = 0.0f;
 }
 

@@ -63,7 +63,8 @@ typedef struct hl_light_split_params {
     float rotate_deg;   /* the map turned about +Y as relight's --rotate */
 } hl_light_split_params;
 
-/* The defaults above (HL_SPLIT_OF_MAP, its threshold), rotation 0. */
+/* The defaults above: HL_SPLIT_OF_LIGHT at its threshold (the map-relative
+ * rule leaves a sun inside a face-sized light), K = 32, rotation 0. */
 void hl_light_split_defaults(hl_light_split_params *p);
 
 typedef struct hl_light_split_stats {
