@@ -17,26 +17,13 @@
 #include "csm.h"
 #include "hl_test.h"
 
-static double rng_unit(void) { return (double)(hl_rng_next() >> 11) / 9007199254740992.0; }
-
-static hl_context *cl_context(void)
-{
-    hl_context_desc d = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1};
-    hl_context *ctx = NULL;
-    char err[1024];
-    if (hl_context_create(&d, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "OpenCL context: %s\n", err);
-        return NULL;
-    }
-    return ctx;
-}
 
 /* random depths, a square blocker and empty (1) texels */
 static void make_map(float *z, uint32_t R, int kind)
 {
     for (uint32_t j = 0; j < R; j++)
         for (uint32_t i = 0; i < R; i++) {
-            float v = (float)rng_unit();
+            float v = (float)hl_rng_unit();
             if (kind == 1) v = (i > R / 4 && i < R / 2 && j > R / 3 && j < 3 * R / 4) ? 0.4f : 1.0f;
             if (kind == 2) v = (i + j) % 7 == 0 ? 1.0f : (float)(0.25 + 0.5 * (double)i / R);
             z[(size_t)j * R + i] = v;
@@ -45,7 +32,7 @@ static void make_map(float *z, uint32_t R, int kind)
 
 static void case_twin(void)
 {
-    hl_context *ctx = cl_context();
+    hl_context *ctx = hl_test_cl_context();
     if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
     static const uint32_t Rs[] = {64, 256}, Ms[][2] = {{16, 16}, {8, 4}};
     double worst = 0, worst_mean = 0, worst_rec = 0;

@@ -24,19 +24,6 @@
 #include "csm.h"
 #include "hl_test.h"
 
-static double rng_unit(void) { return (double)(hl_rng_next() >> 11) / 9007199254740992.0; }
-
-static hl_context *cl_context(void)
-{
-    hl_context_desc d = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1};
-    hl_context *ctx = NULL;
-    char err[1024];
-    if (hl_context_create(&d, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "OpenCL context: %s\n", err);
-        return NULL;
-    }
-    return ctx;
-}
 
 /* a frame looking down -z: 10 x 10 world units, depth range 10 */
 static hl_shadow_frame frame_of(uint32_t R)
@@ -54,7 +41,7 @@ static void square_map(float *z, uint32_t R, uint32_t i0, uint32_t i1, float z_i
 
 static void case_twin(void)
 {
-    hl_context *ctx = cl_context(), *ref = hl_test_ref_context(1);
+    hl_context *ctx = hl_test_cl_context(), *ref = hl_test_ref_context(1);
     if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
     const uint32_t R = 128, M = 16, Mb = 8, n = 4000;
     const size_t R2 = (size_t)R * R;
@@ -68,16 +55,16 @@ static void case_twin(void)
     square_map(z, R, 30, 70, 0.3f, 1.0f);
     for (uint32_t j = 80; j < 110; j++)
         for (uint32_t i = 20; i < 120; i++) z[(size_t)j * R + i] = 0.5f + 0.3f * (float)i / (float)R;
-    for (size_t i = 0; i < R2; i++) z[R2 + i] = (float)(0.2 + 0.8 * rng_unit());
+    for (size_t i = 0; i < R2; i++) z[R2 + i] = (float)(0.2 + 0.8 * hl_rng_unit());
     HL_CHECK(hl_csm_build(c, z, 2) == HL_OK, "%s", hl_context_last_error(ctx));
     HL_CHECK(hl_csm_build(cr, z, 2) == HL_OK, "%s", hl_context_last_error(ref));
     hl_shadow_frame f = frame_of(R);
     double worst = 0, worst_za = 0, worst_ref = 0;
     for (uint32_t k = 0; k < 2; k++) {
         for (uint32_t i = 0; i < n; i++) {
-            uvd[3 * i] = (float)(rng_unit() * (R + 8) - 4);
-            uvd[3 * i + 1] = (float)(rng_unit() * (R + 8) - 4);
-            uvd[3 * i + 2] = (float)rng_unit();
+            uvd[3 * i] = (float)(hl_rng_unit() * (R + 8) - 4);
+            uvd[3 * i + 1] = (float)(hl_rng_unit() * (R + 8) - 4);
+            uvd[3 * i + 2] = (float)hl_rng_unit();
         }
         float theta = k ? 0.02f : 0.08f;
         HL_CHECK(hl_csm_visibility(c, k, theta, &f, uvd, n, V, za) == HL_OK, "%s", hl_context_last_error(ctx));
@@ -360,7 +347,7 @@ static void case_bad_input(void)
 /* build and evaluation times on a scene of 12 square blockers a light */
 static void run_timing(int ref)
 {
-    hl_context *ctx = ref ? hl_test_ref_context(1) : cl_context();
+    hl_context *ctx = ref ? hl_test_ref_context(1) : hl_test_cl_context();
     if (!ctx) return;
     const uint32_t R = 256, K = 4, n = 10000;
     const size_t R2 = (size_t)R * R;
@@ -370,16 +357,16 @@ static void run_timing(int ref)
     for (uint32_t k = 0; k < K; k++) {
         for (size_t i = 0; i < R2; i++) z[k * R2 + i] = 1.0f;
         for (int b = 0; b < 12; b++) {
-            uint32_t x0 = (uint32_t)(rng_unit() * 200), y0 = (uint32_t)(rng_unit() * 200), w = (uint32_t)(10 + rng_unit() * 50);
-            float zz = (float)(0.1 + 0.5 * rng_unit());
+            uint32_t x0 = (uint32_t)(hl_rng_unit() * 200), y0 = (uint32_t)(hl_rng_unit() * 200), w = (uint32_t)(10 + hl_rng_unit() * 50);
+            float zz = (float)(0.1 + 0.5 * hl_rng_unit());
             for (uint32_t j = y0; j < y0 + w && j < R; j++)
                 for (uint32_t i = x0; i < x0 + w && i < R; i++) z[k * R2 + j * R + i] = zz;
         }
     }
     for (uint32_t i = 0; i < n; i++) {
-        uvd[3 * i] = (float)(rng_unit() * R);
-        uvd[3 * i + 1] = (float)(rng_unit() * R);
-        uvd[3 * i + 2] = (float)(0.3 + 0.7 * rng_unit());
+        uvd[3 * i] = (float)(hl_rng_unit() * R);
+        uvd[3 * i + 1] = (float)(hl_rng_unit() * R);
+        uvd[3 * i + 2] = (float)(0.3 + 0.7 * hl_rng_unit());
     }
     hl_csm_build(c, z, K); /* warm-up */
     double t0 = hl_now();

@@ -16,19 +16,6 @@
 #include "csm.h"
 #include "hl_test.h"
 
-static double rng_unit(void) { return (double)(hl_rng_next() >> 11) / 9007199254740992.0; }
-
-static hl_context *cl_context(void)
-{
-    hl_context_desc d = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1};
-    hl_context *ctx = NULL;
-    char err[1024];
-    if (hl_context_create(&d, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "OpenCL context: %s\n", err);
-        return NULL;
-    }
-    return ctx;
-}
 
 /* a blocker square at 0.4 over empty texels, a ramp, and noisy patches:
  * long runs of one value (the hard case for a prefix sum) and noise */
@@ -39,7 +26,7 @@ static void make_map(float *z, uint32_t R)
             float v = 1.0f;
             if (i > R / 8 && i < R / 2 && j > R / 8 && j < R / 2) v = 0.4f;
             else if (j > 2 * R / 3) v = (float)i / (float)R;
-            else if (i > 3 * R / 4) v = (float)rng_unit();
+            else if (i > 3 * R / 4) v = (float)hl_rng_unit();
             z[(size_t)j * R + i] = v;
         }
 }
@@ -58,7 +45,7 @@ static void twin_scans(float *planes, const float *means, uint32_t R, uint32_t P
 
 static void case_twin(void)
 {
-    hl_context *ctx = cl_context();
+    hl_context *ctx = hl_test_cl_context();
     if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
     static const uint32_t Rs[] = {48, 64, 256};
     for (int a = 0; a < 3; a++) {
@@ -106,7 +93,7 @@ static double box_error(const float *sat, float mean, const double *D, uint32_t 
     for (size_t i = 0; i < (size_t)R * R; i++) *maxabs = fmax(*maxabs, fabs((double)sat[i]));
     for (uint32_t s = 1; s <= R; s++)
         for (int trial = 0; trial < 3; trial++) {
-            uint32_t x0 = (uint32_t)(rng_unit() * (R - s + 1)), y0 = (uint32_t)(rng_unit() * (R - s + 1));
+            uint32_t x0 = (uint32_t)(hl_rng_unit() * (R - s + 1)), y0 = (uint32_t)(hl_rng_unit() * (R - s + 1));
             if (x0 > R - s) x0 = R - s;
             if (y0 > R - s) y0 = R - s;
             uint32_t x1 = x0 + s, y1 = y0 + s;
