@@ -1,0 +1,306 @@
+/* dyn_frame.c - one frame of the dynamic method: receivers to world
+ * space, each kept light's exact irradiance (area_lights.c), a shadow map
+ * and a convolution shadow map per light that matters (shadow_map.c,
+ * csm.c) in batches that fit the memory budget, and the diffuse sum
+ *     B = albedo / pi * (sum_k V_k E_k + ambient).
+ * The irradiance and the final sum run as plain C on the host for now;
+ * a device shading kernel with its plain-C twin is a later step. The
+ * shadow maps and the CSM module live in the frame state across frames,
+ * so a frame with one body moved costs its set_transform and re-render.
+ * Depends on: dyn_frame.h (area_lights.h, shadow_map.h, csm.h), core.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "dyn_frame.h"
+
+struct hl_frame_state {
+    hl_context *ctx;
+    uint32_t nobj, N;          /* bodies, receivers (all their vertices) */
+    uint32_t *vstart, *nverts; /* per body */
+    float *xf;                 /* 12 per body, as last rendered */
+    uint32_t R, M, Mb, Kb, max_lights;
+    float min_share;
+    hl_shadow_maps *sm;
+    hl_csm *csm;
+    float *depth;              /* Kb R R */
+    hl_shadow_frame *frames;   /* Kb */
+    float (*dirs)[3];          /* Kb */
+    float *wpos, *wnrm, *acc;  /* 3 N each */
+    float *E;                  /* 3 N per kept light */
+    float *cpos, *uvd, *V;     /* compacted receivers of one light */
+    uint32_t *idx;             /* N */
+    uint32_t *shadow_list;     /* max_lights */
+};
+
+/* Linear Rec.709 luminance, as area_lights.c ranks its lights by. */
+static double lum3(const double *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
+
+void hl_frame_to_world(const hl_dyn_object *o, float *pos, float *nrm)
+{
+    const float *x = o->xf;
+    for (uint32_t v = 0; v < o->nverts; v++) {
+        const float *p = o->pos + 3 * (size_t)v;
+        for (int r = 0; r < 3; r++)
+            pos[3 * (size_t)v + r] = x[4 * r] * p[0] + x[4 * r + 1] * p[1] + x[4 * r + 2] * p[2] + x[4 * r + 3];
+        float n[3] = {0, 1, 0};
+        if (o->normal) {
+            const float *m = o->normal + 3 * (size_t)v;
+            for (int r = 0; r < 3; r++) n[r] = x[4 * r] * m[0] + x[4 * r + 1] * m[1] + x[4 * r + 2] * m[2];
+            float l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+            if (l > 0.0f) for (int r = 0; r < 3; r++) n[r] /= l;
+        }
+        memcpy(nrm + 3 * (size_t)v, n, sizeof n);
+    }
+}
+
+void hl_frame_state_destroy(hl_frame_state *st)
+{
+    if (!st) return;
+    hl_shadow_maps_destroy(st->sm);
+    hl_csm_destroy(st->csm);
+    free(st->vstart); free(st->nverts); free(st->xf);
+    hl_free_big(st->depth);
+    free(st->frames); free(st->dirs);
+    free(st->wpos); free(st->wnrm); free(st->acc); hl_free_big(st->E);
+    free(st->cpos); free(st->uvd); free(st->V); free(st->idx); free(st->shadow_list);
+    free(st);
+}
+
+static hl_result check_settings(hl_context *ctx, hl_frame_settings *s, uint32_t max_lights)
+{
+    if (s->R == 0) s->R = HL_SHADOW_DEFAULT_R;
+    if (s->M == 0) s->M = HL_CSM_M_DEFAULT;
+    if (s->Mb == 0) s->Mb = s->M;
+    if (s->budget == 0) s->budget = HL_FRAME_DEFAULT_BUDGET;
+    if (s->min_share < 0.0f) s->min_share = HL_FRAME_MIN_SHARE;
+    if (!(s->min_share < 1.0f)) /* NaN too */
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: negligible share %g is not in [0, 1)",
+                       (double)s->min_share);
+    if (s->M < HL_CSM_M_MIN || s->M > HL_CSM_M_MAX)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: order M = %u is outside %u..%u (--order)", s->M,
+                       HL_CSM_M_MIN, HL_CSM_M_MAX);
+    if (s->R < HL_CSM_R_MIN || s->R > HL_CSM_R_MAX || s->R % HL_CSM_SCAN_LANES)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "dynamic frame: shadow map size %u is not a multiple of %u from %u to %u (--shadow-res)", s->R,
+                       HL_CSM_SCAN_LANES, HL_CSM_R_MIN, HL_CSM_R_MAX);
+    if (max_lights == 0) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: at least one light is needed");
+    return HL_OK;
+}
+
+hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, uint32_t nobj, uint32_t max_lights,
+                                const hl_frame_settings *settings, hl_frame_state **out)
+{
+    if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_frame_state_create: no output pointer");
+    *out = NULL;
+    hl_frame_settings s = {0};
+    s.min_share = -1.0f;
+    if (settings) s = *settings;
+    hl_result r = check_settings(ctx, &s, max_lights);
+    if (r != HL_OK) return r;
+    if (!objects || nobj == 0) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: no bodies");
+    uint64_t N = 0;
+    for (uint32_t b = 0; b < nobj; b++) N += objects[b].nverts;
+    if (N == 0 || N > UINT32_MAX / 3)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: %llu vertices (1 to %u)", (unsigned long long)N,
+                       UINT32_MAX / 3);
+    hl_frame_state *st = hl_calloc(ctx, 1, sizeof *st, "the dynamic frame");
+    if (!st) return HL_ERR_OUT_OF_MEMORY;
+    st->ctx = ctx;
+    st->nobj = nobj;
+    st->N = (uint32_t)N;
+    st->R = s.R, st->M = s.M, st->Mb = s.Mb, st->min_share = s.min_share;
+    st->max_lights = max_lights;
+    uint32_t fit = hl_csm_batch_fit(s.R, s.M, s.Mb, s.budget);
+    st->Kb = fit < max_lights ? fit : max_lights;
+    r = hl_shadow_maps_create(ctx, objects, nobj, s.R, s.method, &st->sm);
+    if (r == HL_OK) r = hl_csm_create(ctx, s.R, s.M, s.Mb, st->Kb, &st->csm);
+    if (r != HL_OK) { hl_frame_state_destroy(st); return r; }
+    size_t n3 = 3 * (size_t)N, RR = (size_t)s.R * s.R;
+    st->vstart = malloc(nobj * sizeof *st->vstart);
+    st->nverts = malloc(nobj * sizeof *st->nverts);
+    st->xf = malloc(nobj * 12 * sizeof *st->xf);
+    st->depth = hl_alloc_big(ctx, st->Kb * RR * sizeof(float), "the shadow maps of a batch");
+    st->frames = malloc(st->Kb * sizeof *st->frames);
+    st->dirs = malloc(st->Kb * sizeof *st->dirs);
+    st->wpos = malloc(n3 * 4), st->wnrm = malloc(n3 * 4), st->acc = malloc(n3 * 4);
+    st->E = hl_alloc_big(ctx, max_lights * n3 * 4, "the lights' irradiance at the vertices");
+    st->cpos = malloc(n3 * 4), st->uvd = malloc(n3 * 4), st->V = malloc((size_t)N * 4);
+    st->idx = malloc((size_t)N * 4);
+    st->shadow_list = malloc(max_lights * sizeof *st->shadow_list);
+    if (!st->vstart || !st->nverts || !st->xf || !st->depth || !st->frames || !st->dirs || !st->wpos || !st->wnrm ||
+        !st->acc || !st->E || !st->cpos || !st->uvd || !st->V || !st->idx || !st->shadow_list) {
+        hl_frame_state_destroy(st);
+        return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the dynamic frame (%u vertices, %u lights)",
+                       (uint32_t)N, max_lights);
+    }
+    uint32_t at = 0;
+    for (uint32_t b = 0; b < nobj; b++) {
+        st->vstart[b] = at;
+        st->nverts[b] = objects[b].nverts;
+        memcpy(st->xf + 12 * (size_t)b, objects[b].xf, 12 * sizeof(float));
+        at += objects[b].nverts;
+    }
+    *out = st;
+    return HL_OK;
+}
+
+/* Stage "irradiance": receivers to world, ambient into acc, each kept
+ * light's E_k; lights below every horizon skipped, negligible ones added
+ * to acc unshadowed, the rest listed for shadow maps. Returns the count. */
+static uint32_t irradiance(hl_frame_state *st, const hl_dyn_object *objects, const hl_light_split *split,
+                           hl_frame_stats *fs)
+{
+    const uint32_t N = st->N;
+    for (uint32_t b = 0; b < st->nobj; b++)
+        hl_frame_to_world(&objects[b], st->wpos + 3 * (size_t)st->vstart[b], st->wnrm + 3 * (size_t)st->vstart[b]);
+    for (uint32_t v = 0; v < N; v++) hl_light_split_ambient(split, st->wnrm + 3 * (size_t)v, st->acc + 3 * (size_t)v);
+    double total = lum3(split->stats.total_energy);
+    uint32_t nshadow = 0;
+    for (uint32_t k = 0; k < split->count; k++) {
+        float *E = st->E + (size_t)k * 3 * N;
+        int any = 0;
+        for (uint32_t v = 0; v < N; v++) {
+            float *e = E + 3 * (size_t)v;
+            hl_area_light_irradiance(split, k, st->wnrm + 3 * (size_t)v, e);
+            any |= e[0] > 0.0f || e[1] > 0.0f || e[2] > 0.0f;
+        }
+        const float *le = split->lights[k].energy;
+        double lk[3] = {le[0], le[1], le[2]};
+        if (!any) {
+            fs->skipped_horizon++;
+        } else if (total > 0.0 && lum3(lk) < (double)st->min_share * total) {
+            fs->skipped_negligible++;
+            for (size_t i = 0; i < 3 * (size_t)N; i++) st->acc[i] += E[i];
+        } else {
+            st->shadow_list[nshadow++] = k;
+        }
+    }
+    return nshadow;
+}
+
+/* Receiver-plane bias (Isidoro 2006, for filtered shadow maps): the
+ * filter reads a box of half-width up to the blocker search's,
+ * (d - zmin) tan(theta) in depth units, plus HL_FRAME_BIAS_TEXELS; over
+ * that box the receiver's own tangent plane comes nearer the light by up
+ * to (|n.right| + |n.up|) / (n.l) times the half-width, and those texels
+ * would be taken for blockers: a lone plane under a light of 0.32 rad at
+ * 35 degrees of elevation got V = 0.70..0.83 without it. So the receiver
+ * is moved that much towards the light. The bias grows as 1 / (n.l) as a
+ * light grazes the surface while E_k shrinks as n.l, so what the bias
+ * loses (a blocker nearer than the bias is not seen: the contact leak)
+ * carries little energy at grazing angles. */
+static float plane_bias(const hl_shadow_frame *f, const float n[3], const float l[3], float d, float zmin, float tan_t)
+{
+    float nl = n[0] * l[0] + n[1] * l[1] + n[2] * l[2];
+    if (!(nl > 0.0f)) return 0.0f; /* E_k = 0 there: never evaluated */
+    float nr = fabsf(n[0] * f->right[0] + n[1] * f->right[1] + n[2] * f->right[2]);
+    float nu = fabsf(n[0] * f->up[0] + n[1] * f->up[1] + n[2] * f->up[2]);
+    float texel = fmaxf(f->width, f->height) / (float)f->R / f->depth_range;
+    float half = fmaxf(d - zmin, 0.0f) * tan_t + HL_FRAME_BIAS_TEXELS * texel;
+    return (nr + nu) / nl * half;
+}
+
+/* Visibility of batch light kb (split light k) at the receivers it
+ * reaches, added to acc as V E. */
+static hl_result shade_light(hl_frame_state *st, const hl_light_split *split, uint32_t kb, uint32_t k)
+{
+    const float *E = st->E + (size_t)k * 3 * st->N;
+    uint32_t n = 0;
+    for (uint32_t v = 0; v < st->N; v++) {
+        const float *e = E + 3 * (size_t)v;
+        if (e[0] > 0.0f || e[1] > 0.0f || e[2] > 0.0f) {
+            memcpy(st->cpos + 3 * (size_t)n, st->wpos + 3 * (size_t)v, 3 * sizeof(float));
+            st->idx[n++] = v;
+        }
+    }
+    const hl_shadow_frame *f = &st->frames[kb];
+    hl_csm_project(f, st->cpos, n, st->uvd);
+    float theta = split->lights[k].extent;
+    if (!(theta >= 0.0f)) theta = 0.0f;
+    if (theta > HL_FRAME_MAX_THETA) theta = HL_FRAME_MAX_THETA;
+    const float *map = st->depth + (size_t)kb * st->R * st->R, tan_t = tanf(theta);
+    float zmin = 1.0f;
+    for (size_t i = 0; i < (size_t)st->R * st->R; i++) zmin = fminf(zmin, map[i]);
+    for (uint32_t i = 0; i < n; i++) {
+        float *d = st->uvd + 3 * (size_t)i + 2;
+        *d = fmaxf(*d - plane_bias(f, st->wnrm + 3 * (size_t)st->idx[i], split->lights[k].dir, *d, zmin, tan_t), 0.0f);
+    }
+    hl_result r = hl_csm_visibility(st->csm, kb, theta, f, st->uvd, n, st->V, NULL);
+    if (r != HL_OK) return r;
+    for (uint32_t i = 0; i < n; i++) {
+        size_t v = st->idx[i];
+        for (int c = 0; c < 3; c++) st->acc[3 * v + (size_t)c] += st->V[i] * E[3 * v + (size_t)c];
+    }
+    return HL_OK;
+}
+
+static hl_result check_frame(hl_frame_state *st, const hl_dyn_object *objects, uint32_t nobj, const float *const *albedo,
+                             const hl_light_split *split, float *const *rgb)
+{
+    hl_context *ctx = st->ctx;
+    if (!objects || !albedo || !split || !rgb)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_frame_render: a NULL argument");
+    if (nobj != st->nobj)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_frame_render: %u bodies, the frame state has %u", nobj,
+                       st->nobj);
+    for (uint32_t b = 0; b < nobj; b++) {
+        if (objects[b].nverts != st->nverts[b])
+            return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_frame_render: body %u has %u vertices, not %u", b,
+                           objects[b].nverts, st->nverts[b]);
+        if (!albedo[b] || !rgb[b])
+            return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_frame_render: no albedo or output for body %u", b);
+    }
+    if (split->count > st->max_lights)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_frame_render: %u lights, the frame state holds %u",
+                       split->count, st->max_lights);
+    return HL_OK;
+}
+
+hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint32_t nobj, const float *const *albedo,
+                          const hl_light_split *split, float *const *rgb, hl_frame_stats *stats)
+{
+    if (!st) return HL_ERR_INVALID_ARGUMENT;
+    hl_result r = check_frame(st, objects, nobj, albedo, split, rgb);
+    if (r != HL_OK) return r;
+    hl_frame_stats fs = {0};
+    fs.receivers = st->N;
+    fs.lights = split->count;
+    fs.batch_lights = st->Kb;
+    double t0 = hl_now(), t = t0, t1;
+    uint32_t nshadow = irradiance(st, objects, split, &fs);
+    t1 = hl_now(), fs.t_irradiance = t1 - t, t = t1;
+    for (uint32_t b = 0; b < nobj && r == HL_OK; b++) {
+        float *old = st->xf + 12 * (size_t)b;
+        if (memcmp(old, objects[b].xf, 12 * sizeof(float)) == 0) continue;
+        r = hl_shadow_maps_set_transform(st->sm, b, objects[b].xf);
+        if (r == HL_OK) memcpy(old, objects[b].xf, 12 * sizeof(float));
+    }
+    fs.t_shadow_maps += hl_now() - t;
+    for (uint32_t b0 = 0; b0 < nshadow && r == HL_OK; b0 += st->Kb) {
+        uint32_t K = nshadow - b0 < st->Kb ? nshadow - b0 : st->Kb;
+        for (uint32_t i = 0; i < K; i++) memcpy(st->dirs[i], split->lights[st->shadow_list[b0 + i]].dir, 3 * sizeof(float));
+        t = hl_now();
+        r = hl_shadow_maps_render(st->sm, (const float(*)[3])st->dirs, K, st->depth, st->frames);
+        t1 = hl_now(), fs.t_shadow_maps += t1 - t, t = t1;
+        if (r == HL_OK) r = hl_csm_build(st->csm, st->depth, K);
+        t1 = hl_now(), fs.t_csm_build += t1 - t, t = t1;
+        for (uint32_t i = 0; i < K && r == HL_OK; i++) r = shade_light(st, split, i, st->shadow_list[b0 + i]);
+        fs.t_csm_eval += hl_now() - t;
+        fs.batches++;
+    }
+    if (r != HL_OK) return r;
+    fs.shadowed = nshadow;
+    t = hl_now();
+    const float inv_pi = (float)(1.0 / 3.14159265358979323846);
+    for (uint32_t b = 0; b < nobj; b++) {
+        const float *acc = st->acc + 3 * (size_t)st->vstart[b];
+        for (size_t i = 0; i < 3 * (size_t)st->nverts[b]; i++) rgb[b][i] = albedo[b][i] * inv_pi * acc[i];
+    }
+    t1 = hl_now();
+    fs.t_shading = t1 - t;
+    fs.t_total = t1 - t0;
+    if (stats) *stats = fs;
+    return HL_OK;
+}

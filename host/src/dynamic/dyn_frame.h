@@ -1,0 +1,92 @@
+/* dyn_frame.h - one frame of the dynamic method (Annen et al. 2008): the
+ * stages joined. Per vertex of every body, in world space,
+ *     B(v) = albedo / pi * ( sum_k V_k(v) E_k(n_v) + ambient(n_v) )
+ * with E_k the exact irradiance of kept light k (area_lights.h), V_k the
+ * convolution shadow map's visibility of light k (shadow_map.h, csm.h)
+ * and ambient the folded lights' SH9 term, unshadowed.
+ * The shading sum is plain C on the host (dyn_frame.c).
+ * Depends on: dynamic.h, area_lights.h, shadow_map.h, csm.h, core.
+ */
+#ifndef HL_DYN_FRAME_H
+#define HL_DYN_FRAME_H
+
+#include <stdint.h>
+
+#include "area_lights.h"
+#include "csm.h"
+#include "dynamic.h"
+#include "shadow_map.h"
+
+/* Memory the convolution shadow maps of one batch of lights may take:
+ * 256 MiB. At R = 256, M = Mb = 16 a light takes 18.4 MB (csm.h), so a
+ * batch holds 14 lights and K = 32 runs in 3 batches; the work per light
+ * is the same in any batch size, so smaller batches cost only launches,
+ * while 32 lights at once (589 MB) would not fit small devices or
+ * HL_DEVICE_MEMORY limits people set for PoCL. */
+#define HL_FRAME_DEFAULT_BUDGET (256ull << 20)
+/* A kept light whose energy (luminance of radiance x solid angle) is
+ * below this share of the map's is shaded unshadowed (V = 1) and gets no
+ * shadow map: 1e-4. Its shadow could change a vertex's irradiance by at
+ * most 1e-4 of the map's energy (E_k(n) <= its energy for any n), below
+ * what an 8-bit picture shows, while a map costs as much as the brightest
+ * light's. */
+#define HL_FRAME_MIN_SHARE 1e-4f
+/* The largest half-angle handed to the filter: csm.h takes [0, pi/2);
+ * a light is a rectangle of one cube face, whose cone is at most
+ * 54.7 degrees, so this only guards against a malformed light. */
+#define HL_FRAME_MAX_THETA 1.5f
+
+/* Texels added to the filter's half-width in the receiver-plane bias
+ * (dyn_frame.c, plane_bias): csm.h's smallest half-width (0.5) plus one
+ * for the box's rounding to whole texels. */
+#define HL_FRAME_BIAS_TEXELS 1.5f
+
+typedef struct hl_frame_settings {
+    uint32_t R;           /* shadow map size; 0: HL_SHADOW_DEFAULT_R (256) */
+    uint32_t M;           /* CSM order, 4..16; 0: HL_CSM_M_DEFAULT (16) */
+    uint32_t Mb;          /* blocker-search order, 4..M; 0: M */
+    uint64_t budget;      /* bytes for one batch's CSM; 0: HL_FRAME_DEFAULT_BUDGET */
+    float min_share;      /* < 0: HL_FRAME_MIN_SHARE; 0: shadow every light */
+    hl_shadow_method method; /* HL_SHADOW_RASTER by default */
+} hl_frame_settings;
+
+/* Seconds per stage of the last frame (lights are given: the split is
+ * the caller's) and what was skipped. */
+typedef struct hl_frame_stats {
+    uint32_t receivers;         /* vertices of all bodies */
+    uint32_t lights;            /* split->count */
+    uint32_t shadowed;          /* lights that got a shadow map */
+    uint32_t skipped_horizon;   /* E_k = 0 on every receiver */
+    uint32_t skipped_negligible;/* below min_share: shaded with V = 1 */
+    uint32_t batches, batch_lights; /* batches run, lights a batch holds */
+    double t_irradiance;        /* E_k and ambient at every receiver */
+    double t_shadow_maps;       /* set_transform and rendering */
+    double t_csm_build, t_csm_eval, t_shading;
+    double t_total;
+} hl_frame_stats;
+
+typedef struct hl_frame_state hl_frame_state;
+
+/* Prepares the shadow maps (a copy of the objects' meshes) and the CSM
+ * module for up to `max_lights` lights per frame (the batch is the
+ * smaller of that and what the budget holds). Fails with a message on
+ * bad settings (R outside HL_CSM_R_MIN..HL_CSM_R_MAX or not a multiple of
+ * HL_CSM_SCAN_LANES, M or Mb out of range, max_lights 0) or objects the
+ * shadow maps refuse. */
+hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, uint32_t nobj, uint32_t max_lights,
+                                const hl_frame_settings *settings, hl_frame_state **out);
+void hl_frame_state_destroy(hl_frame_state *st);
+
+/* One frame: objects are the same bodies as at create (same counts and
+ * meshes; only their xf may change: a changed xf costs a set_transform),
+ * albedo[b] 3 per vertex of body b, split's kept lights (count <= the
+ * max_lights of create). rgb[b] gets 3 floats per vertex of body b,
+ * linear, >= 0. stats may be NULL. */
+hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint32_t nobj, const float *const *albedo,
+                          const hl_light_split *split, float *const *rgb, hl_frame_stats *stats);
+
+/* Body positions and normals to world space (xf: dynamic.h's layout);
+ * normals renormalised, a missing normal array gives +Y. */
+void hl_frame_to_world(const hl_dyn_object *o, float *pos, float *nrm);
+
+#endif
