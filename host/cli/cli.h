@@ -94,6 +94,7 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
     "  -q, --quiet          print nothing but errors\n"
 
 int cmd_relight(int argc, char **argv);
+int cmd_relight_dynamic(int argc, char **argv);
 int cmd_check(int argc, char **argv);
 int cmd_bench(int argc, char **argv);
 

@@ -29,6 +29,7 @@ static const char *const usage_main =
     "  info SCENE.hlt                 what a transport file holds\n"
     "  devices                        list OpenCL platforms and devices\n"
     "  relight SCENE.hlt -o OUT       relight under an environment: .ply, .glb, .exr or .png\n"
+    "  relight-dynamic MESH|SCENE -o OUT  no precompute: moving bodies, area-light shadows\n"
     "  view SCENE.hlt                 interactive relighting in a window (GLFW viewer)\n"
     "  check SCENE.hlt                OpenCL stages against the plain-C reference\n"
     "  bench SCENE.hlt --env ENV.exr  error against run time for M, selection and quantisation\n"
@@ -454,6 +455,7 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "info")) return cmd_info(argc - 2, argv + 2);
     if (!strcmp(cmd, "devices")) return cmd_devices(argc - 2, argv + 2);
     if (!strcmp(cmd, "relight")) return cmd_relight(argc - 2, argv + 2);
+    if (!strcmp(cmd, "relight-dynamic")) return cmd_relight_dynamic(argc - 2, argv + 2);
     if (!strcmp(cmd, "view")) {
 #ifdef HL_HAVE_VIEWER
         return cmd_view(argc - 2, argv + 2);

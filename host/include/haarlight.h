@@ -576,6 +576,101 @@ HL_API hl_result hl_camera_query_view(hl_context *ctx, const hl_mesh *mesh, cons
  * colours are all black or memory runs out. */
 HL_API float hl_exposure_auto(const hl_mesh *mesh, const float *vertex_rgb);
 
+
+/* ---------------------------------------------------------------- dynamic scenes
+ *
+ * The second relighting method (Annen et al., SIGGRAPH 2008): no
+ * precompute, so bodies may move between frames. The environment is split
+ * into area lights; the K strongest each get an orthographic shadow map
+ * filtered as a convolution shadow map (order M) whose width follows the
+ * average blocker depth; the rest are folded into one unshadowed
+ * spherical-harmonic term. Each vertex is shaded diffusely,
+ *     B = albedo / pi * (sum_k V_k E_k(n) + ambient(n)),
+ * E_k the light's exact irradiance on the vertex normal. The visibility
+ * V_k approximates the exact one: blockers nearer a receiver than about
+ * 1/M of the shadow map's depth range (5% at M = 16), or than the
+ * receiver-plane bias at grazing light, are not seen (contact shadows
+ * leak). Cost per frame grows with K x R^2 x M (maps and tables) and
+ * K x vertices x M (evaluation).
+ */
+
+typedef struct hl_dynamic hl_dynamic;
+
+/* hl_dynamic_desc fields and defaults (all zero: the defaults):
+ *   shadow_res   R: shadow map size, a multiple of 16 from 16 to 1024
+ *                (0: 256)
+ *   order        M: convolution shadow map order, 4..16 (0: 16)
+ */
+typedef struct hl_dynamic_desc {
+    uint32_t shadow_res;
+    uint32_t order;
+} hl_dynamic_desc;
+
+/* A dynamic scene from a mesh (copied): body "object", and with ground
+ * set the plane hl_mesh_add_ground would add (default desc) as body
+ * "ground"; a mesh that already carries a ground gives it as "ground".
+ * desc may be NULL. */
+HL_API hl_result hl_dynamic_create_from_mesh(hl_context *ctx, const hl_mesh *mesh, int ground,
+                                             const hl_dynamic_desc *desc, hl_dynamic **out);
+/* A dynamic scene from a file: without ground, every node of the file
+ * that holds triangles is a rigid body, named as in the file, moving by
+ * the file's first node animation; with ground, the file is loaded as one
+ * mesh (hl_mesh_load) and given a ground, as hl_dynamic_create_from_mesh. */
+HL_API hl_result hl_dynamic_create_from_file(hl_context *ctx, const char *path, int ground,
+                                             const hl_dynamic_desc *desc, hl_dynamic **out);
+HL_API void hl_dynamic_destroy(hl_dynamic *d);
+
+/* Bodies, their names (NULL out of range) and the animation's time range
+ * in seconds (both 0 without one). */
+HL_API uint32_t hl_dynamic_body_count(const hl_dynamic *d);
+HL_API const char *hl_dynamic_body_name(const hl_dynamic *d, uint32_t body);
+HL_API void hl_dynamic_time_range(const hl_dynamic *d, double *start, double *end);
+
+/* Moves the first body of that name by a world-space translation (finite),
+ * applied after its animation, replacing an earlier move. An unknown name
+ * fails (HL_ERR_INVALID_ARGUMENT) with a message listing the bodies. */
+HL_API hl_result hl_dynamic_move(hl_dynamic *d, const char *body, const float translate[3]);
+
+/* What hl_dynamic_set_env made of the environment. */
+typedef struct hl_dynamic_lights {
+    uint32_t lights_made;   /* area lights the split made */
+    uint32_t lights_kept;   /* the strongest K, each with a shadow map */
+    uint32_t folded;        /* the rest, in the unshadowed SH9 term */
+    double folded_share;    /* their share of the map's energy (luminance) */
+    double seconds;
+} hl_dynamic_lights;
+
+/* Splits env (not kept: it may be destroyed after) into area lights:
+ * lights = K kept (>= 1), split_threshold the growth threshold of the
+ * split (0: the default, 1e-3 of the map's energy per ring; else in
+ * (0, 1)), the map turned by rotate_deg about +Y as relight's --rotate.
+ * info may be NULL. */
+HL_API hl_result hl_dynamic_set_env(hl_dynamic *d, const hl_env *env, int32_t lights, float split_threshold,
+                                    float rotate_deg, hl_dynamic_lights *info);
+
+/* Per-stage seconds of one frame and what it skipped. */
+typedef struct hl_dynamic_stats {
+    uint32_t vertices, lights;
+    uint32_t shadowed;            /* lights that got a shadow map */
+    uint32_t skipped_horizon;     /* below every vertex's horizon */
+    uint32_t skipped_negligible;  /* under 1e-4 of the map's energy: unshadowed */
+    uint32_t batches;             /* batches of lights within the memory budget */
+    double folded_share;          /* as hl_dynamic_lights */
+    double t_irradiance, t_shadow_maps, t_csm_build, t_csm_eval, t_shading, t_total;
+} hl_dynamic_stats;
+
+/* One frame at time t (seconds, finite, >= 0; clamped to the animation's
+ * keys): *rgb_out points at 3 linear floats per vertex of
+ * hl_dynamic_mesh (>= 0; owned by d, valid until the next render or
+ * destroy). Needs hl_dynamic_set_env first. st may be NULL. */
+HL_API hl_result hl_dynamic_render(hl_dynamic *d, double t, float **rgb_out, hl_dynamic_stats *st);
+
+/* The bodies merged in world space as of the last render (before it: at
+ * rest, time 0): positions, normals, albedo, indices; the ground last
+ * (object_vertex_count: the vertices before it). For hl_mesh_save_ply,
+ * hl_mesh_save_glb and hl_render; owned by d. */
+HL_API const hl_mesh *hl_dynamic_mesh(const hl_dynamic *d);
+
 #ifdef __cplusplus
 }
 #endif
