@@ -11,6 +11,10 @@
  *                        reference context.
  * dyn_frame.bad_input    every output finite and >= 0; bad settings and
  *                        mismatched frames refused.
+ * dyn_frame.api          the public hl_dynamic_* functions: bodies, moves
+ *                        (the merged mesh follows), refusals.
+ * dyn_frame.cli          `haarlight relight-dynamic`: bad options exit 2,
+ *                        a small run writes its PLY.
  * timing                 not a ctest case (asserts nothing): the bunny on
  *                        its ground at K = 32, R = 256, M = 16, a first
  *                        frame and a second with the bunny moved.
@@ -18,6 +22,7 @@
  * HL_REPO_DATA (bunny_lowres.obj).
  */
 #include <float.h>
+#include <sys/wait.h>
 
 #include "dyn_frame.h"
 #include "hl_test.h"
@@ -375,6 +380,99 @@ close:
     hl_context_destroy(ctx);
 }
 
+/* ------------------------------------------------------------ public API */
+
+static void case_api(void)
+{
+    hl_context *ctx = hl_test_ref_context(2);
+    char path[1024];
+    snprintf(path, sizeof path, "%s/bunny_lowres.obj", hl_test_env("HL_REPO_DATA", "data"));
+    hl_mesh *m = NULL;
+    hl_dynamic *d = NULL;
+    hl_env *env = sky(ctx);
+    hl_dynamic_desc bad = {0, 3}, small = {64, 8};
+    float *rgb = NULL;
+    HL_CHECK(hl_mesh_load(ctx, path, NULL, &m, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    EXPECT_FAIL(hl_dynamic_create_from_mesh(ctx, m, 1, &bad, &d), "order 3");
+    HL_CHECK(hl_dynamic_create_from_mesh(ctx, m, 1, &small, &d) == HL_OK, "%s", hl_context_last_error(ctx));
+    if (!d || !env) goto done;
+    HL_CHECK(hl_dynamic_body_count(d) == 2 && !strcmp(hl_dynamic_body_name(d, 0), "object") &&
+             !strcmp(hl_dynamic_body_name(d, 1), "ground"), "bodies");
+    EXPECT_FAIL(hl_dynamic_render(d, 0.0, &rgb, NULL), "a frame before an environment");
+    EXPECT_FAIL(hl_dynamic_set_env(d, env, 0, 0.0f, 0.0f, NULL), "no lights");
+    EXPECT_FAIL(hl_dynamic_set_env(d, env, 4, 1.5f, 0.0f, NULL), "split threshold 1.5");
+    hl_dynamic_lights li;
+    HL_CHECK(hl_dynamic_set_env(d, env, 4, 0.0f, 0.0f, &li) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(li.lights_kept == 4 && li.lights_kept + li.folded == li.lights_made, "lights %u kept, %u folded of %u",
+             li.lights_kept, li.folded, li.lights_made);
+    EXPECT_FAIL(hl_dynamic_move(d, "bunny", (float[3]){1, 0, 0}), "an unknown body");
+    EXPECT_FAIL(hl_dynamic_move(d, "object", (float[3]){NAN, 0, 0}), "a NaN move");
+    EXPECT_FAIL(hl_dynamic_render(d, -1.0, &rgb, NULL), "time -1");
+    EXPECT_FAIL(hl_dynamic_render(d, NAN, &rgb, NULL), "time NaN");
+    hl_dynamic_stats st;
+    HL_CHECK(hl_dynamic_render(d, 0.0, &rgb, &st) == HL_OK, "%s", hl_context_last_error(ctx));
+    const hl_mesh *w = hl_dynamic_mesh(d);
+    HL_CHECK(w->vertex_count == st.vertices && w->vertex_count > m->vertex_count && w->object_vertex_count == m->vertex_count,
+             "merged mesh: %u vertices (%u of the object), the frame %u", w->vertex_count, w->object_vertex_count,
+             st.vertices);
+    float *before = malloc((size_t)w->vertex_count * 12);
+    memcpy(before, w->positions, (size_t)w->vertex_count * 12);
+    const float tr[3] = {0.3f, 0.0f, -0.2f};
+    HL_CHECK(hl_dynamic_move(d, "object", tr) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(hl_dynamic_render(d, 0.0, &rgb, &st) == HL_OK, "%s", hl_context_last_error(ctx));
+    /* the object's vertices moved by tr, the ground's not at all; the
+     * colours finite and >= 0 */
+    double worst = 0, neg = 0;
+    uint64_t nonfinite = 0;
+    for (uint32_t v = 0; v < w->vertex_count; v++)
+        for (int k = 0; k < 3; k++) {
+            float want = before[3 * v + k] + (v < w->object_vertex_count ? tr[k] : 0.0f);
+            worst = fmax(worst, fabs(w->positions[3 * v + k] - want));
+            if (!isfinite(rgb[3 * v + k])) nonfinite++;
+            else neg = fmax(neg, -rgb[3 * v + k]);
+        }
+    /* one float addition of the translation: half an ulp of 8 */
+    hl_check_error("merged positions after the move, absolute", worst, 1e-6);
+    hl_check_error("most negative colour", neg, 0.0);
+    HL_CHECK(nonfinite == 0, "%llu colours not finite", (unsigned long long)nonfinite);
+    free(before);
+done:
+    hl_dynamic_destroy(d);
+    hl_mesh_destroy(m);
+    hl_env_destroy(env);
+    hl_context_destroy(ctx);
+}
+
+/* ------------------------------------------------------------ command */
+
+/* `haarlight relight-dynamic` (HL_BIN): bad options exit 2 with a
+ * message, a small run on the reference device writes a PLY. */
+static void case_cli(void)
+{
+    const char *bin = getenv("HL_BIN");
+    if (!bin) { HL_CHECK(0, "HL_BIN is not set"); return; }
+    char mesh[1024], cmd[4096];
+    snprintf(mesh, sizeof mesh, "%s/bunny_lowres.obj", hl_test_env("HL_REPO_DATA", "data"));
+    const char *out = hl_test_tmp_path("dyn_frame_cli.ply");
+    static const char *const bad[] = {"--lights 0", "--order 3", "--order 17", "--shadow-res 100", "--time -1",
+                                      "--time nan", "--split-threshold 1", "--move nobody:1,0,0", "--terms 5",
+                                      "--move object:1,0", NULL};
+    for (int i = 0; bad[i]; i++) {
+        snprintf(cmd, sizeof cmd, "'%s' relight-dynamic '%s' --ground --device ref %s -o '%s' >/dev/null 2>&1", bin,
+                 mesh, bad[i], out);
+        int rc = system(cmd);
+        HL_CHECK(WIFEXITED(rc) && WEXITSTATUS(rc) == 2, "%s: exit %d, not 2", bad[i], WEXITSTATUS(rc));
+    }
+    remove(out);
+    snprintf(cmd, sizeof cmd, "'%s' relight-dynamic '%s' --ground --device ref --lights 3 --shadow-res 64 --order 8 "
+             "--move object:0.2,0,0 -o '%s'", bin, mesh, out);
+    int rc = system(cmd);
+    HL_CHECK(WIFEXITED(rc) && WEXITSTATUS(rc) == 0, "a good run: exit %d", WEXITSTATUS(rc));
+    FILE *f = fopen(out, "rb");
+    HL_CHECK(f != NULL, "%s was not written", out);
+    if (f) fclose(f);
+}
+
 /* ------------------------------------------------------------ timing */
 
 static void timing(void)
@@ -421,6 +519,7 @@ int main(int argc, char **argv)
     }
     static const hl_test_case cases[] = {{"unshadowed", case_unshadowed}, {"motion", case_motion},
                                          {"twin", case_twin},             {"bad_input", case_bad_input},
+                                         {"api", case_api},               {"cli", case_cli},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }
