@@ -15,11 +15,13 @@
  *                        (the merged mesh follows), refusals.
  * dyn_frame.cli          `haarlight relight-dynamic`: bad options exit 2,
  *                        a small run writes its PLY.
+ * dyn_frame.file         a glTF file of two bodies, one animated: the
+ *                        merged mesh at a time and after a move.
  * timing                 not a ctest case (asserts nothing): the bunny on
  *                        its ground at K = 32, R = 256, M = 16, a first
  *                        frame and a second with the bunny moved.
  * Depends on: dyn_frame.h, scene.h, area_lights.h, hl_test.h,
- * HL_REPO_DATA (bunny_lowres.obj).
+ * scene_gen.h, HL_REPO_DATA (bunny_lowres.obj), HL_BIN.
  */
 #include <float.h>
 #include <sys/wait.h>
@@ -27,6 +29,7 @@
 #include "dyn_frame.h"
 #include "hl_test.h"
 #include "scene.h"
+#include "scene_gen.h"
 
 #define PI_D 3.14159265358979323846
 
@@ -473,6 +476,68 @@ static void case_cli(void)
     if (f) fclose(f);
 }
 
+/* ------------------------------------------------------------ a file */
+
+/* A glTF file of two bodies (scene_gen.h): a ground quad scaled to
+ * 4 x 4 and a cube "Box" whose translation keys go from (0, 2, 0) at 0 s
+ * to (2, 2, 0) at 2 s. Through the public API at t = 1 s, moved by
+ * (0, 0, 1): the merged mesh holds the cube's corners at +-1 about
+ * (1, 2, 1), the ground where it was. */
+static void case_file(void)
+{
+    hl_context *ctx = hl_test_ref_context(2);
+    sg_scene sc;
+    memset(&sc, 0, sizeof sc);
+    sc.nnodes = 2;
+    sc.node[0] = (sg_node){.name = "Floor", .parent = -1, .mesh = SG_GROUND, .has_s = 1, .s = {4, 1, 4}};
+    sc.node[1] = (sg_node){.name = "Box", .parent = -1, .mesh = SG_CUBE, .has_t = 1, .t = {0, 2, 0}};
+    sc.node[1].kt = (sg_keys){2, {0, 2}, {{0, 2, 0}, {2, 2, 0}}};
+    const char *path = hl_test_tmp_path("dyn_frame_two_bodies.gltf");
+    HL_CHECK(sg_write_gltf(path, &sc) == 0, "cannot write %s", path);
+    hl_dynamic *d = NULL;
+    hl_env *env = sky(ctx);
+    hl_dynamic_desc small = {64, 8};
+    float *rgb = NULL;
+    HL_CHECK(hl_dynamic_create_from_file(ctx, path, 0, &small, &d) == HL_OK, "%s", hl_context_last_error(ctx));
+    if (!d || !env) goto done;
+    double t0, t1;
+    hl_dynamic_time_range(d, &t0, &t1);
+    HL_CHECK(hl_dynamic_body_count(d) == 2 && t0 == 0.0 && t1 == 2.0, "%u bodies, animation %g..%g s",
+             hl_dynamic_body_count(d), t0, t1);
+    HL_CHECK(hl_dynamic_set_env(d, env, 4, 0.0f, 0.0f, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(hl_dynamic_move(d, "Box", (float[3]){0, 0, 1}) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(hl_dynamic_render(d, 1.0, &rgb, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    const hl_mesh *w = hl_dynamic_mesh(d);
+    double worst = 0;
+    uint32_t cube = 0;
+    for (uint32_t v = 0; v < w->vertex_count; v++) {
+        const float *p = w->positions + 3 * v;
+        if (p[1] < 0.5f) { /* the floor: y = 0, x and z at +-4 */
+            worst = fmax(worst, fabs(p[1])), worst = fmax(worst, fabs(fabs(p[0]) - 4)), worst = fmax(worst, fabs(fabs(p[2]) - 4));
+            continue;
+        }
+        cube++;
+        const float c[3] = {1, 2, 1};
+        for (int k = 0; k < 3; k++) worst = fmax(worst, fabs(fabs(p[k] - c[k]) - 1));
+    }
+    HL_CHECK(cube == 8 && w->vertex_count == 12, "%u cube vertices of %u", cube, w->vertex_count);
+    /* linear keys at their midpoint and a float translation: a few ulps */
+    hl_check_error("merged positions at t = 1 s after the move, absolute", worst, 1e-5);
+    /* the command on the same file: a time and a move */
+    const char *bin = getenv("HL_BIN");
+    if (bin) {
+        char cmd[4096];
+        snprintf(cmd, sizeof cmd, "'%s' relight-dynamic '%s' --device ref --lights 2 --shadow-res 32 --order 4 "
+                 "--time 1.5 --move Box:0,0,1 -q -o '%s'", bin, path, hl_test_tmp_path("dyn_frame_two_bodies.ply"));
+        int rc = system(cmd);
+        HL_CHECK(WIFEXITED(rc) && WEXITSTATUS(rc) == 0, "relight-dynamic on the file: exit %d", WEXITSTATUS(rc));
+    }
+done:
+    hl_dynamic_destroy(d);
+    hl_env_destroy(env);
+    hl_context_destroy(ctx);
+}
+
 /* ------------------------------------------------------------ timing */
 
 static void timing(void)
@@ -520,6 +585,7 @@ int main(int argc, char **argv)
     static const hl_test_case cases[] = {{"unshadowed", case_unshadowed}, {"motion", case_motion},
                                          {"twin", case_twin},             {"bad_input", case_bad_input},
                                          {"api", case_api},               {"cli", case_cli},
+                                         {"file", case_file},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }
