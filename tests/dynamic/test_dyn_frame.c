@@ -115,22 +115,39 @@ static void case_unshadowed(void)
     hl_env *env = sky(ctx);
     hl_light_split *s = env ? split_of(ctx, env, 32) : NULL;
     hl_frame_state *st = NULL;
-    hl_frame_stats fs;
-    if (s) HL_CHECK(hl_frame_state_create(ctx, &o, 1, s->count, NULL, &st) == HL_OK, "%s", hl_context_last_error(ctx));
     const float *albs[1] = {alb};
     float *outs[1] = {rgb};
-    if (st) HL_CHECK(hl_frame_render(st, &o, 1, albs, s, outs, &fs) == HL_OK, "%s", hl_context_last_error(ctx));
-    if (st && s) {
-        double n[3] = {0, 1, 0}, E[3];
-        env_irradiance(env, n, E);
+    double n[3] = {0, 1, 0}, E[3];
+    if (env) env_irradiance(env, n, E);
+    /* min_share 0.05: the lights under 5% of the energy are shaded
+     * unshadowed (the same sum here, since nothing blocks) */
+    const float shares[2] = {-1.0f, 0.05f};
+    for (int pass = 0; s && pass < 2; pass++) {
+        hl_frame_settings set = {.min_share = shares[pass]};
+        hl_frame_stats fs;
+        HL_CHECK(hl_frame_state_create(ctx, &o, 1, s->count, &set, &st) == HL_OK, "%s", hl_context_last_error(ctx));
+        if (!st) break;
+        HL_CHECK(hl_frame_render(st, &o, 1, albs, s, outs, &fs) == HL_OK, "%s", hl_context_last_error(ctx));
         double worst = 0;
         for (uint32_t v = 0; v < nv; v++)
             for (int c = 0; c < 3; c++) {
                 double want = alb[3 * v + c] / PI_D * E[c];
                 worst = fmax(worst, fabs(rgb[3 * v + c] - want) / want);
             }
-        printf("lights %u, shadowed %u, below the horizon %u, negligible %u; folded share %.4f\n", fs.lights,
-               fs.shadowed, fs.skipped_horizon, fs.skipped_negligible, s->stats.folded_share);
+        /* lights below +Y's horizon counted here from their irradiance */
+        uint32_t below = 0;
+        for (uint32_t k = 0; k < s->count; k++) {
+            float e[3], up[3] = {0, 1, 0};
+            hl_area_light_irradiance(s, k, up, e);
+            below += e[0] == 0.0f && e[1] == 0.0f && e[2] == 0.0f;
+        }
+        printf("min_share %g: lights %u, shadowed %u, below the horizon %u, negligible %u; folded share %.4f\n",
+               (double)shares[pass], fs.lights, fs.shadowed, fs.skipped_horizon, fs.skipped_negligible,
+               s->stats.folded_share);
+        HL_CHECK(fs.skipped_horizon == below && fs.shadowed + fs.skipped_horizon + fs.skipped_negligible == fs.lights,
+                 "counts: %u below the horizon (want %u), %u + %u + %u of %u", fs.skipped_horizon, below, fs.shadowed,
+                 fs.skipped_horizon, fs.skipped_negligible, fs.lights);
+        HL_CHECK(pass == 0 || fs.skipped_negligible > 0, "no light was negligible at min_share 0.05");
         /* The split conserves energy and each light's irradiance is exact
          * over its cube texels; what is left: the cube resampling of the
          * map (texels cut into subsamples, against this per-pixel sum),
@@ -140,6 +157,8 @@ static void case_unshadowed(void)
          * plane from shadowing itself (without it: 7%). Measured 2.4e-4;
          * 1e-3 leaves room for other maps' cube resampling. */
         hl_check_error("B against albedo/pi x the map's irradiance on +Y, relative", worst, 1e-3);
+        hl_frame_state_destroy(st);
+        st = NULL;
     }
     hl_frame_state_destroy(st);
     hl_light_split_destroy(s);
