@@ -7,12 +7,14 @@
  * a device shading kernel with its plain-C twin is a later step. The
  * shadow maps and the CSM module live in the frame state across frames,
  * so a frame with one body moved costs its set_transform and re-render.
- * Depends on: dyn_frame.h (area_lights.h, shadow_map.h, csm.h), core.
+ * Depends on: dyn_frame.h (area_lights.h, shadow_map.h, csm.h), core,
+ * cl_internal.h (the device memory left, for the batch size).
  */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "cl_internal.h"
 #include "dyn_frame.h"
 
 struct hl_frame_state {
@@ -112,9 +114,14 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->N = (uint32_t)N;
     st->R = s.R, st->M = s.M, st->Mb = s.Mb, st->min_share = s.min_share;
     st->max_lights = max_lights;
-    uint32_t fit = hl_csm_batch_fit(s.R, s.M, s.Mb, s.budget);
-    st->Kb = fit < max_lights ? fit : max_lights;
     r = hl_shadow_maps_create(ctx, objects, nobj, s.R, s.method, &st->sm);
+    uint64_t budget = s.budget;
+    if (ctx->cl && ctx->cl->limit > ctx->cl->used) { /* after the shadow maps' buffers */
+        uint64_t left = (uint64_t)((double)(ctx->cl->limit - ctx->cl->used) * HL_FRAME_DEVICE_SHARE);
+        if (left < budget) budget = left;
+    }
+    uint32_t fit = hl_csm_batch_fit(s.R, s.M, s.Mb, budget);
+    st->Kb = fit < max_lights ? fit : max_lights;
     if (r == HL_OK) r = hl_csm_create(ctx, s.R, s.M, s.Mb, st->Kb, &st->csm);
     if (r != HL_OK) { hl_frame_state_destroy(st); return r; }
     size_t n3 = 3 * (size_t)N, RR = (size_t)s.R * s.R;

@@ -19,11 +19,19 @@
 
 /* Memory the convolution shadow maps of one batch of lights may take:
  * 256 MiB. At R = 256, M = Mb = 16 a light takes 18.4 MB (csm.h), so a
- * batch holds 14 lights and K = 32 runs in 3 batches; the work per light
- * is the same in any batch size, so smaller batches cost only launches,
- * while 32 lights at once (589 MB) would not fit small devices or
- * HL_DEVICE_MEMORY limits people set for PoCL. */
+ * batch holds 14 lights and K = 32 runs in 3 batches. The work per light
+ * is the same in any batch: on PoCL (2 cores, the bunny on its ground,
+ * K = 32) a steady frame took 330-360 ms for batches of 1 to 32 lights
+ * (test_dyn_frame timing MIB), while a first frame pays for touching the
+ * batch's fresh memory (+100 ms at 14 lights, +700 ms at 32); and 32
+ * lights at once (589 MB) would not fit small devices or the
+ * HL_DEVICE_MEMORY limits people set. */
 #define HL_FRAME_DEFAULT_BUDGET (256ull << 20)
+/* On a device whose memory limit (the device's, or HL_DEVICE_MEMORY)
+ * leaves less, the budget is this share of what is left after the shadow
+ * maps' buffers: 0.5, so the evaluation's per-receiver buffers and
+ * other users of the context still fit beside a batch. */
+#define HL_FRAME_DEVICE_SHARE 0.5
 /* A kept light whose energy (luminance of radiance x solid angle) is
  * below this share of the map's is shaded unshadowed (V = 1) and gets no
  * shadow map: 1e-4. Its shadow could change a vertex's irradiance by at
