@@ -16,6 +16,9 @@
 /* --move options one run takes: a scene with more bodies to move is a
  * job for the API, not the command line. */
 #define DYN_MAX_MOVES 64
+/* --lights default: the library's (area_lights.h), 32, which the paper's
+ * costs are quoted at; every kept light costs a shadow map a frame. */
+#define DYN_DEFAULT_LIGHTS 32
 
 static const char *const usage_dyn =
     "usage: haarlight relight-dynamic (MESH | SCENE) (--env ENV.exr | --sky) -o OUT [options]\n"
@@ -30,7 +33,7 @@ static const char *const usage_dyn =
     "\n"
     "Limits: the visibility is an approximation of the exact one (smooth shadow test,\n"
     "filter width from the average blocker depth). Blockers closer to a receiver than\n"
-    "about 1/M of the shadow map's depth range (about 5% at M = 16) are not seen, so\n"
+    "about 0.75/M of the shadow map's depth range (about 5% at M = 16) are not seen, so\n"
     "contact shadows leak, and more so where light grazes the receiver. Light beyond\n"
     "the K kept lights casts no shadow. Each kept light costs a shadow map and\n"
     "4M + 1 filtered images of R x R texels a frame (18.4 MB a light at R = 256,\n"
@@ -204,7 +207,8 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
         if (r == HL_OK)
             r = d->env ? cli_env_load(ctx, d->env, o->layout, &env, o->cd.quiet) : hl_env_create_sky(ctx, &o->sky, &env);
         if (r == HL_OK)
-            r = hl_dynamic_set_env(dy, env, d->lights ? (int32_t)d->lights : 32, d->threshold, o->rd.rotate_deg, &li);
+            r = hl_dynamic_set_env(dy, env, d->lights ? (int32_t)d->lights : DYN_DEFAULT_LIGHTS, d->threshold,
+                                   o->rd.rotate_deg, &li);
         if (r == HL_OK) r = hl_dynamic_render(dy, (double)d->time, &rgb, &st);
         if (r == HL_OK && !o->cd.quiet) report(d->scene, d->env, ctx, &li, &st);
         const hl_mesh *mesh = dy ? hl_dynamic_mesh(dy) : NULL;

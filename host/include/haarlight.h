@@ -588,7 +588,7 @@ HL_API float hl_exposure_auto(const hl_mesh *mesh, const float *vertex_rgb);
  *     B = albedo / pi * (sum_k V_k E_k(n) + ambient(n)),
  * E_k the light's exact irradiance on the vertex normal. The visibility
  * V_k approximates the exact one: blockers nearer a receiver than about
- * 1/M of the shadow map's depth range (5% at M = 16), or than the
+ * 0.75/M of the shadow map's depth range (5% at M = 16), or than the
  * receiver-plane bias at grazing light, are not seen (contact shadows
  * leak). Cost per frame grows with K x R^2 x M (maps and tables) and
  * K x vertices x M (evaluation).
