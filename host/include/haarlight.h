@@ -642,8 +642,9 @@ typedef struct hl_dynamic_lights {
 
 /* Splits env (not kept: it may be destroyed after) into area lights:
  * lights = K kept (>= 1), split_threshold the growth threshold of the
- * split (0: the default, 1e-3 of the map's energy per ring; else in
- * (0, 1)), the map turned by rotate_deg about +Y as relight's --rotate.
+ * split (a light grows while a ring adds more than this share of the
+ * light's energy so far; 0: the default, 0.1; else in (0, 1)), the map
+ * turned by rotate_deg about +Y as relight's --rotate.
  * info may be NULL. */
 HL_API hl_result hl_dynamic_set_env(hl_dynamic *d, const hl_env *env, int32_t lights, float split_threshold,
                                     float rotate_deg, hl_dynamic_lights *info);
