@@ -52,7 +52,15 @@ case "$what" in
     ./build/haarlight relight build/demo.hlt --sky -o build/demo-sky.png
     ./build/haarlight relight build/demo.hlt --env data/city.exr -o build/demo-city.png
     ./build/haarlight relight build/demo.hlt --sky -o build/demo-sky.ply
-    echo "demo: wrote build/demo-sky.png, build/demo-city.png and build/demo-sky.ply"
+    # the dynamic method, no precompute: the bunny lifted and carried across
+    # its ground, its shadow following, from a fixed camera
+    i=0
+    for x in -2.5 0 2.5; do
+      ./build/haarlight relight-dynamic data/bunny_lowres.obj --ground --sky --move "object:$x,2,0" \
+          --eye 0,16,30 --target 0,2,0 --size 400x300 -o "build/demo-dynamic-$i.png"
+      i=$((i + 1))
+    done
+    echo "demo: wrote build/demo-sky.png, build/demo-city.png, build/demo-sky.ply and build/demo-dynamic-{0,1,2}.png"
     ;;
   test)
     # 1. the suite (valgrind memcheck of a small scene included)
