@@ -658,6 +658,8 @@ typedef struct hl_dynamic_stats {
     uint32_t batches;             /* batches of lights within the memory budget */
     double folded_share;          /* as hl_dynamic_lights */
     double t_irradiance, t_shadow_maps, t_csm_build, t_csm_eval, t_shading, t_total;
+    int reused; /* nothing moved and the lights are the same: the last
+                   frame's colours, at no cost (the rest of st is 0) */
 } hl_dynamic_stats;
 
 /* One frame at time t (seconds, finite, >= 0; clamped to the animation's

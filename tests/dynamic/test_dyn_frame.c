@@ -439,11 +439,20 @@ static void case_api(void)
     HL_CHECK(w->vertex_count == st.vertices && w->vertex_count > m->vertex_count && w->object_vertex_count == m->vertex_count,
              "merged mesh: %u vertices (%u of the object), the frame %u", w->vertex_count, w->object_vertex_count,
              st.vertices);
+    HL_CHECK(!st.reused && st.lights == 4, "the first frame is computed (reused %d, %u lights)", st.reused, st.lights);
     float *before = malloc((size_t)w->vertex_count * 12);
     memcpy(before, w->positions, (size_t)w->vertex_count * 12);
+    /* nothing moved and the lights are the same: the same colours, no work */
+    float *first = malloc((size_t)w->vertex_count * 12), *again = NULL;
+    memcpy(first, rgb, (size_t)w->vertex_count * 12);
+    HL_CHECK(hl_dynamic_render(d, 0.5, &again, &st) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(st.reused == 1 && st.lights == 0 && again && !memcmp(first, again, (size_t)w->vertex_count * 12),
+             "a frame where nothing moved was recomputed (reused %d) or differs", st.reused);
+    free(first);
     const float tr[3] = {0.3f, 0.0f, -0.2f};
     HL_CHECK(hl_dynamic_move(d, "object", tr) == HL_OK, "%s", hl_context_last_error(ctx));
     HL_CHECK(hl_dynamic_render(d, 0.0, &rgb, &st) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(!st.reused, "a frame after a move was not recomputed");
     /* the object's vertices moved by tr, the ground's not at all; the
      * colours finite and >= 0 */
     double worst = 0, neg = 0;

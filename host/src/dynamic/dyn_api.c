@@ -29,6 +29,11 @@ struct hl_dynamic {
     hl_light_split *split;
     hl_frame_state *fs;
     uint32_t fs_lights;    /* max_lights of fs */
+    /* the last frame's inputs: a frame with the same transforms and the
+       same lights is the last frame again, and costs nothing */
+    float *last_xf;        /* 12 per body */
+    const hl_light_split *last_split;
+    int have_last;
 };
 
 void hl_dynamic_destroy(hl_dynamic *d)
@@ -38,7 +43,7 @@ void hl_dynamic_destroy(hl_dynamic *d)
     hl_light_split_destroy(d->split);
     hl_mesh_destroy(d->mesh);
     hl_dyn_scene_destroy(d->scene);
-    free(d->obj); free(d->alb); free(d->rgbs); free(d->vstart); free(d->rgb);
+    free(d->obj); free(d->alb); free(d->rgbs); free(d->vstart); free(d->rgb); free(d->last_xf);
     free(d);
 }
 
@@ -75,7 +80,8 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
     d->rgbs = calloc(d->nb, sizeof *d->rgbs);
     d->vstart = calloc(d->nb, sizeof *d->vstart);
     d->mesh = calloc(1, sizeof *d->mesh);
-    hl_result r = (d->obj && d->alb && d->rgbs && d->vstart && d->mesh) ? HL_OK
+    d->last_xf = calloc((size_t)d->nb * 12, sizeof *d->last_xf);
+    hl_result r = (d->obj && d->alb && d->rgbs && d->vstart && d->mesh && d->last_xf) ? HL_OK
                   : hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the dynamic scene");
     if (r == HL_OK) r = hl_dyn_scene_at(scene, 0.0, d->obj);
     uint64_t nv = 0, nt = 0;
@@ -194,6 +200,7 @@ hl_result hl_dynamic_set_env(hl_dynamic *d, const hl_env *env, int32_t lights, f
     if (r != HL_OK) return r;
     hl_light_split_destroy(d->split);
     d->split = s;
+    d->have_last = 0; /* new lights: the next frame is computed */
     if (info) {
         info->lights_made = s->total;
         info->lights_kept = s->count;
@@ -212,6 +219,18 @@ hl_result hl_dynamic_render(hl_dynamic *d, double t, float **rgb_out, hl_dynamic
     if (!d->split) return hl_fail(d->ctx, HL_ERR_INVALID_ARGUMENT, "hl_dynamic_render: no environment set");
     hl_result r = hl_dyn_scene_at(d->scene, t, d->obj);
     if (r != HL_OK) return r;
+    int same = d->have_last && d->last_split == d->split;
+    for (uint32_t b = 0; same && b < d->nb; b++) same = !memcmp(d->last_xf + 12 * (size_t)b, d->obj[b].xf, sizeof d->obj[b].xf);
+    if (same) {
+        *rgb_out = d->rgb;
+        if (st) {
+            memset(st, 0, sizeof *st);
+            st->vertices = d->mesh->vertex_count;
+            st->reused = 1;
+        }
+        return HL_OK;
+    }
+    d->have_last = 0;
     if (d->fs && d->fs_lights < d->split->count) {
         hl_frame_state_destroy(d->fs);
         d->fs = NULL;
@@ -226,7 +245,11 @@ hl_result hl_dynamic_render(hl_dynamic *d, double t, float **rgb_out, hl_dynamic
     if (r != HL_OK) return r;
     update_mesh(d);
     *rgb_out = d->rgb;
+    for (uint32_t b = 0; b < d->nb; b++) memcpy(d->last_xf + 12 * (size_t)b, d->obj[b].xf, sizeof d->obj[b].xf);
+    d->last_split = d->split;
+    d->have_last = 1;
     if (st) {
+        st->reused = 0;
         st->vertices = fs.receivers, st->lights = fs.lights, st->shadowed = fs.shadowed;
         st->skipped_horizon = fs.skipped_horizon, st->skipped_negligible = fs.skipped_negligible;
         st->batches = fs.batches;
