@@ -1,0 +1,338 @@
+/* test_dyn_reference.c - the exact reference of the dynamic method
+ * (host/src/dynamic/dyn_reference.c), suite "dyn_reference".
+ *
+ * dyn_reference.furnace     a lone ground grid under a constant map of
+ *                           radiance 1: B = albedo.
+ * dyn_reference.unoccluded  a lone ground under the sky: the exact
+ *                           reference equals the unshadowed frame sum
+ *                           within the SH9 ambient's error, the K-lights
+ *                           reference equals it to float rounding.
+ * dyn_reference.occluded    a ground with a quad floating above it under
+ *                           an overhead sun: vertices under the quad get
+ *                           only sky, those outside get the whole sun.
+ * accuracy [S]              not a ctest case (prints, asserts nothing; it
+ *                           takes minutes): the bunny on its ground at
+ *                           K = 32, R = 256, M = 16 under the eight shared
+ *                           maps and the sky, the frame and the K-lights
+ *                           reference against the exact one (relative
+ *                           L2), at rest and moved.
+ * Depends on: dyn_reference.h, dyn_frame.h, scene.h, area_lights.h,
+ * hl_test.h, HL_REPO_DATA (bunny_lowres.obj), HL_TEST_DATA (envmaps).
+ */
+#include <float.h>
+
+#include "dyn_frame.h"
+#include "dyn_reference.h"
+#include "hl_test.h"
+#include "scene.h"
+
+#define PI_D 3.14159265358979323846
+
+enum { GRID = 24 }; /* quads a side of the test grounds */
+
+typedef struct grid {
+    float *pos, *nrm, *alb, *rgb, *rgb2;
+    uint32_t *tri;
+    uint32_t nv, nt;
+} grid;
+
+/* A (GRID + 1)^2 ground over [-1, 1]^2 at y = 0, facing +Y, albedo 0.5. */
+static void grid_make(grid *g)
+{
+    g->nv = (GRID + 1) * (GRID + 1), g->nt = 2 * GRID * GRID;
+    g->pos = malloc(g->nv * 12), g->nrm = malloc(g->nv * 12), g->alb = malloc(g->nv * 12);
+    g->rgb = malloc(g->nv * 12), g->rgb2 = malloc(g->nv * 12);
+    g->tri = malloc(g->nt * 12);
+    for (uint32_t j = 0; j <= GRID; j++)
+        for (uint32_t i = 0; i <= GRID; i++) {
+            uint32_t v = j * (GRID + 1) + i;
+            float p[3] = {(float)i / GRID * 2 - 1, 0.0f, (float)j / GRID * 2 - 1}, up[3] = {0, 1, 0};
+            memcpy(g->pos + 3 * v, p, 12), memcpy(g->nrm + 3 * v, up, 12);
+            g->alb[3 * v] = g->alb[3 * v + 1] = g->alb[3 * v + 2] = 0.5f;
+        }
+    uint32_t t = 0;
+    for (uint32_t j = 0; j < GRID; j++)
+        for (uint32_t i = 0; i < GRID; i++) {
+            uint32_t a = j * (GRID + 1) + i, b = a + 1, c = a + GRID + 1, d = c + 1;
+            uint32_t q[6] = {a, c, b, b, c, d};
+            memcpy(g->tri + 3 * t, q, 24), t += 2;
+        }
+}
+
+static void grid_free(grid *g)
+{
+    free(g->pos); free(g->nrm); free(g->alb); free(g->rgb); free(g->rgb2); free(g->tri);
+}
+
+static hl_dyn_object grid_object(const grid *g)
+{
+    hl_dyn_object o = {g->pos, g->nrm, g->nv, g->tri, g->nt, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
+    return o;
+}
+
+static hl_light_split *split_of(hl_context *ctx, const hl_env *env, int32_t K)
+{
+    hl_light_split_params p;
+    hl_light_split_defaults(&p);
+    p.lights = K;
+    hl_light_split *s = NULL;
+    HL_CHECK(hl_area_lights_split(ctx, env, &p, &s) == HL_OK, "%s", hl_context_last_error(ctx));
+    return s;
+}
+
+/* ------------------------------------------------------------ furnace */
+
+static void case_furnace(void)
+{
+    hl_context *ctx = hl_test_ref_context(2);
+    enum { W = 64, H = 32 };
+    float *ones = malloc(W * H * 12);
+    for (int i = 0; i < W * H * 3; i++) ones[i] = 1.0f;
+    hl_env *env = NULL;
+    HL_CHECK(hl_env_create(ctx, W, H, ones, &env, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    grid g;
+    grid_make(&g);
+    hl_dyn_object o = grid_object(&g);
+    const float *albs[1] = {g.alb};
+    float *outs[1] = {g.rgb};
+    hl_dyn_ref_stats st = {0};
+    hl_result r = env ? hl_dyn_reference_exact(ctx, &o, 1, albs, env, 0, 0, outs, &st) : HL_ERR_INVALID_ARGUMENT;
+    HL_CHECK(r == HL_OK, "%s", hl_context_last_error(ctx));
+    double worst = 0;
+    for (uint32_t i = 0; r == HL_OK && i < 3 * g.nv; i++) worst = fmax(worst, fabs(g.rgb[i] - g.alb[i]) / g.alb[i]);
+    printf("%u vertices, %llu rays (%llu culled) in %.3f s\n", st.vertices, (unsigned long long)st.rays_cast,
+           (unsigned long long)st.rays_culled, st.seconds);
+    /* F = 32 is even, so the horizon of +Y runs along texel edges: the
+       texel sum is the cosine integral exactly, up to float sums of the
+       map's resampled energy (4e-8 of it) over 3072 texels */
+    hl_check_error("furnace: |B - albedo| / albedo", worst, 1e-5);
+    grid_free(&g);
+    hl_env_destroy(env);
+    free(ones);
+    hl_context_destroy(ctx);
+}
+
+/* ------------------------------------------------------------ unoccluded */
+
+static void case_unoccluded(void)
+{
+    hl_context *ctx = hl_test_ref_context(2);
+    hl_sky_desc sd = {0};
+    sd.width = 512;
+    hl_env *env = NULL;
+    HL_CHECK(hl_env_create_sky(ctx, &sd, &env) == HL_OK, "%s", hl_context_last_error(ctx));
+    hl_light_split *s = env ? split_of(ctx, env, HL_LIGHTS_DEFAULT_KEEP) : NULL;
+    grid g;
+    grid_make(&g);
+    hl_dyn_object o = grid_object(&g);
+    const float *albs[1] = {g.alb};
+    float *outs[1] = {g.rgb}, *outs2[1] = {g.rgb2};
+    int ok = s && hl_dyn_reference_exact(ctx, &o, 1, albs, env, 0, 0, outs, NULL) == HL_OK &&
+             hl_dyn_reference_lights(ctx, &o, 1, albs, s, 0, outs2, NULL) == HL_OK;
+    HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+    double worst_exact = 0, worst_lights = 0, sh_err = 0;
+    for (uint32_t v = 0; ok && v < g.nv; v++) {
+        const float *n = g.nrm + 3 * v;
+        float a[3], aref[3], E[3];
+        hl_light_split_ambient(s, n, a);
+        hl_light_split_ambient_ref(s, n, aref);
+        double sum[3] = {a[0], a[1], a[2]};
+        for (uint32_t k = 0; k < s->count; k++) {
+            hl_area_light_irradiance(s, k, n, E);
+            for (int c = 0; c < 3; c++) sum[c] += E[c];
+        }
+        for (int c = 0; c < 3; c++) {
+            double want = g.alb[3 * v + c] / PI_D * sum[c];
+            sh_err = fmax(sh_err, fabs(a[c] - aref[c]) / sum[c]);
+            worst_exact = fmax(worst_exact, fabs(g.rgb[3 * v + c] - want) / want);
+            worst_lights = fmax(worst_lights, fabs(g.rgb2[3 * v + c] - want) / want);
+        }
+    }
+    /* the exact sum differs from the frame's by the SH9 ambient's error
+       (measured here against its texel sum: ambient_ref) and by folded
+       texels taken at their centre rather than their moment (1e-3: a
+       texel's centroid is within a fraction of its 3.6 degrees) */
+    printf("SH9 ambient against its texel sum: %.4g of the irradiance\n", sh_err);
+    hl_check_error("unoccluded: exact against the unshadowed frame sum", worst_exact, sh_err + 1e-3);
+    /* every V_k = 1: the same sum as the frame's, in double then float */
+    hl_check_error("unoccluded: K-lights reference against the unshadowed frame sum", worst_lights, 1e-5);
+    grid_free(&g);
+    hl_light_split_destroy(s);
+    hl_env_destroy(env);
+    hl_context_destroy(ctx);
+}
+
+/* ------------------------------------------------------------ occluded */
+
+/* Sun half-angle (radians) about +Y: 1.5 degrees, inside the 4 central
+ * texels of the +Y face at F = 32 (each 3.6 degrees). */
+#define SUN_HALF 0.0262
+#define SUN_L 2000.0f /* its radiance; the sky's is 0.2 */
+#define SKY_L 0.2f
+#define QUAD_Y 0.5f   /* the floating quad's height */
+#define QUAD_HALF 0.4f
+
+static void case_occluded(void)
+{
+    hl_context *ctx = hl_test_ref_context(2);
+    enum { W = 1024, H = 512 };
+    float *map = malloc((size_t)W * H * 12);
+    double Esun = 0, Esky = 0; /* on +Y, from the pixels */
+    for (int j = 0; j < H; j++) {
+        double th = PI_D * (j + 0.5) / H, om = 2 * PI_D / W * (cos(PI_D * j / H) - cos(PI_D * (j + 1) / H));
+        for (int i = 0; i < W; i++) {
+            float L = th < SUN_HALF ? SUN_L : SKY_L;
+            map[3 * ((size_t)j * W + i)] = map[3 * ((size_t)j * W + i) + 1] = map[3 * ((size_t)j * W + i) + 2] = L;
+            if (cos(th) > 0) *(th < SUN_HALF ? &Esun : &Esky) += L * om * cos(th);
+        }
+    }
+    hl_env *env = NULL;
+    HL_CHECK(hl_env_create(ctx, W, H, map, &env, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    grid g;
+    grid_make(&g);
+    /* the quad: two triangles over [-QUAD_HALF, QUAD_HALF]^2 at QUAD_Y */
+    float qp[12] = {-QUAD_HALF, QUAD_Y, -QUAD_HALF, QUAD_HALF, QUAD_Y, -QUAD_HALF,
+                    -QUAD_HALF, QUAD_Y, QUAD_HALF,  QUAD_HALF, QUAD_Y, QUAD_HALF};
+    float qn[12] = {0, -1, 0, 0, -1, 0, 0, -1, 0, 0, -1, 0}, qa[12] = {0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f,
+                                                                     0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f};
+    float qrgb[12];
+    uint32_t qt[6] = {0, 1, 2, 1, 3, 2};
+    hl_dyn_object o[2] = {grid_object(&g), {qp, qn, 4, qt, 2, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}}};
+    const float *albs[2] = {g.alb, qa};
+    float *outs[2] = {g.rgb, qrgb};
+    int ok = env && hl_dyn_reference_exact(ctx, o, 2, albs, env, 0, 0, outs, NULL) == HL_OK;
+    HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+    /* under (|x|, |z| <= 0.3): at most the unblocked sky, so the sun's
+       leak is E - Esky; outside (beyond 0.55, clear of the quad's edge
+       by the sun's and a texel's slant at 0.5 height): at least the sun */
+    double leak = 0, lit = DBL_MAX;
+    uint32_t nin = 0, nout = 0;
+    for (uint32_t v = 0; ok && v < g.nv; v++) {
+        float x = g.pos[3 * v], z = g.pos[3 * v + 2];
+        double E = g.rgb[3 * v + 1] * PI_D / g.alb[3 * v + 1];
+        if (fabsf(x) <= 0.3f && fabsf(z) <= 0.3f) leak = fmax(leak, (E - Esky) / Esun), nin++;
+        if (fabsf(x) >= 0.55f || fabsf(z) >= 0.55f) lit = fmin(lit, (E - 0.5 * Esky) / Esun), nout++;
+    }
+    printf("sun %.4g, sky %.4g on +Y; %u vertices under the quad, %u outside\n", Esun, Esky, nin, nout);
+    /* the cube holds the map's energy to 4e-8, so the sun's share of
+       any texel is exact; 1e-4: float sums */
+    hl_check_error("occluded: sun under the quad (E - sky) / sun", leak, 1e-4);
+    /* outside: the whole sun plus at least half the sky (the quad takes
+       less than half the sky of any vertex at its side) */
+    hl_check_error("occluded: 1 - (E - sky / 2) / sun outside the quad", fmax(0.0, 1.0 - lit), 1e-4);
+    grid_free(&g);
+    hl_env_destroy(env);
+    free(map);
+    hl_context_destroy(ctx);
+}
+
+/* ------------------------------------------------------------ accuracy */
+
+/* Relative L2 over all vertices and channels of both bodies. */
+static double rel_l2(float *const *a, float *const *ref, const hl_dyn_object *o, uint32_t nobj)
+{
+    double num = 0, den = 0;
+    for (uint32_t b = 0; b < nobj; b++)
+        for (size_t i = 0; i < 3 * (size_t)o[b].nverts; i++) {
+            double d = (double)a[b][i] - ref[b][i];
+            num += d * d, den += (double)ref[b][i] * ref[b][i];
+        }
+    return den > 0 ? sqrt(num / den) : 0.0;
+}
+
+/* One map: the frame, the exact and the K-lights references at rest and
+ * moved (lifted 0.3 of the bunny's height, sideways half its width). */
+static void accuracy_map(hl_context *ctx, const char *name, const hl_env *env, hl_dyn_object *obj,
+                         const float *const *alb, float *const *fr, float *const *ex, float *const *li, uint32_t S)
+{
+    hl_light_split *s = split_of(ctx, env, HL_LIGHTS_DEFAULT_KEEP);
+    hl_frame_state *st = NULL;
+    hl_frame_settings set = {.min_share = -1.0f};
+    if (!s || hl_frame_state_create(ctx, obj, 2, s->count, &set, &st) != HL_OK) {
+        printf("%s: %s\n", name, hl_context_last_error(ctx));
+        hl_light_split_destroy(s);
+        return;
+    }
+    float lo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, hi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    for (uint32_t v = 0; v < obj[0].nverts; v++)
+        for (int c = 0; c < 3; c++) lo[c] = fminf(lo[c], obj[0].pos[3 * v + c]), hi[c] = fmaxf(hi[c], obj[0].pos[3 * v + c]);
+    const float x0 = obj[0].xf[3], y0 = obj[0].xf[7];
+    for (int moved = 0; moved < 2; moved++) {
+        obj[0].xf[3] = x0 + (moved ? 0.5f * (hi[0] - lo[0]) : 0.0f);
+        obj[0].xf[7] = y0 + (moved ? 0.3f * (hi[1] - lo[1]) : 0.0f);
+        hl_frame_stats fs;
+        hl_dyn_ref_stats es, ls;
+        int ok = hl_frame_render(st, obj, 2, alb, s, fr, &fs) == HL_OK &&
+                 hl_dyn_reference_exact(ctx, obj, 2, alb, env, 0, S, ex, &es) == HL_OK &&
+                 hl_dyn_reference_lights(ctx, obj, 2, alb, s, S, li, &ls) == HL_OK;
+        if (!ok) { printf("%s: %s\n", name, hl_context_last_error(ctx)); break; }
+        printf("%-12s %-6s folded %5.1f%%  frame %6.2f%%  K-lights ref %6.2f%%  frame vs K-lights %6.2f%%  "
+               "(frame %.0f ms, exact %.1f s, %llu rays)\n",
+               name, moved ? "moved" : "rest", 100 * s->stats.folded_share, 100 * rel_l2(fr, ex, obj, 2),
+               100 * rel_l2(li, ex, obj, 2), 100 * rel_l2(fr, li, obj, 2), 1e3 * fs.t_total, es.seconds,
+               (unsigned long long)es.rays_cast);
+        fflush(stdout);
+    }
+    obj[0].xf[3] = x0, obj[0].xf[7] = y0;
+    hl_frame_state_destroy(st);
+    hl_light_split_destroy(s);
+}
+
+static void accuracy(uint32_t S)
+{
+    static const char *maps[] = {"city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset"};
+    hl_context *ctx = hl_test_cl_context();
+    if (!ctx) ctx = hl_test_ref_context(2);
+    char path[1024];
+    snprintf(path, sizeof path, "%s/bunny_lowres.obj", hl_test_env("HL_REPO_DATA", "data"));
+    hl_mesh *mesh = NULL;
+    hl_dyn_scene *scene = NULL;
+    hl_dyn_object obj[2];
+    hl_ground_desc gd = {0};
+    if (hl_mesh_load(ctx, path, NULL, &mesh, NULL) != HL_OK || hl_dyn_scene_from_mesh(ctx, mesh, &gd, &scene) != HL_OK ||
+        hl_dyn_scene_at(scene, 0.0, obj) != HL_OK) {
+        printf("the bunny: %s\n", hl_context_last_error(ctx));
+        hl_context_destroy(ctx);
+        return;
+    }
+    const float *alb[2];
+    float *fr[2], *ex[2], *li[2];
+    for (uint32_t b = 0; b < 2; b++) {
+        alb[b] = hl_dyn_scene_body_albedo(scene, b);
+        fr[b] = malloc((size_t)obj[b].nverts * 12), ex[b] = malloc((size_t)obj[b].nverts * 12);
+        li[b] = malloc((size_t)obj[b].nverts * 12);
+    }
+    printf("bunny + ground, %u + %u vertices, K = %d, R = %u, M = %u, exact at F = %u, S = %u; relative L2 "
+           "against the exact reference\n", obj[0].nverts, obj[1].nverts, HL_LIGHTS_DEFAULT_KEEP, HL_SHADOW_DEFAULT_R,
+           HL_CSM_M_DEFAULT, HL_DYNREF_DEFAULT_FACE, S ? S : HL_DYNREF_DEFAULT_S);
+    for (size_t m = 0; m <= sizeof maps / sizeof *maps; m++) {
+        hl_env *env = NULL;
+        if (m < sizeof maps / sizeof *maps) {
+            snprintf(path, sizeof path, "%s/envmaps/%s.exr", hl_test_env("HL_TEST_DATA", ""), maps[m]);
+            if (hl_env_load(ctx, path, &env, NULL) != HL_OK) { printf("%s: skipped (%s)\n", maps[m], path); continue; }
+        } else {
+            hl_sky_desc sd = {0};
+            sd.width = 512;
+            if (hl_env_create_sky(ctx, &sd, &env) != HL_OK) continue;
+        }
+        accuracy_map(ctx, m < sizeof maps / sizeof *maps ? maps[m] : "sky", env, obj, alb, fr, ex, li, S);
+        hl_env_destroy(env);
+    }
+    for (int b = 0; b < 2; b++) free(fr[b]), free(ex[b]), free(li[b]);
+    hl_dyn_scene_destroy(scene);
+    hl_mesh_destroy(mesh);
+    hl_context_destroy(ctx);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc > 1 && !strcmp(argv[1], "accuracy")) {
+        accuracy(argc > 2 ? (uint32_t)strtoul(argv[2], NULL, 10) : 0);
+        return 0;
+    }
+    static const hl_test_case cases[] = {{"furnace", case_furnace},
+                                         {"unoccluded", case_unoccluded},
+                                         {"occluded", case_occluded},
+                                         {NULL, NULL}};
+    return hl_test_main(argc, argv, cases);
+}
