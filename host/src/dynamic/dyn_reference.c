@@ -20,8 +20,8 @@
 
 #define PI_D 3.14159265358979323846
 
-/* Vertices traced at once: their visibility rows (6 F^2 bytes each, 6 MB
- * at F = 32) are summed before the next chunk, so memory stays bounded on
+/* Vertices traced at once: their visibility rows (6 F^2 bytes each, 25 MB
+ * at F = 64) are summed before the next chunk, so memory stays bounded on
  * any mesh while a chunk keeps every thread busy. */
 #define HL_DYNREF_CHUNK 1024u
 
@@ -224,7 +224,7 @@ hl_result hl_dyn_reference_lights(hl_context *ctx, const hl_dyn_object *objects,
                                   const float *const *albedo, const hl_light_split *split, uint32_t S,
                                   float *const *rgb, hl_dyn_ref_stats *stats)
 {
-    if (!S) S = HL_DYNREF_DEFAULT_S;
+    if (!S) S = HL_DYNREF_LIGHTS_DEFAULT_S;
     hl_result r = check_args(ctx, objects, nobj, albedo, rgb, S);
     if (r != HL_OK) return r;
     if (!split || split->F < 4)

@@ -17,20 +17,29 @@
 #include "dynamic.h"
 #include "haarlight.h"
 
-/* Cube face resolution of the exact reference's directions: 32, so
- * 6 x 32^2 = 6144 directions, each a cube texel holding its share of the
+/* Cube face resolution F of the exact reference's directions: 64, so
+ * 6 x 64^2 = 24576 directions, each a cube texel holding its share of the
  * map's energy and first moment exactly (area_lights.c resamples the map
- * by area), seen through one ray at its centre. A texel spans 1.7 to 3.6
- * degrees: the visibility is a step at that size, far below the shadow
- * maps' filter widths. */
-#define HL_DYNREF_DEFAULT_FACE 32u
+ * by area), seen through S x S rays. The visibility is a step at a
+ * texel's size (0.9 to 1.8 degrees), and a sun's energy sits in its
+ * whole texel. On the bunny on its ground (test_dyn_reference
+ * convergence MAP S F), the reference moved by, relative L2:
+ *   F 32 S 1 (1.2 s) against F 64: 1.8% (city.exr), 1.4% (studio.exr);
+ *   F 32 S 2 (3 s) against F 32 S 4: 0.5%, against F 64 S 2: 1.2%;
+ *   F 64 S 1 (3.8 s) against F 128: 0.8% (city), 0.6% (studio).
+ * So the texel size, not the rays a texel, limits it, and 64 keeps it
+ * under 1%, well below the 5% the frame is measured against, at 3.8 s
+ * on 2 cores for 11k vertices (32 was the first choice: 1.8%). */
+#define HL_DYNREF_DEFAULT_FACE 64u
 
-/* Rays per texel side S (S x S per texel): 1. hl.dyn_reference.furnace
- * and the occluded case pass at 1; S = 2 changed the bunny's exact
- * reference by under 1% relative L2 (measured with `test_dyn_reference
- * accuracy`'s S argument) at four times the rays. At most 16 (rays.c's
- * per-texel count is a byte). */
+/* Rays per texel side S (S x S per texel) of the exact reference: 1 (see
+ * above: a finer face is worth more than more rays a texel). For the
+ * K-lights reference, whose texels are the split's (F = 32): 2, so its
+ * rays leave at the 2 x 2 sub-texel centres, the directions of the exact
+ * reference's F = 64 texels. At most 15 (rays.c counts a texel's
+ * unoccluded rays in a byte). */
 #define HL_DYNREF_DEFAULT_S 1u
+#define HL_DYNREF_LIGHTS_DEFAULT_S 2u
 #define HL_DYNREF_MAX_S 15u
 
 typedef struct hl_dyn_ref_stats {
@@ -55,7 +64,8 @@ hl_result hl_dyn_reference_exact(hl_context *ctx, const hl_dyn_object *objects, 
  * with E_k and ambient as the frame takes them (hl_area_light_irradiance,
  * hl_light_split_ambient) and V_k the share of the light's energy
  * (luminance) in texels above the vertex's horizon whose S x S rays are
- * unoccluded: the best a single visibility per light can do. */
+ * unoccluded: the best a single visibility per light can do. S: 0 for
+ * HL_DYNREF_LIGHTS_DEFAULT_S. */
 hl_result hl_dyn_reference_lights(hl_context *ctx, const hl_dyn_object *objects, uint32_t nobj,
                                   const float *const *albedo, const hl_light_split *split, uint32_t S,
                                   float *const *rgb, hl_dyn_ref_stats *stats);
