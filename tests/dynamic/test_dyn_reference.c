@@ -8,8 +8,9 @@
  *                           within the SH9 ambient's error, the K-lights
  *                           reference equals it to float rounding.
  * dyn_reference.occluded    a ground with a quad floating above it under
- *                           an overhead sun: vertices under the quad get
- *                           only sky, those outside get the whole sun.
+ *                           an overhead sun and a sky: against the sky
+ *                           alone, vertices under the quad get none of
+ *                           the sun, those outside all of it.
  * accuracy [S [MAP]]        not a ctest case (prints, asserts nothing; it
  *                           takes minutes): the bunny on its ground at
  *                           K = 32, R = 256, M = 16 under the eight shared
@@ -170,64 +171,76 @@ static void case_unoccluded(void)
 /* Sun half-angle (radians) about +Y: 1.5 degrees, inside the central
  * texels of the +Y face (3.6 degrees each at F = 32, 1.8 at 64). */
 #define SUN_HALF 0.0262
-#define SUN_L 2000.0f /* its radiance; the sky's is 0.2 */
-#define SKY_L 0.2f
+#define SUN_L 2000.0f /* its radiance */
+#define SKY_L 0.2f    /* the sky's radiance */
 #define QUAD_Y 0.5f   /* the floating quad's height */
 #define QUAD_HALF 0.4f
+
+/* The map of the case: the sky, and with sun the sun about +Y; Esun, the
+ * sun's irradiance on +Y from the pixels (with sun). */
+static float *occluded_map(int W, int H, int sun, double *Esun)
+{
+    float *map = malloc((size_t)W * H * 12);
+    *Esun = 0;
+    for (int j = 0; j < H; j++) {
+        double th = PI_D * (j + 0.5) / H, om = 2 * PI_D / W * (cos(PI_D * j / H) - cos(PI_D * (j + 1) / H));
+        for (int i = 0; i < W; i++) {
+            float L = sun && th < SUN_HALF ? SUN_L : SKY_L;
+            for (int c = 0; c < 3; c++) map[3 * ((size_t)j * W + i) + c] = L;
+            if (sun && th < SUN_HALF) *Esun += L * om * cos(th);
+        }
+    }
+    return map;
+}
 
 static void case_occluded(void)
 {
     hl_context *ctx = hl_test_ref_context(2);
     enum { W = 1024, H = 512 };
-    float *map = malloc((size_t)W * H * 12);
-    double Esun = 0, Esky = 0; /* on +Y, from the pixels */
-    for (int j = 0; j < H; j++) {
-        double th = PI_D * (j + 0.5) / H, om = 2 * PI_D / W * (cos(PI_D * j / H) - cos(PI_D * (j + 1) / H));
-        for (int i = 0; i < W; i++) {
-            float L = th < SUN_HALF ? SUN_L : SKY_L;
-            map[3 * ((size_t)j * W + i)] = map[3 * ((size_t)j * W + i) + 1] = map[3 * ((size_t)j * W + i) + 2] = L;
-            if (cos(th) > 0) *(th < SUN_HALF ? &Esun : &Esky) += L * om * cos(th);
-        }
-    }
-    hl_env *env = NULL;
+    double Esun = 0, none;
+    float *map = occluded_map(W, H, 1, &Esun), *skymap = occluded_map(W, H, 0, &none);
+    hl_env *env = NULL, *sky = NULL;
     HL_CHECK(hl_env_create(ctx, W, H, map, &env, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(hl_env_create(ctx, W, H, skymap, &sky, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
     grid g;
     grid_make(&g);
     /* the quad: two triangles over [-QUAD_HALF, QUAD_HALF]^2 at QUAD_Y */
     float qp[12] = {-QUAD_HALF, QUAD_Y, -QUAD_HALF, QUAD_HALF, QUAD_Y, -QUAD_HALF,
                     -QUAD_HALF, QUAD_Y, QUAD_HALF,  QUAD_HALF, QUAD_Y, QUAD_HALF};
-    float qn[12] = {0, -1, 0, 0, -1, 0, 0, -1, 0, 0, -1, 0}, qa[12] = {0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f,
-                                                                     0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f};
-    float qrgb[12];
+    float qn[12] = {0, -1, 0, 0, -1, 0, 0, -1, 0, 0, -1, 0}, qa[12], qrgb[12], qrgb2[12];
+    for (int i = 0; i < 12; i++) qa[i] = 0.5f;
     uint32_t qt[6] = {0, 1, 2, 1, 3, 2};
     hl_dyn_object o[2] = {grid_object(&g), {qp, qn, 4, qt, 2, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}}};
     const float *albs[2] = {g.alb, qa};
-    float *outs[2] = {g.rgb, qrgb};
-    int ok = env && hl_dyn_reference_exact(ctx, o, 2, albs, env, 0, 0, outs, NULL) == HL_OK;
+    float *outs[2] = {g.rgb, qrgb}, *outs2[2] = {g.rgb2, qrgb2};
+    int ok = env && sky && hl_dyn_reference_exact(ctx, o, 2, albs, env, 0, 0, outs, NULL) == HL_OK &&
+             hl_dyn_reference_exact(ctx, o, 2, albs, sky, 0, 0, outs2, NULL) == HL_OK;
     HL_CHECK(ok, "%s", hl_context_last_error(ctx));
-    /* under (|x|, |z| <= 0.3): at most the unblocked sky, so the sun's
-       leak is E - Esky; outside (beyond 0.55, clear of the quad's edge
-       by the sun's and a texel's slant at 0.5 height): at least the sun */
-    double leak = -DBL_MAX, lit = DBL_MAX;
+    /* the sun's part of E: E under the map less E under the sky alone;
+       under the quad (|x|, |z| <= 0.3) none of it, outside (beyond 0.55,
+       clear of the quad's edge by the sun's and a texel's slant at 0.5
+       height) all of it */
+    double under = 0, outside = 0;
     uint32_t nin = 0, nout = 0;
     for (uint32_t v = 0; ok && v < g.nv; v++) {
         float x = g.pos[3 * v], z = g.pos[3 * v + 2];
-        double E = g.rgb[3 * v + 1] * PI_D / g.alb[3 * v + 1];
-        if (fabsf(x) <= 0.3f && fabsf(z) <= 0.3f) leak = fmax(leak, (E - Esky) / Esun), nin++;
-        if (fabsf(x) >= 0.55f || fabsf(z) >= 0.55f) lit = fmin(lit, (E - 0.5 * Esky) / Esun), nout++;
+        double sun = (g.rgb[3 * v + 1] - (double)g.rgb2[3 * v + 1]) * PI_D / g.alb[3 * v + 1];
+        if (fabsf(x) <= 0.3f && fabsf(z) <= 0.3f) under = fmax(under, fabs(sun) / Esun), nin++;
+        if (fabsf(x) >= 0.55f || fabsf(z) >= 0.55f) outside = fmax(outside, fabs(sun - Esun) / Esun), nout++;
     }
-    printf("sun %.4g, sky %.4g on +Y; %u vertices under the quad, %u outside; under: max (E - sky) / sun = %.4g, "
-           "outside: min (E - sky / 2) / sun = %.6g\n", Esun, Esky, nin, nout, leak, lit);
+    printf("sun %.4g on +Y; %u vertices under the quad, %u outside\n", Esun, nin, nout);
     HL_CHECK(nin > 0 && nout > 0, "no vertex under or outside the quad");
-    /* the cube holds the map's energy to 4e-8, so the sun's share of
-       any texel is exact; 1e-4: float sums */
-    hl_check_error("occluded: sun under the quad (E - sky) / sun", fmax(0.0, leak), 1e-4);
-    /* outside: the whole sun plus at least half the sky (the quad takes
-       less than half the sky of any vertex at its side) */
-    hl_check_error("occluded: 1 - (E - sky / 2) / sun outside the quad", fmax(0.0, 1.0 - lit), 1e-4);
+    /* float rounding of E (the sun is 6 times the sky's irradiance here) */
+    hl_check_error("occluded: the sun's part under the quad, / sun", under, 1e-5);
+    /* the cube's sun is the map's energy (4e-8) times the cosine over its
+       texels, against the pixels' centres here: within 1 - cos(1.5 deg)
+       = 3.4e-4 of each other */
+    hl_check_error("occluded: the sun's part outside the quad against the sun, / sun", outside, 4e-4);
     grid_free(&g);
     hl_env_destroy(env);
+    hl_env_destroy(sky);
     free(map);
+    free(skymap);
     hl_context_destroy(ctx);
 }
 
