@@ -297,11 +297,12 @@ static void accuracy_map(hl_context *ctx, hl_frame_state *st, const char *name, 
                  hl_dyn_reference_lights(ctx, obj, 2, alb, s, S, li, &ls) == HL_OK;
         if (!ok) { printf("%s: %s\n", name, hl_context_last_error(ctx)); break; }
         printf("| %-9s | %-5s | %4.1f%% | %6.2f%% | %+6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %4.0f ms "
-               "| %.1f s |\n",
+               "| %.1f s, %.0fM rays |\n",
                name, moved ? "moved" : "rest", 100 * s->stats.folded_share, 100 * rel_l2(fr, ex, obj, 2),
                100 * rel_bias(fr, ex, obj, 2),
                100 * rel_l2_body(fr, ex, obj, 0), 100 * rel_l2_body(fr, ex, obj, 1), 100 * rel_l2(li, ex, obj, 2),
-               100 * rel_l2_body(li, ex, obj, 0), 100 * rel_l2_body(li, ex, obj, 1), 1e3 * fs.t_total, es.seconds);
+               100 * rel_l2_body(li, ex, obj, 0), 100 * rel_l2_body(li, ex, obj, 1), 1e3 * fs.t_total, es.seconds,
+               1e-6 * (double)es.rays_cast);
         fflush(stdout);
     }
     obj[0].xf[3] = x0, obj[0].xf[7] = y0;
