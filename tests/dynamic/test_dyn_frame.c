@@ -29,6 +29,7 @@
 #include <sys/wait.h>
 
 #include "dyn_frame.h"
+#include "dyn_util.h"
 #include "hl_test.h"
 #include "scene.h"
 #include "scene_gen.h"
@@ -57,16 +58,6 @@ static hl_env *sky(hl_context *ctx)
     hl_env *env = NULL;
     HL_CHECK(hl_env_create_sky(ctx, &sd, &env) == HL_OK, "%s", hl_context_last_error(ctx));
     return env;
-}
-
-static hl_light_split *split_of(hl_context *ctx, const hl_env *env, int32_t K)
-{
-    hl_light_split_params p;
-    hl_light_split_defaults(&p);
-    p.lights = K;
-    hl_light_split *s = NULL;
-    HL_CHECK(hl_area_lights_split(ctx, env, &p, &s) == HL_OK, "%s", hl_context_last_error(ctx));
-    return s;
 }
 
 /* Irradiance of the whole map on unit n, summed from its pixels:

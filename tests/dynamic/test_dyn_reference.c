@@ -27,6 +27,7 @@
 
 #include "dyn_frame.h"
 #include "dyn_reference.h"
+#include "dyn_util.h"
 #include "hl_test.h"
 #include "scene.h"
 
@@ -72,16 +73,6 @@ static hl_dyn_object grid_object(const grid *g)
 {
     hl_dyn_object o = {g->pos, g->nrm, g->nv, g->tri, g->nt, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
     return o;
-}
-
-static hl_light_split *split_of(hl_context *ctx, const hl_env *env, int32_t K)
-{
-    hl_light_split_params p;
-    hl_light_split_defaults(&p);
-    p.lights = K;
-    hl_light_split *s = NULL;
-    HL_CHECK(hl_area_lights_split(ctx, env, &p, &s) == HL_OK, "%s", hl_context_last_error(ctx));
-    return s;
 }
 
 /* ------------------------------------------------------------ furnace */
