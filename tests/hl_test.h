@@ -127,13 +127,13 @@ static inline hl_context *hl_test_ref_context(int threads)
 /* A uniform double in [0, 1) from hl_rng_next. */
 static inline double hl_rng_unit(void) { return (double)(hl_rng_next() >> 11) / 9007199254740992.0; }
 
-/* The default OpenCL device's context, quiet; NULL (with the reason on
- * stderr) where there is none. */
-static inline hl_context *hl_test_cl_context(void)
+/* The default OpenCL device's context, quiet, with `threads` host threads
+ * (0: the default); NULL (with the reason on stderr) where there is none. */
+static inline hl_context *hl_test_cl_context(int threads)
 {
-    hl_context_desc d = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1};
+    hl_context_desc d = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1, .threads = threads};
     hl_context *ctx = NULL;
-    char err[1024];
+    char err[4096];
     if (hl_context_create(&d, &ctx, err, sizeof err) != HL_OK) {
         fprintf(stderr, "OpenCL context: %s\n", err);
         return NULL;

@@ -32,7 +32,7 @@ static void make_map(float *z, uint32_t R, int kind)
 
 static void case_twin(void)
 {
-    hl_context *ctx = hl_test_cl_context();
+    hl_context *ctx = hl_test_cl_context(0);
     if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
     static const uint32_t Rs[] = {64, 256}, Ms[][2] = {{16, 16}, {8, 4}};
     double worst = 0, worst_mean = 0, worst_rec = 0;

@@ -41,7 +41,7 @@ static void square_map(float *z, uint32_t R, uint32_t i0, uint32_t i1, float z_i
 
 static void case_twin(void)
 {
-    hl_context *ctx = hl_test_cl_context(), *ref = hl_test_ref_context(1);
+    hl_context *ctx = hl_test_cl_context(0), *ref = hl_test_ref_context(1);
     if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
     const uint32_t R = 128, M = 16, Mb = 8, n = 4000;
     const size_t R2 = (size_t)R * R;
@@ -347,7 +347,7 @@ static void case_bad_input(void)
 /* build and evaluation times on a scene of 12 square blockers a light */
 static void run_timing(int ref)
 {
-    hl_context *ctx = ref ? hl_test_ref_context(1) : hl_test_cl_context();
+    hl_context *ctx = ref ? hl_test_ref_context(1) : hl_test_cl_context(0);
     if (!ctx) return;
     const uint32_t R = 256, K = 4, n = 10000;
     const size_t R2 = (size_t)R * R;

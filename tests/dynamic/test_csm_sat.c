@@ -45,7 +45,7 @@ static void twin_scans(float *planes, const float *means, uint32_t R, uint32_t P
 
 static void case_twin(void)
 {
-    hl_context *ctx = hl_test_cl_context();
+    hl_context *ctx = hl_test_cl_context(0);
     if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
     static const uint32_t Rs[] = {48, 64, 256};
     for (int a = 0; a < 3; a++) {

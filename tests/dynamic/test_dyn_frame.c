@@ -36,17 +36,6 @@
 
 #define PI_D 3.14159265358979323846
 
-static hl_context *cl_context(void)
-{
-    hl_context_desc d = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1, .threads = 2};
-    hl_context *ctx = NULL;
-    char err[4096];
-    if (hl_context_create(&d, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "OpenCL context: %s\n", err);
-        return NULL;
-    }
-    return ctx;
-}
 
 static double lum(const float *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
 
@@ -86,7 +75,7 @@ enum { GRID = 24 }; /* quads a side of the lone ground */
 
 static void case_unshadowed(void)
 {
-    hl_context *ctx = cl_context();
+    hl_context *ctx = hl_test_cl_context(2);
     if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
     const uint32_t nv = (GRID + 1) * (GRID + 1), nt = 2 * GRID * GRID;
     float *pos = malloc(nv * 12), *nrm = malloc(nv * 12), *alb = malloc(nv * 12), *rgb = malloc(nv * 12);
@@ -214,7 +203,7 @@ static void loss_centroid(const bunny_scene *b, double B0, double c[2], double *
 
 static void case_motion(void)
 {
-    hl_context *ctx = cl_context();
+    hl_context *ctx = hl_test_cl_context(2);
     if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
     bunny_scene b;
     hl_env *env = sky(ctx);
@@ -296,7 +285,7 @@ static int bunny_frame(hl_context *ctx, bunny_scene *b, const hl_env *env, int32
 
 static void case_twin(void)
 {
-    hl_context *ctx = cl_context(), *ref = hl_test_ref_context(2);
+    hl_context *ctx = hl_test_cl_context(2), *ref = hl_test_ref_context(2);
     if (!ctx) { HL_CHECK(0, "no OpenCL context"); hl_context_destroy(ref); return; }
     bunny_scene a, r;
     memset(&a, 0, sizeof a), memset(&r, 0, sizeof r);
@@ -563,7 +552,7 @@ done:
 
 static void timing(uint64_t budget)
 {
-    hl_context *ctx = cl_context();
+    hl_context *ctx = hl_test_cl_context(2);
     if (!ctx) return;
     bunny_scene b;
     hl_env *env = sky(ctx);

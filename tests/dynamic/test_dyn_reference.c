@@ -332,7 +332,7 @@ static void accuracy_map(hl_context *ctx, hl_frame_state *st, const char *name, 
 static void accuracy(uint32_t S, const char *only)
 {
     static const char *maps[] = {"city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset"};
-    hl_context *ctx = hl_test_cl_context();
+    hl_context *ctx = hl_test_cl_context(0);
     if (!ctx) ctx = hl_test_ref_context(2);
     char path[1024];
     snprintf(path, sizeof path, "%s/bunny_lowres.obj", hl_test_env("HL_REPO_DATA", "data"));

@@ -46,17 +46,6 @@ static const float XF_ID[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
 
 static hl_context *ref_ctx(void) { return hl_test_ref_context(2); }
 
-static hl_context *cl_ctx(void)
-{
-    hl_context_desc d = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1, .threads = 2};
-    hl_context *ctx = NULL;
-    char err[4096];
-    if (hl_context_create(&d, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "OpenCL context: %s\n", err);
-        return NULL;
-    }
-    return ctx;
-}
 
 static int scene_load(hl_context *ctx, scene *s)
 {
@@ -189,7 +178,7 @@ static void twin_compare(const char *what, const float *a, const float *b, size_
 
 static void case_twin(void)
 {
-    hl_context *cl = cl_ctx(), *ref = ref_ctx();
+    hl_context *cl = hl_test_cl_context(2), *ref = ref_ctx();
     HL_CHECK(cl != NULL, "no OpenCL device");
     scene s;
     if (!cl || !scene_load(ref, &s)) { HL_CHECK(0, "setup failed"); hl_context_destroy(cl); hl_context_destroy(ref); return; }
@@ -355,7 +344,7 @@ static void case_analytic(void)
     make_xf(az, 0.2, tb, o[1].xf);
     float dirs[4][3] = {{0, 1, 0}, {0, -1, 0}, {0.3f, 0.9f, 0.3f}, {0.2f, -0.3f, -0.93f}};
     for (int k = 0; k < 4; k++) unit3(dirs[k]);
-    hl_context *ref = ref_ctx(), *cl = cl_ctx();
+    hl_context *ref = ref_ctx(), *cl = hl_test_cl_context(2);
     analytic_one(ref, HL_SHADOW_RASTER, "twin", o, h, (const float(*)[3])dirs, 4);
     analytic_one(ref, HL_SHADOW_EMBREE, "Embree", o, h, (const float(*)[3])dirs, 4);
     HL_CHECK(cl != NULL, "no OpenCL device");
@@ -520,7 +509,7 @@ static void case_motion(void)
     motion_one(ref, HL_SHADOW_RASTER, &s, xf, "raster, any rotation", 1e-5, 1e-4);
     motion_one(ref, HL_SHADOW_EMBREE, &s, quarter, "Embree, quarter turn", 1e-5, 1e-4);
     motion_one(ref, HL_SHADOW_EMBREE, &s, xf, "Embree, any rotation", 1e-5, 1e-4);
-    hl_context *cl = cl_ctx();
+    hl_context *cl = hl_test_cl_context(2);
     HL_CHECK(cl != NULL, "no OpenCL device");
     if (cl) motion_one(cl, HL_SHADOW_RASTER, &s, xf, "OpenCL raster, any rotation", 1e-5, 1e-4);
     hl_context_destroy(cl); scene_free(&s); hl_context_destroy(ref);
