@@ -9,6 +9,7 @@
 #define _POSIX_C_SOURCE 200809L
 #define _DEFAULT_SOURCE /* MADV_HUGEPAGE is a Linux extension */
 #include <errno.h>
+#include <fcntl.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -97,6 +98,21 @@ int hl_sync_fd(int fd)
     errno = 0;
     if (fsync(fd) == 0 || errno == EINVAL || errno == EROFS) return 0;
     return errno ? errno : EIO;
+}
+
+hl_result hl_publish_tmp(hl_context *ctx, const char *tmp, const char *path, hl_result r)
+{
+    /* on disk before the rename, as the files written through a FILE are */
+    const int fd = r == HL_OK ? open(tmp, O_RDONLY) : -1;
+    const int e = r != HL_OK ? 0 : fd < 0 ? errno : hl_sync_fd(fd);
+    if (e) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write %s: %s", path, tmp, strerror(e));
+    if (fd >= 0) close(fd);
+    if (r == HL_OK && rename(tmp, path) != 0) {
+        const int e2 = errno;
+        r = hl_fail(ctx, HL_ERR_IO, "%s: cannot rename %s onto it: %s", path, tmp, strerror(e2));
+    }
+    if (r != HL_OK) unlink(tmp);
+    return r;
 }
 
 double hl_now(void)

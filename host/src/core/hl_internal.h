@@ -68,6 +68,12 @@ double hl_now(void);
  * A file system that cannot sync (EINVAL, EROFS) counts as synced. */
 int hl_sync_fd(int fd);
 
+/* The end of an atomic write by a library that writes to a name (OpenEXR,
+ * assimp): with r the writer's result, tmp (a finished file) is synced
+ * and renamed onto path; on any failure tmp is removed. Returns r or the
+ * failure, which names path. */
+hl_result hl_publish_tmp(hl_context *ctx, const char *tmp, const char *path, hl_result r);
+
 /* mesh.c: validates raw arrays (name appears in errors), welds equal
  * positions, drops degenerate triangles and unreferenced vertices, computes
  * missing normals, orients closed meshes. colors may be NULL. */

@@ -10,11 +10,10 @@
  * built here in assimp's C structures and copied by the exporter, which
  * frees nothing of ours. The file is written to <path>.tmp.<pid>, synced
  * and renamed onto path when complete.
- * Depends on: hl_internal.h, hl_tonemap_srgb8, assimp's exporter, POSIX.
+ * Depends on: hl_internal.h (hl_publish_tmp), hl_tonemap_srgb8, assimp's exporter.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
-#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -148,16 +147,7 @@ hl_result hl_mesh_save_glb(hl_context *ctx, const hl_mesh *mesh, const float *ve
         r = hl_fail(ctx, HL_ERR_IO, "%s: assimp could not write %s", path, tmp);
     free_arrays(g);
     free(g);
-    /* on disk before the rename, as the PNG and the PLY are */
-    const int fd = r == HL_OK ? open(tmp, O_RDONLY) : -1;
-    const int e = r != HL_OK ? 0 : fd < 0 ? errno : hl_sync_fd(fd);
-    if (e) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write %s: %s", path, tmp, strerror(e));
-    if (fd >= 0) close(fd);
-    if (r == HL_OK && rename(tmp, path) != 0) {
-        const int e2 = errno;
-        r = hl_fail(ctx, HL_ERR_IO, "%s: cannot rename %s onto it: %s", path, tmp, strerror(e2));
-    }
-    if (r != HL_OK) unlink(tmp);
+    r = hl_publish_tmp(ctx, tmp, path, r);
     free(tmp);
     return r;
 }

@@ -5,11 +5,10 @@
  * compression. Every file is written to "<path>.tmp.<pid>", synced and
  * renamed onto path when complete; on failure the temporary file is
  * removed and path is left as it was.
- * Depends on: exr_io.c, libpng, POSIX rename/unlink/getpid.
+ * Depends on: exr_io.c, libpng, hl_publish_tmp (sync and rename), POSIX getpid.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
-#include <fcntl.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdio.h>
@@ -210,26 +209,15 @@ hl_result hl_image_save(hl_context *ctx, const hl_image *img, const char *path, 
     hl_result r = HL_OK;
     if (png) {
         r = png_write(ctx, img, f, exposure_ev, path);
-        int e = fflush(f) != 0 ? errno : hl_sync_fd(fileno(f));
-        if (e && r == HL_OK) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write %s: %s", path, tmp, strerror(e));
         if (fclose(f) != 0 && r == HL_OK) {
             int e = errno;
-            r = hl_fail(ctx, HL_ERR_IO, "%s: cannot close %s: %s", path, tmp, strerror(e));
+            r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write %s: %s", path, tmp, strerror(e));
         }
     } else {
         fclose(f);
         r = hl_exr_write_rgb_(ctx, tmp, img->width, img->height, img->rgb);
-        /* on disk before the rename, as the PNG and the PLY are */
-        int fd = r == HL_OK ? open(tmp, O_RDONLY) : -1;
-        int e = r != HL_OK ? 0 : fd < 0 ? errno : hl_sync_fd(fd);
-        if (e) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write %s: %s", path, tmp, strerror(e));
-        if (fd >= 0) close(fd);
     }
-    if (r == HL_OK && rename(tmp, path) != 0) {
-        int e = errno;
-        r = hl_fail(ctx, HL_ERR_IO, "%s: cannot rename %s onto it: %s", path, tmp, strerror(e));
-    }
-    if (r != HL_OK) unlink(tmp);
+    r = hl_publish_tmp(ctx, tmp, path, r);
     free(tmp);
     return r;
 }
