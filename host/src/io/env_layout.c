@@ -120,21 +120,39 @@ hl_result hl_env_resample_layout_(hl_context *ctx, const char *path, hl_env_layo
     const uint32_t W = 2 * H;
     float *rgb = hl_malloc(ctx, (size_t)W * H * 3 * sizeof *rgb, "resampled environment");
     if (!rgb) return HL_ERR_OUT_OF_MEMORY;
-    for (uint32_t j = 0; j < H; j++)
+    /* the samples' longitudes are the same in every row: their sines and
+       cosines once, not once a pixel */
+    double *cs = hl_malloc(ctx, (size_t)W * SUB * 2 * sizeof *cs, "resampling table");
+    if (!cs) {
+        free(rgb);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    for (uint32_t k = 0; k < W * SUB; k++) {
+        const double phi = 2.0 * HL_PI * ((k + 0.5) / ((double)W * SUB) - 0.5);
+        cs[2 * k] = cos(phi);
+        cs[2 * k + 1] = sin(phi);
+    }
+    for (uint32_t j = 0; j < H; j++) {
+        double st[SUB], ct[SUB];
+        for (int b = 0; b < SUB; b++) {
+            const double theta = HL_PI * (j + (b + 0.5) / SUB) / H;
+            st[b] = sin(theta);
+            ct[b] = cos(theta);
+        }
         for (uint32_t i = 0; i < W; i++) {
             double acc[3] = {0, 0, 0}, wsum = 0.0;
-            for (int b = 0; b < SUB; b++) {
-                const double theta = HL_PI * (j + (b + 0.5) / SUB) / H, st = sin(theta), ct = cos(theta);
+            for (int b = 0; b < SUB; b++)
                 for (int a = 0; a < SUB; a++) {
-                    const double phi = 2.0 * HL_PI * ((i + (a + 0.5) / SUB) / W - 0.5);
-                    const float d[3] = {(float)(st * cos(phi)), (float)ct, (float)(st * sin(phi))};
+                    const double *c = cs + 2 * ((size_t)i * SUB + (size_t)a);
+                    const float d[3] = {(float)(st[b] * c[0]), (float)ct[b], (float)(st[b] * c[1])};
                     const float *p = src + 3 * source_pixel(layout, w, h, d);
-                    for (int c = 0; c < 3; c++) acc[c] += st * p[c];
-                    wsum += st;
+                    for (int k = 0; k < 3; k++) acc[k] += st[b] * p[k];
+                    wsum += st[b];
                 }
-            }
-            for (int c = 0; c < 3; c++) rgb[3 * ((size_t)j * W + i) + (size_t)c] = (float)(acc[c] / wsum);
+            for (int k = 0; k < 3; k++) rgb[3 * ((size_t)j * W + i) + (size_t)k] = (float)(acc[k] / wsum);
         }
+    }
+    free(cs);
     *ow = W;
     *oh = H;
     *out = rgb;
