@@ -94,6 +94,8 @@ static inline void tcam_project(const tcam *t, const double p[3], double *px, do
     *py = (1.0 - y / t->th) * 0.5 * t->h;
 }
 
+/* Only this process's temporaries (the writers name them NAME.tmp.PID):
+ * other tests writing into the same folder at the same time have theirs. */
 static inline int no_temp_left(const char *dir, const char *stem)
 {
     DIR *d = opendir(dir);
@@ -101,11 +103,16 @@ static inline int no_temp_left(const char *dir, const char *stem)
     int clean = 1;
     struct dirent *e;
     size_t n = strlen(stem);
-    while ((e = readdir(d)))
-        if (strncmp(e->d_name, stem, n) == 0 && strstr(e->d_name, ".tmp.")) {
+    char mine[32];
+    snprintf(mine, sizeof mine, ".tmp.%ld", (long)getpid());
+    size_t nm = strlen(mine);
+    while ((e = readdir(d))) {
+        size_t len = strlen(e->d_name);
+        if (strncmp(e->d_name, stem, n) == 0 && len > nm && strcmp(e->d_name + len - nm, mine) == 0) {
             fprintf(stderr, "temporary file left behind: %s/%s\n", dir, e->d_name);
             clean = 0;
         }
+    }
     closedir(d);
     return clean;
 }
