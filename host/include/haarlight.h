@@ -630,6 +630,15 @@ HL_API void hl_dynamic_time_range(const hl_dynamic *d, double *start, double *en
  * applied after its animation, replacing an earlier move. An unknown name
  * fails (HL_ERR_INVALID_ARGUMENT) with a message listing the bodies. */
 HL_API hl_result hl_dynamic_move(hl_dynamic *d, const char *body, const float translate[3]);
+/* The general form of hl_dynamic_move: the body (by index) gets the
+ * world-space rigid transform xf (row-major 3x4, [R | t]; x' = R x + t)
+ * applied after its animation, replacing an earlier move. R must be a
+ * rotation within 1e-4 (no scale, shear or mirror) and xf finite, else
+ * HL_ERR_INVALID_ARGUMENT; R is re-orthonormalised. */
+HL_API hl_result hl_dynamic_set_transform(hl_dynamic *d, uint32_t body, const float xf[12]);
+/* The vertices of body in hl_dynamic_mesh: first and count (bodies are
+ * contiguous, in body order). HL_ERR_INVALID_ARGUMENT out of range. */
+HL_API hl_result hl_dynamic_body_vertices(const hl_dynamic *d, uint32_t body, uint32_t *first, uint32_t *count);
 
 /* What hl_dynamic_set_env made of the environment. */
 typedef struct hl_dynamic_lights {

@@ -448,6 +448,24 @@ static void case_api(void)
     hl_check_error("merged positions after the move, absolute", worst, 1e-6);
     hl_check_error("most negative colour", neg, 0.0);
     HL_CHECK(nonfinite == 0, "%llu colours not finite", (unsigned long long)nonfinite);
+    /* the general transform: a quarter turn about +Y through the origin
+     * then tr; the body's vertex range is where the object's vertices are */
+    uint32_t first_v = 99, count_v = 0;
+    HL_CHECK(hl_dynamic_body_vertices(d, 0, &first_v, &count_v) == HL_OK && first_v == 0 &&
+             count_v == w->object_vertex_count, "object's vertices: %u from %u", count_v, first_v);
+    HL_CHECK(hl_dynamic_body_vertices(d, 2, &first_v, &count_v) != HL_OK, "body 2 of 2 accepted");
+    EXPECT_FAIL(hl_dynamic_set_transform(d, 0, (float[12]){2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}), "a scaled transform");
+    EXPECT_FAIL(hl_dynamic_set_transform(d, 5, (float[12]){1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}), "body 5");
+    const float turn[12] = {0, 0, 1, tr[0], 0, 1, 0, tr[1], -1, 0, 0, tr[2]};
+    HL_CHECK(hl_dynamic_set_transform(d, 0, turn) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(hl_dynamic_render(d, 0.0, &rgb, &st) == HL_OK && !st.reused, "%s", hl_context_last_error(ctx));
+    worst = 0;
+    for (uint32_t v = 0; v < w->object_vertex_count; v++) {
+        const float *p = before + 3 * (size_t)v;
+        float want[3] = {p[2] + tr[0], p[1] + tr[1], -p[0] + tr[2]};
+        for (int k = 0; k < 3; k++) worst = fmax(worst, fabs(w->positions[3 * v + k] - want[k]));
+    }
+    hl_check_error("positions after a quarter turn and tr, absolute", worst, 1e-5);
     free(before);
 done:
     hl_dynamic_destroy(d);

@@ -184,6 +184,23 @@ hl_result hl_dynamic_move(hl_dynamic *d, const char *body, const float translate
     return hl_dyn_scene_set_pose(d->scene, (uint32_t)b, tr, axis, 0.0);
 }
 
+hl_result hl_dynamic_set_transform(hl_dynamic *d, uint32_t body, const float xf[12])
+{
+    if (!d) return HL_ERR_INVALID_ARGUMENT;
+    if (!xf) return hl_fail(d->ctx, HL_ERR_INVALID_ARGUMENT, "hl_dynamic_set_transform: no transform");
+    if (body >= d->nb)
+        return hl_fail(d->ctx, HL_ERR_INVALID_ARGUMENT, "hl_dynamic_set_transform: body %u of %u", body, d->nb);
+    return hl_dyn_scene_set_transform(d->scene, body, xf);
+}
+
+hl_result hl_dynamic_body_vertices(const hl_dynamic *d, uint32_t body, uint32_t *first, uint32_t *count)
+{
+    if (!d || body >= d->nb) return HL_ERR_INVALID_ARGUMENT;
+    if (first) *first = d->vstart[body];
+    if (count) *count = d->obj[body].nverts;
+    return HL_OK;
+}
+
 hl_result hl_dynamic_set_env(hl_dynamic *d, const hl_env *env, int32_t lights, float split_threshold, float rotate_deg,
                              hl_dynamic_lights *info)
 {
