@@ -11,11 +11,27 @@
  * weighted by its overlap): the tables' entries reach 1e4 at R = 256, so
  * a corner difference carries about 1e-3 of rounding, too much once
  * divided by a box of a few texels (test_csm_sat.c, precision).
+ * Outside the map is empty (the frame holds every caster with an empty
+ * margin): a box reaching past the edge averages its inside with "lit",
+ * and a receiver whose boxes miss the map is lit. The widths use the
+ * receiver's own depth, also beyond the far plane; the series uses at
+ * most 1 (on the far plane), where it is valid.
  * prm (floats): zmin su sv bias eps wmin leak_a leak_b c1, coef[16],
  * coefb[16], direct_half, bias_b (hl_csm_eval_params in
  * host/src/dynamic/csm.h).
  * Twin: host/src/dynamic/twins/csm_eval.c. Depends on: hl_shared.h.
  */
+
+/* The share of the box (centre, half-widths) inside [0, R]^2: 0 when it
+ * misses the map (or a coordinate is not finite). */
+static float hl_csm_inside(float cx, float cy, float wu, float wv, uint R)
+{
+    float fR = (float)R;
+    float u0 = fmax(cx - wu, 0.0f), u1 = fmin(cx + wu, fR);
+    float v0 = fmax(cy - wv, 0.0f), v1 = fmin(cy + wv, fR);
+    if (!(u1 > u0 && v1 > v0)) return 0.0f;
+    return ((u1 - u0) * (v1 - v0)) / ((2.0f * wu) * (2.0f * wv));
+}
 
 /* 16 taps of a box [u0, u1] x [v0, v1] (clipped to [0, R]): index into a
  * plane and weight (corner sign / area times the bilinear weight). */
@@ -76,10 +92,12 @@ static void hl_csm_direct(__global const float *zsc, uint R, float cx, float cy,
             afz += ov * (f * z);
         }
     }
-    float inv = 1.0f / ((u1 - u0) * (v1 - v0));
-    out[0] = af * inv;
-    out[1] = az * inv;
-    out[2] = afz * inv;
+    /* outside the map: empty texels, z = 1 and f = 1 */
+    float full = (2.0f * wu) * (2.0f * wv), outside = fmax(full - (u1 - u0) * (v1 - v0), 0.0f);
+    float inv = 1.0f / full;
+    out[0] = (af + outside) * inv;
+    out[1] = (az + outside) * inv;
+    out[2] = (afz + outside) * inv;
 }
 
 /* Box sums of planes p0..p1-1 into acc[p] (plus each plane's mean): the
@@ -108,6 +126,8 @@ static void hl_csm_search(__global const float *sat, __global const float *mean,
         out[1] = dv[1] - dv[2];
         return;
     }
+    float in = hl_csm_inside(cx, cy, wu, wv, R);
+    if (!(in > 0.0f)) { out[0] = 0.0f; out[1] = 0.0f; return; }
     uint P = 2 * M + 2 * Mb + 1, idx[16];
     float w[16], a[HL_CSM_MAX_PLANES];
     hl_csm_box_taps(cx, cy, wu, wv, R, idx, w);
@@ -119,8 +139,9 @@ static void hl_csm_search(__global const float *sat, __global const float *mean,
         fb -= coefb[k] * (cs[k] * a[p] - sn[k] * a[p + 1]);
         fz -= coefb[k] * (cs[k] * a[q] - sn[k] * a[q + 1]);
     }
-    out[0] = fb;
-    out[1] = fz;
+    /* outside: fbar = 0 */
+    out[0] = fb * in;
+    out[1] = fz * in;
 }
 
 /* The filtered test over the penumbra box (order M), unclamped. */
@@ -133,13 +154,15 @@ static float hl_csm_filter(__global const float *sat, __global const float *mean
         hl_csm_direct(zsc, R, cx, cy, wu, wv, sn[0], cs[0], coef, M, dv);
         return dv[0];
     }
+    float in = hl_csm_inside(cx, cy, wu, wv, R);
+    if (!(in > 0.0f)) return 1.0f;
     uint P = 2 * M + 2 * Mb + 1, idx[16];
     float w[16], a[HL_CSM_MAX_PLANES];
     hl_csm_box_taps(cx, cy, wu, wv, R, idx, w);
     hl_csm_box(sat, mean, P, idx, w, 1, 1 + 2 * M, a);
     float V = 0.5f;
     for (uint k = 0; k < M; k++) V += coef[k] * (cs[k] * a[1 + 2 * k] - sn[k] * a[2 + 2 * k]);
-    return V;
+    return V * in + (1.0f - in); /* outside: lit */
 }
 
 /* sin and cos of (2k - 1) ph, k = 1..n, by the rotation of csm_basis.cl */
@@ -168,23 +191,23 @@ __kernel void hl_csm_eval(__global const float *sats, __global const float *mean
     float zmin = prm[0], su = prm[1], sv = prm[2], bias = prm[3], eps = prm[4], wmin = prm[5];
     float la = prm[6], lb = prm[7], c1 = prm[8], dh = prm[41], bias_b = prm[42];
     __constant float *coef = prm + 9, *coefb = prm + 25;
-    float u = uvd[3 * r], v = uvd[3 * r + 1], d = fmin(uvd[3 * r + 2], 1.0f); /* beyond the far plane: on it */
+    float cx = uvd[3 * r], cy = uvd[3 * r + 1], dt = uvd[3 * r + 2];
+    float d = fmin(dt, 1.0f); /* beyond the far plane: on it, for the series */
     float db = d - bias;
     /* nothing in the map is nearer than the receiver: lit */
     if (!(d > zmin)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }
     float fR = (float)R;
-    float cx = clamp(u, 0.0f, fR), cy = clamp(v, 0.0f, fR);
     /* phases c_k d' for the filter (bias 1/M) and the search (1/Mb: its
      * band is as wide as its order makes it) */
     float cs[16], sn[16], csb[16], snb[16];
     hl_csm_phases(c1 * db, M, cs, sn);
     hl_csm_phases(c1 * (d - bias_b), Mb, csb, snb);
-    float ws = d - zmin, sr[2];
+    float ws = dt - zmin, sr[2];
     hl_csm_search(sat, mean, zsc, R, M, Mb, cx, cy, clamp(ws * su, wmin, fR), clamp(ws * sv, wmin, fR), dh, coefb, csb,
                   snb, sr);
     if (!(sr[0] >= eps)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }
     float za = clamp(sr[1] / sr[0], zmin, d);
-    float wp = d - za;
+    float wp = dt - za;
     float V = hl_csm_filter(sat, mean, zsc, R, M, Mb, cx, cy, clamp(wp * su, wmin, fR), clamp(wp * sv, wmin, fR), dh,
                             coef, cs, sn);
     V = clamp(V, 0.0f, 1.0f);

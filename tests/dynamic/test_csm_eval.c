@@ -9,6 +9,9 @@
  *                     across the penumbra, whose width follows
  *                     (d - z_avg) tan(theta) for two theta and two d; no
  *                     acne where the plane itself is in the map.
+ * csm_eval.edge       a map full of blocker: outside it counts as empty, so
+ *                     a box half outside is half lit and one that misses
+ *                     the map is lit.
  * csm_eval.contact    receivers just behind the blocker: dark with the
  *                     leak exponent, leaking without; B chosen here.
  * csm_eval.bad_input  orders, sizes, NaN depths and receivers, frames; a
@@ -181,11 +184,12 @@ static void case_plane(void)
     /* and scale as tan(theta): twice the tangent, twice the width (same p) */
     hl_check_error("width ratio tan 0.1 / tan 0.05, minus 2", fabs(width[1] / width[0] - 2), 0.2);
 
-    /* beyond the far plane (d = 1.2, taken as 1): lit beside the blocker, dark under it */
+    /* beyond the far plane (d = 1.2: the series takes it as 1, the
+     * widths as 1.2): lit beside the blocker, dark under it */
     profile(c, (float)atan(0.05), 1.2f, V, za);
     double far_err = 0;
     for (uint32_t i = 0; i < PN; i++) {
-        double u = 0.25 * i, wp = 0.6 * PR * 0.05;
+        double u = 0.25 * i, wp = (1.2 - 0.4) * PR * 0.05;
         if (u < 96 - wp - 2) far_err = fmax(far_err, 1.0 - V[i]);
         if (u > 96 + wp + 2) far_err = fmax(far_err, V[i]);
     }
@@ -386,9 +390,52 @@ static void run_timing(int ref)
     hl_context_destroy(ctx);
 }
 
+/* Receivers at d = 0.8 along v = R/2 from u = -2w to 2w around the left
+ * edge of a map that is all blocker at z = 0.4 (w: the boxes' half-width,
+ * (0.8 - 0.4) tan(theta) in texels). Outside the map there is no caster
+ * (the frame's margin holds the scene's bounds), so the filter averages
+ * the inside with "lit": V(0) is the series' 1/2 bent by the leak
+ * exponent, and a receiver whose boxes miss the map is lit exactly. */
+static void case_edge(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    hl_csm *c = NULL;
+    HL_CHECK(hl_csm_create(ctx, PR, 16, 16, 1, &c) == HL_OK, "%s", hl_context_last_error(ctx));
+    if (!c) return;
+    float *z = malloc((size_t)PR * PR * 4), V[PN], za[PN], uvd[3 * PN];
+    square_map(z, PR, 0, PR, 0.4f, 0.4f);
+    HL_CHECK(hl_csm_build(c, z, 1) == HL_OK, "%s", hl_context_last_error(ctx));
+    const double tant = 0.1, w = 0.4 * PR * tant;
+    hl_shadow_frame f = frame_of(PR);
+    for (uint32_t i = 0; i < PN; i++) {
+        uvd[3 * i] = (float)(-2.0 * w + 4.0 * w * i / (PN - 1));
+        uvd[3 * i + 1] = PR / 2.0f;
+        uvd[3 * i + 2] = 0.8f;
+    }
+    HL_CHECK(hl_csm_visibility(c, 0, (float)atan(tant), &f, uvd, PN, V, za) == HL_OK, "visibility failed");
+    double miss = 0, mid = 0, inside = 0, rise = 0;
+    double p = 1.0 + HL_CSM_LEAK_A * exp(-HL_CSM_LEAK_B * 0.4), half = pow(0.5, p);
+    for (uint32_t i = 0; i < PN; i++) {
+        double u = uvd[3 * i];
+        if (u < -w - 0.01) miss = fmax(miss, fabs(1.0 - V[i]));
+        if (fabs(u) < 1e-3) mid = fmax(mid, fabs(V[i] - half));
+        if (u > w + 1.0) inside = fmax(inside, V[i]);
+        if (i + 1 < PN) rise = fmax(rise, (double)V[i + 1] - V[i]);
+    }
+    hl_check_error("boxes that miss the map, |1 - V|", miss, 0.0);
+    /* the series' residual outside its band, 0.011 at M = 16, and the
+     * box's float corners */
+    hl_check_error("box half outside the map, |V - 0.5^p|", mid, 0.02);
+    hl_check_error("boxes inside the map, V", inside, 0.02);
+    hl_check_error("V rising into the map", rise, 1e-4);
+    free(z);
+    hl_csm_destroy(c);
+    hl_context_destroy(ctx);
+}
+
 int main(int argc, char **argv)
 {
-    static const hl_test_case cases[] = {{"twin", case_twin}, {"plane", case_plane}, {"contact", case_contact},
+    static const hl_test_case cases[] = {{"twin", case_twin}, {"plane", case_plane}, {"edge", case_edge}, {"contact", case_contact},
                                          {"bad_input", case_bad_input}, {NULL, NULL}};
     if (argc >= 2 && strcmp(argv[1], "timing") == 0) {
         run_timing(argc >= 3 && strcmp(argv[2], "ref") == 0);

@@ -9,6 +9,16 @@
 
 static float clampf(float x, float lo, float hi) { return x < lo ? lo : x > hi ? hi : x; }
 
+/* the kernel's hl_csm_inside */
+static float inside(float cx, float cy, float wu, float wv, uint32_t R)
+{
+    float fR = (float)R;
+    float u0 = fmaxf(cx - wu, 0.0f), u1 = fminf(cx + wu, fR);
+    float v0 = fmaxf(cy - wv, 0.0f), v1 = fminf(cy + wv, fR);
+    if (!(u1 > u0 && v1 > v0)) return 0.0f;
+    return ((u1 - u0) * (v1 - v0)) / ((2.0f * wu) * (2.0f * wv));
+}
+
 /* the kernel's hl_csm_box_taps */
 static void box_taps(float cx, float cy, float wu, float wv, uint32_t R, uint32_t *idx, float *w)
 {
@@ -78,10 +88,11 @@ static void direct(const float *zsc, uint32_t R, float cx, float cy, float wu, f
             afz += ov * (f * z);
         }
     }
-    float inv = 1.0f / ((u1 - u0) * (v1 - v0));
-    out[0] = af * inv;
-    out[1] = az * inv;
-    out[2] = afz * inv;
+    float full = (2.0f * wu) * (2.0f * wv), outside = fmaxf(full - (u1 - u0) * (v1 - v0), 0.0f);
+    float inv = 1.0f / full;
+    out[0] = (af + outside) * inv;
+    out[1] = (az + outside) * inv;
+    out[2] = (afz + outside) * inv;
 }
 
 /* the kernel's hl_csm_search: box averages of fbar and fbar z */
@@ -96,6 +107,8 @@ static void search(const float *sat, const float *mean, const float *zsc, const 
         out[1] = dv[1] - dv[2];
         return;
     }
+    float in = inside(cx, cy, wu, wv, R);
+    if (!(in > 0.0f)) { out[0] = 0.0f; out[1] = 0.0f; return; }
     const uint32_t Mb = p->Mb, P = hl_csm_planes(M, Mb);
     uint32_t idx[16];
     float w[16], a[4 * HL_CSM_M_MAX + 1];
@@ -108,8 +121,8 @@ static void search(const float *sat, const float *mean, const float *zsc, const 
         fb -= p->coefb[k] * (cs[k] * a[s] - sn[k] * a[s + 1]);
         fz -= p->coefb[k] * (cs[k] * a[q] - sn[k] * a[q + 1]);
     }
-    out[0] = fb;
-    out[1] = fz;
+    out[0] = fb * in;
+    out[1] = fz * in;
 }
 
 /* the kernel's hl_csm_filter: the filtered test, unclamped */
@@ -122,6 +135,8 @@ static float filter(const float *sat, const float *mean, const float *zsc, const
         direct(zsc, R, cx, cy, wu, wv, sn[0], cs[0], p->coef, p->M, dv);
         return dv[0];
     }
+    float in = inside(cx, cy, wu, wv, R);
+    if (!(in > 0.0f)) return 1.0f;
     const uint32_t M = p->M, P = hl_csm_planes(M, p->Mb);
     uint32_t idx[16];
     float w[16], a[4 * HL_CSM_M_MAX + 1];
@@ -129,7 +144,7 @@ static float filter(const float *sat, const float *mean, const float *zsc, const
     box(sat, mean, P, idx, w, 1, 1 + 2 * M, a);
     float V = 0.5f;
     for (uint32_t k = 0; k < M; k++) V += p->coef[k] * (cs[k] * a[1 + 2 * k] - sn[k] * a[2 + 2 * k]);
-    return V;
+    return V * in + (1.0f - in);
 }
 
 /* the kernel's hl_csm_phases */
@@ -150,21 +165,21 @@ void hl_ref_csm_eval(const float *sat, const float *mean, const float *zsc, cons
                      const float uvd[3], float out[2])
 {
     const uint32_t R = p->R, M = p->M;
-    float u = uvd[0], v = uvd[1], d = fminf(uvd[2], 1.0f); /* beyond the far plane: on it */
+    float cx = uvd[0], cy = uvd[1], dt = uvd[2];
+    float d = fminf(dt, 1.0f); /* beyond the far plane: on it, for the series */
     float db = d - p->bias;
     out[0] = 1.0f;
     out[1] = -1.0f;
     if (!(d > p->zmin)) return; /* nothing in the map is nearer: lit */
     float fR = (float)R;
-    float cx = clampf(u, 0.0f, fR), cy = clampf(v, 0.0f, fR);
     float cs[HL_CSM_M_MAX], sn[HL_CSM_M_MAX], csb[HL_CSM_M_MAX], snb[HL_CSM_M_MAX];
     phases(p->c1 * db, M, cs, sn);
     phases(p->c1 * (d - p->bias_b), p->Mb, csb, snb);
-    float ws = d - p->zmin, sr[2];
+    float ws = dt - p->zmin, sr[2];
     search(sat, mean, zsc, p, cx, cy, clampf(ws * p->su, p->wmin, fR), clampf(ws * p->sv, p->wmin, fR), csb, snb, sr);
     if (!(sr[0] >= p->eps)) return;
     float za = clampf(sr[1] / sr[0], p->zmin, d);
-    float wp = d - za;
+    float wp = dt - za;
     float V = filter(sat, mean, zsc, p, cx, cy, clampf(wp * p->su, p->wmin, fR), clampf(wp * p->sv, p->wmin, fR), cs,
                      sn);
     V = clampf(V, 0.0f, 1.0f);
