@@ -129,6 +129,37 @@ hl_result hl_bench_precompute_resolve(hl_context *ctx, hl_precompute_desc *d);
 hl_result hl_bench_raw_ray_rates(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *resolved,
                                  const uint32_t *verts, uint32_t nverts, uint32_t rounds, double *rays_per_s);
 
+/* ---------------------------------------------------------------- bench-dynamic */
+
+/* On a dynamic scene's bodies as they were at its last hl_dynamic_render
+ * (at rest before the first; a move takes effect at the next render),
+ * colours into rgb, 3 floats per vertex of hl_dynamic_mesh, on d's
+ * context's threads:
+ *   exact:  each vertex integrates the whole of env (its cube resampling at
+ *           face 64, one ray a texel) with Embree visibility against every
+ *           body; env should be the map given to hl_dynamic_set_env, at
+ *           rotation 0;
+ *   lights: the K lights d keeps with traced visibility (each the share
+ *           of its energy in texels whose rays are open), the folded
+ *           ambient unshadowed, as the frame shades it;
+ *   traced: the simplest rival a user could write: per vertex, S Embree
+ *           rays stratified over each kept light's rectangle, V_k the
+ *           open share of those above the horizon, E_k and the ambient as
+ *           the frame's; everything (the scene's BVH too) rebuilt per call
+ *           as after any move. S: 1 to 1024.
+ * seconds: the call's wall time (may be NULL). */
+hl_result hl_bench_dyn_exact(hl_dynamic *d, const hl_env *env, float *rgb, double *seconds);
+hl_result hl_bench_dyn_lights(hl_dynamic *d, float *rgb, double *seconds);
+
+/* The traced method's time by stage, seconds: the world mesh and Embree's
+ * BVH, the rays' directions and origins, the occlusion rays, the shading;
+ * and the rays cast. */
+typedef struct hl_bench_traced_times {
+    double seconds, t_build, t_rays, t_trace, t_shade;
+    uint64_t rays;
+} hl_bench_traced_times;
+hl_result hl_bench_dyn_traced(hl_dynamic *d, uint32_t S, float *rgb, hl_bench_traced_times *times);
+
 /* ---------------------------------------------------------------- viewer */
 
 /* hl_relighter_run with the colours left in the relighter: *rgba points

@@ -11,6 +11,10 @@
  *                           an overhead sun and a sky: against the sky
  *                           alone, vertices under the quad get none of
  *                           the sun, those outside all of it.
+ * dyn_reference.traced     the traced method (dyn_traced.h): unoccluded
+ *                           it equals the K-lights reference; under the
+ *                           quad its error against it falls 4 times from
+ *                           S = 1 to 64; one thread gives the same bits.
  * accuracy [S [MAP]]        not a ctest case (prints, asserts nothing; it
  *                           takes minutes): the bunny on its ground at
  *                           K = 32, R = 256, M = 16 under the eight shared
@@ -27,6 +31,7 @@
 
 #include "dyn_frame.h"
 #include "dyn_reference.h"
+#include "dyn_traced.h"
 #include "dyn_util.h"
 #include "hl_test.h"
 #include "scene.h"
@@ -235,6 +240,82 @@ static void case_occluded(void)
     hl_context_destroy(ctx);
 }
 
+/* ------------------------------------------------------------ traced */
+
+/* Relative L2 of a against b over n floats. */
+static double rel_l2_n(const float *a, const float *b, size_t n)
+{
+    double se = 0, sr = 0;
+    for (size_t i = 0; i < n; i++) se += ((double)a[i] - b[i]) * ((double)a[i] - b[i]), sr += (double)b[i] * b[i];
+    return sr > 0 ? sqrt(se / sr) : sqrt(se);
+}
+
+/* The traced method (dyn_traced.h): unoccluded it is the K-lights sum;
+ * under the floating quad it converges on the K-lights reference as S
+ * grows; its result does not depend on the threads; bad S is refused. */
+static void case_traced(void)
+{
+    hl_context *ctx = hl_test_ref_context(2), *ctx1 = hl_test_ref_context(1);
+    enum { W = 1024, H = 512 };
+    double Esun = 0;
+    float *map = occluded_map(W, H, 1, &Esun);
+    hl_env *env = NULL;
+    HL_CHECK(hl_env_create(ctx, W, H, map, &env, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    hl_light_split *s = env ? split_of(ctx, env, 8) : NULL;
+    grid g;
+    grid_make(&g);
+    float qp[12] = {-QUAD_HALF, QUAD_Y, -QUAD_HALF, QUAD_HALF, QUAD_Y, -QUAD_HALF,
+                    -QUAD_HALF, QUAD_Y, QUAD_HALF,  QUAD_HALF, QUAD_Y, QUAD_HALF};
+    float qn[12] = {0, -1, 0, 0, -1, 0, 0, -1, 0, 0, -1, 0}, qa[12], qrgb[12];
+    for (int i = 0; i < 12; i++) qa[i] = 0.5f;
+    uint32_t qt[6] = {0, 1, 2, 1, 3, 2};
+    hl_dyn_object o[2] = {grid_object(&g), {qp, qn, 4, qt, 2, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}}};
+    const float *albs[2] = {g.alb, qa};
+    float *outs[2] = {g.rgb, qrgb}, *outs2[2] = {g.rgb2, qrgb};
+    const size_t n = 3 * (size_t)g.nv;
+    float *t1 = malloc(n * 4), *t64 = malloc(n * 4);
+    HL_CHECK(s && t1 && t64, "no split or out of memory");
+    /* the ground alone: every V_k = 1 in both */
+    hl_dyn_traced_stats st = {0};
+    int ok = hl_dyn_reference_lights(ctx, o, 1, albs, s, 0, outs2, NULL) == HL_OK &&
+             hl_dyn_traced(ctx, o, 1, albs, s, 4, outs, &st) == HL_OK;
+    HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+    double worst = 0;
+    for (size_t i = 0; i < n; i++) worst = fmax(worst, fabs(g.rgb[i] - (double)g.rgb2[i]) / g.rgb2[i]);
+    printf("unoccluded: %u vertices, %u lights, S %u: %llu rays, %llu below the horizon, %.3f s\n", st.vertices,
+           st.lights, st.S, (unsigned long long)st.rays_cast, (unsigned long long)st.rays_below, st.seconds);
+    HL_CHECK(st.rays_cast > 0 && st.rays_cast + st.rays_below == (uint64_t)g.nv * s->count * 4, "ray counts");
+    /* the same double sum, rounded to float once each */
+    hl_check_error("traced unoccluded against the K-lights reference", worst, 1e-5);
+    /* with the quad: S = 1 and S = 64 against the reference */
+    outs[0] = t1;
+    ok = hl_dyn_reference_lights(ctx, o, 2, albs, s, 0, outs2, NULL) == HL_OK &&
+         hl_dyn_traced(ctx, o, 2, albs, s, 1, outs, NULL) == HL_OK;
+    outs[0] = t64;
+    ok = ok && hl_dyn_traced(ctx, o, 2, albs, s, 64, outs, NULL) == HL_OK;
+    HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+    double e1 = rel_l2_n(t1, g.rgb2, n), e64 = rel_l2_n(t64, g.rgb2, n);
+    printf("occluded: relative L2 against the K-lights reference: S 1 %.4g, S 64 %.4g\n", e1, e64);
+    /* stratified sampling: the penumbra's noise falls at least as 1 / sqrt S,
+       8 times from 1 to 64; half of that is asked */
+    hl_check_error("traced S 64 error / S 1 error", e64 / fmax(e1, 1e-30), 0.25);
+    /* one thread: the same bits (jitter hashed from vertex, light, sample) */
+    outs[0] = t1;
+    ok = hl_dyn_traced(ctx1, o, 2, albs, s, 64, outs, NULL) == HL_OK;
+    HL_CHECK(ok && memcmp(t1, t64, n * 4) == 0, "traced: 1 and 2 threads differ");
+    HL_CHECK(hl_dyn_traced(ctx, o, 2, albs, s, 0, outs, NULL) == HL_ERR_INVALID_ARGUMENT, "S = 0 accepted");
+    HL_CHECK(hl_dyn_traced(ctx, o, 2, albs, s, HL_DYNTRACED_MAX_S + 1, outs, NULL) == HL_ERR_INVALID_ARGUMENT,
+             "S over the limit accepted");
+    free(t1);
+    free(t64);
+    grid_free(&g);
+    hl_light_split_destroy(s);
+    hl_env_destroy(env);
+    free(map);
+    hl_context_destroy(ctx);
+    hl_context_destroy(ctx1);
+}
+
 /* ------------------------------------------------------------ accuracy */
 
 /* Relative L2 over all vertices and channels of both bodies. */
@@ -439,6 +520,7 @@ int main(int argc, char **argv)
     static const hl_test_case cases[] = {{"furnace", case_furnace},
                                          {"unoccluded", case_unoccluded},
                                          {"occluded", case_occluded},
+                                         {"traced", case_traced},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

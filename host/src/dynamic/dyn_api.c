@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "area_lights.h"
+#include "dyn_api.h"
 #include "dyn_frame.h"
 #include "haarlight.h"
 #include "scene.h"
@@ -276,4 +277,15 @@ hl_result hl_dynamic_render(hl_dynamic *d, double t, float **rgb_out, hl_dynamic
         st->t_total = fs.t_total;
     }
     return HL_OK;
+}
+
+/* For the measuring tools (dyn_api.h). */
+void hl_dynamic_view_get(const hl_dynamic *d, hl_dynamic_view *v)
+{
+    v->ctx = d->ctx;
+    v->nb = d->nb;
+    v->obj = d->obj;
+    v->alb = (const float *const *)d->alb;
+    v->vstart = d->vstart;
+    v->split = d->split;
 }

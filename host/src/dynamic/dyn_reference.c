@@ -47,41 +47,48 @@ static void job_free(ref_job *j)
     free(j->world.positions); free(j->world.normals); free(j->world.indices); free(j->vstart);
 }
 
-/* The bodies merged into j->world at their transforms. */
-static hl_result merge_world(ref_job *j)
+hl_result hl_dyn_world_merge(hl_context *ctx, const hl_dyn_object *obj, uint32_t nobj, hl_mesh *m, uint32_t *vstart)
 {
     uint64_t nv = 0, nt = 0;
-    j->vstart = calloc((size_t)j->nobj + 1, sizeof(uint32_t));
-    if (!j->vstart) return hl_fail(j->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the reference");
-    for (uint32_t b = 0; b < j->nobj; b++) {
-        const hl_dyn_object *o = &j->obj[b];
-        if (!o->pos || !o->tri || !j->albedo[b] || !j->rgb[b])
-            return hl_fail(j->ctx, HL_ERR_INVALID_ARGUMENT, "dynamic reference: body %u has a NULL array", b);
+    memset(m, 0, sizeof *m);
+    for (uint32_t b = 0; b < nobj; b++) {
+        const hl_dyn_object *o = &obj[b];
+        if (!o->pos || !o->tri) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic reference: body %u has a NULL array", b);
         for (size_t i = 0; i < 3 * (size_t)o->ntris; i++)
             if (o->tri[i] >= o->nverts)
-                return hl_fail(j->ctx, HL_ERR_INVALID_ARGUMENT, "dynamic reference: body %u indexes vertex %u of %u", b,
+                return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic reference: body %u indexes vertex %u of %u", b,
                                o->tri[i], o->nverts);
-        j->vstart[b] = (uint32_t)nv;
+        vstart[b] = (uint32_t)nv;
         nv += o->nverts, nt += o->ntris;
         if (nv > UINT32_MAX / 3 || nt > UINT32_MAX / 3)
-            return hl_fail(j->ctx, HL_ERR_INVALID_ARGUMENT, "dynamic reference: too many vertices or triangles");
+            return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic reference: too many vertices or triangles");
     }
-    j->vstart[j->nobj] = (uint32_t)nv;
-    hl_mesh *m = &j->world;
+    vstart[nobj] = (uint32_t)nv;
     m->vertex_count = m->object_vertex_count = (uint32_t)nv, m->triangle_count = (uint32_t)nt;
     m->positions = malloc(nv * 12 + 12), m->normals = malloc(nv * 12 + 12), m->indices = malloc(nt * 12 + 12);
     if (!m->positions || !m->normals || !m->indices)
-        return hl_fail(j->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the reference's world mesh");
-    for (uint32_t b = 0, t0 = 0; b < j->nobj; b++) {
-        const hl_dyn_object *o = &j->obj[b];
-        hl_frame_to_world(o, m->positions + 3 * (size_t)j->vstart[b], m->normals + 3 * (size_t)j->vstart[b]);
-        for (size_t i = 0; i < 3 * (size_t)o->ntris; i++) m->indices[3 * (size_t)t0 + i] = o->tri[i] + j->vstart[b];
+        return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the reference's world mesh");
+    for (uint32_t b = 0, t0 = 0; b < nobj; b++) {
+        const hl_dyn_object *o = &obj[b];
+        hl_frame_to_world(o, m->positions + 3 * (size_t)vstart[b], m->normals + 3 * (size_t)vstart[b]);
+        for (size_t i = 0; i < 3 * (size_t)o->ntris; i++) m->indices[3 * (size_t)t0 + i] = o->tri[i] + vstart[b];
         t0 += o->ntris;
     }
     for (size_t i = 0; i < 3 * nv; i++)
         if (!isfinite(m->positions[i]) || !isfinite(m->normals[i]))
-            return hl_fail(j->ctx, HL_ERR_INVALID_ARGUMENT, "dynamic reference: a position or normal is not finite");
+            return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic reference: a position or normal is not finite");
     return HL_OK;
+}
+
+/* The bodies merged into j->world at their transforms. */
+static hl_result merge_world(ref_job *j)
+{
+    j->vstart = calloc((size_t)j->nobj + 1, sizeof(uint32_t));
+    if (!j->vstart) return hl_fail(j->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the reference");
+    for (uint32_t b = 0; b < j->nobj; b++)
+        if (!j->albedo[b] || !j->rgb[b])
+            return hl_fail(j->ctx, HL_ERR_INVALID_ARGUMENT, "dynamic reference: body %u has a NULL array", b);
+    return hl_dyn_world_merge(j->ctx, j->obj, j->nobj, &j->world, j->vstart);
 }
 
 /* The body of world vertex v and its index in the body. */

@@ -70,4 +70,11 @@ hl_result hl_dyn_reference_lights(hl_context *ctx, const hl_dyn_object *objects,
                                   const float *const *albedo, const hl_light_split *split, uint32_t S,
                                   float *const *rgb, hl_dyn_ref_stats *stats);
 
+/* The bodies merged into one world-space mesh (positions, normals,
+ * indices; no albedo) at their transforms, body b's vertices from
+ * vstart[b] (vstart: nobj + 1 entries, the last the total). Checks the
+ * indices and that every position and normal is finite. On failure m may
+ * hold arrays: free m's positions, normals and indices either way. */
+hl_result hl_dyn_world_merge(hl_context *ctx, const hl_dyn_object *obj, uint32_t nobj, hl_mesh *m, uint32_t *vstart);
+
 #endif
