@@ -5,6 +5,13 @@
 #   drop         an unreadable dropped file keeps the lighting; a good one
 #                switches to it (--drop takes the drop callback's path)
 #   bad_input    errors that come before any window (no X needed)
+#   dynamic_rest   --dynamic with a transport, nothing moved: PRT's picture
+#                  (as relight's), from SCENE.hlt and from MESH --hlt
+#   dynamic_moved  --move: the dynamic method's picture (as relight-dynamic's
+#                  with the same --move), and the HUD says so
+#   dynamic_drag   --drag through the mouse's code path: the translation it
+#                  prints, given to relight-dynamic, gives the same picture
+#   dynamic_bad    --dynamic's errors before any window (no X needed)
 # Env: HL_BIN, HL_COMPARE (test_viewer), HL_TMP, HL_REPO_DATA,
 # HL_VIEWER_BUILT (ON/OFF). Exit 77 = skipped.
 set -u
@@ -22,6 +29,23 @@ skip() { echo "SKIPPED: $*"; exit 77; }
 scene() {
   "$bin" precompute "$data/bunny_lowres.obj" --ground --ground-res 16 -C 16 -N 16 -q -o "$tmp/s.hlt" ||
     { echo "FAIL: precompute"; exit 1; }
+}
+
+# The same bunny with the default ground (96 quads), which relight-dynamic
+# --ground makes too, so that PRT's, the viewer's and relight-dynamic's
+# meshes are one, vertex for vertex.
+dyn_scene() {
+  "$bin" precompute "$data/bunny_lowres.obj" --ground -C 16 -N 16 -q -o "$tmp/d.hlt" ||
+    { echo "FAIL: precompute"; exit 1; }
+}
+# Few lights, small maps, low order: a frame in about 0.1 s here. An explicit
+# camera: the automatic framing would follow a moved body in relight-dynamic.
+dyn=(--sky --lights 4 --shadow-res 64 --order 4)
+dcam=(--size 256x192 --exposure 0.5 --eye 16,10,24 --target 1,3,0)
+
+# hud_says NAME PATTERN: the last HUD line (the window title) printed at exit
+hud_says() {
+  grep "last HUD:" "$tmp/view.txt" | grep -q -- "$2" || fail "$1: the HUD does not say '$2'"
 }
 
 # view ARGS...: the viewer under a private Xvfb (24-bit screen), output in
@@ -46,7 +70,7 @@ same_picture() {
 }
 
 case "${1:-}" in
-capture_sky|capture_env|drop)
+capture_sky|capture_env|drop|dynamic_rest|dynamic_moved|dynamic_drag)
   [ "${HL_VIEWER_BUILT:-OFF}" = ON ] || skip "haarlight was built without the viewer (HL_WITH_VIEWER=OFF or no GLFW/OpenGL)"
   ;;
 esac
@@ -87,6 +111,86 @@ drop)
     --screenshot "$tmp/view2.exr" || fail "view with a good drop"
   same_picture "after dropping city.exr" "$tmp/view2.exr" "$tmp/city.exr" 0.5
   ;;
+dynamic_rest)
+  dyn_scene
+  "$bin" relight "$tmp/d.hlt" "${dcam[@]}" --sky -q -o "$tmp/prt.exr" || fail "relight"
+  view --dynamic "$tmp/d.hlt" "${dyn[@]}" "${dcam[@]}" --no-glare --frames 2 --screenshot "$tmp/view.exr" ||
+    fail "view --dynamic exited with an error"
+  same_picture "--dynamic SCENE.hlt at rest" "$tmp/view.exr" "$tmp/prt.exr" 0.5
+  hud_says "--dynamic SCENE.hlt at rest" "PRT at rest"
+  view --dynamic "$data/bunny_lowres.obj" --ground --hlt "$tmp/d.hlt" "${dyn[@]}" "${dcam[@]}" --no-glare --frames 2 \
+    --screenshot "$tmp/view2.exr" || fail "view --dynamic MESH --hlt exited with an error"
+  same_picture "--dynamic MESH --ground --hlt SCENE.hlt at rest" "$tmp/view2.exr" "$tmp/prt.exr" 0.5
+  hud_says "--dynamic MESH --hlt at rest" "PRT at rest"
+  ;;
+dynamic_moved)
+  dyn_scene
+  mv=(--move object:3,0,2)
+  "$bin" relight-dynamic "$data/bunny_lowres.obj" --ground "${dyn[@]}" "${dcam[@]}" "${mv[@]}" -q -o "$tmp/rd.exr" ||
+    fail "relight-dynamic"
+  "$bin" relight "$tmp/d.hlt" "${dcam[@]}" --sky -q -o "$tmp/prt.exr" || fail "relight"
+  view --dynamic "$tmp/d.hlt" "${dyn[@]}" "${dcam[@]}" "${mv[@]}" --no-glare --frames 2 --screenshot "$tmp/view.exr" ||
+    fail "view --dynamic --move exited with an error"
+  same_picture "--dynamic SCENE.hlt, object moved by 3,0,2" "$tmp/view.exr" "$tmp/rd.exr" 0.5
+  hud_says "--dynamic SCENE.hlt, object moved" "dynamic K 4: irradiance .* + shadow maps .* + CSM build .* + CSM eval .* + shading .* = .* ms, 1 body moved"
+  echo "the moved picture must not be the picture at rest:"
+  "$compare" compare "$tmp/view.exr" "$tmp/prt.exr" 0.5 >"$tmp/cmp.txt" 2>&1 &&
+    fail "the moved frame looks like the frame at rest: the move did not show"
+  view --dynamic "$data/bunny_lowres.obj" --ground "${dyn[@]}" "${dcam[@]}" "${mv[@]}" --no-glare --frames 2 \
+    --screenshot "$tmp/view2.exr" || fail "view --dynamic MESH --ground --move exited with an error"
+  same_picture "--dynamic MESH --ground, object moved by 3,0,2" "$tmp/view2.exr" "$tmp/rd.exr" 0.5
+  hud_says "--dynamic MESH, object moved" "dynamic K 4"
+  ;;
+dynamic_drag)
+  dyn_scene
+  # from the bunny's flank (pixel 130,100) to the left and down
+  view --dynamic "$tmp/d.hlt" "${dyn[@]}" "${dcam[@]}" --drag 130,100,90,115 --no-glare --frames 2 \
+    --screenshot "$tmp/view.exr" || fail "view --dynamic --drag exited with an error"
+  tr=$(sed -n 's/^view: dragged body "object" to translation \([^ ]*\)$/\1/p' "$tmp/view.txt")
+  echo "dragged by: ${tr:-nothing}"
+  [ -n "$tr" ] || fail "the drag moved no body"
+  # a drag across the ground: horizontal, and far enough to see
+  awk -F, -v t="$tr" 'BEGIN { split(t, a, ","); exit !(a[2] == 0 && a[1] * a[1] + a[3] * a[3] > 1) }' ||
+    fail "the drag's translation $tr is not horizontal or under 1 unit"
+  "$bin" relight-dynamic "$data/bunny_lowres.obj" --ground "${dyn[@]}" "${dcam[@]}" --move "object:$tr" -q \
+    -o "$tmp/rd.exr" || fail "relight-dynamic --move object:$tr"
+  same_picture "--drag 130,100,90,115" "$tmp/view.exr" "$tmp/rd.exr" 0.5
+  hud_says "--drag" "dynamic K 4"
+  # the ground is not dragged: a press on it alone finds no body
+  view --dynamic "$tmp/d.hlt" "${dyn[@]}" "${dcam[@]}" --drag 20,180,40,180 --frames 1
+  rc=$?
+  [ $rc -eq 2 ] || fail "a drag starting on the ground: exit $rc, expected 2"
+  grep -q "no body under pixel 20,180" "$tmp/view.txt" || fail "a drag on the ground: no message naming the pixel"
+  ;;
+dynamic_bad)
+  [ "${HL_VIEWER_BUILT:-OFF}" = ON ] || skip "haarlight was built without the viewer"
+  expect() {
+    local name="$1" want="$2" part="$3"; shift 3
+    "$bin" view "$@" >"$tmp/out.txt" 2>"$tmp/err.txt"
+    local rc=$?
+    echo "$name: exit $rc: $(head -c 300 "$tmp/err.txt" | head -1)"
+    [ "$rc" -eq "$want" ] || fail "$name: exit code $rc, expected $want"
+    grep -q -- "$part" "$tmp/err.txt" || fail "$name: message lacks '$part'"
+  }
+  scene # ground at 16 quads: not the mesh of bunny_lowres.obj --ground
+  obj="$data/bunny_lowres.obj"
+  expect missing 1 "nothere.obj" --dynamic "$tmp/nothere.obj"
+  expect missing_hlt 1 "nothere.hlt" --dynamic "$tmp/nothere.hlt"
+  expect no_scene 2 "no SCENE given" --dynamic
+  expect not_dynamic 2 "--lights is an option of --dynamic" "$tmp/s.hlt" --lights 4
+  expect lights_zero 2 "--lights" --dynamic "$obj" --lights 0
+  expect res_odd 2 "--shadow-res" --dynamic "$obj" --shadow-res 17
+  expect order_low 2 "--order" --dynamic "$obj" --order 3
+  expect time_negative 2 "--time" --dynamic "$obj" --time -1
+  expect time_nan 2 "--time" --dynamic "$obj" --time nan
+  expect move_syntax 2 "--move" --dynamic "$obj" --move object
+  expect move_nan 2 "--move" --dynamic "$obj" --move object:nan,0,0
+  expect move_unknown 2 'no body named "teapot"' --dynamic "$obj" --ground --move teapot:1,0,0
+  expect drag_syntax 2 "--drag" --dynamic "$obj" --drag 1,2,3
+  expect hlt_twice 2 "is a transport already" --dynamic "$tmp/s.hlt" --hlt "$tmp/s.hlt"
+  expect ground_on_hlt 2 "--ground" --dynamic "$tmp/s.hlt" --ground
+  expect hlt_other_mesh 1 "not belong to that scene" --dynamic "$obj" --ground --hlt "$tmp/s.hlt"
+  ;;
 bad_input)
   # expect NAME RC MESSAGE ARGS...: exit code and a message part on stderr
   expect() {
@@ -114,6 +218,6 @@ bad_input)
     expect no_scene 2 "no SCENE.hlt" --frames 1
   fi
   ;;
-*) echo "usage: $0 capture_sky|capture_env|drop|bad_input"; exit 2 ;;
+*) echo "usage: $0 capture_sky|capture_env|drop|bad_input|dynamic_rest|dynamic_moved|dynamic_drag|dynamic_bad"; exit 2 ;;
 esac
 [ "$fails" -eq 0 ] && echo "passed" || { echo "$fails failure(s)"; exit 1; }

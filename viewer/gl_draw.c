@@ -273,7 +273,7 @@ int vw_gl_create(const hl_mesh *mesh, const float thr[256], vw_gl **out, char *e
     glBindVertexArray(g->vao);
     glGenBuffers(1, &g->vbo_pos);
     glBindBuffer(GL_ARRAY_BUFFER, g->vbo_pos);
-    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(12 * (size_t)mesh->vertex_count), mesh->positions, GL_STATIC_DRAW);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(12 * (size_t)mesh->vertex_count), mesh->positions, GL_DYNAMIC_DRAW);
     glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, NULL);
     glEnableVertexAttribArray(0);
     glGenBuffers(1, &g->vbo_rgb);
@@ -372,6 +372,12 @@ int vw_gl_set_env(vw_gl *g, const hl_env *env, char *err, size_t err_size)
         return 0;
     }
     return 1;
+}
+
+void vw_gl_upload_positions(vw_gl *g, const float *positions)
+{
+    glBindBuffer(GL_ARRAY_BUFFER, g->vbo_pos);
+    glBufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(12 * (size_t)g->vertex_count), positions);
 }
 
 void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgba)

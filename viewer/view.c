@@ -30,6 +30,7 @@
 
 static const char *const usage_view =
     "usage: haarlight view SCENE.hlt [--env ENV.exr ...] [--sky] [options]\n"
+    "       haarlight view --dynamic (SCENE.hlt | MESH | SCENE) [options]\n"
     "\n"
     "Opens a window on a transport file from `haarlight precompute` and relights it\n"
     "interactively. Every lighting change runs the lighting stages and the dot\n"
@@ -59,6 +60,29 @@ static const char *const usage_view =
     "  --spin DEG           turn the environment by DEG every frame (a lighting change\n"
     "                       every frame, for timing)\n"
     "  --drop ENV.exr       treat ENV.exr as dropped on the window (for tests)\n"
+    "dynamic scenes (--dynamic: the second method, relight-dynamic's, which needs no\n"
+    "precompute, so bodies may move; a frame costs as much as one relight-dynamic run,\n"
+    "and one is made only when a body moved, the time or the lighting changed):\n"
+    "  --dynamic            SCENE.hlt: the transport's mesh and ground as bodies \"object\"\n"
+    "                       and \"ground\"; MESH or SCENE (any file assimp reads): every\n"
+    "                       node with triangles a body, moving by the file's animation.\n"
+    "                       With a transport, frames where nothing moved (no body moved,\n"
+    "                       the animation at time 0) are PRT's (exact self-shadowing,\n"
+    "                       --terms) and the others the dynamic method's; the HUD names\n"
+    "                       the method and gives the dynamic frame's time by stage\n"
+    "  --hlt SCENE.hlt      with a MESH or SCENE: the transport for frames at rest; its\n"
+    "                       mesh must be the dynamic scene's, vertex for vertex\n"
+    "  --ground             MESH loaded as one body \"object\" with a ground plane\n"
+    "                       (body \"ground\"), as relight-dynamic --ground\n"
+    "  --lights K           area lights with shadows (default 32)\n"
+    "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 256)\n"
+    "  --order M            convolution shadow map order, 4 to 16 (default 16)\n"
+    "  --time T             seconds into the animation (default 0)\n"
+    "  --play               start playing the animation (in real time, looping)\n"
+    "  --move BODY:X,Y,Z    translate the body named BODY before the first frame\n"
+    "                       (repeatable; as relight-dynamic's --move)\n"
+    "  --drag X0,Y0,X1,Y1   before the first frame, drag with the mouse from window pixel\n"
+    "                       X0,Y0 to X1,Y1 (for tests; prints the body's translation)\n"
     "running:\n"
     CLI_USAGE_RUNNING
     "\n" VW_KEYS;
@@ -103,7 +127,7 @@ static int open_window(viewer *v)
                 v->fb_h, v->o.cam.width, v->o.cam.height);
     float thr[256];
     vw_tonemap_thresholds(thr);
-    if (!vw_gl_create(v->t->mesh, thr, &v->gl, err, sizeof err) ||
+    if (!vw_gl_create(v->mesh, thr, &v->gl, err, sizeof err) ||
         !vw_gl_resize(v->gl, v->fb_w, v->fb_h, err, sizeof err)) {
         fprintf(stderr, "haarlight: %s\n", err);
         return 0;
@@ -115,7 +139,7 @@ static int open_window(viewer *v)
 /* Options; returns -1 to go on, else the exit code. */
 static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n_env_args)
 {
-    const char *usage = usage_view;
+    const char *usage = usage_view, *dyn_opt = NULL;
     cli_scene_opts_init(&v->o);
     *n_env_args = 0;
     for (int i = 0; i < argc; i++) {
@@ -123,6 +147,12 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
         int k = cli_scene_opt(argc, argv, &i, usage, &v->o);
         if (k < 0) return -k;
         if (k) continue;
+        k = vw_dyn_opt(v, argc, argv, &i, usage);
+        if (k < 0) return -k;
+        if (k) {
+            if (strcmp(a, "--dynamic")) dyn_opt = a;
+            continue;
+        }
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
             fputs(usage, stdout);
             return 0;
@@ -170,7 +200,8 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
             return usage_error(usage, "unexpected argument %s", a);
         }
     }
-    if (!v->scene) return usage_error(usage, "%s", "no SCENE.hlt given");
+    if (!v->scene) return usage_error(usage, "%s", v->dy.on ? "no SCENE given" : "no SCENE.hlt given");
+    if (dyn_opt && !v->dy.on) return usage_error(usage, "%s is an option of --dynamic (give --dynamic)", dyn_opt);
     if (v->shot_path && !v->frames_limit) v->frames_limit = 1;
     if (v->o.sky_set || *n_env_args == 0) {
         int have = 0;
@@ -189,8 +220,9 @@ static int readback_relighter(viewer *v)
     return r == HL_OK;
 }
 
-/* Context, transport, environments, relighter: everything that can fail
- * on bad input, before any window opens. */
+/* Context, transport (and dynamic scene), environments, relighter:
+ * everything that can fail on bad input, before any window opens. Returns
+ * 1, or 0 on failure, 2 on a usage error found late (--dynamic's). */
 static int load(viewer *v, const char **env_args, int n_env_args)
 {
     char err[4096];
@@ -199,13 +231,18 @@ static int load(viewer *v, const char **env_args, int n_env_args)
         return 0;
     }
     cli_watch(v->ctx, NULL); /* Ctrl-C cancels it: the loop polls it */
-    if (hl_transport_load(v->ctx, v->scene, &v->t) != HL_OK) {
+    if (v->dy.on) {
+        int rc = 1;
+        if (!vw_dyn_load(v, &rc)) return rc == 2 ? 2 : 0; /* 2: a usage error */
+    } else if (hl_transport_load(v->ctx, v->scene, &v->t) != HL_OK) {
         cli_fail(v->ctx, HL_ERR_IO);
         return 0;
+    } else {
+        v->mesh = v->t->mesh;
     }
     hl_camera_view cv; /* an impossible camera fails here, before any window */
-    if (cli_camera_complete(v->ctx, v->t->mesh, &v->o) != HL_OK ||
-        hl_camera_query_view(v->ctx, v->t->mesh, &v->o.cam, &cv) != HL_OK) {
+    if (cli_camera_complete(v->ctx, v->mesh, &v->o) != HL_OK ||
+        hl_camera_query_view(v->ctx, v->mesh, &v->o.cam, &cv) != HL_OK) {
         cli_fail(v->ctx, HL_ERR_INVALID_ARGUMENT);
         return 0;
     }
@@ -225,10 +262,14 @@ static int load(viewer *v, const char **env_args, int n_env_args)
             vw_sky_label(v, &v->envs[k]);
         }
     }
-    v->rgb = calloc(3 * (size_t)v->t->info.vertex_count, sizeof *v->rgb); /* zero until the first relight */
+    v->rgb = calloc(3 * (size_t)v->mesh->vertex_count, sizeof *v->rgb); /* zero until the first relight */
     if (!v->rgb) {
-        fprintf(stderr, "haarlight: out of memory for %u vertex colours\n", v->t->info.vertex_count);
+        fprintf(stderr, "haarlight: out of memory for %u vertex colours\n", v->mesh->vertex_count);
         return 0;
+    }
+    if (!v->t) { /* the dynamic method alone: its colours come to the host */
+        snprintf(v->feed, sizeof v->feed, "upload (dynamic method: colours on the host)");
+        return 1;
     }
     v->interop = vw_feed_mode(v->ctx, v->readback_asked, v->feed, sizeof v->feed);
     if (v->interop) return 1; /* the relighter waits for the window's GL context (setup_interop) */
@@ -242,7 +283,7 @@ static int load(viewer *v, const char **env_args, int n_env_args)
  * read back. Needs the window's context current. */
 static int setup_interop(viewer *v)
 {
-    if (!v->interop) return 1;
+    if (!v->interop || !v->t) return 1;
     char why[4096] = "";
     void *glx = (void *)glfwGetGLXContext(v->win), *dpy = (void *)glfwGetX11Display();
     if (!glx || !dpy) {
@@ -279,7 +320,10 @@ int cmd_view(int argc, char **argv)
     v->glare = 1;
     v->spin_deg = 1.0f; /* the space key's step until --spin says otherwise */
     int n_env_args = 0, rc = parse(v, argc, argv, env_args, &n_env_args);
-    if (rc < 0) rc = load(v, env_args, n_env_args) ? -1 : 1;
+    if (rc < 0) {
+        rc = load(v, env_args, n_env_args);
+        rc = rc == 1 ? -1 : rc == 2 ? 2 : 1;
+    }
     if (rc < 0) rc = open_window(v) ? -1 : 3;
     if (rc < 0) rc = setup_interop(v) ? -1 : 1;
     if (rc < 0) {
@@ -291,16 +335,17 @@ int cmd_view(int argc, char **argv)
         float up_default[3] = {0.0f, 1.0f, 0.0f};
         int up_given = v->o.cam.up[0] != 0.0f || v->o.cam.up[1] != 0.0f || v->o.cam.up[2] != 0.0f;
         memcpy(v->up, up_given ? v->o.cam.up : up_default, sizeof v->up);
-        vw_mesh_bounds(v->t->mesh, v->centre, &v->radius);
+        vw_mesh_bounds(v->mesh, v->centre, &v->radius);
         v->cur = 0;
         v->loaded = -1;
         v->env_dirty = 1;
         if (!vw_update_camera(v, 1)) rc = 2;
+        else if (!vw_dyn_start(v)) rc = 2;
     }
     if (rc < 0) {
         if (!v->o.cd.quiet)
             fprintf(stderr, "view %s: %u vertices on %s; OpenGL: %s; colours by %s\n", v->scene,
-                    v->t->mesh->vertex_count, hl_context_device_name(v->ctx), vw_gl_renderer(v->gl), v->feed);
+                    v->mesh->vertex_count, hl_context_device_name(v->ctx), vw_gl_renderer(v->gl), v->feed);
         cli_watch(v->ctx, v->gctx);
         for (int i = 0; i < v->n_drops; i++) vw_drop_file(v, v->drops[i]);
         rc = vw_run_loop(v);
@@ -315,6 +360,7 @@ int cmd_view(int argc, char **argv)
     glfwTerminate();
     for (int i = 0; i < v->n_envs; i++) hl_env_destroy(v->envs[i].env);
     free(v->rgb);
+    vw_dyn_destroy(v);
     hl_transport_destroy(v->t);
     hl_context_destroy(v->ctx);
     free(env_args);

@@ -38,9 +38,20 @@ void vw_say(viewer *v, int error, const char *fmt, ...)
     v->redraw = 1;
 }
 
+/* The HUD of --dynamic: the method in use and its times. */
+static void dynamic_title(viewer *v, char *title, size_t size)
+{
+    char method[400];
+    vw_dyn_hud(v, method, sizeof method);
+    snprintf(title, size, "%.0f fps | %s | upload %.2f ms, draw %.1f ms | EV %+.1f | glare %s | env %d/%d %s, rot %.0f | %s",
+             v->fps, method, 1e3 * v->t_upload, 1e3 * v->t_draw, (double)v->exposure, v->glare ? "on" : "off",
+             v->cur + 1, v->n_envs, v->envs[v->cur].label, (double)v->rd.rotate_deg, hl_context_device_name(v->ctx));
+}
+
 void vw_update_title(viewer *v)
 {
-    char title[1024], terms[80];
+    char *title = v->hud, terms[80];
+    size_t size = sizeof v->hud;
     int tn;
     if (v->rd.terms == HL_TERMS_ALL) tn = snprintf(terms, sizeof terms, "all (%u)", v->st.terms_kept);
     else tn = snprintf(terms, sizeof terms, "%u", v->st.terms_kept);
@@ -48,13 +59,17 @@ void vw_update_title(viewer *v)
     if (v->st.negative_counted && v->st.negative_vertices && tn > 0 && (size_t)tn < sizeof terms)
         snprintf(terms + tn, sizeof terms - (size_t)tn, ", %u clamped below 0", v->st.negative_vertices);
     int n = 0;
-    if (v->msg[0] && glfwGetTime() < v->msg_until) n = snprintf(title, sizeof title, "%s | ", v->msg);
-    snprintf(title + n, sizeof title - (size_t)n,
-             "%.0f fps | relight %.1f ms, upload %.2f ms, draw %.1f ms | M %s, energy %.3f%% | EV %+.1f | glare %s | "
-             "env %d/%d %s, rot %.0f | %s | %s",
-             v->fps, 1e3 * v->t_relight, 1e3 * v->t_upload, 1e3 * v->t_draw, terms, 100.0 * v->st.energy_kept,
-             (double)v->exposure, v->glare ? "on" : "off", v->cur + 1, v->n_envs, v->envs[v->cur].label,
-             (double)v->rd.rotate_deg, hl_context_device_name(v->ctx), v->feed);
+    if (v->msg[0] && glfwGetTime() < v->msg_until) n = snprintf(title, size, "%s | ", v->msg);
+    if (n < 0 || (size_t)n >= size) n = 0;
+    if (v->dy.on)
+        dynamic_title(v, title + n, size - (size_t)n);
+    else
+        snprintf(title + n, size - (size_t)n,
+                 "%.0f fps | relight %.1f ms, upload %.2f ms, draw %.1f ms | M %s, energy %.3f%% | EV %+.1f | glare %s | "
+                 "env %d/%d %s, rot %.0f | %s | %s",
+                 v->fps, 1e3 * v->t_relight, 1e3 * v->t_upload, 1e3 * v->t_draw, terms, 100.0 * v->st.energy_kept,
+                 (double)v->exposure, v->glare ? "on" : "off", v->cur + 1, v->n_envs, v->envs[v->cur].label,
+                 (double)v->rd.rotate_deg, hl_context_device_name(v->ctx), v->feed);
     glfwSetWindowTitle(v->win, title);
 }
 
@@ -93,7 +108,7 @@ static void update_lighting(viewer *v)
         const hl_env *env = v->envs[v->cur].env;
         /* the texture first: it fails before the relighter is touched */
         int gl_ok = vw_gl_set_env(v->gl, env, err, sizeof err);
-        int cl_ok = gl_ok && hl_relighter_set_env(v->rl, env) == HL_OK;
+        int cl_ok = gl_ok && (!v->rl || hl_relighter_set_env(v->rl, env) == HL_OK);
         if (gl_ok && !cl_ok) snprintf(err, sizeof err, "%s", vw_rl_error(v));
         if (!cl_ok) {
             vw_say(v, 1, "%s: %s (keeping the current lighting)", v->envs[v->cur].label, err);
@@ -103,11 +118,17 @@ static void update_lighting(viewer *v)
             }
             v->cur = v->loaded;
             vw_gl_set_env(v->gl, v->envs[v->cur].env, err, sizeof err);
-            if (gl_ok && hl_relighter_set_env(v->rl, v->envs[v->cur].env) == HL_OK) v->light_dirty = 1;
+            if (gl_ok && (!v->rl || hl_relighter_set_env(v->rl, v->envs[v->cur].env) == HL_OK)) v->light_dirty = 1;
         } else {
             v->loaded = v->cur;
             v->light_dirty = 1;
         }
+        v->dy.env_dirty = 1;
+    }
+    /* --dynamic: its frame, or PRT's below when the scene is at rest */
+    if (v->dy.on && (vw_dyn_frame(v) || v->dy.showing || !v->t)) {
+        v->light_dirty = 0;
+        return;
     }
     if (v->light_dirty) {
         v->light_dirty = 0;
@@ -151,7 +172,7 @@ int vw_update_camera(viewer *v, int automatic)
         memcpy(d.target, v->target, sizeof d.target);
     }
     hl_camera_view cv;
-    if (hl_camera_query_view(v->ctx, v->t->mesh, &d, &cv) != HL_OK) {
+    if (hl_camera_query_view(v->ctx, v->mesh, &d, &cv) != HL_OK) {
         vw_say(v, 1, "%s", hl_context_last_error(v->ctx));
         memcpy(v->eye, v->view.eye, sizeof v->eye);
         return 0;
@@ -221,7 +242,7 @@ void vw_print_times(const viewer *v)
     fprintf(stderr,
             "view: %llu frames at %u x %u, %u vertices, %u triangles; device %s; colours by %s; OpenGL: %s\n"
             "  first frame %.1f ms (shader compilation, first uploads; not in the means)\n",
-            (unsigned long long)a->n + 1, v->fb_w, v->fb_h, v->t->mesh->vertex_count, v->t->mesh->triangle_count,
+            (unsigned long long)a->n + 1, v->fb_w, v->fb_h, v->mesh->vertex_count, v->mesh->triangle_count,
             hl_context_device_name(v->ctx), v->feed, vw_gl_renderer(v->gl), 1e3 * v->first_frame);
     if (l->n)
         fprintf(stderr,
@@ -230,6 +251,7 @@ void vw_print_times(const viewer *v)
                 (unsigned long long)l->n, 1e3 * l->relight / (double)l->n, 1e3 * l->upload / (double)l->n,
                 1e3 * l->draw / (double)l->n, 1e3 * l->present / (double)l->n, 1e3 * l->frame / (double)l->n,
                 (double)l->n / l->frame);
+    fprintf(stderr, "  last HUD: %s\n", v->hud);
     uint64_t k = a->n - l->n;
     if (k)
         fprintf(stderr, "  %llu frames without one (redraw only), mean: draw %.2f ms + present %.2f ms = frame %.2f ms\n",
@@ -240,7 +262,7 @@ void vw_print_times(const viewer *v)
 static int pending(const viewer *v)
 {
     return v->sky_dirty || v->env_dirty || v->light_dirty || v->camera_dirty || v->resized || v->redraw ||
-           v->shot_requested || v->auto_requested || v->spinning;
+           v->shot_requested || v->auto_requested || v->spinning || vw_dyn_pending(v);
 }
 
 int vw_run_loop(viewer *v)

@@ -1,7 +1,8 @@
 /* view_input.c - what the keys, the mouse and dropped files do to the
  * viewer: the environment list (the built-in sky's slot, loaded and
  * dropped maps), turning the environment, moving the sun, changing M and
- * the exposure, and the orbit and zoom of the camera. The work itself
+ * the exposure, the orbit and zoom of the camera, and (--dynamic) the
+ * animation and dragging bodies (view_dynamic.c). The work itself
  * waits for the next frame (view_frame.c): input only marks it.
  *
  * Dependencies: GLFW 3 (callbacks, key codes), the haarlight library.
@@ -93,10 +94,16 @@ void vw_rotate_env(viewer *v, float deg)
 {
     v->rd.rotate_deg = fmodf(v->rd.rotate_deg + deg, 360.0f);
     v->light_dirty = 1;
+    v->dy.env_dirty = 1; /* the dynamic method splits the turned map again */
+    v->dy.dirty |= v->dy.showing;
 }
 
 static void change_terms(viewer *v, int up)
 {
+    if (!v->t) {
+        vw_say(v, 0, "M is PRT's: this scene has no transport (--hlt)");
+        return;
+    }
     uint32_t all = 2u * v->t->info.N * v->t->info.N, m = v->rd.terms;
     if (up) m = m == HL_TERMS_ALL || m >= all / 2 ? HL_TERMS_ALL : 2 * m;
     else m = m == HL_TERMS_ALL ? all / 2 : m > 1 ? m / 2 : 1;
@@ -110,6 +117,11 @@ static void change_terms(viewer *v, int up)
  * new relight where they are there already: same settings, read back). */
 void vw_auto_exposure(viewer *v)
 {
+    if (v->dy.showing) { /* the dynamic method's colours are on the host */
+        v->exposure = hl_exposure_auto(v->mesh, v->dy.rgb);
+        return;
+    }
+    if (!v->rl) return; /* no colours yet: the first frame sets it */
     if (hl_relighter_run(v->rl, &v->rd, v->rgb, NULL) == HL_OK) v->exposure = hl_exposure_auto(v->t->mesh, v->rgb);
     else vw_say(v, 1, "automatic exposure: %s", vw_rl_error(v));
 }
@@ -137,7 +149,13 @@ static void on_char(GLFWwindow *w, unsigned int c)
     case 'g': case 'G': v->glare = !v->glare; v->redraw = 1; break;
     case 'p': case 'P': v->shot_requested = 1; v->redraw = 1; break;
     case 'r': case 'R': v->camera_dirty = 2; break;
-    case ' ': v->spinning = !v->spinning; v->redraw = 1; break;
+    case 'b': case 'B':
+        if (v->dy.on) vw_dyn_reset(v);
+        break;
+    case ' ':
+        if (!vw_dyn_toggle_play(v)) v->spinning = !v->spinning;
+        v->redraw = 1;
+        break;
     case 'h': case 'H': case '?': fputs(VW_KEYS, stdout); fflush(stdout); break;
     case 'q': case 'Q': v->quit = 1; break;
     default:
@@ -175,7 +193,11 @@ static void on_button(GLFWwindow *w, int button, int action, int mods)
     if (button == GLFW_MOUSE_BUTTON_RIGHT || (button == GLFW_MOUSE_BUTTON_LEFT && (mods & GLFW_MOD_SHIFT)))
         v->drag = DRAG_ENV;
     else if (button == GLFW_MOUSE_BUTTON_LEFT && (mods & GLFW_MOD_CONTROL)) v->drag = DRAG_SUN;
-    else if (button == GLFW_MOUSE_BUTTON_LEFT) v->drag = DRAG_ORBIT;
+    else if (button == GLFW_MOUSE_BUTTON_LEFT) {
+        int ww = 0, wh = 0; /* cursor positions are in window coordinates */
+        glfwGetWindowSize(w, &ww, &wh);
+        if (!(ww > 0 && wh > 0 && vw_dyn_grab(v, v->last_x, v->last_y, ww, wh))) v->drag = DRAG_ORBIT;
+    }
 }
 
 static void on_cursor(GLFWwindow *w, double x, double y)
@@ -191,6 +213,12 @@ static void on_cursor(GLFWwindow *w, double x, double y)
         break;
     case DRAG_ENV: vw_rotate_env(v, (float)(dx * VW_DRAG_DEG_PER_PIXEL)); break;
     case DRAG_SUN: move_sun(v, (float)(-dy * VW_DRAG_DEG_PER_PIXEL), (float)(dx * VW_DRAG_DEG_PER_PIXEL)); break;
+    case DRAG_BODY: {
+        int ww = 0, wh = 0;
+        glfwGetWindowSize(w, &ww, &wh);
+        if (ww > 0 && wh > 0) vw_dyn_drag(v, x, y, ww, wh);
+        break;
+    }
     default: break;
     }
 }

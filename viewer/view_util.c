@@ -1,5 +1,6 @@
 /* view_util.c - the viewer's helpers that need neither OpenGL nor GLFW:
- * the tone-map table, camera maths, the colour feed decision, file names.
+ * the tone-map table, camera maths, mouse rays against triangles, the
+ * colour feed decision, file names.
  *
  * Dependencies: haarlight.h (hl_tonemap_srgb8,
  * hl_context_*), libc, libm, POSIX (access).
@@ -150,6 +151,37 @@ void vw_zoom(float eye[3], const float target[3], double factor, double min_dist
     if (!(d > 0.0)) return;
     if (want < min_distance) want = min_distance;
     for (int k = 0; k < 3; k++) eye[k] = (float)(target[k] + o[k] * want / d);
+}
+
+/* ---------------------------------------------------------------- mouse rays */
+
+void vw_pixel_ray(const hl_camera_view *cv, double x, double y, double w, double h, double dir[3])
+{
+    /* the pixel's centre in [-1, 1], +y up as the background shader's */
+    double sx = 2.0 * x / w - 1.0, sy = 1.0 - 2.0 * y / h;
+    for (int k = 0; k < 3; k++)
+        dir[k] = cv->forward[k] + sx * cv->tan_half_x * cv->right[k] + sy * cv->tan_half_y * cv->up[k];
+}
+
+/* Moeller-Trumbore, in double. */
+double vw_ray_triangle(const double o[3], const double d[3], const float *a, const float *b, const float *c)
+{
+    double e1[3], e2[3], p[3], s[3], q[3];
+    for (int k = 0; k < 3; k++) {
+        e1[k] = (double)b[k] - a[k];
+        e2[k] = (double)c[k] - a[k];
+        s[k] = o[k] - a[k];
+    }
+    cross3(d, e2, p);
+    double det = dot3(e1, p);
+    if (fabs(det) < 1e-300) return -1.0; /* parallel to the plane */
+    double u = dot3(s, p) / det;
+    if (u < 0.0 || u > 1.0) return -1.0;
+    cross3(s, e1, q);
+    double w = dot3(d, q) / det;
+    if (w < 0.0 || u + w > 1.0) return -1.0;
+    double t = dot3(e2, q) / det;
+    return t > 0.0 ? t : -1.0;
 }
 
 /* ---------------------------------------------------------------- colour feed */

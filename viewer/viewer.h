@@ -8,8 +8,11 @@
  *   view_input.c  keys, mouse and dropped files; the environment list
  *   gl_draw.c     every OpenGL call: mesh, background, glare, tone mapping,
  *                 read-back (the only file that sees OpenGL)
+ *   view_dynamic.c --dynamic: the dynamic method's scene, its frames,
+ *                 the animation, picking and dragging bodies, its HUD
  *   view_util.c   what needs neither OpenGL nor GLFW: camera maths, the
- *                 tone-map table, the colour feed decision, file names
+ *                 tone-map table, the colour feed decision, file names,
+ *                 mouse rays and their hits
  * The view*.c files see GLFW; gl_draw.c does not.
  *
  * Not thread safe: everything runs on the thread that owns the window.
@@ -47,6 +50,12 @@ int cmd_view(int argc, char **argv);
     "  p                      screenshot: haarlight-view-NNN.png in the current folder\n"     \
     "  r                      reset the camera\n"                                             \
     "  h                      print this list\n"                                              \
+    "with --dynamic:\n"                                                                       \
+    "  left drag on a body    move it across the horizontal plane through the grab point\n"   \
+    "                         (the ground itself is not dragged; elsewhere: orbit)\n"         \
+    "  space                  play / pause the animation (scenes without one: spin)\n"       \
+    "  b                      bodies back to rest and the time to --time (PRT again with\n"  \
+    "                         a transport)\n"                                                 \
     "  q, escape              quit\n"
 
 
@@ -79,7 +88,46 @@ typedef struct time_sums {
     uint64_t n;
 } time_sums;
 
-enum { DRAG_NONE, DRAG_ORBIT, DRAG_ENV, DRAG_SUN };
+enum { DRAG_NONE, DRAG_ORBIT, DRAG_ENV, DRAG_SUN, DRAG_BODY };
+
+/* --move options one run takes (as relight-dynamic's). */
+#define VW_MAX_MOVES 64
+/* --lights default: relight-dynamic's, so that the two agree unasked. */
+#define VW_DYN_DEFAULT_LIGHTS 32
+
+/* The dynamic method's part of the viewer (--dynamic). */
+typedef struct vw_dyn {
+    int on;                 /* --dynamic given */
+    const char *hlt;        /* --hlt: the transport for frames at rest */
+    int ground;             /* --ground */
+    uint32_t lights;        /* --lights K */
+    hl_dynamic_desc desc;   /* --shadow-res, --order */
+    float time0;            /* --time */
+    int play;               /* --play */
+    uint32_t nmoves;
+    char *move_name[VW_MAX_MOVES];
+    float move[VW_MAX_MOVES][3];
+    int drag_set;           /* --drag X0,Y0,X1,Y1 */
+    float drag[4];
+
+    hl_dynamic *d;
+    uint32_t nb;
+    float (*xf)[12];        /* each body's transform after its animation */
+    uint32_t moved;         /* bodies whose transform is not the identity */
+    double time, t_start, t_end, play_clock;
+    int playing;
+    int env_dirty;          /* the lights must be split again (map or rotation) */
+    int dirty;              /* a body moved or the time changed */
+    int showing;            /* the colours on screen are the dynamic method's */
+    int ok;                 /* the last frame rendered */
+    float *rgb;             /* the last frame's colours (3 per vertex, owned by d) */
+    float *rgba;            /* the same, 4 per vertex, for the colour buffer */
+    hl_dynamic_lights li;
+    hl_dynamic_stats st;
+    /* the body being dragged: its transform and the grab point at the press */
+    uint32_t drag_body;
+    float drag_xf[12], grab[3];
+} vw_dyn;
 
 typedef struct viewer {
     cli_scene_opts o;
@@ -90,7 +138,9 @@ typedef struct viewer {
     float spin_deg;
 
     hl_context *ctx;
-    hl_transport *t;
+    hl_transport *t;     /* NULL with --dynamic and no transport */
+    const hl_mesh *mesh; /* the mesh drawn: the transport's or the dynamic scene's */
+    vw_dyn dy;
     hl_relighter *rl;
     hl_context *gctx;  /* shares buffers with the window's GL context (interop);
                           the relighter lives on it when set, else on ctx */
@@ -120,7 +170,7 @@ typedef struct viewer {
     int sky_dirty, env_dirty, light_dirty, camera_dirty, resized, redraw, shot_requested, auto_requested, quit;
     int failed; /* the first environment could not be set: nothing to show */
 
-    char msg[512];
+    char msg[512], hud[1024];
     double msg_until;
     double fps, last_frame_end, first_frame;
     double t_relight, t_upload, t_draw, t_present;
@@ -168,6 +218,35 @@ void vw_rotate_env(viewer *v, float deg);
 /* Automatic exposure from the current colours. */
 void vw_auto_exposure(viewer *v);
 
+/* ---------------------------------------------------------------- view_dynamic.c */
+
+/* --dynamic's options; 1 taken, 0 not one of them, -2 usage error
+ * (printed). */
+int vw_dyn_opt(viewer *v, int argc, char **argv, int *i, const char *usage);
+/* The dynamic scene (and the transport, when there is one) before any
+ * window: scene, transport and their vertex order checked, moves applied;
+ * prints the error and returns 0 on failure (*rc the exit code). */
+int vw_dyn_load(viewer *v, int *rc);
+/* Before the first frame: --drag through the mouse's own path. */
+int vw_dyn_start(viewer *v);
+/* The frame's lighting work in --dynamic mode (after the environment was
+ * set): PRT at rest with a transport, else a dynamic frame when something
+ * changed; 1 if the colours changed. */
+int vw_dyn_frame(viewer *v);
+/* Whether the next frame has dynamic work (playing, a moved body). */
+int vw_dyn_pending(const viewer *v);
+/* The HUD's method part. */
+void vw_dyn_hud(const viewer *v, char *buf, size_t size);
+/* Mouse: a press at window pixel (x, y) of a w x h window; returns 1 and
+ * starts a body drag when a body is under it. */
+int vw_dyn_grab(viewer *v, double x, double y, double w, double h);
+void vw_dyn_drag(viewer *v, double x, double y, double w, double h);
+/* Space: play / pause; 0 when there is no animation. */
+int vw_dyn_toggle_play(viewer *v);
+/* Every body back to its animation and the time to --time. */
+void vw_dyn_reset(viewer *v);
+void vw_dyn_destroy(viewer *v);
+
 /* ---------------------------------------------------------------- gl_draw.c */
 
 /* What one frame shows. */
@@ -190,6 +269,8 @@ const char *vw_gl_renderer(const vw_gl *g);
 int vw_gl_resize(vw_gl *g, uint32_t w, uint32_t h, char *err, size_t err_size);
 /* Uploads the environment drawn as background. */
 int vw_gl_set_env(vw_gl *g, const hl_env *env, char *err, size_t err_size);
+/* Replaces the vertex positions (3 floats per vertex; bodies moved). */
+void vw_gl_upload_positions(vw_gl *g, const float *positions);
 /* Copies 4 floats per vertex (the dot products' layout) into the colour
  * buffer. */
 void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgba);
@@ -228,6 +309,13 @@ void vw_zoom(float eye[3], const float target[3], double factor, double min_dist
  * 1 to try CL/GL interop (the device lists cl_khr_gl_sharing and
  * readback_asked is 0), else 0; buf gets the line for the HUD. */
 int vw_feed_mode(hl_context *ctx, int readback_asked, char *buf, size_t size);
+
+/* The world-space ray through window pixel (x, y) (from the top left) of
+ * a w x h window, as hl_render shoots it: origin the eye, dir unnormalised. */
+void vw_pixel_ray(const hl_camera_view *cv, double x, double y, double w, double h, double dir[3]);
+/* Distance along the ray (o, d) to triangle (a, b, c), or -1 on a miss
+ * (either side counts). */
+double vw_ray_triangle(const double o[3], const double d[3], const float *a, const float *b, const float *c);
 
 /* "haarlight-view-NNN.png" in the current folder, the first not taken. */
 void vw_screenshot_name(char *buf, size_t size);
