@@ -11,8 +11,10 @@
 #                  with the same --move), and the HUD says so
 #   dynamic_drag   --drag through the mouse's code path: the translation it
 #                  prints, given to relight-dynamic, gives the same picture
+#   dynamic_anim   an animated glTF (tests/viewer/viewer_scene.c): --time as
+#                  relight-dynamic's, and --play makes a new frame each frame
 #   dynamic_bad    --dynamic's errors before any window (no X needed)
-# Env: HL_BIN, HL_COMPARE (test_viewer), HL_TMP, HL_REPO_DATA,
+# Env: HL_BIN, HL_COMPARE (test_viewer), HL_SCENE_GEN (viewer_scene), HL_TMP, HL_REPO_DATA,
 # HL_VIEWER_BUILT (ON/OFF). Exit 77 = skipped.
 set -u
 bin="${HL_BIN:?}"
@@ -70,7 +72,7 @@ same_picture() {
 }
 
 case "${1:-}" in
-capture_sky|capture_env|drop|dynamic_rest|dynamic_moved|dynamic_drag)
+capture_sky|capture_env|drop|dynamic_rest|dynamic_moved|dynamic_drag|dynamic_anim)
   [ "${HL_VIEWER_BUILT:-OFF}" = ON ] || skip "haarlight was built without the viewer (HL_WITH_VIEWER=OFF or no GLFW/OpenGL)"
   ;;
 esac
@@ -162,6 +164,26 @@ dynamic_drag)
   [ $rc -eq 2 ] || fail "a drag starting on the ground: exit $rc, expected 2"
   grep -q "no body under pixel 20,180" "$tmp/view.txt" || fail "a drag on the ground: no message naming the pixel"
   ;;
+dynamic_anim)
+  "${HL_SCENE_GEN:?}" "$tmp/anim.gltf" || fail "viewer_scene"
+  acam=(--size 256x192 --exposure -1 --eye 6,6,10 --target 0,0.5,0)
+  for t in 0.5 1.5; do
+    "$bin" relight-dynamic "$tmp/anim.gltf" "${dyn[@]}" "${acam[@]}" --time $t -q -o "$tmp/rd$t.exr" ||
+      fail "relight-dynamic --time $t"
+    view --dynamic "$tmp/anim.gltf" "${dyn[@]}" "${acam[@]}" --time $t --no-glare --frames 2 \
+      --screenshot "$tmp/view$t.exr" || fail "view --dynamic --time $t exited with an error"
+    same_picture "the box at $t s" "$tmp/view$t.exr" "$tmp/rd$t.exr" -1
+    hud_says "--time $t" "dynamic K 4: .*, t $t""0 s of 0.00-2.00 paused"
+  done
+  echo "the box at 0.5 s and at 1.5 s must differ:"
+  "$compare" compare "$tmp/view0.5.exr" "$tmp/view1.5.exr" -1 >"$tmp/cmp.txt" 2>&1 &&
+    fail "the frames at 0.5 s and 1.5 s are the same picture: --time did nothing"
+  # playing: every frame after the first is a new dynamic frame
+  view --dynamic "$tmp/anim.gltf" "${dyn[@]}" "${acam[@]}" --play --no-glare --frames 4 ||
+    fail "view --dynamic --play exited with an error"
+  hud_says "--play" "of 0.00-2.00 playing"
+  grep -q "^  3 frames with a lighting change" "$tmp/view.txt" || fail "--play: not 3 new frames after the first"
+  ;;
 dynamic_bad)
   [ "${HL_VIEWER_BUILT:-OFF}" = ON ] || skip "haarlight was built without the viewer"
   expect() {
@@ -218,6 +240,6 @@ bad_input)
     expect no_scene 2 "no SCENE.hlt" --frames 1
   fi
   ;;
-*) echo "usage: $0 capture_sky|capture_env|drop|bad_input|dynamic_rest|dynamic_moved|dynamic_drag|dynamic_bad"; exit 2 ;;
+*) echo "usage: $0 capture_sky|capture_env|drop|bad_input|dynamic_rest|dynamic_moved|dynamic_drag|dynamic_anim|dynamic_bad"; exit 2 ;;
 esac
 [ "$fails" -eq 0 ] && echo "passed" || { echo "$fails failure(s)"; exit 1; }
