@@ -5,10 +5,14 @@
  * stages and the sparse dot products on the context's device - and feeds
  * the vertex colours to OpenGL; a camera move or an exposure change only
  * redraws, and with nothing to do the loop sleeps in glfwWaitEvents.
- * This file holds the command: its options, loading everything that can
- * fail on bad input, the window and its OpenGL context, and the CL/GL
- * sharing; the frames are view_frame.c's, the input view_input.c's, the
- * drawing gl_draw.c's and the helpers view_util.c's.
+ * With --dynamic the colours come from the dynamic method instead
+ * whenever a body moved or the animation is not at time 0
+ * (view_dynamic.c), and from the relighter otherwise, when a transport is
+ * given. This file holds the command: its options, loading everything
+ * that can fail on bad input, the window and its OpenGL context, and the
+ * CL/GL sharing; the frames are view_frame.c's, the input view_input.c's,
+ * the dynamic method's part view_dynamic.c's, the drawing gl_draw.c's and
+ * the helpers view_util.c's.
  *
  * Dependencies: GLFW 3 (the window, the GLX context for sharing), the
  * haarlight library and haarlight_tools.h (CL/GL sharing), the CLI
