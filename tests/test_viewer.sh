@@ -9,7 +9,7 @@
 #                  (as relight's), from SCENE.hlt and from MESH --hlt
 #   dynamic_moved  --move: the dynamic method's picture (as relight-dynamic's
 #                  with the same --move), and the HUD says so
-#   dynamic_drag   --drag through the mouse's code path: the translation it
+#   dynamic_drag   --drag through the mouse's handlers: the translation it
 #                  prints, given to relight-dynamic, gives the same picture
 #   dynamic_anim   an animated glTF (tests/viewer/viewer_scene.c): --time as
 #                  relight-dynamic's, and --play makes a new frame each frame
@@ -162,7 +162,7 @@ dynamic_drag)
   view --dynamic "$tmp/d.hlt" "${dyn[@]}" "${dcam[@]}" --drag 20,180,40,180 --frames 1
   rc=$?
   [ $rc -eq 2 ] || fail "a drag starting on the ground: exit $rc, expected 2"
-  grep -q "no body under pixel 20,180" "$tmp/view.txt" || fail "a drag on the ground: no message naming the pixel"
+  grep -q "no body under window point 20,180" "$tmp/view.txt" || fail "a drag on the ground: no message naming the pixel"
   ;;
 dynamic_anim)
   "${HL_SCENE_GEN:?}" "$tmp/anim.gltf" || fail "viewer_scene"

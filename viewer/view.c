@@ -85,8 +85,9 @@ static const char *const usage_view =
     "  --play               start playing the animation (in real time, looping)\n"
     "  --move BODY:X,Y,Z    translate the body named BODY before the first frame\n"
     "                       (repeatable; as relight-dynamic's --move)\n"
-    "  --drag X0,Y0,X1,Y1   before the first frame, drag with the mouse from window pixel\n"
-    "                       X0,Y0 to X1,Y1 (for tests; prints the body's translation)\n"
+    "  --drag X0,Y0,X1,Y1   before the first frame, a left-button drag from window point\n"
+    "                       X0,Y0 to X1,Y1 through the mouse's own handlers (for tests;\n"
+    "                       prints the body's translation)\n"
     "running:\n"
     CLI_USAGE_RUNNING
     "\n" VW_KEYS;

@@ -427,14 +427,11 @@ int vw_dyn_start(viewer *v)
 {
     vw_dyn *y = &v->dy;
     if (!y->drag_set) return 1;
-    double w = v->fb_w, h = v->fb_h;
-    if (!vw_dyn_grab(v, y->drag[0], y->drag[1], w, h)) {
-        fprintf(stderr, "haarlight: --drag: no body under pixel %g,%g (the ground is not dragged)\n",
+    if (!vw_input_drag(v, y->drag[0], y->drag[1], y->drag[2], y->drag[3])) {
+        fprintf(stderr, "haarlight: --drag: no body under window point %g,%g (the ground is not dragged)\n",
                 (double)y->drag[0], (double)y->drag[1]);
         return 0;
     }
-    vw_dyn_drag(v, y->drag[2], y->drag[3], w, h);
-    v->drag = DRAG_NONE;
     const float *xf = y->xf[y->drag_body];
     /* %.9g: the floats as set, so that relight-dynamic --move repeats them */
     fprintf(stderr, "view: dragged body \"%s\" to translation %.9g,%.9g,%.9g\n",

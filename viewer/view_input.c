@@ -251,6 +251,16 @@ static void on_refresh(GLFWwindow *w)
 }
 
 
+int vw_input_drag(viewer *v, double x0, double y0, double x1, double y1)
+{
+    glfwSetCursorPos(v->win, x0, y0); /* the press reads where the cursor is */
+    on_button(v->win, GLFW_MOUSE_BUTTON_LEFT, GLFW_PRESS, 0);
+    int grabbed = v->drag == DRAG_BODY;
+    if (grabbed) on_cursor(v->win, x1, y1);
+    on_button(v->win, GLFW_MOUSE_BUTTON_LEFT, GLFW_RELEASE, 0);
+    return grabbed;
+}
+
 void vw_input_attach(struct GLFWwindow *w)
 {
     glfwSetCharCallback(w, on_char);

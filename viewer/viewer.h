@@ -205,6 +205,9 @@ void vw_print_times(const viewer *v);
 
 /* Sets the window's input callbacks (its user pointer is the viewer). */
 void vw_input_attach(struct GLFWwindow *w);
+/* A left-button drag from window point (x0, y0) to (x1, y1) through the
+ * mouse callbacks themselves (--drag); 1 if it grabbed a body. */
+int vw_input_drag(viewer *v, double x0, double y0, double x1, double y1);
 /* Appends an environment (owned from then on); returns its index, or -1
  * (and destroys it) when the list is full. */
 int vw_add_env(viewer *v, hl_env *env, const char *label);
