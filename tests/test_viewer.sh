@@ -8,7 +8,8 @@
 #   dynamic_rest   --dynamic with a transport, nothing moved: PRT's picture
 #                  (as relight's), from SCENE.hlt and from MESH --hlt
 #   dynamic_moved  --move: the dynamic method's picture (as relight-dynamic's
-#                  with the same --move), and the HUD says so
+#                  with the same --move), and the HUD says so; the key b
+#                  then brings PRT's picture back
 #   dynamic_drag   --drag through the mouse's handlers: the translation it
 #                  prints, given to relight-dynamic, gives the same picture
 #   dynamic_anim   an animated glTF (tests/viewer/viewer_scene.c): --time as
@@ -142,6 +143,12 @@ dynamic_moved)
     --screenshot "$tmp/view2.exr" || fail "view --dynamic MESH --ground --move exited with an error"
   same_picture "--dynamic MESH --ground, object moved by 3,0,2" "$tmp/view2.exr" "$tmp/rd.exr" 0.5
   hud_says "--dynamic MESH, object moved" "dynamic K 4"
+  # b after a moved frame: bodies back at rest, so PRT's picture again
+  view --dynamic "$tmp/d.hlt" "${dyn[@]}" "${dcam[@]}" "${mv[@]}" --keys b --no-glare --frames 2 \
+    --screenshot "$tmp/view3.exr" || fail "view --dynamic --move --keys b exited with an error"
+  grep -q "^  1 frames with a lighting change" "$tmp/view.txt" || fail "b: the frame back at rest was not relit"
+  same_picture "moved, then b (back to rest)" "$tmp/view3.exr" "$tmp/prt.exr" 0.5
+  hud_says "moved, then b" "PRT at rest"
   ;;
 dynamic_drag)
   dyn_scene

@@ -64,6 +64,8 @@ static const char *const usage_view =
     "  --spin DEG           turn the environment by DEG every frame (a lighting change\n"
     "                       every frame, for timing)\n"
     "  --drop ENV.exr       treat ENV.exr as dropped on the window (for tests)\n"
+    "  --keys STRING        type STRING's characters after the first frame (for tests;\n"
+    "                       the keys below that are characters)\n"
     "dynamic scenes (--dynamic: the second method, relight-dynamic's, which needs no\n"
     "precompute, so bodies may move; a frame costs as much as one relight-dynamic run,\n"
     "and one is made only when a body moved, the time or the lighting changed):\n"
@@ -176,7 +178,7 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
             continue;
         }
         int takes = !strcmp(a, "--env") || !strcmp(a, "--frames") || !strcmp(a, "--screenshot") ||
-                    !strcmp(a, "--spin") || !strcmp(a, "--drop");
+                    !strcmp(a, "--spin") || !strcmp(a, "--drop") || !strcmp(a, "--keys");
         if (takes && i + 1 >= argc) return usage_error(usage, "option %s needs a value", a);
         const char *val = takes ? argv[++i] : NULL;
         if (!strcmp(a, "--env")) {
@@ -194,6 +196,8 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
             if (!parse_float(val, &v->spin_deg) || fabsf(v->spin_deg) > 360.0f)
                 return usage_error(usage, "--spin %s: expected -360 to 360 degrees per frame", val);
             v->spinning = v->spin_deg != 0.0f;
+        } else if (!strcmp(a, "--keys")) {
+            v->keys = val;
         } else if (!strcmp(a, "--drop")) {
             if (v->n_drops == VW_MAX_DROPS) return usage_error(usage, "%s", "too many --drop files");
             v->drops[v->n_drops++] = val;

@@ -331,6 +331,10 @@ int vw_run_loop(viewer *v)
             if (lit) add_times(&v->lit, v, work);
         }
         vw_update_title(v);
+        if (v->keys) {
+            vw_input_type(v, v->keys);
+            v->keys = NULL;
+        }
         if (headless && ++frame >= v->frames_limit) break;
     }
     if (hl_context_cancelled(v->ctx)) {

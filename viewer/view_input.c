@@ -251,6 +251,11 @@ static void on_refresh(GLFWwindow *w)
 }
 
 
+void vw_input_type(viewer *v, const char *keys)
+{
+    for (const char *c = keys; *c; c++) on_char(v->win, (unsigned char)*c);
+}
+
 int vw_input_drag(viewer *v, double x0, double y0, double x1, double y1)
 {
     glfwSetCursorPos(v->win, x0, y0); /* the press reads where the cursor is */

@@ -132,6 +132,7 @@ typedef struct vw_dyn {
 typedef struct viewer {
     cli_scene_opts o;
     const char *scene, *shot_path;
+    const char *keys; /* --keys: typed after the first frame */
     const char *drops[VW_MAX_DROPS];
     int n_drops;
     uint32_t frames_limit;
@@ -208,6 +209,8 @@ void vw_input_attach(struct GLFWwindow *w);
 /* A left-button drag from window point (x0, y0) to (x1, y1) through the
  * mouse callbacks themselves (--drag); 1 if it grabbed a body. */
 int vw_input_drag(viewer *v, double x0, double y0, double x1, double y1);
+/* Each character of keys as if typed (--keys). */
+void vw_input_type(viewer *v, const char *keys);
 /* Appends an environment (owned from then on); returns its index, or -1
  * (and destroys it) when the list is full. */
 int vw_add_env(viewer *v, hl_env *env, const char *label);
