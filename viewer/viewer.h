@@ -50,13 +50,13 @@ int cmd_view(int argc, char **argv);
     "  p                      screenshot: haarlight-view-NNN.png in the current folder\n"     \
     "  r                      reset the camera\n"                                             \
     "  h                      print this list\n"                                              \
+    "  q, escape              quit\n"                                                        \
     "with --dynamic:\n"                                                                       \
     "  left drag on a body    move it across the horizontal plane through the grab point\n"   \
     "                         (the ground itself is not dragged; elsewhere: orbit)\n"         \
     "  space                  play / pause the animation (scenes without one: spin)\n"       \
-    "  b                      bodies back to rest and the time to --time (PRT again with\n"  \
-    "                         a transport)\n"                                                 \
-    "  q, escape              quit\n"
+    "  b                      bodies back to their animation, the time to --time (PRT\n"    \
+    "                         again where that is at rest and there is a transport)\n"
 
 
 #define VW_MAX_ENVS 64
