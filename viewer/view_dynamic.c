@@ -426,6 +426,7 @@ void vw_dyn_drag(viewer *v, double x, double y_px, double w, double h)
 int vw_dyn_start(viewer *v)
 {
     vw_dyn *y = &v->dy;
+    y->play_clock = glfwGetTime(); /* --play counts from the first frame, not from glfwInit */
     if (!y->drag_set) return 1;
     if (!vw_input_drag(v, y->drag[0], y->drag[1], y->drag[2], y->drag[3])) {
         fprintf(stderr, "haarlight: --drag: no body under window point %g,%g (the ground is not dragged)\n",
