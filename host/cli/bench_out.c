@@ -1,7 +1,9 @@
 /* bench_out.c - what `haarlight bench` writes: bench.csv and bench.md
  * (their headings here, their rows from bench.c), the speed and subnormal
- * summaries, bench.gp and the SVG gnuplot draws from it. Every file is
- * written under a temporary name and renamed when complete.
+ * summaries, bench.gp and the SVG gnuplot draws from it; and the same
+ * files of `haarlight bench-dynamic` (its table, verdicts and plot, from
+ * the rows bench_dynamic.c measured). Every file is written under a
+ * temporary name and renamed when complete.
  *
  * Depends on the public API, haarlight_tools.h (failures recorded on a
  * context) and POSIX (fork and exec of gnuplot).
@@ -261,4 +263,207 @@ int bench_out_finish(bench_out *o, hl_result r, hl_context *cl, hl_context *ref)
     if (plotted) printf("bench: wrote %s/bench.md, %s/bench.csv and %s/bench.svg\n", d, d, d);
     else printf("bench: wrote %s/bench.md and %s/bench.csv (no plot)\n", d, d);
     return rc;
+}
+
+/* ---------------------------------------------------------------- bench-dynamic */
+
+static const char *const bd_method_names[] = {"PRT", "dynamic", "K-lights ref", "traced"};
+
+/* Where a row's time goes, in words. */
+static void bd_split(char *buf, size_t n, const bd_row *w)
+{
+    buf[0] = '\0';
+    if (w->method == BD_DYNAMIC)
+        snprintf(buf, n, "irradiance %.1f, shadow maps %.1f, CSM build %.1f, CSM eval %.1f, shading %.1f (frame %.1f)",
+                 w->stage[0], w->stage[1], w->stage[2], w->stage[3], w->stage[4], w->stage[5]);
+    else if (w->method == BD_TRACED)
+        snprintf(buf, n, "BVH %.1f, rays %.1f, occlusion %.1f, shading %.1f", w->stage[0], w->stage[1], w->stage[2],
+                 w->stage[3]);
+}
+
+static void bd_setting(char *buf, size_t n, const bd_row *w)
+{
+    if (w->method == BD_PRT && w->M == 0) snprintf(buf, n, "M all");
+    else if (w->method == BD_PRT) snprintf(buf, n, "M %u", w->M);
+    else if (w->method == BD_DYNAMIC) snprintf(buf, n, "K %u, M %u", w->K, w->M);
+    else if (w->method == BD_LIGHTS) snprintf(buf, n, "K %u", w->K);
+    else snprintf(buf, n, "K %u, S %u", w->K, w->S);
+}
+
+static void bd_tables(FILE *md, FILE *csv, const bd_report *rep)
+{
+    fprintf(md, "# Error against time: PRT, the dynamic method and traced rays\n\n"
+                "Scene: %s, %u vertices (%u object, %u ground). Device: %s. Shadow maps %u^2.\n"
+                "Errors: relative L2 over every vertex and channel, and the worst vertex over the brightest, against\n"
+                "the exact result (each vertex integrates the whole map, resampled on a cube of 64^2 texels a face,\n"
+                "with Embree visibility on the geometry as it is; %.1f s under the first map); moved frames also\n"
+                "against the K-lights reference (the same K lights with ray-traced visibility, the folded rest\n"
+                "unshadowed: what the light split alone leaves). Moved: the object translated by (%.3g, %.3g, %.3g),\n"
+                "0.3 of its height up and half its width along +X. Times: PRT, the median of %u full lighting changes;\n"
+                "dynamic, the median of %u frames, each really computed (the object nudged by 1e-6 of the scene's\n"
+                "diagonal), split by stage in ms (medians of each); traced, the median of %u calls, everything\n"
+                "rebuilt as after any move (world mesh and BVH, rays, occlusion, shading); the K-lights reference,\n"
+                "one call. Times in ms.\n\n",
+            rep->scene, rep->vertices, rep->object_vertices, rep->vertices - rep->object_vertices, rep->device, rep->R,
+            rep->ref_seconds, rep->move[0], rep->move[1], rep->move[2], rep->reps, rep->reps, rep->traced_reps);
+    fprintf(md, "| env | frames | method | setting | L2 exact | max exact | L2 vs K-lights | ms | frames/s | where the time goes (ms) |\n"
+                "|---|---|---|---|---|---|---|---|---|---|\n");
+    fprintf(csv, "env,frames,method,K,M,S,l2_exact,max_exact,l2_klights,ms,dyn_irradiance_ms,dyn_shadow_maps_ms,"
+                 "dyn_csm_build_ms,dyn_csm_eval_ms,dyn_shading_ms,dyn_frame_ms,traced_bvh_ms,traced_rays_ms,"
+                 "traced_occlusion_ms,traced_shading_ms\n");
+    for (uint32_t i = 0; i < rep->nrows; i++) {
+        const bd_row *w = &rep->rows[i];
+        char set[48], split[200], lk[32] = "";
+        bd_setting(set, sizeof set, w);
+        bd_split(split, sizeof split, w);
+        if (!isnan(w->l2_lights)) snprintf(lk, sizeof lk, "%.2f%%", 100 * w->l2_lights);
+        fprintf(md, "| %s | %s | %s | %s | %.2f%% | %.2f%% | %s | %.1f | %.1f | %s |\n", rep->envs[w->env].name,
+                w->moving ? "moved" : "rest", bd_method_names[w->method], set, 100 * w->l2, 100 * w->mx, lk, w->ms,
+                1e3 / w->ms, split);
+        const int dy = w->method == BD_DYNAMIC, tr = w->method == BD_TRACED;
+        fprintf(csv, "%s,%s,%s,%u,%u,%u,%.6g,%.6g,%.6g,%.4g", rep->envs[w->env].name, w->moving ? "moved" : "rest",
+                bd_method_names[w->method], w->K, w->M, w->S, w->l2, w->mx, w->l2_lights, w->ms);
+        for (int c = 0; c < 6; c++) fprintf(csv, ",%.4g", dy ? w->stage[c] : NAN);
+        for (int c = 0; c < 4; c++) fprintf(csv, ",%.4g", tr ? w->stage[c] : NAN);
+        fprintf(csv, "\n");
+    }
+}
+
+static const bd_row *bd_find(const bd_report *rep, int e, int moving, int method, uint32_t K, uint32_t M)
+{
+    for (uint32_t i = 0; i < rep->nrows; i++) {
+        const bd_row *w = &rep->rows[i];
+        if (w->env == e && w->moving == moving && w->method == method && w->K == K && w->M == M) return w;
+    }
+    return NULL;
+}
+
+/* The time a curve (rows of one method, in order of cost) needs to reach
+ * error target: interpolated in log-log between the last row above it
+ * and the first at or below it; *at: that first row (NULL: none reaches
+ * it; *cheapest: it is the curve's first, so the time is an upper
+ * bound). NAN when none does. */
+static double bd_time_at(const bd_report *rep, int e, int moving, int method, uint32_t K, double target,
+                         const bd_row **at, int *cheapest)
+{
+    const bd_row *prev = NULL;
+    *at = NULL;
+    *cheapest = 0;
+    for (uint32_t i = 0; i < rep->nrows; i++) {
+        const bd_row *w = &rep->rows[i];
+        if (w->env != e || w->moving != moving || w->method != method || (K && w->K != K)) continue;
+        if (w->l2 <= target) {
+            *at = w;
+            *cheapest = !prev;
+            if (!prev || prev->l2 <= w->l2 || w->l2 <= 0) return w->ms;
+            double f = (log(target) - log(prev->l2)) / (log(w->l2) - log(prev->l2));
+            return exp(log(prev->ms) + f * (log(w->ms) - log(prev->ms)));
+        }
+        prev = w;
+    }
+    return NAN;
+}
+
+/* Per map: who wins at rest (PRT at the dynamic goal's error) and moved
+ * (the traced method at it), and the goal's verdicts. */
+static void bd_verdicts(FILE *md, const bd_report *rep)
+{
+    fprintf(md, "\n## Who wins, and the speed goal (%.0f frames/s; %.0f times the traced method at equal error)\n\n",
+            BD_GOAL_FPS_V, BD_GOAL_RATIO_V);
+    for (int e = 0; e < rep->nenvs; e++) {
+        const char *name = rep->envs[e].name;
+        const bd_row *g = bd_find(rep, e, 0, BD_DYNAMIC, rep->goal_K, rep->goal_M);
+        const bd_row *gm = bd_find(rep, e, 1, BD_DYNAMIC, rep->goal_K, rep->goal_M);
+        if (!g || !gm) continue;
+        const bd_row *at = NULL;
+        char line[3][600], mname[16];
+        int cheap = 0;
+        double tp = bd_time_at(rep, e, 0, BD_PRT, 0, g->l2, &at, &cheap);
+        if (at && at->M) snprintf(mname, sizeof mname, "%u", at->M);
+        else snprintf(mname, sizeof mname, "all");
+        if (at)
+            snprintf(line[0], sizeof line[0], "at rest, PRT reaches the dynamic method's %.2f%% (K %u, M %u: %.1f ms) %s %.2f ms (%s: M %s, %.2f%%): %s, %.1f times %s",
+                     100 * g->l2, g->K, g->M, g->ms, cheap ? "in at most" : "at about", tp,
+                     cheap ? "its cheapest row is already below" : "first at or below", mname, 100 * at->l2,
+                     tp < g->ms ? "PRT wins" : "the dynamic method wins", tp < g->ms ? g->ms / tp : tp / g->ms,
+                     tp < g->ms ? "faster" : "faster than PRT");
+        else
+            snprintf(line[0], sizeof line[0], "at rest, no PRT row reaches the dynamic method's %.2f%% (K %u, M %u: %.1f ms): the dynamic method wins on error",
+                     100 * g->l2, g->K, g->M, g->ms);
+        double tt = bd_time_at(rep, e, 1, BD_TRACED, rep->goal_K, gm->l2, &at, &cheap);
+        if (at)
+            snprintf(line[1], sizeof line[1], "moved, the traced method (K %u) reaches the dynamic method's %.2f%% (%.1f ms) %s %.1f ms (%s: S %u, %.2f%% in %.1f ms): dynamic : traced speed %s%.2f",
+                     rep->goal_K, 100 * gm->l2, gm->ms, cheap ? "in at most" : "at about", tt,
+                     cheap ? "its cheapest row is already below" : "first at or below", at->S, 100 * at->l2, at->ms,
+                     cheap ? "at most " : "", tt / gm->ms);
+        else
+            snprintf(line[1], sizeof line[1], "moved, no traced row (K %u) reaches the dynamic method's %.2f%% (%.1f ms): the dynamic method wins on error at every S measured",
+                     rep->goal_K, 100 * gm->l2, gm->ms);
+        const double fps = 1e3 / g->ms, ratio = tt / gm->ms;
+        snprintf(line[2], sizeof line[2], "goal: %.1f frames/s at rest (K %u, R %u, M %u), %s %.0f; %s",
+                 fps, rep->goal_K, rep->R, rep->goal_M, fps >= BD_GOAL_FPS_V ? "at or above" : "below", BD_GOAL_FPS_V,
+                 at ? (ratio >= BD_GOAL_RATIO_V ? "at or above 3 times the traced method" : "below 3 times the traced method")
+                    : "the traced method does not reach its error at the S measured");
+        fprintf(md, "- **%s**: %s.\n  %s.\n  %s. Moved frame: irradiance %.1f, shadow maps %.1f, CSM build %.1f, CSM eval %.1f, shading %.1f ms.\n",
+                name, line[0], line[1], line[2], gm->stage[0], gm->stage[1], gm->stage[2], gm->stage[3], gm->stage[4]);
+        printf("bench-dynamic: %s: %s\nbench-dynamic: %s: %s\nbench-dynamic: %s: %s\n", name, line[0], name, line[1], name,
+               line[2]);
+    }
+}
+
+/* One data block per curve: (map, rest or moved, method, group), group
+ * the order M for the dynamic method and K for the traced one. */
+static void bd_plot(FILE *gp, const bd_report *rep)
+{
+    fprintf(gp, "# in this folder: gnuplot -e \"set output 'bench.svg'\" bench.gp\n");
+    int nb = 0;
+    char titles[64][64];
+    int panel[64];
+    for (uint32_t i = 0; i < rep->nrows && nb < 64; i++) {
+        const bd_row *w = &rep->rows[i];
+        const uint32_t grp = w->method == BD_DYNAMIC ? w->M : w->method == BD_TRACED ? w->K : 0;
+        int seen = 0;
+        for (uint32_t j = 0; j < i && !seen; j++) {
+            const bd_row *x = &rep->rows[j];
+            seen = x->env == w->env && x->moving == w->moving && x->method == w->method &&
+                   (x->method == BD_DYNAMIC ? x->M : x->method == BD_TRACED ? x->K : 0) == grp;
+        }
+        if (seen) continue;
+        fprintf(gp, "$b%d << EOD\n", nb);
+        for (uint32_t j = i; j < rep->nrows; j++) {
+            const bd_row *x = &rep->rows[j];
+            if (x->env == w->env && x->moving == w->moving && x->method == w->method &&
+                (x->method == BD_DYNAMIC ? x->M : x->method == BD_TRACED ? x->K : 0) == grp)
+                fprintf(gp, "%.5g %.6g\n", x->ms, x->l2);
+        }
+        fprintf(gp, "EOD\n");
+        if (w->method == BD_PRT) snprintf(titles[nb], sizeof titles[nb], "PRT (M terms)");
+        else if (w->method == BD_DYNAMIC) snprintf(titles[nb], sizeof titles[nb], "dynamic, order %u (K)", grp);
+        else if (w->method == BD_TRACED) snprintf(titles[nb], sizeof titles[nb], "traced, K %u (S)", grp);
+        else snprintf(titles[nb], sizeof titles[nb], "K-lights reference (K)");
+        panel[nb++] = 2 * w->env + w->moving;
+    }
+    fprintf(gp, "set terminal svg size %d,860 dynamic font 'sans,11' noenhanced\n", 380 * rep->nenvs + 60);
+    fprintf(gp, "set logscale xy\nset grid\nset key top right font ',8'\n"
+                "set xlabel 'time per frame (ms)'\nset ylabel 'relative L2 error vs exact'\n"
+                "set multiplot layout 2,%d columnsfirst title 'Error against time: %s'\n", rep->nenvs, rep->scene);
+    for (int p = 0; p < 2 * rep->nenvs; p++) {
+        fprintf(gp, "set title '%s, %s'\nplot ", rep->envs[p / 2].name, p % 2 ? "moved" : "at rest");
+        int first = 1;
+        for (int k = 0; k < nb; k++) {
+            if (panel[k] != p) continue;
+            fprintf(gp, "%s$b%d using 1:2 with linespoints pt 7 ps 0.6 title '%s'", first ? "" : ", \\\n     ", k, titles[k]);
+            first = 0;
+        }
+        if (first) fprintf(gp, "NaN notitle");
+        fprintf(gp, "\n");
+    }
+    fprintf(gp, "unset multiplot\n");
+}
+
+void bench_dyn_write(bench_out *o, const bd_report *rep)
+{
+    bd_tables(o->f[BENCH_MD], o->f[BENCH_CSV], rep);
+    bd_verdicts(o->f[BENCH_MD], rep);
+    bd_plot(o->f[BENCH_GP], rep);
 }

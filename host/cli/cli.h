@@ -97,6 +97,7 @@ int cmd_relight(int argc, char **argv);
 int cmd_relight_dynamic(int argc, char **argv);
 int cmd_check(int argc, char **argv);
 int cmd_bench(int argc, char **argv);
+int cmd_bench_dynamic(int argc, char **argv);
 
 /* ---------------------------------------------------------------- bench
  * `haarlight bench` in two files: bench.c measures (options, references,
@@ -166,5 +167,45 @@ void bench_out_summary(bench_out *o, const bench_run *run);
 /* Closes the files and renames them into place (when r is HL_OK, else
  * removes them), then draws the plot; returns the command's exit code. */
 int bench_out_finish(bench_out *o, hl_result r, hl_context *cl, hl_context *ref);
+
+/* ---------------------------------------------------------------- bench-dynamic
+ * `haarlight bench-dynamic`: bench_dynamic.c measures, bench_out.c
+ * writes (bench_dyn_write) into the same bench_out files.
+ */
+
+enum { BD_PRT, BD_DYNAMIC, BD_LIGHTS, BD_TRACED };
+/* The dynamic method's speed goal, printed as measured (not a test):
+ * 10 frames per second, and 3 times the traced method's speed at equal or
+ * lower error. */
+#define BD_GOAL_FPS_V 10.0
+#define BD_GOAL_RATIO_V 3.0
+/* One measured row: a method at a setting under one map, at rest
+ * (moving 0) or moved. */
+typedef struct bd_row {
+    int env, moving, method;
+    uint32_t K, M, S;      /* K lights; M: PRT terms (0: all) or CSM order; S: traced rays a light */
+    double l2, mx;         /* relative L2 and max against the exact reference */
+    double l2_lights;      /* against the K-lights reference (NAN: not measured) */
+    double ms;             /* median time a frame (NAN: not timed) */
+    double stage[6];       /* dynamic: irradiance, shadow maps, CSM build, CSM
+                              evaluation, shading, total; traced: BVH, rays'
+                              set-up, occlusion, shading (ms, medians) */
+} bd_row;
+
+/* What bench_dyn_write needs besides the rows. */
+typedef struct bd_report {
+    const bench_env *envs;
+    int nenvs;
+    const bd_row *rows;
+    uint32_t nrows;
+    const char *scene, *device;
+    uint32_t vertices, object_vertices, R, reps, traced_reps, goal_K, goal_M;
+    double move[3];        /* the moved frames' translation of the object */
+    double ref_seconds;    /* the exact reference's time on the first map */
+} bd_report;
+
+/* bench.md, bench.csv and bench.gp of bench-dynamic (already opened),
+ * with each map's verdicts on stdout too. */
+void bench_dyn_write(bench_out *o, const bd_report *rep);
 
 #endif

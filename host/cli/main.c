@@ -33,6 +33,7 @@ static const char *const usage_main =
     "  view SCENE.hlt                 interactive relighting in a window (GLFW viewer)\n"
     "  check SCENE.hlt                OpenCL stages against the plain-C reference\n"
     "  bench SCENE.hlt --env ENV.exr  error against run time for M, selection and quantisation\n"
+    "  bench-dynamic SCENE.hlt        error against time of PRT, the dynamic method and traced rays\n"
     "  bench-precompute MESH          time the precompute against Embree's raw rate\n"
     "\n"
     "`haarlight COMMAND --help` lists a command's options; `haarlight --version`\n"
@@ -467,6 +468,7 @@ int main(int argc, char **argv)
     }
     if (!strcmp(cmd, "check")) return cmd_check(argc - 2, argv + 2);
     if (!strcmp(cmd, "bench")) return cmd_bench(argc - 2, argv + 2);
+    if (!strcmp(cmd, "bench-dynamic")) return cmd_bench_dynamic(argc - 2, argv + 2);
     if (!strcmp(cmd, "bench-precompute")) return cmd_bench_precompute(argc - 2, argv + 2);
     fprintf(stderr, "haarlight: unknown command %s\n\n%s", cmd, usage_main);
     return 2;

@@ -159,6 +159,8 @@ typedef struct hl_bench_traced_times {
     uint64_t rays;
 } hl_bench_traced_times;
 hl_result hl_bench_dyn_traced(hl_dynamic *d, uint32_t S, float *rgb, hl_bench_traced_times *times);
+/* The largest S hl_bench_dyn_traced takes (dyn_traced.h says why). */
+#define HL_BENCH_TRACED_MAX_S 1024u
 
 /* ---------------------------------------------------------------- viewer */
 

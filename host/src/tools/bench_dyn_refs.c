@@ -14,6 +14,8 @@
 #include "haarlight_tools.h"
 #include "hl_internal.h"
 
+_Static_assert(HL_BENCH_TRACED_MAX_S == HL_DYNTRACED_MAX_S, "the tools' S limit is the traced method's");
+
 /* Per-body pointers into rgb (3 floats per vertex of the merged mesh). */
 static float **body_rows(const hl_dynamic_view *v, float *rgb)
 {
