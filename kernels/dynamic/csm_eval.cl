@@ -70,6 +70,8 @@ static void hl_csm_direct(__global const float *zsc, uint R, float cx, float cy,
     float fR = (float)R;
     float u0 = fmax(cx - wu, 0.0f), u1 = fmin(cx + wu, fR);
     float v0 = fmax(cy - wv, 0.0f), v1 = fmin(cy + wv, fR);
+    /* the box misses the map: all empty (and no float-to-uint of a negative) */
+    if (!(u1 > u0 && v1 > v0)) { out[0] = 1.0f; out[1] = 1.0f; out[2] = 1.0f; return; }
     uint i0 = (uint)u0, i1 = min((uint)ceil(u1), R), j0 = (uint)v0, j1 = min((uint)ceil(v1), R);
     float af = 0.0f, az = 0.0f, afz = 0.0f;
     for (uint j = j0; j < j1; j++) {

@@ -31,7 +31,7 @@
 /* a frame looking down -z: 10 x 10 world units, depth range 10 */
 static hl_shadow_frame frame_of(uint32_t R)
 {
-    hl_shadow_frame f = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, 10.0f, 10.0f, 10.0f, R};
+    hl_shadow_frame f = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, 10.0f, 10.0f, 10.0f, R, 0};
     return f;
 }
 

@@ -65,6 +65,7 @@ static void direct(const float *zsc, uint32_t R, float cx, float cy, float wu, f
     float fR = (float)R;
     float u0 = fmaxf(cx - wu, 0.0f), u1 = fminf(cx + wu, fR);
     float v0 = fmaxf(cy - wv, 0.0f), v1 = fminf(cy + wv, fR);
+    if (!(u1 > u0 && v1 > v0)) { out[0] = 1.0f; out[1] = 1.0f; out[2] = 1.0f; return; }
     uint32_t i0 = (uint32_t)u0, i1 = (uint32_t)ceilf(u1), j0 = (uint32_t)v0, j1 = (uint32_t)ceilf(v1);
     if (i1 > R) i1 = R;
     if (j1 > R) j1 = R;
