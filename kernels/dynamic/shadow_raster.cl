@@ -18,7 +18,9 @@
  * edge get exactly opposite values and a centre on it belongs to one.
  *
  * Frame layout (16 floats per map): origin[3], right[3], up[3],
- * toward_far[3], R / width, R / height, 1 / depth_range, unused.
+ * toward_far[3], R / width, R / height, 1 / depth_range, and the bits of
+ * the skip mask (objects 0..31 not drawn into this map: flat bodies that
+ * cast no shadow for this light, shadow_map.h).
  */
 #pragma OPENCL FP_CONTRACT OFF
 
@@ -90,8 +92,10 @@ kernel void hl_shadow_raster(global const float *pos, global const uint *tri, ui
     global const float *fr = frames + 16 * (size_t)k;
     global uint *map = depth + (size_t)k * R * R;
     size_t t0 = get_global_id(0) * (size_t)per, t1 = t0 + per < ntris ? t0 + per : ntris;
+    uint skip = as_uint(fr[15]);
     for (size_t t = t0; t < t1; t++) {
         global const uint *f = tri + 4 * t;
+        if (f[3] < 32u && (skip >> f[3] & 1u)) continue;
         global const float *x = xf + 12 * (size_t)f[3];
         float4 a = hl_shadow_raster_vertex(pos, f[0], x, fr);
         float4 b = hl_shadow_raster_vertex(pos, f[1], x, fr);

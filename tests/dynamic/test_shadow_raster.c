@@ -15,6 +15,9 @@
  *            vertices moved by hand, both methods; Embree builds no BVH.
  * frame      fitted frames hold every vertex, depths in (0, 1), for +Y,
  *            -Y, the horizon and random lights; the border ring is empty.
+ * skip       flat bodies out of the maps they cannot shadow: which
+ *            lights leave the ground out, and the map is then the
+ *            bunny's alone, to the bit; also with the ground turned over.
  * bad_input  clear errors for impossible objects, transforms, R, lights.
  *
  * Every check prints its tolerance and worst error (hl_check_error).
@@ -202,9 +205,98 @@ static void case_twin(void)
         HL_CHECK(hl_shadow_maps_render(sc, (const float(*)[3])dirs, K, a, NULL) == HL_OK, "%s", hl_context_last_error(cl));
         HL_CHECK(hl_shadow_maps_render(sr, (const float(*)[3])dirs, K, b, NULL) == HL_OK, "%s", hl_context_last_error(ref));
         twin_compare("bunny turned and moved", a, b, n);
+        /* the ground left out of the maps it cannot shadow: the masks
+           travel to the kernel as bits in the frame's last float */
+        hl_shadow_maps_skip_planes(sc, 1);
+        hl_shadow_maps_skip_planes(sr, 1);
+        HL_CHECK(hl_shadow_maps_render(sc, (const float(*)[3])dirs, K, a, NULL) == HL_OK, "%s", hl_context_last_error(cl));
+        HL_CHECK(hl_shadow_maps_render(sr, (const float(*)[3])dirs, K, b, NULL) == HL_OK, "%s", hl_context_last_error(ref));
+        twin_compare("flat ground left out", a, b, n);
     }
     hl_shadow_maps_destroy(sc); hl_shadow_maps_destroy(sr); free(a); free(b); scene_free(&s); hl_context_destroy(cl);
     hl_context_destroy(ref);
+}
+
+/* ================================================================= skip */
+
+/* Flat bodies out of the maps (hl_shadow_maps_skip_planes): the ground
+ * is left out for lights above it, with the bunny on its lit side, and
+ * kept for lights below it and on its horizon; the bunny never; the
+ * frame then is the bunny's own fit and the map the bunny's alone, to
+ * the bit. The same with the ground turned upside down (its own normal
+ * -Y). The Embree path draws every body. */
+static void skip_one(hl_context *ctx, scene *s, const char *what)
+{
+    enum { K = 4 };
+    float dirs[K][3];
+    light_dirs(dirs, K); /* +Y, -Y, grazing from above, the horizon */
+    const uint32_t want[K] = {2u, 0u, 2u, 0u};
+    hl_shadow_maps *sm = NULL, *alone = NULL;
+    hl_shadow_frame fr[K];
+    size_t n = (size_t)K * R_TEST * R_TEST;
+    float *a = malloc(n * 4), *b = malloc(n * 4);
+    HL_CHECK(hl_shadow_maps_create(ctx, s->obj, 2, R_TEST, HL_SHADOW_RASTER, &sm) == HL_OK &&
+             hl_shadow_maps_create(ctx, s->obj, 1, R_TEST, HL_SHADOW_RASTER, &alone) == HL_OK,
+             "%s", hl_context_last_error(ctx));
+    if (sm && alone) {
+        hl_shadow_maps_skip_planes(sm, 1);
+        HL_CHECK(hl_shadow_maps_render(sm, (const float(*)[3])dirs, K, a, fr) == HL_OK, "%s", hl_context_last_error(ctx));
+        uint32_t wrong = 0;
+        for (int k = 0; k < K; k++) wrong += fr[k].skip_mask != want[k];
+        HL_CHECK(wrong == 0, "%s: masks %u %u %u %u, expected 2 0 2 0", what, fr[0].skip_mask, fr[1].skip_mask,
+                 fr[2].skip_mask, fr[3].skip_mask);
+        /* light 0: the bunny's own frame and map */
+        hl_shadow_frame own;
+        HL_CHECK(hl_shadow_maps_render(alone, (const float(*)[3])dirs, 1, b, &own) == HL_OK, "%s", hl_context_last_error(ctx));
+        HL_CHECK(own.width == fr[0].width && own.depth_range == fr[0].depth_range &&
+                 !memcmp(own.origin, fr[0].origin, 12), "%s: the frame is not the bunny's own fit (width %g against %g)",
+                 what, (double)fr[0].width, (double)own.width);
+        size_t mism, cov;
+        double worst;
+        compare_maps(a, b, (size_t)R_TEST * R_TEST, &mism, &worst, &cov);
+        char w[160];
+        snprintf(w, sizeof w, "%s: light +Y, depth against the bunny alone", what);
+        hl_check_error(w, worst, 0.0);
+        snprintf(w, sizeof w, "%s: light +Y, texels covered by one only", what);
+        hl_check_error(w, (double)mism, 0.0);
+    }
+    hl_shadow_maps_destroy(sm);
+    hl_shadow_maps_destroy(alone);
+    free(a);
+    free(b);
+}
+
+static void case_skip(void)
+{
+    hl_context *ctx = ref_ctx();
+    scene s;
+    if (!scene_load(ctx, &s)) { HL_CHECK(0, "setup failed"); hl_context_destroy(ctx); return; }
+    skip_one(ctx, &s, "ground");
+    /* the ground upside down in its own coordinates, (x, -y, 2 cz - z),
+       put back in place by its transform: a half turn about X, then z
+       moved by 2 cz */
+    float cz = 0.5f * (s.gpos[2] + s.gpos[3 * (size_t)(GROUND_N + 1) * (GROUND_N + 1) - 1]);
+    for (size_t v = 0; v < s.obj[1].nverts; v++) {
+        s.gpos[3 * v + 1] = -s.gpos[3 * v + 1];
+        s.gpos[3 * v + 2] = 2.0f * cz - s.gpos[3 * v + 2];
+    }
+    const double ax[3] = {1, 0, 0}, t[3] = {0, 0, 2.0 * cz};
+    make_xf(ax, 3.14159265358979323846, t, s.obj[1].xf);
+    skip_one(ctx, &s, "ground turned over");
+    /* Embree: every body drawn */
+    hl_shadow_maps *sm = NULL;
+    float dir[1][3] = {{0, 1, 0}}, *d = malloc((size_t)R_TEST * R_TEST * 4);
+    hl_shadow_frame fr;
+    HL_CHECK(hl_shadow_maps_create(ctx, s.obj, 2, R_TEST, HL_SHADOW_EMBREE, &sm) == HL_OK, "%s", hl_context_last_error(ctx));
+    if (sm) {
+        hl_shadow_maps_skip_planes(sm, 1);
+        HL_CHECK(hl_shadow_maps_render(sm, (const float(*)[3])dir, 1, d, &fr) == HL_OK && fr.skip_mask == 0,
+                 "Embree left a body out (mask %u)", fr.skip_mask);
+    }
+    hl_shadow_maps_destroy(sm);
+    free(d);
+    scene_free(&s);
+    hl_context_destroy(ctx);
 }
 
 /* ============================================================= analytic */
@@ -684,7 +776,8 @@ static void case_bad_input(void)
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {{"twin", case_twin},     {"analytic", case_analytic}, {"embree", case_embree},
-                                         {"motion", case_motion}, {"frame", case_frame},       {"bad_input", case_bad_input},
+                                         {"motion", case_motion}, {"frame", case_frame},       {"skip", case_skip},
+                                         {"bad_input", case_bad_input},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

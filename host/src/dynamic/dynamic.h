@@ -49,6 +49,10 @@ typedef struct hl_shadow_frame {
     float right[3], up[3], toward_far[3]; /* orthonormal */
     float width, height, depth_range;     /* world units */
     uint32_t R;        /* R x R texels */
+    /* Bodies 0..31 left out of this map (bit b: body b): flat bodies that
+     * cannot cast a shadow for this light (shadow_map.h,
+     * hl_shadow_maps_skip_planes). They are still receivers. 0: all drawn. */
+    uint32_t skip_mask;
 } hl_shadow_frame;
 
 #endif

@@ -50,6 +50,23 @@
  * The lateral extent keeps it non-zero for a flat scene seen face-on. */
 #define HL_SHADOW_DEPTH_PAD 1e-3
 
+/* A body is flat when all its vertices lie within this fraction of its
+ * bounding box's diagonal of one plane: float positions of a generated
+ * plane are within 1e-7 of it, a scanned "flat" base of a statue is not
+ * (and must then stay in the maps). */
+#define HL_SHADOW_PLANE_TOL 1e-5
+
+/* Another body is on the light's side of a flat body's plane when no
+ * corner of its box is more than this fraction of the scene's extent
+ * behind the plane: a body resting on the ground touches it, and its
+ * float box may dip a hair below. */
+#define HL_SHADOW_SIDE_TOL 1e-4
+
+/* A flat body is never left out for a light within this cosine of its
+ * plane: seen edge-on it covers no texel anyway, and the side test is
+ * then ill-conditioned. */
+#define HL_SHADOW_PLANE_MIN_COS 1e-3
+
 /* Work-items per map on a CPU device (wg 1): each takes ntris / 64
  * consecutive triangles, so 2 cores get 64 K items to balance. */
 #define HL_SHADOW_CPU_CHUNKS 64u
@@ -63,6 +80,10 @@ struct hl_shadow_maps {
     float *xf;     /* 12 per object */
     float *box;    /* 6 per object: own-coordinate min and max */
     float *corners; /* 24 per object: the boxes' corners in world space */
+    float *plane;   /* 4 per object: own-coordinate unit normal n and w with
+                       n . p = w for every vertex; all 0 when not flat */
+    float *fitpts;  /* 24 per object: the corners a map is fitted to */
+    int skip_planes;
     hl_shadow_frame *frames;
     float *packed; /* 16 per map */
     uint32_t kcap;
@@ -188,6 +209,7 @@ void hl_shadow_fit_frame(const float *pts, uint32_t npts, const float dir[3], ui
     fr->width = fr->height = (float)width;
     fr->depth_range = (float)range;
     fr->R = R;
+    fr->skip_mask = 0;
 }
 
 void hl_shadow_frame_pack(const hl_shadow_frame *fr, float out[16])
@@ -201,7 +223,7 @@ void hl_shadow_frame_pack(const hl_shadow_frame *fr, float out[16])
     out[12] = (float)fr->R / fr->width;
     out[13] = (float)fr->R / fr->height;
     out[14] = 1.0f / fr->depth_range;
-    out[15] = 0.0f;
+    memcpy(&out[15], &fr->skip_mask, 4); /* the kernel reads the bits back with as_uint */
 }
 
 /* Every object's own box's corners, moved to world space. */
@@ -236,6 +258,8 @@ void hl_shadow_maps_destroy(hl_shadow_maps *sm)
     free(sm->xf);
     free(sm->box);
     free(sm->corners);
+    free(sm->fitpts);
+    free(sm->plane);
     free(sm->frames);
     free(sm->packed);
     free(sm->ortho);
@@ -265,6 +289,88 @@ static void copy_objects(hl_shadow_maps *sm, const hl_dyn_object *objects)
         v0 += ob->nverts;
         t0 += ob->ntris;
     }
+}
+
+/* The plane of a flat object (own coordinates), from the area-weighted
+ * normal of its triangles; zeros when it is not flat. */
+static void find_plane(const hl_dyn_object *ob, const float *box, float *pl)
+{
+    pl[0] = pl[1] = pl[2] = pl[3] = 0.0f;
+    double n[3] = {0, 0, 0}, c[3] = {0, 0, 0};
+    for (uint32_t t = 0; t < ob->ntris; t++) {
+        const float *a = ob->pos + 3 * (size_t)ob->tri[3 * (size_t)t], *b = ob->pos + 3 * (size_t)ob->tri[3 * (size_t)t + 1],
+                    *d = ob->pos + 3 * (size_t)ob->tri[3 * (size_t)t + 2];
+        double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]}, x[3];
+        cross3(e1, e2, x);
+        for (int k = 0; k < 3; k++) n[k] += x[k];
+    }
+    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0.0) || !ob->nverts) return;
+    for (int k = 0; k < 3; k++) n[k] /= len;
+    for (uint32_t v = 0; v < ob->nverts; v++)
+        for (int k = 0; k < 3; k++) c[k] += ob->pos[3 * (size_t)v + k];
+    double w = (n[0] * c[0] + n[1] * c[1] + n[2] * c[2]) / ob->nverts;
+    double diag = sqrt((box[3] - box[0]) * (box[3] - box[0]) + (box[4] - box[1]) * (box[4] - box[1]) +
+                       (box[5] - box[2]) * (box[5] - box[2]));
+    for (uint32_t v = 0; v < ob->nverts; v++) {
+        const float *p = ob->pos + 3 * (size_t)v;
+        if (fabs(n[0] * p[0] + n[1] * p[1] + n[2] * p[2] - w) > HL_SHADOW_PLANE_TOL * diag) return;
+    }
+    for (int k = 0; k < 3; k++) pl[k] = (float)n[k];
+    pl[3] = (float)w;
+}
+
+void hl_shadow_maps_skip_planes(hl_shadow_maps *sm, int on)
+{
+    if (sm) sm->skip_planes = on && sm->method == HL_SHADOW_RASTER;
+}
+
+/* The bodies light dir may leave out (shadow_map.h); needs world_corners. */
+static uint32_t skip_mask(const hl_shadow_maps *sm, const float dir[3])
+{
+    if (!sm->skip_planes) return 0;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < 8 * (size_t)sm->nobj; i++)
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], sm->corners[3 * i + (size_t)k]);
+            hi[k] = fmax(hi[k], sm->corners[3 * i + (size_t)k]);
+        }
+    double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    uint32_t mask = 0;
+    for (uint32_t o = 0; o < sm->nobj && o < 32; o++) {
+        const float *pl = sm->plane + 4 * (size_t)o, *x = sm->xf + 12 * (size_t)o;
+        if (pl[0] == 0.0f && pl[1] == 0.0f && pl[2] == 0.0f) continue;
+        double n[3], p[3];
+        for (int k = 0; k < 3; k++) {
+            n[k] = (double)x[4 * k] * pl[0] + (double)x[4 * k + 1] * pl[1] + (double)x[4 * k + 2] * pl[2];
+            p[k] = ((double)x[4 * k] * pl[0] + (double)x[4 * k + 1] * pl[1] + (double)x[4 * k + 2] * pl[2]) * pl[3] +
+                   x[4 * k + 3];
+        }
+        double s = n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2];
+        if (!(fabs(s) >= HL_SHADOW_PLANE_MIN_COS)) continue;
+        if (s < 0.0)
+            for (int k = 0; k < 3; k++) n[k] = -n[k];
+        int ok = 1;
+        for (uint32_t q = 0; q < sm->nobj && ok; q++) {
+            if (q == o) continue;
+            for (int c = 0; c < 8 && ok; c++) {
+                const float *w = sm->corners + 24 * (size_t)q + 3 * c;
+                ok = n[0] * (w[0] - p[0]) + n[1] * (w[1] - p[1]) + n[2] * (w[2] - p[2]) >= -HL_SHADOW_SIDE_TOL * ext;
+            }
+        }
+        if (ok) mask |= 1u << o;
+    }
+    return mask;
+}
+
+/* Frame k for light dir, fitted to the corners of the bodies not left out. */
+static void fit_one(hl_shadow_maps *sm, const float dir[3], hl_shadow_frame *fr)
+{
+    uint32_t mask = skip_mask(sm, dir), n = 0;
+    for (uint32_t o = 0; o < sm->nobj; o++)
+        if (o >= 32 || !(mask >> o & 1u)) memcpy(sm->fitpts + 24 * (size_t)n++, sm->corners + 24 * (size_t)o, 96);
+    hl_shadow_fit_frame(sm->fitpts, 8 * n, dir, sm->R, fr);
+    fr->skip_mask = mask;
 }
 
 static hl_result create_device(hl_shadow_maps *sm)
@@ -314,11 +420,14 @@ hl_result hl_shadow_maps_create(hl_context *ctx, const hl_dyn_object *objects, u
     sm->xf = malloc((size_t)nobj * 48);
     sm->box = malloc((size_t)nobj * 24);
     sm->corners = malloc((size_t)nobj * 96);
-    if (!sm->pos || !sm->tri || !sm->xf || !sm->box || !sm->corners) {
+    sm->fitpts = malloc((size_t)nobj * 96);
+    sm->plane = malloc((size_t)nobj * 16);
+    if (!sm->pos || !sm->tri || !sm->xf || !sm->box || !sm->corners || !sm->fitpts || !sm->plane) {
         hl_shadow_maps_destroy(sm);
         return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for %u vertices and %u triangles", sm->nverts, sm->ntris);
     }
     copy_objects(sm, objects);
+    for (uint32_t o = 0; o < nobj; o++) find_plane(&objects[o], sm->box + 6 * (size_t)o, sm->plane + 4 * (size_t)o);
     hl_result r = HL_OK;
     if (method == HL_SHADOW_EMBREE) r = create_embree(sm, objects);
     else if (ctx->cl) r = create_device(sm);
@@ -467,7 +576,7 @@ hl_result hl_shadow_maps_render(hl_shadow_maps *sm, const float (*dirs)[3], uint
     TRY(ensure_k(sm, K));
     world_corners(sm);
     for (uint32_t k = 0; k < K; k++) {
-        hl_shadow_fit_frame(sm->corners, 8 * sm->nobj, dirs[k], sm->R, &sm->frames[k]);
+        fit_one(sm, dirs[k], &sm->frames[k]);
         hl_shadow_frame_pack(&sm->frames[k], sm->packed + 16 * (size_t)k);
     }
     if (frames) memcpy(frames, sm->frames, (size_t)K * sizeof *frames);

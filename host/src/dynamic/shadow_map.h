@@ -59,6 +59,17 @@ hl_result hl_shadow_maps_render(hl_shadow_maps *sm, const float (*dirs)[3], uint
  * is clipped away. */
 hl_result hl_shadow_maps_render_in(hl_shadow_maps *sm, const hl_shadow_frame *frames, uint32_t K, float *depth);
 
+/* Flat bodies out of the maps (off by default; the rasteriser only, the
+ * Embree path draws every body). A body whose vertices lie on one plane
+ * cannot shadow itself, and when every other body lies on the light's
+ * side of that plane it cannot shadow them either: for that light it is
+ * left out of the map and of the frame's fit (frame.skip_mask). The map
+ * then spans the casters only, so a bunny on a ground four times its
+ * width gets four times finer texels and a depth range of its own
+ * height, and the ground's receivers never meet their own plane in the
+ * map. Bodies 32 and up are always drawn (the mask has 32 bits). */
+void hl_shadow_maps_skip_planes(hl_shadow_maps *sm, int on);
+
 /* A variant leaving the maps in a device buffer for the convolution stage
  * (no read-back) is not written yet. */
 

@@ -7,6 +7,7 @@
  * end) is described in the kernel. Depends on: shadow_map.h.
  */
 #include <math.h> /* ceilf, floorf */
+#include <string.h>
 
 #include "shadow_map.h"
 
@@ -72,8 +73,11 @@ static void raster_span(float lo, float hi, uint32_t R, int *first, int *last)
 void hl_ref_shadow_raster(const float *pos, const uint32_t *tri, uint32_t t0, uint32_t t1, const float *xf,
                           const float *fr, uint32_t R, float *map)
 {
+    uint32_t skip;
+    memcpy(&skip, &fr[15], 4);
     for (uint32_t t = t0; t < t1; t++) {
         const uint32_t *f = tri + 4 * (size_t)t;
+        if (f[3] < 32u && (skip >> f[3] & 1u)) continue;
         const float *x = xf + 12 * (size_t)f[3];
         tv a = raster_vertex(pos, f[0], x, fr), b = raster_vertex(pos, f[1], x, fr), c = raster_vertex(pos, f[2], x, fr);
         float area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
