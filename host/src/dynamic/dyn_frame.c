@@ -115,6 +115,9 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->R = s.R, st->M = s.M, st->Mb = s.Mb, st->min_share = s.min_share;
     st->max_lights = max_lights;
     r = hl_shadow_maps_create(ctx, objects, nobj, s.R, s.method, &st->sm);
+    /* a flat ground under the bodies stays out of the maps that it cannot
+       shadow: finer texels and depths for the casters (shadow_map.h) */
+    hl_shadow_maps_skip_planes(st->sm, 1);
     uint64_t budget = s.budget;
     if (ctx->cl && ctx->cl->limit > ctx->cl->used) { /* after the shadow maps' buffers */
         uint64_t left = (uint64_t)((double)(ctx->cl->limit - ctx->cl->used) * HL_FRAME_DEVICE_SHARE);
@@ -189,12 +192,13 @@ static uint32_t irradiance(hl_frame_state *st, const hl_dyn_object *objects, con
 
 /* Receiver-plane bias (Isidoro 2006, for filtered shadow maps): the
  * filter reads a box of half-width up to the blocker search's,
- * (d - zmin) tan(theta) in depth units, plus HL_FRAME_BIAS_TEXELS; over
- * that box the receiver's own tangent plane comes nearer the light by up
- * to (|n.right| + |n.up|) / (n.l) times the half-width, and those texels
- * would be taken for blockers: a lone plane under a light of 0.32 rad at
- * 35 degrees of elevation got V = 0.70..0.83 without it. So the receiver
- * is moved that much towards the light. The bias grows as 1 / (n.l) as a
+ * (d - zmin) tan(theta) in depth units, here capped at
+ * HL_FRAME_BIAS_CAP, plus HL_FRAME_BIAS_TEXELS; over that box the
+ * receiver's own tangent plane comes nearer the light by up to
+ * (|n.right| + |n.up|) / (n.l) times the half-width, and those texels
+ * would be taken for blockers. So the receiver is moved that much towards
+ * the light. Receivers of a body left out of the map (a flat ground,
+ * frame.skip_mask) get none: their surface is not in it. The bias grows as 1 / (n.l) as a
  * light grazes the surface while E_k shrinks as n.l, so what the bias
  * loses (a blocker nearer than the bias is not seen: the contact leak)
  * carries little energy at grazing angles. */
@@ -205,7 +209,7 @@ static float plane_bias(const hl_shadow_frame *f, const float n[3], const float 
     float nr = fabsf(n[0] * f->right[0] + n[1] * f->right[1] + n[2] * f->right[2]);
     float nu = fabsf(n[0] * f->up[0] + n[1] * f->up[1] + n[2] * f->up[2]);
     float texel = fmaxf(f->width, f->height) / (float)f->R / f->depth_range;
-    float half = fmaxf(d - zmin, 0.0f) * tan_t + HL_FRAME_BIAS_TEXELS * texel;
+    float half = fminf(fmaxf(d - zmin, 0.0f) * tan_t, HL_FRAME_BIAS_CAP) + HL_FRAME_BIAS_TEXELS * texel;
     return (nr + nu) / nl * half;
 }
 
@@ -230,7 +234,11 @@ static hl_result shade_light(hl_frame_state *st, const hl_light_split *split, ui
     const float *map = st->depth + (size_t)kb * st->R * st->R, tan_t = tanf(theta);
     float zmin = 1.0f;
     for (size_t i = 0; i < (size_t)st->R * st->R; i++) zmin = fminf(zmin, map[i]);
-    for (uint32_t i = 0; i < n; i++) {
+    /* a receiver of a body left out of this map never meets its own
+       surface there: no plane bias (the receivers go in vertex order) */
+    for (uint32_t i = 0, b = 0; i < n; i++) {
+        while (b + 1 < st->nobj && st->idx[i] >= st->vstart[b + 1]) b++;
+        if (b < 32 && (f->skip_mask >> b & 1u)) continue;
         float *d = st->uvd + 3 * (size_t)i + 2;
         *d = fmaxf(*d - plane_bias(f, st->wnrm + 3 * (size_t)st->idx[i], split->lights[k].dir, *d, zmin, tan_t), 0.0f);
     }
