@@ -472,6 +472,17 @@ static void bd_free(bd *b)
     free(b);
 }
 
+/* The host's 1, 5 and 15 minute load averages (other work on the same
+ * cores slows every timing), or "unknown". */
+static void load_average(char *buf, size_t n)
+{
+    FILE *f = fopen("/proc/loadavg", "r");
+    double a[3];
+    if (f && fscanf(f, "%lf %lf %lf", &a[0], &a[1], &a[2]) == 3) snprintf(buf, n, "%.2f, %.2f, %.2f", a[0], a[1], a[2]);
+    else snprintf(buf, n, "unknown");
+    if (f) fclose(f);
+}
+
 /* Opens the three files under their temporary names. */
 static hl_result open_outs(bd *b)
 {
@@ -484,6 +495,8 @@ static hl_result open_outs(bd *b)
 
 static hl_result bd_measure(bd *b)
 {
+    char load0[48], load1[48];
+    load_average(load0, sizeof load0);
     hl_result r = open_outs(b);
     for (int e = 0; e < b->o.nenvs && r == HL_OK; e++) r = bench_env_all(b, e);
     if (r == HL_OK) {
@@ -494,6 +507,9 @@ static hl_result bd_measure(bd *b)
                          .reps = b->o.reps, .traced_reps = b->o.treps, .goal_K = b->o.K[b->goal],
                          .goal_M = b->o.M[b->goal], .ref_seconds = b->ref_seconds,
                          .move = {b->moved[0], b->moved[1], b->moved[2]}};
+        load_average(load1, sizeof load1);
+        memcpy(rep.load[0], load0, sizeof load0);
+        memcpy(rep.load[1], load1, sizeof load1);
         bench_dyn_write(&b->out, &rep);
     }
     return r;

@@ -202,6 +202,7 @@ typedef struct bd_report {
     uint32_t vertices, object_vertices, R, reps, traced_reps, goal_K, goal_M;
     double move[3];        /* the moved frames' translation of the object */
     double ref_seconds;    /* the exact reference's time on the first map */
+    char load[2][48];      /* the host's load averages at the start and end */
 } bd_report;
 
 /* bench.md, bench.csv and bench.gp of bench-dynamic (already opened),
