@@ -39,8 +39,8 @@
 #define BD_LIFT 0.3
 #define BD_SIDEWAYS 0.5
 /* The nudge along +X that makes each timed frame a new one (a frame with
- * nothing moved is the last one again, at no cost): 1e-6 of the object's
- * width a frame, far below anything the shading sees. */
+ * nothing moved is the last one again, at no cost): 1e-6 of the scene's
+ * diagonal a frame, far below anything the shading sees. */
 #define BD_NUDGE 1e-6
 
 static const char *const usage_bd =
@@ -56,11 +56,12 @@ static const char *const usage_bd =
     "resampled on a cube of 64^2 a face, with Embree visibility on the geometry as it\n"
     "is); moved frames also against the same K lights with traced visibility, which\n"
     "separates the light split's error from the shadow maps'. Times are medians of\n"
-    "frames that are really computed (the object nudged by 1e-6 of its width each), with\n"
-    "the dynamic method's split by stage. Writes bench.md, bench.csv, bench.gp and\n"
-    "bench.svg (gnuplot) to the output folder, and says per map which method wins at\n"
-    "equal error and whether the dynamic method at the goal setting makes 10 frames per\n"
-    "second and 3 times the traced method's speed at equal or lower error.\n"
+    "frames that are really computed (the object nudged by 1e-6 of the scene's diagonal\n"
+    "each), with the dynamic method's split by stage. Writes bench.md, bench.csv,\n"
+    "bench.gp and bench.svg (gnuplot) to the output folder, and says per map which\n"
+    "method wins at equal error and whether the dynamic method at the goal setting\n"
+    "makes 10 frames per second and 3 times the traced method's speed at equal or\n"
+    "lower error.\n"
     "\n"
     "  --env ENV.exr        an environment, OpenEXR or .hdr (repeat for more); --sky adds\n"
     "                       the procedural sky (the default without --env)\n"
