@@ -1,0 +1,174 @@
+/* dyn_irradiance.cl - the dynamic method's per-vertex irradiance: each
+ * kept area light's E_k(n) and the folded lights' SH9 ambient at every
+ * receiver normal (DYNAMIC.md section 2; the host's hl_area_light_irradiance
+ * and hl_light_split_ambient in area_lights.c, here in float).
+ *
+ * E_k(n) = n . evec where the light's cone is wholly above n's horizon
+ * (n . dir >= sin extent), 0 where wholly below, else the texel sum
+ * sum_t max(0, n . m_t) row by row: the horizon cuts a cube face along a
+ * straight line, so in each row the texels wholly above form one run,
+ * summed from the row's prefix sums of the moments, those wholly below
+ * another (skipped), and only the few it cuts are summed one by one. The
+ * prefix sums are float-float (hi + lo, from double on the host): a run's
+ * sum (hi1 - hi0) + (lo1 - lo0) is then right to float rounding of the
+ * run itself, not of the whole row (a sun early in a row would otherwise
+ * drown the dim texels after it).
+ *
+ * Layout (host/src/dynamic/irradiance.h; the same numbers there):
+ *   lf, HL_DYN_IRR_LF floats a light: dir (3), sin extent (or 2 for a
+ *       cone past a hemisphere), evec (9, channel-major), the face's
+ *       origin o, d/ds and d/dt (3 each: face_point(s, t) = o + s ds + t dt),
+ *       F, 0.
+ *   lu, HL_DYN_IRR_LU uints a light: x0 y0 x1 y1 (the rectangle), F, its
+ *       first texel in mom, its first entry in pre, 0.
+ *   mom: 9 floats a texel of the rectangle, row-major within it.
+ *   pre: per row of the rectangle, w + 1 entries of 18 floats: the prefix
+ *       sums of the row's moments (9 hi, then 9 lo).
+ *   sh: 27 floats, per channel the quadratic K0 + q_x x + q_y y + q_z z +
+ *       q_xy xy + q_yz yz + q_zz z^2 + q_xz xz + q_d (x^2 - y^2).
+ * A normal with a non-finite component gets E = 0 (the module refuses
+ * such normals before the kernel runs; this keeps every index in range);
+ * the ambient is the polynomial's value (NaN for NaN).
+ * Twin: host/src/dynamic/twins/dyn_irradiance.c. Depends on: hl_shared.h.
+ */
+
+#define HL_DYN_IRR_LF 24
+#define HL_DYN_IRR_LU 8
+
+/* The first texel x with 2 x / F - 1 >= v (up) or the last with
+ * 2 x / F - 1 <= v (down), clamped to [lo, hi]; v may be huge or NaN. */
+static uint hl_dyn_irr_edge(float v, float F, int up, uint lo, uint hi)
+{
+    float x = (v + 1.0f) * 0.5f * F;
+    x = up ? ceil(x) : floor(x);
+    if (!(x > (float)lo)) return lo; /* NaN too */
+    return x >= (float)hi ? hi : (uint)x;
+}
+
+/* The texel sum of one light at a normal across its horizon. */
+static void hl_dyn_irr_straddle(__global const float *lf, __global const uint *lu, __global const float *mom,
+                                __global const float *pre, float n0, float n1, float n2, float *acc)
+{
+    const uint x0 = lu[0], y0 = lu[1], x1 = lu[2], y1 = lu[3], w = x1 - x0;
+    const float F = lf[22];
+    __global const float *M = mom + 9 * (size_t)lu[5];
+    __global const float *P = pre + 18 * (size_t)lu[6];
+    float g0 = n0 * lf[13] + n1 * lf[14] + n2 * lf[15];
+    float gs = n0 * lf[16] + n1 * lf[17] + n2 * lf[18];
+    float gt = n0 * lf[19] + n1 * lf[20] + n2 * lf[21];
+    acc[0] = 0.0f;
+    acc[1] = 0.0f;
+    acc[2] = 0.0f;
+    for (uint y = y0; y < y1; y++) {
+        float t0 = 2.0f * (float)y / F - 1.0f, t1 = 2.0f * (float)(y + 1) / F - 1.0f;
+        float lo = g0 + (gt > 0.0f ? gt * t0 : gt * t1), hi = g0 + (gt > 0.0f ? gt * t1 : gt * t0);
+        uint a0 = x0, a1 = x0, b0 = x0, b1 = x0; /* runs wholly above and below */
+        if (gs == 0.0f) {
+            if (lo >= 0.0f) a1 = x1;
+            else if (hi <= 0.0f) b1 = x1;
+        } else if (gs > 0.0f) { /* above: s_x >= -lo / gs; below: s_(x+1) <= -hi / gs */
+            a0 = hl_dyn_irr_edge(-lo / gs, F, 1, x0, x1);
+            a1 = x1;
+            b1 = hl_dyn_irr_edge(-hi / gs, F, 0, x0 + 1, x1 + 1) - 1;
+        } else { /* above: s_(x+1) <= -lo / gs; below: s_x >= -hi / gs */
+            a1 = hl_dyn_irr_edge(-lo / gs, F, 0, x0 + 1, x1 + 1) - 1;
+            b0 = hl_dyn_irr_edge(-hi / gs, F, 1, x0, x1);
+            b1 = x1;
+        }
+        if (a1 < a0) a1 = a0;
+        if (b1 < b0) b1 = b0;
+        __global const float *row = M + 9 * (size_t)(y - y0) * w;
+        __global const float *pa = P + 18 * ((size_t)(y - y0) * (w + 1) + (a0 - x0));
+        __global const float *pb = P + 18 * ((size_t)(y - y0) * (w + 1) + (a1 - x0));
+        for (int c = 0; c < 3; c++) {
+            float s0 = (pb[3 * c] - pa[3 * c]) + (pb[9 + 3 * c] - pa[9 + 3 * c]);
+            float s1 = (pb[3 * c + 1] - pa[3 * c + 1]) + (pb[10 + 3 * c] - pa[10 + 3 * c]);
+            float s2 = (pb[3 * c + 2] - pa[3 * c + 2]) + (pb[11 + 3 * c] - pa[11 + 3 * c]);
+            acc[c] += n0 * s0 + n1 * s1 + n2 * s2;
+        }
+        for (uint x = x0; x < x1; x++) {
+            if (x >= a0 && x < a1) x = a1; /* skip the runs */
+            if (x >= b0 && x < b1) x = b1;
+            if (x >= a0 && x < a1) x = a1;
+            if (x >= x1) break;
+            __global const float *m = row + 9 * (size_t)(x - x0);
+            for (int c = 0; c < 3; c++) {
+                float d = n0 * m[3 * c] + n1 * m[3 * c + 1] + n2 * m[3 * c + 2];
+                if (d > 0.0f) acc[c] += d;
+            }
+        }
+    }
+}
+
+/* Light k (blocks lf, lu) at normal (n0, n1, n2) into rgb; 1 if lit. */
+static int hl_dyn_irr_one(__global const float *lf, __global const uint *lu, __global const float *mom,
+                          __global const float *pre, float n0, float n1, float n2, float *rgb)
+{
+    rgb[0] = 0.0f;
+    rgb[1] = 0.0f;
+    rgb[2] = 0.0f;
+    if (!(fabs(n0) <= FLT_MAX && fabs(n1) <= FLT_MAX && fabs(n2) <= FLT_MAX)) return 0;
+    float nd = n0 * lf[0] + n1 * lf[1] + n2 * lf[2], se = lf[3];
+    if (nd >= se) {
+        for (int c = 0; c < 3; c++) {
+            float e = n0 * lf[4 + 3 * c] + n1 * lf[5 + 3 * c] + n2 * lf[6 + 3 * c];
+            rgb[c] = e > 0.0f ? e : 0.0f;
+        }
+    } else if (!(nd <= -se)) {
+        float acc[3];
+        hl_dyn_irr_straddle(lf, lu, mom, pre, n0, n1, n2, acc);
+        for (int c = 0; c < 3; c++) rgb[c] = acc[c] > 0.0f ? acc[c] : 0.0f;
+    }
+    return rgb[0] > 0.0f || rgb[1] > 0.0f || rgb[2] > 0.0f;
+}
+
+/* One work-item per (receiver v = id 0, light k = id 1): E[(k N + v) 3 + c];
+ * any[k] set to 1 where some receiver is lit (read first, so a light lit
+ * everywhere costs one atomic per core, not one per receiver). */
+__kernel void hl_dyn_irr_lights(__global const float *lf, __global const uint *lu, __global const float *mom,
+                                __global const float *pre, __global const float *nrm, uint N, uint K,
+                                __global float *E, volatile __global uint *any)
+{
+    size_t v = get_global_id(0), k = get_global_id(1);
+    if (v >= N || k >= K) return;
+    float rgb[3];
+    int lit = hl_dyn_irr_one(lf + HL_DYN_IRR_LF * k, lu + HL_DYN_IRR_LU * k, mom, pre, nrm[3 * v], nrm[3 * v + 1],
+                             nrm[3 * v + 2], rgb);
+    __global float *e = E + 3 * (k * N + v);
+    e[0] = rgb[0];
+    e[1] = rgb[1];
+    e[2] = rgb[2];
+    if (lit && any[k] == 0u) atomic_or(any + k, 1u);
+}
+
+/* One work-item per receiver looping over the lights (the same sums). */
+__kernel void hl_dyn_irr_lights_loop(__global const float *lf, __global const uint *lu, __global const float *mom,
+                                     __global const float *pre, __global const float *nrm, uint N, uint K,
+                                     __global float *E, volatile __global uint *any)
+{
+    size_t v = get_global_id(0);
+    if (v >= N) return;
+    float n0 = nrm[3 * v], n1 = nrm[3 * v + 1], n2 = nrm[3 * v + 2];
+    for (size_t k = 0; k < K; k++) {
+        float rgb[3];
+        int lit = hl_dyn_irr_one(lf + HL_DYN_IRR_LF * k, lu + HL_DYN_IRR_LU * k, mom, pre, n0, n1, n2, rgb);
+        __global float *e = E + 3 * (k * N + v);
+        e[0] = rgb[0];
+        e[1] = rgb[1];
+        e[2] = rgb[2];
+        if (lit && any[k] == 0u) atomic_or(any + k, 1u);
+    }
+}
+
+/* The folded lights' SH9 irradiance at receiver v: amb[3 v + c]. */
+__kernel void hl_dyn_irr_ambient(__constant float *sh, __global const float *nrm, uint N, __global float *amb)
+{
+    size_t v = get_global_id(0);
+    if (v >= N) return;
+    float x = nrm[3 * v], y = nrm[3 * v + 1], z = nrm[3 * v + 2];
+    float xy = x * y, yz = y * z, zz = z * z, xz = x * z, d = x * x - y * y;
+    for (int c = 0; c < 3; c++) {
+        __constant float *q = sh + 9 * c;
+        amb[3 * v + c] = q[0] + q[1] * x + q[2] * y + q[3] * z + q[4] * xy + q[5] * yz + q[6] * zz + q[7] * xz + q[8] * d;
+    }
+}
