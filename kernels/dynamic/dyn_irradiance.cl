@@ -8,7 +8,8 @@
  * sum_t max(0, n . m_t) row by row: the horizon cuts a cube face along a
  * straight line, so in each row the texels wholly above form one run,
  * summed from the row's prefix sums of the moments, those wholly below
- * another (skipped), and only the few it cuts are summed one by one. The
+ * another (skipped), and only the few it cuts are summed one by one (the
+ * host's straddle_sum, with the run ends found in texel units). The
  * prefix sums are float-float (hi + lo, from double on the host): a run's
  * sum (hi1 - hi0) + (lo1 - lo0) is then right to float rounding of the
  * run itself, not of the whole row (a sun early in a row would otherwise
@@ -18,7 +19,7 @@
  *   lf, HL_DYN_IRR_LF floats a light: dir (3), sin extent (or 2 for a
  *       cone past a hemisphere), evec (9, channel-major), the face's
  *       origin o, d/ds and d/dt (3 each: face_point(s, t) = o + s ds + t dt),
- *       F, 0.
+ *       2 / F, 0.
  *   lu, HL_DYN_IRR_LU uints a light: x0 y0 x1 y1 (the rectangle), F, its
  *       first texel in mom, its first entry in pre, 0.
  *   mom: 9 floats a texel of the rectangle, row-major within it.
@@ -35,68 +36,71 @@
 #define HL_DYN_IRR_LF 24
 #define HL_DYN_IRR_LU 8
 
-/* The first texel x with 2 x / F - 1 >= v (up) or the last with
- * 2 x / F - 1 <= v (down), clamped to [lo, hi]; v may be huge or NaN. */
-static uint hl_dyn_irr_edge(float v, float F, int up, uint lo, uint hi)
+/* v clamped to [lo, hi] as an index (v an integer-valued float, huge or
+ * NaN: NaN gives lo). */
+static uint hl_dyn_irr_clamp(float v, uint lo, uint hi)
 {
-    float x = (v + 1.0f) * 0.5f * F;
-    x = up ? ceil(x) : floor(x);
-    if (!(x > (float)lo)) return lo; /* NaN too */
-    return x >= (float)hi ? hi : (uint)x;
+    if (!(v > (float)lo)) return lo;
+    return v >= (float)hi ? hi : (uint)v;
 }
 
-/* The texel sum of one light at a normal across its horizon. */
+/* The texel sum of one light at a normal across its horizon. In texel
+ * units (X = (s + 1) F / 2, Y likewise) n . face_point = G0 + GX X + GY Y;
+ * row y's texel x spans [x, x + 1] x [y, y + 1], so with lo and hi the
+ * least and largest of G0 + GY Y over the row, the texel is wholly above
+ * where lo + GX (x or x + 1) >= 0 and wholly below where hi + GX (x + 1
+ * or x) <= 0: one division a normal (r = -1 / GX), none a row. Texels
+ * whose corners are within rounding of the horizon may land in either
+ * run; their n . m is then 0 to that rounding either way. */
 static void hl_dyn_irr_straddle(__global const float *lf, __global const uint *lu, __global const float *mom,
                                 __global const float *pre, float n0, float n1, float n2, float *acc)
 {
     const uint x0 = lu[0], y0 = lu[1], x1 = lu[2], y1 = lu[3], w = x1 - x0;
-    const float F = lf[22];
+    const float c = lf[22]; /* 2 / F */
     __global const float *M = mom + 9 * (size_t)lu[5];
     __global const float *P = pre + 18 * (size_t)lu[6];
     float g0 = n0 * lf[13] + n1 * lf[14] + n2 * lf[15];
     float gs = n0 * lf[16] + n1 * lf[17] + n2 * lf[18];
     float gt = n0 * lf[19] + n1 * lf[20] + n2 * lf[21];
+    float G0 = (g0 - gs) - gt, GX = gs * c, GY = gt * c;
+    float r = GX != 0.0f ? -1.0f / GX : 0.0f;
     acc[0] = 0.0f;
     acc[1] = 0.0f;
     acc[2] = 0.0f;
     for (uint y = y0; y < y1; y++) {
-        float t0 = 2.0f * (float)y / F - 1.0f, t1 = 2.0f * (float)(y + 1) / F - 1.0f;
-        float lo = g0 + (gt > 0.0f ? gt * t0 : gt * t1), hi = g0 + (gt > 0.0f ? gt * t1 : gt * t0);
-        uint a0 = x0, a1 = x0, b0 = x0, b1 = x0; /* runs wholly above and below */
-        if (gs == 0.0f) {
-            if (lo >= 0.0f) a1 = x1;
-            else if (hi <= 0.0f) b1 = x1;
-        } else if (gs > 0.0f) { /* above: s_x >= -lo / gs; below: s_(x+1) <= -hi / gs */
-            a0 = hl_dyn_irr_edge(-lo / gs, F, 1, x0, x1);
-            a1 = x1;
-            b1 = hl_dyn_irr_edge(-hi / gs, F, 0, x0 + 1, x1 + 1) - 1;
-        } else { /* above: s_(x+1) <= -lo / gs; below: s_x >= -hi / gs */
-            a1 = hl_dyn_irr_edge(-lo / gs, F, 0, x0 + 1, x1 + 1) - 1;
-            b0 = hl_dyn_irr_edge(-hi / gs, F, 1, x0, x1);
-            b1 = x1;
+        float ya = (float)y, yb = (float)(y + 1);
+        float lo = G0 + GY * (GY > 0.0f ? ya : yb), hi = G0 + GY * (GY > 0.0f ? yb : ya);
+        uint pa = x0, pb = x0, c0 = x0, c1 = x0; /* the run above, the texels cut */
+        if (GX > 0.0f) { /* above: x >= -lo / GX; below: x + 1 <= -hi / GX */
+            pa = hl_dyn_irr_clamp(ceil(lo * r), x0, x1);
+            pb = x1;
+            c0 = hl_dyn_irr_clamp(floor(hi * r), x0, pa);
+            c1 = pa;
+        } else if (GX < 0.0f) { /* above: x + 1 <= -lo / GX; below: x >= -hi / GX */
+            pb = hl_dyn_irr_clamp(floor(lo * r), x0, x1);
+            c0 = pb;
+            c1 = hl_dyn_irr_clamp(ceil(hi * r), pb, x1);
+        } else if (lo >= 0.0f) {
+            pb = x1;
+        } else if (!(hi <= 0.0f)) {
+            c1 = x1;
         }
-        if (a1 < a0) a1 = a0;
-        if (b1 < b0) b1 = b0;
-        __global const float *row = M + 9 * (size_t)(y - y0) * w;
-        __global const float *pa = P + 18 * ((size_t)(y - y0) * (w + 1) + (a0 - x0));
-        __global const float *pb = P + 18 * ((size_t)(y - y0) * (w + 1) + (a1 - x0));
-        for (int c = 0; c < 3; c++) {
-            float s0 = (pb[3 * c] - pa[3 * c]) + (pb[9 + 3 * c] - pa[9 + 3 * c]);
-            float s1 = (pb[3 * c + 1] - pa[3 * c + 1]) + (pb[10 + 3 * c] - pa[10 + 3 * c]);
-            float s2 = (pb[3 * c + 2] - pa[3 * c + 2]) + (pb[11 + 3 * c] - pa[11 + 3 * c]);
-            acc[c] += n0 * s0 + n1 * s1 + n2 * s2;
-        }
-        for (uint x = x0; x < x1; x++) {
-            if (x >= a0 && x < a1) x = a1; /* skip the runs */
-            if (x >= b0 && x < b1) x = b1;
-            if (x >= a0 && x < a1) x = a1;
-            if (x >= x1) break;
-            __global const float *m = row + 9 * (size_t)(x - x0);
-            for (int c = 0; c < 3; c++) {
-                float d = n0 * m[3 * c] + n1 * m[3 * c + 1] + n2 * m[3 * c + 2];
-                if (d > 0.0f) acc[c] += d;
+        if (pb > pa) {
+            __global const float *qa = P + 18 * ((size_t)(y - y0) * (w + 1) + (pa - x0));
+            __global const float *qb = P + 18 * ((size_t)(y - y0) * (w + 1) + (pb - x0));
+            for (int ch = 0; ch < 3; ch++) {
+                float s0 = (qb[3 * ch] - qa[3 * ch]) + (qb[9 + 3 * ch] - qa[9 + 3 * ch]);
+                float s1 = (qb[3 * ch + 1] - qa[3 * ch + 1]) + (qb[10 + 3 * ch] - qa[10 + 3 * ch]);
+                float s2 = (qb[3 * ch + 2] - qa[3 * ch + 2]) + (qb[11 + 3 * ch] - qa[11 + 3 * ch]);
+                acc[ch] += n0 * s0 + n1 * s1 + n2 * s2;
             }
         }
+        __global const float *m = M + 9 * ((size_t)(y - y0) * w + (c0 - x0));
+        for (uint x = c0; x < c1; x++, m += 9)
+            for (int ch = 0; ch < 3; ch++) {
+                float d = n0 * m[3 * ch] + n1 * m[3 * ch + 1] + n2 * m[3 * ch + 2];
+                if (d > 0.0f) acc[ch] += d;
+            }
     }
 }
 
@@ -139,25 +143,6 @@ __kernel void hl_dyn_irr_lights(__global const float *lf, __global const uint *l
     e[1] = rgb[1];
     e[2] = rgb[2];
     if (lit && any[k] == 0u) atomic_or(any + k, 1u);
-}
-
-/* One work-item per receiver looping over the lights (the same sums). */
-__kernel void hl_dyn_irr_lights_loop(__global const float *lf, __global const uint *lu, __global const float *mom,
-                                     __global const float *pre, __global const float *nrm, uint N, uint K,
-                                     __global float *E, volatile __global uint *any)
-{
-    size_t v = get_global_id(0);
-    if (v >= N) return;
-    float n0 = nrm[3 * v], n1 = nrm[3 * v + 1], n2 = nrm[3 * v + 2];
-    for (size_t k = 0; k < K; k++) {
-        float rgb[3];
-        int lit = hl_dyn_irr_one(lf + HL_DYN_IRR_LF * k, lu + HL_DYN_IRR_LU * k, mom, pre, n0, n1, n2, rgb);
-        __global float *e = E + 3 * (k * N + v);
-        e[0] = rgb[0];
-        e[1] = rgb[1];
-        e[2] = rgb[2];
-        if (lit && any[k] == 0u) atomic_or(any + k, 1u);
-    }
 }
 
 /* The folded lights' SH9 irradiance at receiver v: amb[3 v + c]. */

@@ -94,7 +94,7 @@ static void pack_light(const hl_light_split *s, uint32_t k, hl_dyn_irr_tables *t
     for (int c = 0; c < 3; c++)
         for (int i = 0; i < 3; i++) lf[4 + 3 * c + i] = l->evec[c][i];
     memcpy(lf + 13, face_axes[l->face], 9 * sizeof(float));
-    lf[22] = (float)F;
+    lf[22] = 2.0f / (float)F; /* texel units to face coordinates */
     lf[23] = 0.0f;
     uint32_t u[HL_DYN_IRR_LU] = {l->x0, l->y0, l->x1, l->y1, F, (uint32_t)T, (uint32_t)P, 0};
     memcpy(lu, u, sizeof u);

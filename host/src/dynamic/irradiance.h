@@ -24,7 +24,7 @@
 /* Floats of one light's block (the kernel's HL_DYN_IRR_LF): dir (0..2),
  * sin extent or 2 past a hemisphere (3), evec channel-major (4..12), the
  * face's origin (13..15), d/ds (16..18), d/dt (19..21) (face_point(s, t)
- * = o + s ds + t dt, OpenGL face order), F (22), 0 (23). */
+ * = o + s ds + t dt, OpenGL face order), 2 / F (22), 0 (23). */
 #define HL_DYN_IRR_LF 24u
 /* Uints of one light's block (HL_DYN_IRR_LU): x0 y0 x1 y1, F, its first
  * texel in mom, its first entry in pre, 0. */
