@@ -5,14 +5,17 @@
  *
  * E_k(n) = n . evec where the light's cone is wholly above n's horizon
  * (n . dir >= sin extent), 0 where wholly below, else the texel sum
- * sum_t max(0, n . m_t) row by row: the horizon cuts a cube face along a
- * straight line, so in each row the texels wholly above form one run,
- * summed from the row's prefix sums of the moments, those wholly below
- * another (skipped), and only the few it cuts are summed one by one (the
- * host's straddle_sum, with the run ends found in texel units). The
- * prefix sums are float-float (hi + lo, from double on the host): a run's
- * sum (hi1 - hi0) + (lo1 - lo0) is then right to float rounding of the
- * run itself, not of the whole row (a sun early in a row would otherwise
+ * sum_t max(0, n . m_t) (the host's straddle_sum): the horizon cuts a cube
+ * face along a straight line, so the rows wholly above it form one run
+ * of rows, summed from the prefix sums of the row totals, those wholly
+ * below another (skipped), and only the rows it crosses are taken one by
+ * one: in each, the texels wholly above form one run, summed from the
+ * row's prefix sums, and only the few it cuts are summed texel by texel.
+ * Each light is stored twice, by rows and by columns (a "view"), and the
+ * view whose rows the horizon crosses fewer of is walked. The prefix sums
+ * are float-float (hi + lo, from double on the host): a run's sum
+ * (hi1 - hi0) + (lo1 - lo0) is then right to float rounding of the run
+ * itself, not of the whole row (a sun early in a row would otherwise
  * drown the dim texels after it).
  *
  * Layout (host/src/dynamic/irradiance.h; the same numbers there):
@@ -20,11 +23,14 @@
  *       cone past a hemisphere), evec (9, channel-major), the face's
  *       origin o, d/ds and d/dt (3 each: face_point(s, t) = o + s ds + t dt),
  *       2 / F, 0.
- *   lu, HL_DYN_IRR_LU uints a light: x0 y0 x1 y1 (the rectangle), F, its
- *       first texel in mom, its first entry in pre, 0.
- *   mom: 9 floats a texel of the rectangle, row-major within it.
- *   pre: per row of the rectangle, w + 1 entries of 18 floats: the prefix
- *       sums of the row's moments (9 hi, then 9 lo).
+ *   lu, HL_DYN_IRR_LU uints a light: two views of HL_DYN_IRR_VIEW uints,
+ *       by rows then by columns, each: c0 c1 (the view's columns), r0 r1
+ *       (its rows), its first texel in mom, its first row entry in pre,
+ *       its first row-total entry in pre, 0.
+ *   mom: 9 floats a texel, a view's texels row by row.
+ *   pre: entries of 18 floats (9 hi, then 9 lo): per row of a view,
+ *       c1 - c0 + 1 prefix sums of the row's moments; per view, r1 - r0 + 1
+ *       prefix sums of the row totals.
  *   sh: 27 floats, per channel the quadratic K0 + q_x x + q_y y + q_z z +
  *       q_xy xy + q_yz yz + q_zz z^2 + q_xz xz + q_d (x^2 - y^2).
  * A normal with a non-finite component gets E = 0 (the module refuses
@@ -34,7 +40,8 @@
  */
 
 #define HL_DYN_IRR_LF 24
-#define HL_DYN_IRR_LU 8
+#define HL_DYN_IRR_LU 16
+#define HL_DYN_IRR_VIEW 8
 
 /* v clamped to [lo, hi] as an index (v an integer-valued float, huge or
  * NaN: NaN gives lo). */
@@ -44,64 +51,101 @@ static uint hl_dyn_irr_clamp(float v, uint lo, uint hi)
     return v >= (float)hi ? hi : (uint)v;
 }
 
+/* acc[c] += n . (q[b] - q[a]) for each channel, q float-float entries */
+static void hl_dyn_irr_run_sum(__global const float *qa, __global const float *qb, float n0, float n1, float n2,
+                               float *acc)
+{
+    for (int ch = 0; ch < 3; ch++) {
+        float s0 = (qb[3 * ch] - qa[3 * ch]) + (qb[9 + 3 * ch] - qa[9 + 3 * ch]);
+        float s1 = (qb[3 * ch + 1] - qa[3 * ch + 1]) + (qb[10 + 3 * ch] - qa[10 + 3 * ch]);
+        float s2 = (qb[3 * ch + 2] - qa[3 * ch + 2]) + (qb[11 + 3 * ch] - qa[11 + 3 * ch]);
+        acc[ch] += n0 * s0 + n1 * s1 + n2 * s2;
+    }
+}
+
+/* One row y of a view across the horizon. With lo and hi the least and
+ * largest of G0 + GY Y over the row, texel x (spanning [x, x + 1]) is
+ * wholly above where lo + GX (x or x + 1) >= 0 and wholly below where
+ * hi + GX (x + 1 or x) <= 0; r = -1 / GX. Texels whose corners are within
+ * rounding of the horizon may land in either run; their n . m is then 0
+ * to that rounding either way. */
+static void hl_dyn_irr_row(__global const uint *vu, __global const float *mom, __global const float *pre, uint y,
+                           float G0, float GX, float GY, float r, float n0, float n1, float n2, float *acc)
+{
+    const uint x0 = vu[0], x1 = vu[1], w = x1 - x0, yr = y - vu[2];
+    float ya = (float)y, yb = (float)(y + 1);
+    float lo = G0 + GY * (GY > 0.0f ? ya : yb), hi = G0 + GY * (GY > 0.0f ? yb : ya);
+    uint pa = x0, pb = x0, c0 = x0, c1 = x0; /* the run above, the texels cut */
+    if (GX > 0.0f) { /* above: x >= -lo / GX; below: x + 1 <= -hi / GX */
+        pa = hl_dyn_irr_clamp(ceil(lo * r), x0, x1);
+        pb = x1;
+        c0 = hl_dyn_irr_clamp(floor(hi * r), x0, pa);
+        c1 = pa;
+    } else if (GX < 0.0f) { /* above: x + 1 <= -lo / GX; below: x >= -hi / GX */
+        pb = hl_dyn_irr_clamp(floor(lo * r), x0, x1);
+        c0 = pb;
+        c1 = hl_dyn_irr_clamp(ceil(hi * r), pb, x1);
+    } else if (lo >= 0.0f) {
+        pb = x1;
+    } else if (!(hi <= 0.0f)) {
+        c1 = x1;
+    }
+    __global const float *q = pre + 18 * ((size_t)vu[5] + (size_t)yr * (w + 1));
+    if (pb > pa) hl_dyn_irr_run_sum(q + 18 * (pa - x0), q + 18 * (pb - x0), n0, n1, n2, acc);
+    __global const float *m = mom + 9 * ((size_t)vu[4] + (size_t)yr * w + (c0 - x0));
+    for (uint x = c0; x < c1; x++, m += 9)
+        for (int ch = 0; ch < 3; ch++) {
+            float d = n0 * m[3 * ch] + n1 * m[3 * ch + 1] + n2 * m[3 * ch + 2];
+            if (d > 0.0f) acc[ch] += d;
+        }
+}
+
 /* The texel sum of one light at a normal across its horizon. In texel
- * units (X = (s + 1) F / 2, Y likewise) n . face_point = G0 + GX X + GY Y;
- * row y's texel x spans [x, x + 1] x [y, y + 1], so with lo and hi the
- * least and largest of G0 + GY Y over the row, the texel is wholly above
- * where lo + GX (x or x + 1) >= 0 and wholly below where hi + GX (x + 1
- * or x) <= 0: one division a normal (r = -1 / GX), none a row. Texels
- * whose corners are within rounding of the horizon may land in either
- * run; their n . m is then 0 to that rounding either way. */
+ * units (X = (s + 1) F / 2, Y likewise) n . face_point = G0 + GX X + GY Y.
+ * The horizon crosses about w |GX| / |GY| of the h rows and h |GY| / |GX|
+ * of the w columns: the view with fewer is walked (its X and Y swapped
+ * for the columns). Rows wholly above: G0 + min over the row of
+ * GX X + GY Y >= 0, a run of rows at one end; wholly below likewise. */
 static void hl_dyn_irr_straddle(__global const float *lf, __global const uint *lu, __global const float *mom,
                                 __global const float *pre, float n0, float n1, float n2, float *acc)
 {
-    const uint x0 = lu[0], y0 = lu[1], x1 = lu[2], y1 = lu[3], w = x1 - x0;
     const float c = lf[22]; /* 2 / F */
-    __global const float *M = mom + 9 * (size_t)lu[5];
-    __global const float *P = pre + 18 * (size_t)lu[6];
     float g0 = n0 * lf[13] + n1 * lf[14] + n2 * lf[15];
     float gs = n0 * lf[16] + n1 * lf[17] + n2 * lf[18];
     float gt = n0 * lf[19] + n1 * lf[20] + n2 * lf[21];
     float G0 = (g0 - gs) - gt, GX = gs * c, GY = gt * c;
-    float r = GX != 0.0f ? -1.0f / GX : 0.0f;
+    float w = (float)(lu[1] - lu[0]), h = (float)(lu[3] - lu[2]);
+    if (w * (GX * GX) > h * (GY * GY)) { /* by columns */
+        lu += HL_DYN_IRR_VIEW;
+        float t = GX;
+        GX = GY;
+        GY = t;
+    }
+    const uint x0 = lu[0], x1 = lu[1], y0 = lu[2], y1 = lu[3];
+    float mX = GX > 0.0f ? GX * (float)x0 : GX * (float)x1, MX = GX > 0.0f ? GX * (float)x1 : GX * (float)x0;
+    float A = G0 + mX, B = G0 + MX; /* a row is wholly above where A + GY Y >= 0 over it, below where B + GY Y <= 0 */
+    float r = GX != 0.0f ? -1.0f / GX : 0.0f, rr = GY != 0.0f ? -1.0f / GY : 0.0f;
+    uint ua = y0, ub = y0, ca = y0, cb = y0; /* rows wholly above [ua, ub), crossed [ca, cb) */
+    if (GY > 0.0f) { /* above: y >= -A / GY; below: y + 1 <= -B / GY */
+        ua = hl_dyn_irr_clamp(ceil(A * rr), y0, y1);
+        ub = y1;
+        ca = hl_dyn_irr_clamp(floor(B * rr), y0, ua);
+        cb = ua;
+    } else if (GY < 0.0f) { /* above: y + 1 <= -A / GY; below: y >= -B / GY */
+        ub = hl_dyn_irr_clamp(floor(A * rr), y0, y1);
+        ca = ub;
+        cb = hl_dyn_irr_clamp(ceil(B * rr), ub, y1);
+    } else if (A >= 0.0f) {
+        ub = y1;
+    } else if (!(B <= 0.0f)) {
+        cb = y1;
+    }
     acc[0] = 0.0f;
     acc[1] = 0.0f;
     acc[2] = 0.0f;
-    for (uint y = y0; y < y1; y++) {
-        float ya = (float)y, yb = (float)(y + 1);
-        float lo = G0 + GY * (GY > 0.0f ? ya : yb), hi = G0 + GY * (GY > 0.0f ? yb : ya);
-        uint pa = x0, pb = x0, c0 = x0, c1 = x0; /* the run above, the texels cut */
-        if (GX > 0.0f) { /* above: x >= -lo / GX; below: x + 1 <= -hi / GX */
-            pa = hl_dyn_irr_clamp(ceil(lo * r), x0, x1);
-            pb = x1;
-            c0 = hl_dyn_irr_clamp(floor(hi * r), x0, pa);
-            c1 = pa;
-        } else if (GX < 0.0f) { /* above: x + 1 <= -lo / GX; below: x >= -hi / GX */
-            pb = hl_dyn_irr_clamp(floor(lo * r), x0, x1);
-            c0 = pb;
-            c1 = hl_dyn_irr_clamp(ceil(hi * r), pb, x1);
-        } else if (lo >= 0.0f) {
-            pb = x1;
-        } else if (!(hi <= 0.0f)) {
-            c1 = x1;
-        }
-        if (pb > pa) {
-            __global const float *qa = P + 18 * ((size_t)(y - y0) * (w + 1) + (pa - x0));
-            __global const float *qb = P + 18 * ((size_t)(y - y0) * (w + 1) + (pb - x0));
-            for (int ch = 0; ch < 3; ch++) {
-                float s0 = (qb[3 * ch] - qa[3 * ch]) + (qb[9 + 3 * ch] - qa[9 + 3 * ch]);
-                float s1 = (qb[3 * ch + 1] - qa[3 * ch + 1]) + (qb[10 + 3 * ch] - qa[10 + 3 * ch]);
-                float s2 = (qb[3 * ch + 2] - qa[3 * ch + 2]) + (qb[11 + 3 * ch] - qa[11 + 3 * ch]);
-                acc[ch] += n0 * s0 + n1 * s1 + n2 * s2;
-            }
-        }
-        __global const float *m = M + 9 * ((size_t)(y - y0) * w + (c0 - x0));
-        for (uint x = c0; x < c1; x++, m += 9)
-            for (int ch = 0; ch < 3; ch++) {
-                float d = n0 * m[3 * ch] + n1 * m[3 * ch + 1] + n2 * m[3 * ch + 2];
-                if (d > 0.0f) acc[ch] += d;
-            }
-    }
+    __global const float *q = pre + 18 * (size_t)lu[6];
+    if (ub > ua) hl_dyn_irr_run_sum(q + 18 * (ua - y0), q + 18 * (ub - y0), n0, n1, n2, acc);
+    for (uint y = ca; y < cb; y++) hl_dyn_irr_row(lu, mom, pre, y, G0, GX, GY, r, n0, n1, n2, acc);
 }
 
 /* Light k (blocks lf, lu) at normal (n0, n1, n2) into rgb; 1 if lit. */

@@ -60,7 +60,8 @@ static void pack_ambient(const hl_light_split *s, float sh[27])
     }
 }
 
-/* Checks the split's rectangles and counts the texels and prefix entries. */
+/* Checks the split's rectangles and counts the texels and prefix entries
+ * of both views. */
 static hl_result measure(hl_context *ctx, const hl_light_split *s, size_t *texels, size_t *entries)
 {
     *texels = *entries = 0;
@@ -75,43 +76,70 @@ static hl_result measure(hl_context *ctx, const hl_light_split *s, size_t *texel
                            "dynamic irradiance: light %u's rectangle (face %u, x %u..%u, y %u..%u) is not on a "
                            "%u x %u face", k, l->face, l->x0, l->x1, l->y0, l->y1, s->F, s->F);
         size_t w = l->x1 - l->x0, h = l->y1 - l->y0;
-        *texels += w * h;
-        *entries += (w + 1) * h;
+        *texels += 2 * w * h;
+        *entries += h * (w + 1) + (h + 1) + w * (h + 1) + (w + 1);
     }
     return HL_OK;
 }
 
-/* One light's blocks, texels and float-float row prefix sums. */
-static void pack_light(const hl_light_split *s, uint32_t k, hl_dyn_irr_tables *t, size_t T, size_t P)
+/* Stores a double sum as float hi + float lo. */
+static void put_ff(float *e, const double *acc)
+{
+    for (int i = 0; i < 9; i++) {
+        float hi = (float)acc[i];
+        e[i] = hi;
+        e[9 + i] = (float)(acc[i] - (double)hi);
+    }
+}
+
+/* One view of light l (by columns: rows and columns swapped) at texel T
+ * and entry P: its uints, texels, row prefix sums, row-total prefix sums.
+ * Returns the entries used. */
+static size_t pack_view(const hl_light_split *s, const hl_area_light *l, int by_cols, hl_dyn_irr_tables *t, size_t T,
+                        size_t P, uint32_t *vu)
+{
+    const uint32_t F = s->F;
+    const uint32_t c0 = by_cols ? l->y0 : l->x0, c1 = by_cols ? l->y1 : l->x1;
+    const uint32_t r0 = by_cols ? l->x0 : l->y0, r1 = by_cols ? l->x1 : l->y1, w = c1 - c0, h = r1 - r0;
+    const size_t B = P + (size_t)h * (w + 1);
+    uint32_t u[HL_DYN_IRR_VIEW] = {c0, c1, r0, r1, (uint32_t)T, (uint32_t)P, (uint32_t)B, 0};
+    memcpy(vu, u, sizeof u);
+    double tot[9] = {0};
+    put_ff(t->pre + HL_DYN_IRR_PRE * B, tot);
+    for (uint32_t i = r0; i < r1; i++) {
+        double acc[9] = {0};
+        float *pre = t->pre + HL_DYN_IRR_PRE * (P + (size_t)(i - r0) * (w + 1));
+        put_ff(pre, acc);
+        for (uint32_t j = c0; j < c1; j++) {
+            uint32_t x = by_cols ? i : j, y = by_cols ? j : i;
+            const float *m = s->texel_moment + 9 * ((size_t)l->face * F * F + (size_t)y * F + x);
+            memcpy(t->mom + 9 * (T + (size_t)(i - r0) * w + (j - c0)), m, 9 * sizeof(float));
+            for (int k = 0; k < 9; k++) acc[k] += m[k];
+            put_ff(pre + HL_DYN_IRR_PRE * (size_t)(j - c0 + 1), acc);
+        }
+        for (int k = 0; k < 9; k++) tot[k] += acc[k];
+        put_ff(t->pre + HL_DYN_IRR_PRE * (B + (i - r0) + 1), tot);
+    }
+    return (size_t)h * (w + 1) + h + 1;
+}
+
+/* One light's blocks and both views; advances *T and *P. */
+static void pack_light(const hl_light_split *s, uint32_t k, hl_dyn_irr_tables *t, size_t *T, size_t *P)
 {
     const hl_area_light *l = &s->lights[k];
-    const uint32_t F = s->F, w = l->x1 - l->x0;
     float *lf = t->lf + (size_t)HL_DYN_IRR_LF * k;
-    uint32_t *lu = t->lu + (size_t)HL_DYN_IRR_LU * k;
     memcpy(lf, l->dir, 3 * sizeof(float));
     /* the host's test, bit for bit (area_lights.c) */
     lf[3] = l->extent < (float)(0.5 * HL_PI) ? sinf(l->extent) : 2.0f;
     for (int c = 0; c < 3; c++)
         for (int i = 0; i < 3; i++) lf[4 + 3 * c + i] = l->evec[c][i];
     memcpy(lf + 13, face_axes[l->face], 9 * sizeof(float));
-    lf[22] = 2.0f / (float)F; /* texel units to face coordinates */
+    lf[22] = 2.0f / (float)s->F; /* texel units to face coordinates */
     lf[23] = 0.0f;
-    uint32_t u[HL_DYN_IRR_LU] = {l->x0, l->y0, l->x1, l->y1, F, (uint32_t)T, (uint32_t)P, 0};
-    memcpy(lu, u, sizeof u);
-    for (uint32_t y = l->y0; y < l->y1; y++) {
-        const float *src = s->texel_moment + 9 * ((size_t)l->face * F * F + (size_t)y * F + l->x0);
-        float *pre = t->pre + HL_DYN_IRR_PRE * (P + (size_t)(y - l->y0) * (w + 1));
-        memcpy(t->mom + 9 * (T + (size_t)(y - l->y0) * w), src, 9 * sizeof(float) * w);
-        double acc[9] = {0};
-        for (uint32_t x = 0; x <= w; x++) {
-            if (x > 0)
-                for (int i = 0; i < 9; i++) acc[i] += src[9 * (size_t)(x - 1) + (size_t)i];
-            for (int i = 0; i < 9; i++) {
-                float hi = (float)acc[i];
-                pre[HL_DYN_IRR_PRE * (size_t)x + (size_t)i] = hi;
-                pre[HL_DYN_IRR_PRE * (size_t)x + 9 + (size_t)i] = (float)(acc[i] - (double)hi);
-            }
-        }
+    const size_t n = (size_t)(l->x1 - l->x0) * (l->y1 - l->y0);
+    for (int v = 0; v < 2; v++) {
+        *P += pack_view(s, l, v, t, *T, *P, t->lu + (size_t)HL_DYN_IRR_LU * k + HL_DYN_IRR_VIEW * (size_t)v);
+        *T += n;
     }
 }
 
@@ -137,12 +165,7 @@ static hl_result pack(hl_context *ctx, const hl_light_split *s, hl_dyn_irr_table
     t->texels = texels;
     t->entries = entries;
     size_t T = 0, P = 0;
-    for (uint32_t k = 0; k < s->count; k++) {
-        const hl_area_light *l = &s->lights[k];
-        pack_light(s, k, t, T, P);
-        T += (size_t)(l->x1 - l->x0) * (l->y1 - l->y0);
-        P += (size_t)(l->x1 - l->x0 + 1) * (l->y1 - l->y0);
-    }
+    for (uint32_t k = 0; k < s->count; k++) pack_light(s, k, t, &T, &P);
     pack_ambient(s, t->sh);
     return HL_OK;
 }

@@ -7,8 +7,9 @@
  * the reference backend).
  *
  * A split's lights are packed once into tables (per light a block of
- * floats and one of uints, the rectangle's texel moments and the float-
- * float prefix sums of its rows; the ambient as one quadratic a channel)
+ * floats and one of uints; the rectangle's texel moments, the float-float
+ * prefix sums of its rows and of its row totals, by rows and again by
+ * columns; the ambient as one quadratic a channel)
  * and kept on the device until the next split replaces them.
  * Depends on: area_lights.h (hl_light_split), hl_internal.h (core).
  */
@@ -26,10 +27,16 @@
  * face's origin (13..15), d/ds (16..18), d/dt (19..21) (face_point(s, t)
  * = o + s ds + t dt, OpenGL face order), 2 / F (22), 0 (23). */
 #define HL_DYN_IRR_LF 24u
-/* Uints of one light's block (HL_DYN_IRR_LU): x0 y0 x1 y1, F, its first
- * texel in mom, its first entry in pre, 0. */
-#define HL_DYN_IRR_LU 8u
-/* Floats of one prefix entry: 9 moment sums (hi), then their rest (lo). */
+/* Uints of one light's block (HL_DYN_IRR_LU): two views of the light's
+ * rectangle (HL_DYN_IRR_VIEW uints each), by rows (the face's rows y0..y1,
+ * columns x0..x1) then by columns (rows x0..x1, columns y0..y1), each:
+ * c0 c1 (its columns), r0 r1 (its rows), its first texel in mom (row by
+ * row), its first row entry in pre (c1 - c0 + 1 entries a row), its first
+ * row-total entry in pre (r1 - r0 + 1), 0. */
+#define HL_DYN_IRR_LU 16u
+#define HL_DYN_IRR_VIEW 8u
+/* Floats of one prefix entry: 9 moment sums (hi), then their rest (lo):
+ * hi + lo holds a double sum to about 2^-48. */
 #define HL_DYN_IRR_PRE 18u
 /* Receivers a reference-backend thread takes at a time: 256 normals x
  * 32 lights is about 0.1 ms of work, enough to make the counter's
