@@ -516,7 +516,8 @@ static void case_cli(void)
     const char *out = hl_test_tmp_path("dyn_frame_cli.ply");
     static const char *const bad[] = {"--lights 0", "--order 3", "--order 17", "--shadow-res 100", "--time -1",
                                       "--time nan", "--split-threshold 1", "--move nobody:1,0,0", "--terms 5",
-                                      "--move object:1,0", NULL};
+                                      "--move object:1,0", "--reference truth", "--reference exact --rotate 10",
+                                      NULL};
     for (int i = 0; bad[i]; i++) {
         snprintf(cmd, sizeof cmd, "'%s' relight-dynamic '%s' --ground --device ref %s -o '%s' >/dev/null 2>&1", bin,
                  mesh, bad[i], out);
@@ -588,6 +589,19 @@ static void case_file(void)
                  "--time 1.5 --move Box:0,0,1 -q -o '%s'", bin, path, hl_test_tmp_path("dyn_frame_two_bodies.ply"));
         int rc = system(cmd);
         HL_CHECK(WIFEXITED(rc) && WEXITSTATUS(rc) == 0, "relight-dynamic on the file: exit %d", WEXITSTATUS(rc));
+        /* --reference: the exact reference written instead, the frame's
+           error against it printed (12 vertices: cheap) */
+        const char *log = hl_test_tmp_path("dyn_frame_reference.txt");
+        snprintf(cmd, sizeof cmd, "'%s' relight-dynamic '%s' --device ref --lights 2 --shadow-res 32 --order 4 "
+                 "--reference exact -o '%s' 2>'%s'", bin, path, hl_test_tmp_path("dyn_frame_reference.ply"), log);
+        rc = system(cmd);
+        HL_CHECK(WIFEXITED(rc) && WEXITSTATUS(rc) == 0, "relight-dynamic --reference exact: exit %d", WEXITSTATUS(rc));
+        char line[4096] = "";
+        FILE *f = fopen(log, "r");
+        int said = 0;
+        while (f && fgets(line, sizeof line, f)) said |= strstr(line, "relative L2 error against it") != NULL;
+        if (f) fclose(f);
+        HL_CHECK(said, "--reference exact did not print the frame's error");
     }
 done:
     hl_dynamic_destroy(d);
