@@ -12,11 +12,13 @@
  * one: in each, the texels wholly above form one run, summed from the
  * row's prefix sums, and only the few it cuts are summed texel by texel.
  * Each light is stored twice, by rows and by columns (a "view"), and the
- * view whose rows the horizon crosses fewer of is walked. The prefix sums
- * are float-float (hi + lo, from double on the host): a run's sum
- * (hi1 - hi0) + (lo1 - lo0) is then right to float rounding of the run
- * itself, not of the whole row (a sun early in a row would otherwise
- * drown the dim texels after it).
+ * view whose rows the horizon crosses fewer of is walked. A run always
+ * reaches one end of its row (or of the light), so each row keeps both its
+ * prefix sums and its suffix sums (from the right), each a double sum
+ * rounded once to float on the host: a run is one read, right to float
+ * rounding of the run itself (a difference of prefix sums would carry the
+ * rounding of the whole row, and a sun early in a row would drown the dim
+ * texels after it).
  *
  * Layout (host/src/dynamic/irradiance.h; the same numbers there):
  *   lf, HL_DYN_IRR_LF floats a light: dir (3), sin extent (or 2 for a
@@ -28,9 +30,10 @@
  *       (its rows), its first texel in mom, its first row entry in pre,
  *       its first row-total entry in pre, 0.
  *   mom: 9 floats a texel, a view's texels row by row.
- *   pre: entries of 18 floats (9 hi, then 9 lo): per row of a view,
- *       c1 - c0 + 1 prefix sums of the row's moments; per view, r1 - r0 + 1
- *       prefix sums of the row totals.
+ *   pre: entries of 9 floats (sums of moments): per row of a view, w + 1
+ *       prefix sums (entry j: columns c0..c0+j-1) then w + 1 suffix sums
+ *       (entry j: columns c0+j..c1-1), w = c1 - c0; per view the same
+ *       2 (h + 1) over the rows' totals, h = r1 - r0.
  *   sh: 27 floats, per channel the quadratic K0 + q_x x + q_y y + q_z z +
  *       q_xy xy + q_yz yz + q_zz z^2 + q_xz xz + q_d (x^2 - y^2).
  * A normal with a non-finite component gets E = 0 (the module refuses
@@ -51,16 +54,10 @@ static uint hl_dyn_irr_clamp(float v, uint lo, uint hi)
     return v >= (float)hi ? hi : (uint)v;
 }
 
-/* acc[c] += n . (q[b] - q[a]) for each channel, q float-float entries */
-static void hl_dyn_irr_run_sum(__global const float *qa, __global const float *qb, float n0, float n1, float n2,
-                               float *acc)
+/* acc[c] += n . e[c] for a run's summed moments e (9 floats) */
+static void hl_dyn_irr_add(__global const float *e, float n0, float n1, float n2, float *acc)
 {
-    for (int ch = 0; ch < 3; ch++) {
-        float s0 = (qb[3 * ch] - qa[3 * ch]) + (qb[9 + 3 * ch] - qa[9 + 3 * ch]);
-        float s1 = (qb[3 * ch + 1] - qa[3 * ch + 1]) + (qb[10 + 3 * ch] - qa[10 + 3 * ch]);
-        float s2 = (qb[3 * ch + 2] - qa[3 * ch + 2]) + (qb[11 + 3 * ch] - qa[11 + 3 * ch]);
-        acc[ch] += n0 * s0 + n1 * s1 + n2 * s2;
-    }
+    for (int ch = 0; ch < 3; ch++) acc[ch] += n0 * e[3 * ch] + n1 * e[3 * ch + 1] + n2 * e[3 * ch + 2];
 }
 
 /* One row y of a view across the horizon. With lo and hi the least and
@@ -90,8 +87,9 @@ static void hl_dyn_irr_row(__global const uint *vu, __global const float *mom, _
     } else if (!(hi <= 0.0f)) {
         c1 = x1;
     }
-    __global const float *q = pre + 18 * ((size_t)vu[5] + (size_t)yr * (w + 1));
-    if (pb > pa) hl_dyn_irr_run_sum(q + 18 * (pa - x0), q + 18 * (pb - x0), n0, n1, n2, acc);
+    /* the run [pa, pb) reaches x1 (a suffix) or starts at x0 (a prefix) */
+    __global const float *q = pre + 9 * ((size_t)vu[5] + (size_t)yr * 2 * (w + 1));
+    if (pb > pa) hl_dyn_irr_add(q + 9 * (pb == x1 ? (w + 1) + (pa - x0) : pb - x0), n0, n1, n2, acc);
     __global const float *m = mom + 9 * ((size_t)vu[4] + (size_t)yr * w + (c0 - x0));
     for (uint x = c0; x < c1; x++, m += 9)
         for (int ch = 0; ch < 3; ch++) {
@@ -143,8 +141,8 @@ static void hl_dyn_irr_straddle(__global const float *lf, __global const uint *l
     acc[0] = 0.0f;
     acc[1] = 0.0f;
     acc[2] = 0.0f;
-    __global const float *q = pre + 18 * (size_t)lu[6];
-    if (ub > ua) hl_dyn_irr_run_sum(q + 18 * (ua - y0), q + 18 * (ub - y0), n0, n1, n2, acc);
+    __global const float *q = pre + 9 * (size_t)lu[6];
+    if (ub > ua) hl_dyn_irr_add(q + 9 * (ub == y1 ? (y1 - y0 + 1) + (ua - y0) : ub - y0), n0, n1, n2, acc);
     for (uint y = ca; y < cb; y++) hl_dyn_irr_row(lu, mom, pre, y, G0, GX, GY, r, n0, n1, n2, acc);
 }
 

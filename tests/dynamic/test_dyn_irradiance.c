@@ -433,12 +433,12 @@ static double ms_of(struct timespec a, struct timespec b)
  * (all threads, PoCL's included) in ms. The machine may be shared, so the
  * CPU time tells the work done where the wall time tells the wait. */
 static void time_module(hl_context *ctx, const hl_light_split *s, const float *nv, uint32_t N, float *E, float *amb,
-                        uint8_t *any, int reps, double *wall, double *cpu)
+                        uint8_t *any, int reps, double *wall, double *cpu, double *kern)
 {
     hl_dyn_irr *m = NULL;
-    *wall = *cpu = -1.0;
+    *wall = *cpu = *kern = -1.0;
     if (hl_dyn_irr_create(ctx, s, &m) != HL_OK) { printf("%s\n", hl_context_last_error(ctx)); return; }
-    double tw[16], tc[16];
+    double tw[16], tc[16], tk[16];
     hl_dyn_irr_run(m, nv, N, E, amb, any); /* warm: buffers made */
     for (int r = 0; r < reps; r++) {
         struct timespec a, b, ca, cb;
@@ -449,10 +449,13 @@ static void time_module(hl_context *ctx, const hl_light_split *s, const float *n
         clock_gettime(CLOCK_MONOTONIC, &b);
         tw[r] = ms_of(a, b);
         tc[r] = ms_of(ca, cb);
+        hl_dyn_irr_times(m, &tk[r], NULL);
+        tk[r] *= 1e3;
     }
     hl_dyn_irr_destroy(m);
     *wall = median(tw, reps);
     *cpu = median(tc, reps);
+    *kern = median(tk, reps);
 }
 
 static void run_timing(uint32_t N, int32_t K)
@@ -465,7 +468,7 @@ static void run_timing(uint32_t N, int32_t K)
     uint8_t any[HL_LIGHTS_MAX_FACE * 6];
     for (uint32_t v = 0; v < N; v++) random_unit(nv + 3 * v);
     enum { REPS = 9 };
-    double host[REPS], host_cpu[REPS], w, c;
+    double host[REPS], host_cpu[REPS], w, c, kt;
     for (int r = 0; r < REPS; r++) { /* dyn_frame.c's irradiance(): one thread */
         struct timespec a, b, ca, cb;
         clock_gettime(CLOCK_MONOTONIC, &a);
@@ -488,12 +491,13 @@ static void run_timing(uint32_t N, int32_t K)
            s->count, N, 100.0 * (double)straddle / ((double)N * s->count), REPS);
     printf("host loop (area_lights.c, 1 thread):            wall %8.2f ms, CPU %8.2f ms\n", median(host, REPS),
            median(host_cpu, REPS));
-    time_module(ref, s, nv, N, E, amb, any, REPS, &w, &c);
-    printf("module, reference backend (%d threads):          wall %8.2f ms, CPU %8.2f ms\n", hl_context_threads(ref), w,
-           c);
+    time_module(ref, s, nv, N, E, amb, any, REPS, &w, &c, &kt);
+    printf("module, reference backend (%d threads):          wall %8.2f ms, CPU %8.2f ms (twins %.2f ms)\n",
+           hl_context_threads(ref), w, c, kt);
     if (ctx) {
-        time_module(ctx, s, nv, N, E, amb, any, REPS, &w, &c);
-        printf("module, OpenCL, transfers included:              wall %8.2f ms, CPU %8.2f ms\n", w, c);
+        time_module(ctx, s, nv, N, E, amb, any, REPS, &w, &c, &kt);
+        printf("module, OpenCL, transfers included:              wall %8.2f ms, CPU %8.2f ms (kernels %.2f ms)\n", w,
+               c, kt);
     }
     free(nv); free(E); free(amb);
     hl_light_split_destroy(s);

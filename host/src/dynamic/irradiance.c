@@ -23,6 +23,7 @@ struct hl_dyn_irr {
     cl_mem n_d, E_d, amb_d, any_d;         /* per run, grown as needed */
     size_t cap_n, cap_e;                   /* receivers; E floats */
     cl_uint *any_h;                        /* K */
+    double t_compute, t_total;             /* of the last run, seconds */
 };
 
 /* face_point(s, t) = o + s ds + t dt for the six faces, OpenGL order (as
@@ -77,54 +78,65 @@ static hl_result measure(hl_context *ctx, const hl_light_split *s, size_t *texel
                            "%u x %u face", k, l->face, l->x0, l->x1, l->y0, l->y1, s->F, s->F);
         size_t w = l->x1 - l->x0, h = l->y1 - l->y0;
         *texels += 2 * w * h;
-        *entries += h * (w + 1) + (h + 1) + w * (h + 1) + (w + 1);
+        *entries += 2 * (h * (w + 1) + (h + 1) + w * (h + 1) + (w + 1));
     }
     return HL_OK;
 }
 
-/* Stores a double sum as float hi + float lo. */
-static void put_ff(float *e, const double *acc)
+/* 2 (n + 1) entries from n sums of 9 (v[9 i + k]): prefix sums, then
+ * suffix sums, each added in double from its own end and rounded once. */
+static void put_sums(float *e, const double *v, uint32_t n)
 {
-    for (int i = 0; i < 9; i++) {
-        float hi = (float)acc[i];
-        e[i] = hi;
-        e[9 + i] = (float)(acc[i] - (double)hi);
+    double acc[9] = {0};
+    for (uint32_t i = 0; i <= n; i++) {
+        for (int k = 0; k < 9; k++) {
+            if (i > 0) acc[k] += v[9 * (size_t)(i - 1) + (size_t)k];
+            e[9 * (size_t)i + (size_t)k] = (float)acc[k];
+        }
+    }
+    memset(acc, 0, sizeof acc);
+    for (uint32_t i = n + 1; i-- > 0;) {
+        for (int k = 0; k < 9; k++) {
+            if (i < n) acc[k] += v[9 * (size_t)i + (size_t)k];
+            e[9 * ((size_t)n + 1 + i) + (size_t)k] = (float)acc[k];
+        }
     }
 }
 
 /* One view of light l (by columns: rows and columns swapped) at texel T
- * and entry P: its uints, texels, row prefix sums, row-total prefix sums.
- * Returns the entries used. */
+ * and entry P: its uints, texels, row sums and row-total sums. row holds
+ * 9 doubles per texel of a row, tot 9 per row. Returns the entries used. */
 static size_t pack_view(const hl_light_split *s, const hl_area_light *l, int by_cols, hl_dyn_irr_tables *t, size_t T,
-                        size_t P, uint32_t *vu)
+                        size_t P, uint32_t *vu, double *row, double *tot)
 {
     const uint32_t F = s->F;
     const uint32_t c0 = by_cols ? l->y0 : l->x0, c1 = by_cols ? l->y1 : l->x1;
     const uint32_t r0 = by_cols ? l->x0 : l->y0, r1 = by_cols ? l->x1 : l->y1, w = c1 - c0, h = r1 - r0;
-    const size_t B = P + (size_t)h * (w + 1);
+    const size_t B = P + (size_t)h * 2 * (w + 1);
     uint32_t u[HL_DYN_IRR_VIEW] = {c0, c1, r0, r1, (uint32_t)T, (uint32_t)P, (uint32_t)B, 0};
     memcpy(vu, u, sizeof u);
-    double tot[9] = {0};
-    put_ff(t->pre + HL_DYN_IRR_PRE * B, tot);
     for (uint32_t i = r0; i < r1; i++) {
-        double acc[9] = {0};
-        float *pre = t->pre + HL_DYN_IRR_PRE * (P + (size_t)(i - r0) * (w + 1));
-        put_ff(pre, acc);
+        double *rt = tot + 9 * (size_t)(i - r0);
+        memset(rt, 0, 9 * sizeof(double));
         for (uint32_t j = c0; j < c1; j++) {
             uint32_t x = by_cols ? i : j, y = by_cols ? j : i;
             const float *m = s->texel_moment + 9 * ((size_t)l->face * F * F + (size_t)y * F + x);
             memcpy(t->mom + 9 * (T + (size_t)(i - r0) * w + (j - c0)), m, 9 * sizeof(float));
-            for (int k = 0; k < 9; k++) acc[k] += m[k];
-            put_ff(pre + HL_DYN_IRR_PRE * (size_t)(j - c0 + 1), acc);
+            for (int k = 0; k < 9; k++) {
+                row[9 * (size_t)(j - c0) + (size_t)k] = m[k];
+                rt[k] += m[k];
+            }
         }
-        for (int k = 0; k < 9; k++) tot[k] += acc[k];
-        put_ff(t->pre + HL_DYN_IRR_PRE * (B + (i - r0) + 1), tot);
+        put_sums(t->pre + HL_DYN_IRR_PRE * (P + (size_t)(i - r0) * 2 * (w + 1)), row, w);
     }
-    return (size_t)h * (w + 1) + h + 1;
+    put_sums(t->pre + HL_DYN_IRR_PRE * B, tot, h);
+    return (size_t)h * 2 * (w + 1) + 2 * ((size_t)h + 1);
 }
 
-/* One light's blocks and both views; advances *T and *P. */
-static void pack_light(const hl_light_split *s, uint32_t k, hl_dyn_irr_tables *t, size_t *T, size_t *P)
+/* One light's blocks and both views; advances *T and *P. scratch: 9 F
+ * doubles twice. */
+static void pack_light(const hl_light_split *s, uint32_t k, hl_dyn_irr_tables *t, size_t *T, size_t *P,
+                       double *scratch)
 {
     const hl_area_light *l = &s->lights[k];
     float *lf = t->lf + (size_t)HL_DYN_IRR_LF * k;
@@ -138,7 +150,8 @@ static void pack_light(const hl_light_split *s, uint32_t k, hl_dyn_irr_tables *t
     lf[23] = 0.0f;
     const size_t n = (size_t)(l->x1 - l->x0) * (l->y1 - l->y0);
     for (int v = 0; v < 2; v++) {
-        *P += pack_view(s, l, v, t, *T, *P, t->lu + (size_t)HL_DYN_IRR_LU * k + HL_DYN_IRR_VIEW * (size_t)v);
+        *P += pack_view(s, l, v, t, *T, *P, t->lu + (size_t)HL_DYN_IRR_LU * k + HL_DYN_IRR_VIEW * (size_t)v, scratch,
+                        scratch + 9 * (size_t)s->F);
         *T += n;
     }
 }
@@ -164,8 +177,14 @@ static hl_result pack(hl_context *ctx, const hl_light_split *s, hl_dyn_irr_table
     t->F = s->F;
     t->texels = texels;
     t->entries = entries;
+    double *scratch = hl_malloc(ctx, 18 * (size_t)s->F * sizeof(double), "the lights' row sums");
+    if (!scratch) {
+        free_tables(t);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
     size_t T = 0, P = 0;
-    for (uint32_t k = 0; k < s->count; k++) pack_light(s, k, t, &T, &P);
+    for (uint32_t k = 0; k < s->count; k++) pack_light(s, k, t, &T, &P, scratch);
+    free(scratch);
     pack_ambient(s, t->sh);
     return HL_OK;
 }
@@ -301,7 +320,8 @@ static hl_result run_device(hl_dyn_irr *m, const float *normals, uint32_t N, flo
     cl_command_queue q = ctx->cl->queue;
     const cl_uint K = m->t.K, n = N;
     TRY(grow(m, N));
-    CL_TRY(ctx, clEnqueueWriteBuffer(q, m->n_d, CL_FALSE, 0, (size_t)N * 12, normals, 0, NULL, NULL), "upload");
+    CL_TRY(ctx, clEnqueueWriteBuffer(q, m->n_d, CL_TRUE, 0, (size_t)N * 12, normals, 0, NULL, NULL), "upload");
+    const double t0 = hl_now();
     if (K > 0) {
         const cl_uint zero = 0;
         CL_TRY(ctx, clEnqueueFillBuffer(q, m->any_d, &zero, 4, 0, (size_t)K * 4, 0, NULL, NULL), "clear");
@@ -316,8 +336,12 @@ static hl_result run_device(hl_dyn_irr *m, const float *normals, uint32_t N, flo
         SETARG(m->ka, 0, m->sh_d); SETARG(m->ka, 1, m->n_d); SETARG(m->ka, 2, n); SETARG(m->ka, 3, m->amb_d);
         size_t local = HL_DYN_IRR_WG, global = ((size_t)N + HL_DYN_IRR_WG - 1) / HL_DYN_IRR_WG * HL_DYN_IRR_WG;
         CL_TRY(ctx, clEnqueueNDRangeKernel(q, m->ka, 1, NULL, &global, &local, 0, NULL, NULL), "hl_dyn_irr_ambient");
-        CL_TRY(ctx, clEnqueueReadBuffer(q, m->amb_d, CL_FALSE, 0, (size_t)N * 12, ambient, 0, NULL, NULL), "read-back");
     }
+    /* the kernels alone, for hl_dyn_irr_times (one more wait, ~0.1 ms) */
+    CL_TRY(ctx, clFinish(q), "the irradiance kernels");
+    m->t_compute = hl_now() - t0;
+    if (ambient)
+        CL_TRY(ctx, clEnqueueReadBuffer(q, m->amb_d, CL_FALSE, 0, (size_t)N * 12, ambient, 0, NULL, NULL), "read-back");
     if (K > 0) {
         CL_TRY(ctx, clEnqueueReadBuffer(q, m->E_d, CL_FALSE, 0, (size_t)K * N * 12, E, 0, NULL, NULL), "read-back");
         CL_TRY(ctx, clEnqueueReadBuffer(q, m->any_d, CL_FALSE, 0, (size_t)K * 4, m->any_h, 0, NULL, NULL), "read-back");
@@ -346,16 +370,18 @@ static void *ref_worker(void *arg)
         uint32_t v0 = atomic_fetch_add(&j->next, HL_DYN_IRR_REF_CHUNK);
         if (v0 >= j->N) break;
         uint32_t v1 = j->N - v0 < HL_DYN_IRR_REF_CHUNK ? j->N : v0 + HL_DYN_IRR_REF_CHUNK;
-        for (uint32_t v = v0; v < v1; v++) {
-            const float *n = j->normals + 3 * (size_t)v;
-            if (j->ambient) hl_ref_dyn_irr_ambient(t->sh, n, j->ambient + 3 * (size_t)v);
-            for (uint32_t k = 0; k < t->K; k++) {
-                float *e = j->E + 3 * ((size_t)k * j->N + v);
-                int lit = hl_ref_dyn_irr_light(t->lf + (size_t)HL_DYN_IRR_LF * k, t->lu + (size_t)HL_DYN_IRR_LU * k,
-                                               t->mom, t->pre, n, e);
-                if (lit && !atomic_load_explicit(&j->any[k], memory_order_relaxed))
-                    atomic_store_explicit(&j->any[k], 1, memory_order_relaxed);
-            }
+        for (uint32_t v = v0; v < v1 && j->ambient; v++)
+            hl_ref_dyn_irr_ambient(t->sh, j->normals + 3 * (size_t)v, j->ambient + 3 * (size_t)v);
+        /* light by light, as the kernel's work-groups: one light's tables
+           stay in cache (all of them may not: 1.2 MB for city.exr) */
+        for (uint32_t k = 0; k < t->K; k++) {
+            int lit = 0;
+            for (uint32_t v = v0; v < v1; v++)
+                lit |= hl_ref_dyn_irr_light(t->lf + (size_t)HL_DYN_IRR_LF * k, t->lu + (size_t)HL_DYN_IRR_LU * k,
+                                            t->mom, t->pre, j->normals + 3 * (size_t)v,
+                                            j->E + 3 * ((size_t)k * j->N + v));
+            if (lit && !atomic_load_explicit(&j->any[k], memory_order_relaxed))
+                atomic_store_explicit(&j->any[k], 1, memory_order_relaxed);
         }
     }
     return NULL;
@@ -369,7 +395,9 @@ static hl_result run_ref(hl_dyn_irr *m, const float *normals, uint32_t N, float 
     for (uint32_t k = 0; k < K; k++) atomic_init(&flags[k], 0);
     ref_job j = {.t = &m->t, .normals = normals, .N = N, .E = E, .ambient = ambient, .any = flags};
     atomic_init(&j.next, 0u);
+    const double t0 = hl_now();
     hl_run_threads(m->ctx->threads, ref_worker, &j);
+    m->t_compute = hl_now() - t0;
     for (uint32_t k = 0; any && k < K; k++) any[k] = atomic_load(&flags[k]) ? 1 : 0;
     free(flags);
     return HL_OK;
@@ -382,6 +410,7 @@ hl_result hl_dyn_irr_run(hl_dyn_irr *m, const float *normals, uint32_t N, float 
     const uint32_t K = m->t.K;
     if (!m->t.lf) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic irradiance: no light split (the last failed)");
     if (any) memset(any, 0, K);
+    m->t_compute = m->t_total = 0.0;
     if (N == 0) return HL_OK;
     if (!normals || (K > 0 && !E))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic irradiance: no %s array for %u receivers",
@@ -393,6 +422,14 @@ hl_result hl_dyn_irr_run(hl_dyn_irr *m, const float *normals, uint32_t N, float 
             return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                            "dynamic irradiance: receiver %zu's normal has a non-finite component (%g)", i / 3,
                            (double)normals[i]);
-    if (ctx->cl) return run_device(m, normals, N, E, ambient, any);
-    return run_ref(m, normals, N, E, ambient, any);
+    const double t0 = hl_now();
+    hl_result r = ctx->cl ? run_device(m, normals, N, E, ambient, any) : run_ref(m, normals, N, E, ambient, any);
+    m->t_total = hl_now() - t0;
+    return r;
+}
+
+void hl_dyn_irr_times(const hl_dyn_irr *m, double *compute, double *total)
+{
+    if (compute) *compute = m ? m->t_compute : 0.0;
+    if (total) *total = m ? m->t_total : 0.0;
 }

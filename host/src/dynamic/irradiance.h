@@ -7,8 +7,8 @@
  * the reference backend).
  *
  * A split's lights are packed once into tables (per light a block of
- * floats and one of uints; the rectangle's texel moments, the float-float
- * prefix sums of its rows and of its row totals, by rows and again by
+ * floats and one of uints; the rectangle's texel moments, the prefix and
+ * suffix sums of its rows and of its row totals, by rows and again by
  * columns; the ambient as one quadratic a channel)
  * and kept on the device until the next split replaces them.
  * Depends on: area_lights.h (hl_light_split), hl_internal.h (core).
@@ -31,13 +31,13 @@
  * rectangle (HL_DYN_IRR_VIEW uints each), by rows (the face's rows y0..y1,
  * columns x0..x1) then by columns (rows x0..x1, columns y0..y1), each:
  * c0 c1 (its columns), r0 r1 (its rows), its first texel in mom (row by
- * row), its first row entry in pre (c1 - c0 + 1 entries a row), its first
- * row-total entry in pre (r1 - r0 + 1), 0. */
+ * row), its first row entry in pre, its first row-total entry in pre, 0. */
 #define HL_DYN_IRR_LU 16u
 #define HL_DYN_IRR_VIEW 8u
-/* Floats of one prefix entry: 9 moment sums (hi), then their rest (lo):
- * hi + lo holds a double sum to about 2^-48. */
-#define HL_DYN_IRR_PRE 18u
+/* Floats of one entry of pre: 9 moment sums, each a double sum rounded
+ * once. Per row of a view w + 1 prefix sums then w + 1 suffix sums
+ * (w = c1 - c0); per view 2 (h + 1) sums of the row totals likewise. */
+#define HL_DYN_IRR_PRE 9u
 /* Receivers a reference-backend thread takes at a time: 256 normals x
  * 32 lights is about 0.1 ms of work, enough to make the counter's
  * traffic negligible, small enough that 11k receivers spread evenly
@@ -82,6 +82,9 @@ hl_result hl_dyn_irr_set_split(hl_dyn_irr *m, const hl_light_split *split);
  * N = 0 is allowed (any all 0). A normal with a non-finite component is
  * refused (HL_ERR_INVALID_ARGUMENT naming the receiver). */
 hl_result hl_dyn_irr_run(hl_dyn_irr *m, const float *normals, uint32_t N, float *E, float *ambient, uint8_t *any);
+/* Seconds of the last successful run: the kernels alone (the twins on the
+ * reference backend), and all of it with the transfers and checks. */
+void hl_dyn_irr_times(const hl_dyn_irr *m, double *compute, double *total);
 /* The packed tables (for the tests): valid until the next set_split. */
 const hl_dyn_irr_tables *hl_dyn_irr_get_tables(const hl_dyn_irr *m);
 void hl_dyn_irr_destroy(hl_dyn_irr *m);

@@ -20,15 +20,10 @@ static uint32_t irr_clamp(float v, uint32_t lo, uint32_t hi)
     return v >= (float)hi ? hi : (uint32_t)v;
 }
 
-/* acc[c] += n . (q[b] - q[a]) for each channel, q float-float entries */
-static void irr_run_sum(const float *qa, const float *qb, float n0, float n1, float n2, float *acc)
+/* acc[c] += n . e[c] for a run's summed moments e (9 floats) */
+static void irr_add(const float *e, float n0, float n1, float n2, float *acc)
 {
-    for (int ch = 0; ch < 3; ch++) {
-        float s0 = (qb[3 * ch] - qa[3 * ch]) + (qb[9 + 3 * ch] - qa[9 + 3 * ch]);
-        float s1 = (qb[3 * ch + 1] - qa[3 * ch + 1]) + (qb[10 + 3 * ch] - qa[10 + 3 * ch]);
-        float s2 = (qb[3 * ch + 2] - qa[3 * ch + 2]) + (qb[11 + 3 * ch] - qa[11 + 3 * ch]);
-        acc[ch] += n0 * s0 + n1 * s1 + n2 * s2;
-    }
+    for (int ch = 0; ch < 3; ch++) acc[ch] += n0 * e[3 * ch] + n1 * e[3 * ch + 1] + n2 * e[3 * ch + 2];
 }
 
 /* One row y of a view across the horizon. With lo and hi the least and
@@ -37,8 +32,8 @@ static void irr_run_sum(const float *qa, const float *qb, float n0, float n1, fl
  * hi + GX (x + 1 or x) <= 0; r = -1 / GX. Texels whose corners are within
  * rounding of the horizon may land in either run; their n . m is then 0
  * to that rounding either way. */
-static void irr_row(const uint32_t *vu, const float *mom, const float *pre, uint32_t y, float G0, float GX, float GY,
-                    float r, float n0, float n1, float n2, float *acc)
+static void irr_row(const uint32_t *vu, const float *mom, const float *pre, uint32_t y,
+                           float G0, float GX, float GY, float r, float n0, float n1, float n2, float *acc)
 {
     const uint32_t x0 = vu[0], x1 = vu[1], w = x1 - x0, yr = y - vu[2];
     float ya = (float)y, yb = (float)(y + 1);
@@ -58,8 +53,9 @@ static void irr_row(const uint32_t *vu, const float *mom, const float *pre, uint
     } else if (!(hi <= 0.0f)) {
         c1 = x1;
     }
-    const float *q = pre + 18 * ((size_t)vu[5] + (size_t)yr * (w + 1));
-    if (pb > pa) irr_run_sum(q + 18 * (pa - x0), q + 18 * (pb - x0), n0, n1, n2, acc);
+    /* the run [pa, pb) reaches x1 (a suffix) or starts at x0 (a prefix) */
+    const float *q = pre + 9 * ((size_t)vu[5] + (size_t)yr * 2 * (w + 1));
+    if (pb > pa) irr_add(q + 9 * (pb == x1 ? (w + 1) + (pa - x0) : pb - x0), n0, n1, n2, acc);
     const float *m = mom + 9 * ((size_t)vu[4] + (size_t)yr * w + (c0 - x0));
     for (uint32_t x = c0; x < c1; x++, m += 9)
         for (int ch = 0; ch < 3; ch++) {
@@ -74,8 +70,8 @@ static void irr_row(const uint32_t *vu, const float *mom, const float *pre, uint
  * of the w columns: the view with fewer is walked (its X and Y swapped
  * for the columns). Rows wholly above: G0 + min over the row of
  * GX X + GY Y >= 0, a run of rows at one end; wholly below likewise. */
-static void irr_straddle(const float *lf, const uint32_t *lu, const float *mom, const float *pre, float n0, float n1,
-                         float n2, float *acc)
+static void irr_straddle(const float *lf, const uint32_t *lu, const float *mom,
+                                const float *pre, float n0, float n1, float n2, float *acc)
 {
     const float c = lf[22]; /* 2 / F */
     float g0 = n0 * lf[13] + n1 * lf[14] + n2 * lf[15];
@@ -111,8 +107,8 @@ static void irr_straddle(const float *lf, const uint32_t *lu, const float *mom, 
     acc[0] = 0.0f;
     acc[1] = 0.0f;
     acc[2] = 0.0f;
-    const float *q = pre + 18 * (size_t)lu[6];
-    if (ub > ua) irr_run_sum(q + 18 * (ua - y0), q + 18 * (ub - y0), n0, n1, n2, acc);
+    const float *q = pre + 9 * (size_t)lu[6];
+    if (ub > ua) irr_add(q + 9 * (ub == y1 ? (y1 - y0 + 1) + (ua - y0) : ub - y0), n0, n1, n2, acc);
     for (uint32_t y = ca; y < cb; y++) irr_row(lu, mom, pre, y, G0, GX, GY, r, n0, n1, n2, acc);
 }
 
