@@ -423,15 +423,21 @@ static void bd_verdicts(FILE *md, const bd_report *rep)
     }
 }
 
+/* Curves of the plot at most: per map at rest PRT and one per order, and
+ * moved one per order, the K-lights reference and one per K (at most 8
+ * settings each), for 16 maps. */
+#define BD_MAX_SERIES (16 * (1 + 8 + 8 + 1 + 8))
+
 /* One data block per curve: (map, rest or moved, method, group), group
  * the order M for the dynamic method and K for the traced one. */
 static void bd_plot(FILE *gp, const bd_report *rep)
 {
     fprintf(gp, "# in this folder: gnuplot -e \"set output 'bench.svg'\" bench.gp\n");
     int nb = 0;
-    char titles[64][64];
-    int panel[64];
-    for (uint32_t i = 0; i < rep->nrows && nb < 64; i++) {
+    static char titles[BD_MAX_SERIES][64];
+    static int panel[BD_MAX_SERIES];
+    static const char *colour[BD_MAX_SERIES];
+    for (uint32_t i = 0; i < rep->nrows && nb < BD_MAX_SERIES; i++) {
         const bd_row *w = &rep->rows[i];
         const uint32_t grp = w->method == BD_DYNAMIC ? w->M : w->method == BD_TRACED ? w->K : 0;
         int seen = 0;
@@ -453,18 +459,35 @@ static void bd_plot(FILE *gp, const bd_report *rep)
         else if (w->method == BD_DYNAMIC) snprintf(titles[nb], sizeof titles[nb], "dynamic, order %u (K)", grp);
         else if (w->method == BD_TRACED) snprintf(titles[nb], sizeof titles[nb], "traced, K %u (S)", grp);
         else snprintf(titles[nb], sizeof titles[nb], "K-lights reference (K)");
+        /* a method's curves in one family of colours on every panel: PRT
+           violet, dynamic greens by order, traced reds by K, the
+           K-lights reference black */
+        static const char *const greens[] = {"#006400", "#2e8b57", "#6b8e23"}, *const reds[] = {"#ff8c00", "#d02020", "#8b0000"};
+        colour[nb] = w->method == BD_PRT ? "#9400d3" : w->method == BD_LIGHTS ? "#000000"
+                     : w->method == BD_DYNAMIC ? greens[grp >= 16 ? 0 : grp >= 8 ? 1 : 2]
+                                               : reds[grp >= 32 ? 2 : grp >= 16 ? 1 : 0];
         panel[nb++] = 2 * w->env + w->moving;
     }
     fprintf(gp, "set terminal svg size %d,860 dynamic font 'sans,11' noenhanced\n", 380 * rep->nenvs + 60);
     fprintf(gp, "set logscale xy\nset grid\nset key top right font ',8'\n"
                 "set xlabel 'time per frame (ms)'\nset ylabel 'relative L2 error vs exact'\n"
-                "set multiplot layout 2,%d columnsfirst title 'Error against time: %s'\n", rep->nenvs, rep->scene);
+                "set multiplot layout 2,%d columnsfirst title ", rep->nenvs);
+    char title[300];
+    snprintf(title, sizeof title, "Error against time: %s", rep->scene);
+    gp_string(gp, title);
+    fprintf(gp, "\n");
     for (int p = 0; p < 2 * rep->nenvs; p++) {
-        fprintf(gp, "set title '%s, %s'\nplot ", rep->envs[p / 2].name, p % 2 ? "moved" : "at rest");
+        char title[200];
+        snprintf(title, sizeof title, "%s, %s", rep->envs[p / 2].name, p % 2 ? "moved" : "at rest");
+        fprintf(gp, "set title ");
+        gp_string(gp, title);
+        fprintf(gp, "\nplot ");
         int first = 1;
         for (int k = 0; k < nb; k++) {
             if (panel[k] != p) continue;
-            fprintf(gp, "%s$b%d using 1:2 with linespoints pt 7 ps 0.6 title '%s'", first ? "" : ", \\\n     ", k, titles[k]);
+            fprintf(gp, "%s$b%d using 1:2 with linespoints pt 7 ps 0.6 lc rgb '%s' title ", first ? "" : ", \\\n     ", k,
+                    colour[k]);
+            gp_string(gp, titles[k]);
             first = 0;
         }
         if (first) fprintf(gp, "NaN notitle");

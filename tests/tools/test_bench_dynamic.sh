@@ -32,7 +32,7 @@ scene() {
 case "${1:-}" in
 run)
   scene
-  out="$tmp/out dir"
+  out="$tmp/it's out"
   "$bin" bench-dynamic "$tmp/s.hlt" --sky --terms 50,all --settings 4:8 --samples 1,4 --shadow-res 32 \
     --reps 2 --traced-reps 1 -o "$out" >"$tmp/stdout.txt" 2>"$tmp/stderr.txt" ||
     { cat "$tmp/stderr.txt"; fail "bench-dynamic exited $?"; }
