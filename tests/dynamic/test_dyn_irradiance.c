@@ -5,9 +5,10 @@
  * from the shared maps (HL_TEST_DATA/envmaps; exit 77 where missing).
  *
  * dyn_irradiance.twin       the OpenCL module against the twin on the
- *                           module's own tables, per element; the reference
- *                           backend end to end; a new split replaces the
- *                           tables.
+ *                           module's own tables, per element, on four maps
+ *                           (F = 8, 32, 64, both split rules); the
+ *                           reference backend end to end; each new split
+ *                           replaces the tables.
  * dyn_irradiance.exact      the twin against area_lights.c's
  *                           hl_area_light_irradiance and
  *                           hl_light_split_ambient (double sums) on random
@@ -184,7 +185,8 @@ static void case_twin(void)
     for (int i = 0; i < NMAPS; i++) {
         hl_env *env = load_map(ref, g_maps[i]);
         if (!env) break;
-        hl_light_split *s = make_split(ref, env, i % 2 ? HL_SPLIT_OF_MAP : HL_SPLIT_OF_LIGHT, 0, 32);
+        static const uint32_t Fs[NMAPS] = {32, 64, 8, 32};
+        hl_light_split *s = make_split(ref, env, i % 2 ? HL_SPLIT_OF_MAP : HL_SPLIT_OF_LIGHT, Fs[i], 32);
         hl_env_destroy(env);
         if (!s) break;
         /* the first map creates the modules, the others replace their tables */
@@ -203,7 +205,7 @@ static void case_twin(void)
             for (size_t j = 0; j < (size_t)K * n * 3; j++)
                 worst_ref = fmax(worst_ref, fabs((double)E[j] - Er[j]) / energy_of(s, (uint32_t)(j / (3 * (size_t)n)), (int)(j % 3)));
             HL_CHECK(memcmp(any, anyr, K) == 0, "%s: any differs between the backends", g_maps[i]);
-            printf("%s (%s rule): %u lights, %u normals\n", g_maps[i], i % 2 ? "map" : "light", K, n);
+            printf("%s (%s rule, F = %u): %u lights, %u normals\n", g_maps[i], i % 2 ? "map" : "light", s->F, K, n);
         } else {
             HL_CHECK(0, "%s: run failed: %s / %s", g_maps[i], hl_context_last_error(ctx), hl_context_last_error(ref));
         }
