@@ -23,7 +23,8 @@
  *                           module on the OpenCL device and on the
  *                           reference backend against the host loop of
  *                           dyn_frame.c, 11k normals x 32 lights
- *                           (argument "timing"; "timing N K" for others).
+ *                           (argument "timing"; "timing N K [MESH]" for
+ *                           others, MESH's normals for random ones).
  * Depends on: irradiance.h, area_lights.h, hl_test.h.
  */
 #include <float.h>
@@ -460,15 +461,38 @@ static void time_module(hl_context *ctx, const hl_light_split *s, const float *n
     *kern = median(tk, reps);
 }
 
-static void run_timing(uint32_t N, int32_t K)
+/* N normals: the mesh's at path, evenly subsampled (or repeated), or
+ * random unit ones where path is NULL; NULL on failure. */
+static float *timing_normals(hl_context *ctx, const char *path, uint32_t N)
+{
+    float *nv = malloc((size_t)N * 12);
+    if (!path) {
+        for (uint32_t v = 0; v < N; v++) random_unit(nv + 3 * v);
+        return nv;
+    }
+    hl_mesh *mesh = NULL;
+    hl_mesh_stats ms;
+    if (hl_mesh_load(ctx, path, NULL, &mesh, &ms) != HL_OK) {
+        fprintf(stderr, "%s\n", hl_context_last_error(ctx));
+        free(nv);
+        return NULL;
+    }
+    for (uint32_t v = 0; v < N; v++)
+        memcpy(nv + 3 * v, mesh->normals + 3 * ((uint64_t)v * mesh->vertex_count / N), 12);
+    printf("normals of %s (%u vertices)\n", path, mesh->vertex_count);
+    hl_mesh_destroy(mesh);
+    return nv;
+}
+
+static void run_timing(uint32_t N, int32_t K, const char *mesh)
 {
     hl_context *ref = hl_test_ref_context(0), *ctx = hl_test_cl_context(0);
     hl_env *env = load_map(ref, "city");
     hl_light_split *s = env ? make_split(ref, env, HL_SPLIT_OF_LIGHT, 0, K) : NULL;
     if (!s) return;
-    float *nv = malloc((size_t)N * 12), *E = malloc((size_t)s->count * N * 12), *amb = malloc((size_t)N * 12);
+    float *nv = timing_normals(ref, mesh, N), *E = malloc((size_t)s->count * N * 12), *amb = malloc((size_t)N * 12);
     uint8_t any[HL_LIGHTS_MAX_FACE * 6];
-    for (uint32_t v = 0; v < N; v++) random_unit(nv + 3 * v);
+    if (!nv) exit(1);
     enum { REPS = 9 };
     double host[REPS], host_cpu[REPS], w, c, kt;
     for (int r = 0; r < REPS; r++) { /* dyn_frame.c's irradiance(): one thread */
@@ -489,8 +513,8 @@ static void run_timing(uint32_t N, int32_t K)
             const float *n = nv + 3 * v, *d = s->lights[k].dir;
             straddle += fabsf(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) < sinf(s->lights[k].extent);
         }
-    printf("city.exr, %u lights, %u random unit normals (%.1f%% of pairs across a horizon); medians of %d runs\n",
-           s->count, N, 100.0 * (double)straddle / ((double)N * s->count), REPS);
+    printf("city.exr, %u lights, %u %s normals (%.1f%% of pairs across a horizon); medians of %d runs\n", s->count,
+           N, mesh ? "mesh" : "random unit", 100.0 * (double)straddle / ((double)N * s->count), REPS);
     printf("host loop (area_lights.c, 1 thread):            wall %8.2f ms, CPU %8.2f ms\n", median(host, REPS),
            median(host_cpu, REPS));
     time_module(ref, s, nv, N, E, amb, any, REPS, &w, &c, &kt);
@@ -511,12 +535,14 @@ static void run_timing(uint32_t N, int32_t K)
 int main(int argc, char **argv)
 {
     if (argc >= 2 && strcmp(argv[1], "timing") == 0) {
-        long N = argc > 2 ? strtol(argv[2], NULL, 10) : 11000, K = argc > 3 ? strtol(argv[3], NULL, 10) : 32;
-        if (N < 1 || N > 10000000 || K < 1 || K > 1000) {
-            fprintf(stderr, "usage: %s timing [N (1..10^7, default 11000)] [K (1..1000, default 32)]\n", argv[0]);
+        char *end1 = NULL, *end2 = NULL;
+        long N = argc > 2 ? strtol(argv[2], &end1, 10) : 11000, K = argc > 3 ? strtol(argv[3], &end2, 10) : 32;
+        if (N < 1 || N > 10000000 || K < 1 || K > 1000 || (end1 && *end1) || (end2 && *end2) || argc > 5) {
+            fprintf(stderr, "usage: %s timing [N (1..10^7, default 11000) [K (1..1000, default 32) [MESH]]]\n"
+                    "  N normals (random unit ones, or MESH's evenly subsampled) x K lights of city.exr\n", argv[0]);
             return 2;
         }
-        run_timing((uint32_t)N, (int32_t)K);
+        run_timing((uint32_t)N, (int32_t)K, argc > 4 ? argv[4] : NULL);
         return hl_test_skipped ? HL_TEST_SKIP : 0;
     }
     static const hl_test_case cases[] = {
