@@ -338,7 +338,7 @@ static double angle(const float a[3], const double b[3])
 /* The sun of sun_env at (si, sj) in a W x H map turned by rot: checks the
  * strongest light is one texel at the sun with its energy. */
 static int check_sun(const hl_light_split *s, const hl_env *env, uint32_t si, uint32_t sj, double rot, double *dir_err,
-                     double *dir_tol, double *e_err)
+                     double *dir_tol, double *e_err, double *spread_err)
 {
     const uint32_t W = env->width, H = env->height;
     const float *Ls = env->rgb + 3 * ((size_t)sj * W + si), *Lsky = env->rgb;
@@ -360,13 +360,18 @@ static int check_sun(const hl_light_split *s, const hl_env *env, uint32_t si, ui
         double e = fabs(l->energy[c] - (sun + Lsky[c] * (l->omega - om))) / (sky + 1e-6 * sun);
         if (e > *e_err) *e_err = e;
     }
+    /* the spread is the sun's own size, not its texel's: at most the
+       pixel's side (pi / H), where the texel's cone is at least 1.4 of
+       its side; the sky's 0.05 against 1e5 adds nothing measurable */
+    double sp = l->spread / (PI / H);
+    if (sp > *spread_err) *spread_err = sp;
     return l->x1 - l->x0 == 1 && l->y1 - l->y0 == 1; /* one texel */
 }
 
 static void case_sun(void)
 {
     hl_context *ctx = make_ctx();
-    double dir_err = 0.0, dir_tol = 1.0, e_err = 0.0;
+    double dir_err = 0.0, dir_tol = 1.0, e_err = 0.0, spread_err = 0.0;
     int single = 0;
     static const uint32_t Fs[] = {16, 32, 64};
     for (size_t f = 0; f < 6; f++)
@@ -379,7 +384,7 @@ static void case_sun(void)
                38 / F degrees) holds one */
             hl_env *env = sun_env(ctx, 16 * Fs[f % 3], 8 * Fs[f % 3], d, 0.05f, 1e5f, Fs[f % 3], &si, &sj);
             hl_light_split *s = split(ctx, env, Fs[f % 3], 0.0f, 8, 0.0f);
-            single += check_sun(s, env, si, sj, 0.0, &dir_err, &dir_tol, &e_err);
+            single += check_sun(s, env, si, sj, 0.0, &dir_err, &dir_tol, &e_err, &spread_err);
             hl_light_split_destroy(s); hl_env_destroy(env);
         }
     hl_check_error("sun: cases where the strongest light is not one texel", 18 - single, 0.0);
@@ -387,6 +392,7 @@ static void case_sun(void)
                    "diagonal + 1e-4)", dir_err, dir_tol);
     hl_check_error("sun: light energy minus the sun's and its texel's sky, over twice the texel's sky + 1e-6 of "
                    "the sun", e_err, 1.0);
+    hl_check_error("sun: the light's spread over the sun pixel's side", spread_err, 1.0);
     hl_context_destroy(ctx);
 }
 
@@ -633,7 +639,7 @@ static void case_rotation(void)
         hl_light_split *s = split(ctx, env, 32, 0.0f, 8, (float)rots[k]);
         /* turned, the sun pixel may straddle texels: its direction is
            checked, its energy below over all its lights */
-        check_sun(s, env, si, sj, rots[k], &dir_err, &dir_tol, &ign);
+        check_sun(s, env, si, sj, rots[k], &dir_err, &dir_tol, &ign, &ign);
         dir_of_uv((si + 0.5) / 256.0, (sj + 0.5) / 128.0, pd);
         float c[3], w[3] = {(float)(pd[0] * cos(a) + pd[2] * sin(a)), (float)pd[1],
                             (float)(-pd[0] * sin(a) + pd[2] * cos(a))};

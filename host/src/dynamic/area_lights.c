@@ -370,6 +370,13 @@ static void fill_light(const hl_light_split *s, rect r, hl_area_light *l)
     double d[3];
     for (int k = 0; k < 3; k++) d[k] = 0.2126 * m[k] + 0.7152 * m[3 + k] + 0.0722 * m[6 + k];
     if (!(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > 0.0)) memcpy(d, g, sizeof d);
+    /* spread: for directions of small angles (x, y) about the mean,
+       1 - |mean| = (var x + var y) / 2, and a uniform square of
+       half-side a has var = a^2 / 3 per axis */
+    double lum = 0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2], mlen = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    double wsum = lum > 0.0 ? lum : om, rbar = wsum > 0.0 ? mlen / wsum : 1.0;
+    if (!(lum > 0.0)) rbar = om > 0.0 ? sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) / om : 1.0;
+    l->spread = (float)atan(sqrt(3.0 * fmax(1.0 - rbar, 0.0)));
     normalise(d);
     double cosmin = 1.0;
     for (int k = 0; k < 4; k++) {

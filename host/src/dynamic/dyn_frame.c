@@ -228,7 +228,9 @@ static hl_result shade_light(hl_frame_state *st, const hl_light_split *split, ui
     }
     const hl_shadow_frame *f = &st->frames[kb];
     hl_csm_project(f, st->cpos, n, st->uvd);
-    float theta = split->lights[k].extent;
+    /* the filter's width follows how the light's energy spreads, not the
+       cone that holds its rectangle (DYNAMIC.md, section 5) */
+    float theta = split->lights[k].spread;
     if (!(theta >= 0.0f)) theta = 0.0f;
     if (theta > HL_FRAME_MAX_THETA) theta = HL_FRAME_MAX_THETA;
     const float *map = st->depth + (size_t)kb * st->R * st->R, tan_t = tanf(theta);

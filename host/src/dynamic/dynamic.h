@@ -28,6 +28,13 @@ typedef struct hl_area_light {
     float dir[3];       /* unit, energy-weighted centroid direction */
     float extent;       /* half-angle (radians) of the cone about dir that
                            holds the whole rectangle */
+    float spread;       /* half-angle of the uniform square light with the
+                           same angular spread of energy about dir:
+                           atan(sqrt(3 (1 - |m| / E))), m the luminance
+                           moment, E the luminance energy. What the shadow
+                           filter's width uses: a light's energy gathers
+                           near its brightest texel, and a sun is much
+                           smaller than the texel that holds it */
     float omega;        /* solid angle */
     float energy[3];    /* RGB radiance times solid angle, summed */
     float radiance[3];  /* energy / omega */
