@@ -18,6 +18,7 @@
  * Depends on: area_lights.h, dynamic.h, core (hl_fail, hl_malloc), libm.
  */
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -555,6 +556,8 @@ hl_result hl_area_lights_split(hl_context *ctx, const hl_env *env, const hl_ligh
     if (res != HL_OK) return res;
     hl_light_split *s = hl_calloc(ctx, 1, sizeof *s, "area lights");
     if (!s) return HL_ERR_OUT_OF_MEMORY;
+    static atomic_uint_fast64_t serials;
+    s->serial = atomic_fetch_add(&serials, 1u) + 1u;
     s->F = p->face_res;
     s->stats.texels_per_face = s->F * s->F;
     res = split_all(ctx, env, p, s);
@@ -663,6 +666,10 @@ static void straddle_sum(const hl_light_split *s, const hl_area_light *l, const 
 void hl_area_light_irradiance(const hl_light_split *s, uint32_t k, const float n[3], float rgb[3])
 {
     const hl_area_light *l = &s->lights[k];
+    if (!isfinite(n[0]) || !isfinite(n[1]) || !isfinite(n[2])) { /* the row walk would index with NaN */
+        rgb[0] = rgb[1] = rgb[2] = 0.0f;
+        return;
+    }
     /* the cone of half-angle extent about dir is wholly above n's horizon
        when angle(n, dir) + extent <= 90 degrees (a cone wider than a
        hemisphere never is) */

@@ -98,6 +98,9 @@ typedef struct hl_light_split {
     double *row_moment;     /* 6 F rows of F + 1: prefix sums of the
                                moments (9) along each face row */
     hl_light_split_stats stats;
+    /* unique per split made in this process: a new split may reuse a
+       freed one's address, so what caches a split's tables keys on this */
+    uint64_t serial;
 } hl_light_split;
 
 /* Splits env (finite, >= 0; others refused with HL_ERR_INVALID_ARGUMENT)

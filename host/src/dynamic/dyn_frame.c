@@ -16,6 +16,7 @@
 
 #include "cl_internal.h"
 #include "dyn_frame.h"
+#include "irradiance.h"
 
 struct hl_frame_state {
     hl_context *ctx;
@@ -34,6 +35,9 @@ struct hl_frame_state {
     float *cpos, *uvd, *V;     /* compacted receivers of one light */
     uint32_t *idx;             /* N */
     uint32_t *shadow_list;     /* max_lights */
+    hl_dyn_irr *irr;           /* the irradiance kernel, its tables of */
+    uint64_t irr_serial;       /* this split (hl_light_split.serial) */
+    uint8_t *any;              /* max_lights: some receiver gets light */
 };
 
 /* Linear Rec.709 luminance, as area_lights.c ranks its lights by. */
@@ -67,6 +71,8 @@ void hl_frame_state_destroy(hl_frame_state *st)
     free(st->frames); free(st->dirs);
     free(st->wpos); free(st->wnrm); free(st->acc); hl_free_big(st->E);
     free(st->cpos); free(st->uvd); free(st->V); free(st->idx); free(st->shadow_list);
+    hl_dyn_irr_destroy(st->irr);
+    free(st->any);
     free(st);
 }
 
@@ -139,8 +145,9 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->cpos = malloc(n3 * 4), st->uvd = malloc(n3 * 4), st->V = malloc((size_t)N * 4);
     st->idx = malloc((size_t)N * 4);
     st->shadow_list = malloc(max_lights * sizeof *st->shadow_list);
+    st->any = malloc(max_lights ? max_lights : 1);
     if (!st->vstart || !st->nverts || !st->xf || !st->depth || !st->frames || !st->dirs || !st->wpos || !st->wnrm ||
-        !st->acc || !st->E || !st->cpos || !st->uvd || !st->V || !st->idx || !st->shadow_list) {
+        !st->acc || !st->E || !st->cpos || !st->uvd || !st->V || !st->idx || !st->shadow_list || !st->any) {
         hl_frame_state_destroy(st);
         return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the dynamic frame (%u vertices, %u lights)",
                        (uint32_t)N, max_lights);
@@ -158,27 +165,29 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
 
 /* Stage "irradiance": receivers to world, ambient into acc, each kept
  * light's E_k; lights below every horizon skipped, negligible ones added
- * to acc unshadowed, the rest listed for shadow maps. Returns the count. */
-static uint32_t irradiance(hl_frame_state *st, const hl_dyn_object *objects, const hl_light_split *split,
-                           hl_frame_stats *fs)
+ * to acc unshadowed, the rest listed for shadow maps (*count of them). */
+static hl_result irradiance(hl_frame_state *st, const hl_dyn_object *objects, const hl_light_split *split,
+                            hl_frame_stats *fs, uint32_t *count)
 {
     const uint32_t N = st->N;
     for (uint32_t b = 0; b < st->nobj; b++)
         hl_frame_to_world(&objects[b], st->wpos + 3 * (size_t)st->vstart[b], st->wnrm + 3 * (size_t)st->vstart[b]);
-    for (uint32_t v = 0; v < N; v++) hl_light_split_ambient(split, st->wnrm + 3 * (size_t)v, st->acc + 3 * (size_t)v);
+    /* on the device (irradiance.h): the ambient straight into acc, each
+       kept light's E_k and whether it reaches any receiver */
+    hl_result r = HL_OK;
+    if (!st->irr) r = hl_dyn_irr_create(st->ctx, split, &st->irr);
+    else if (split->serial != st->irr_serial) r = hl_dyn_irr_set_split(st->irr, split);
+    if (r != HL_OK) return r;
+    st->irr_serial = split->serial;
+    r = hl_dyn_irr_run(st->irr, st->wnrm, N, st->E, st->acc, st->any);
+    if (r != HL_OK) return r;
     double total = lum3(split->stats.total_energy);
     uint32_t nshadow = 0;
     for (uint32_t k = 0; k < split->count; k++) {
-        float *E = st->E + (size_t)k * 3 * N;
-        int any = 0;
-        for (uint32_t v = 0; v < N; v++) {
-            float *e = E + 3 * (size_t)v;
-            hl_area_light_irradiance(split, k, st->wnrm + 3 * (size_t)v, e);
-            any |= e[0] > 0.0f || e[1] > 0.0f || e[2] > 0.0f;
-        }
+        const float *E = st->E + (size_t)k * 3 * N;
         const float *le = split->lights[k].energy;
         double lk[3] = {le[0], le[1], le[2]};
-        if (!any) {
+        if (!st->any[k]) {
             fs->skipped_horizon++;
         } else if (total > 0.0 && lum3(lk) < (double)st->min_share * total) {
             fs->skipped_negligible++;
@@ -187,7 +196,8 @@ static uint32_t irradiance(hl_frame_state *st, const hl_dyn_object *objects, con
             st->shadow_list[nshadow++] = k;
         }
     }
-    return nshadow;
+    *count = nshadow;
+    return HL_OK;
 }
 
 /* Receiver-plane bias (Isidoro 2006, for filtered shadow maps): the
@@ -286,7 +296,9 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
     fs.lights = split->count;
     fs.batch_lights = st->Kb;
     double t0 = hl_now(), t = t0, t1;
-    uint32_t nshadow = irradiance(st, objects, split, &fs);
+    uint32_t nshadow = 0;
+    r = irradiance(st, objects, split, &fs, &nshadow);
+    if (r != HL_OK) return r;
     t1 = hl_now(), fs.t_irradiance = t1 - t, t = t1;
     for (uint32_t b = 0; b < nobj && r == HL_OK; b++) {
         float *old = st->xf + 12 * (size_t)b;
