@@ -2,8 +2,8 @@
 # command's --help and --version, then one section for each command's own
 # --help, kept as printed (no-fill). Run as cmake -P.
 set(include_file ${OUT}.sections)
-file(WRITE ${include_file} "[DESCRIPTION]\nhaarlight relights objects under HDR environments with precomputed Haar\nwavelet transport; each command below lists its options.\n")
-foreach(cmd precompute relight view info check bench bench-precompute devices)
+file(WRITE ${include_file} "[DESCRIPTION]\nhaarlight relights objects under HDR environments with precomputed Haar\nwavelet transport, or, for scenes that move, with shadow maps of area lights\n(relight-dynamic); each command below lists its options.\n")
+foreach(cmd precompute relight relight-dynamic view info check bench bench-dynamic bench-precompute devices)
   execute_process(COMMAND ${BIN} ${cmd} --help OUTPUT_VARIABLE text RESULT_VARIABLE rc ERROR_QUIET)
   if(NOT rc EQUAL 0)
     continue()
@@ -15,7 +15,7 @@ foreach(cmd precompute relight view info check bench bench-precompute devices)
   file(APPEND ${include_file} "[COMMAND ${title}]\n.nf\n${text}.fi\n")
 endforeach()
 execute_process(COMMAND ${HELP2MAN} --no-info --no-discard-stderr
-                        --name "all-frequency relighting with Haar wavelet transport"
+                        --name "all-frequency relighting of static and moving scenes"
                         --include ${include_file} --output ${OUT}.tmp ${BIN}
                 RESULT_VARIABLE rc)
 if(NOT rc EQUAL 0)
