@@ -295,6 +295,70 @@ close:
     hl_context_destroy(ctx);
 }
 
+/* The bunny on its ground under a map bright below the horizon (1) and
+ * dim above (0.2): the ground hides most of the lower light from the
+ * bunny. The frame left the ground out of its maps and takes what it
+ * hides from its plane, so the bunny's underside is as dark as the exact
+ * reference's (F = 32) right down to the contact, where a shadow map's
+ * depth bias would let the light through. */
+static void case_below(void)
+{
+    hl_context *ctx = hl_test_cl_context(2);
+    if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
+    enum { W = 128, H = 64 };
+    float *px = malloc((size_t)W * H * 12);
+    for (size_t i = 0; i < (size_t)W * H; i++)
+        for (int c = 0; c < 3; c++) px[3 * i + c] = i / W >= H / 2 ? 1.0f : 0.2f;
+    hl_env *env = NULL;
+    HL_CHECK(hl_env_create(ctx, W, H, px, &env, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    free(px);
+    bunny_scene b;
+    hl_light_split *s = env ? split_of(ctx, env, 32) : NULL;
+    hl_frame_state *st = NULL;
+    hl_frame_settings set = {.R = 256, .M = 16, .min_share = -1.0f};
+    float *ex[2] = {NULL, NULL};
+    if (!s || !bunny_open(ctx, &b)) goto close;
+    HL_CHECK(hl_frame_state_create(ctx, b.obj, 2, s->count, &set, &st) == HL_OK &&
+             hl_frame_render(st, b.obj, 2, b.alb, s, b.rgb, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    ex[0] = malloc((size_t)b.obj[0].nverts * 12), ex[1] = malloc((size_t)b.obj[1].nverts * 12);
+    HL_CHECK(hl_dyn_reference_exact(ctx, b.obj, 2, b.alb, env, 32, 1, ex, NULL) == HL_OK, "%s",
+             hl_context_last_error(ctx));
+    double num = 0, den = 0, mean_f = 0, mean_e = 0;
+    for (size_t i = 0; i < 3 * (size_t)b.obj[0].nverts; i++) {
+        double e = (double)b.rgb[0][i] - ex[0][i];
+        num += e * e, den += (double)ex[0][i] * ex[0][i];
+        mean_f += b.rgb[0][i], mean_e += ex[0][i];
+    }
+    /* the same lights with traced visibility: what the light split
+       alone leaves */
+    float *kl[2] = {malloc((size_t)b.obj[0].nverts * 12), malloc((size_t)b.obj[1].nverts * 12)};
+    HL_CHECK(hl_dyn_reference_lights(ctx, b.obj, 2, b.alb, s, 0, kl, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    double numk = 0, mean_k = 0, numf = 0, denk = 0;
+    for (size_t i = 0; i < 3 * (size_t)b.obj[0].nverts; i++) {
+        double e = (double)kl[0][i] - ex[0][i], g = (double)b.rgb[0][i] - kl[0][i];
+        numk += e * e, mean_k += kl[0][i], numf += g * g, denk += (double)kl[0][i] * kl[0][i];
+    }
+    free(kl[0]); free(kl[1]);
+    double nb = 3.0 * b.obj[0].nverts;
+    printf("bunny's mean: frame %.4g, K lights traced %.4g, exact %.4g; relative L2 against the exact: frame "
+           "%.4f, K lights traced %.4f (the split's own share)\n",
+           mean_f / nb, mean_k / nb, mean_e / nb, sqrt(num / den), sqrt(numk / den));
+    /* the shadows' part of the error: the frame against the same lights
+       traced. With the ground in the maps its light leaked through the
+       depth bias at the contact: 118%. What is left is the bunny's own
+       shadows under lights as broad as these (whole half-faces), which
+       the shadow maps blur: 7%; the table in DYNAMIC.md has 1 to 5% for
+       the moved bunny under the shared maps */
+    hl_check_error("bunny, relative L2 against the K lights traced", sqrt(numf / denk), 0.10);
+close:
+    free(ex[0]); free(ex[1]);
+    hl_frame_state_destroy(st);
+    if (s) bunny_close(&b);
+    hl_light_split_destroy(s);
+    hl_env_destroy(env);
+    hl_context_destroy(ctx);
+}
+
 /* ------------------------------------------------------------ twin */
 
 /* The bunny's frame on ctx at K lights, R, M; rgb[b] filled. */
@@ -653,7 +717,7 @@ int main(int argc, char **argv)
         timing(argc > 2 ? (uint64_t)strtoull(argv[2], NULL, 10) << 20 : 0);
         return 0;
     }
-    static const hl_test_case cases[] = {{"unshadowed", case_unshadowed}, {"motion", case_motion},
+    static const hl_test_case cases[] = {{"unshadowed", case_unshadowed}, {"motion", case_motion}, {"below", case_below},
                                          {"twin", case_twin},             {"bad_input", case_bad_input},
                                          {"api", case_api},               {"cli", case_cli},
                                          {"file", case_file},

@@ -41,6 +41,7 @@ struct hl_frame_state {
 };
 
 /* Linear Rec.709 luminance, as area_lights.c ranks its lights by. */
+static const double HL_FRAME_LUM[3] = {0.2126, 0.7152, 0.0722};
 static double lum3(const double *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
 
 void hl_frame_to_world(const hl_dyn_object *o, float *pos, float *nrm)
@@ -223,6 +224,56 @@ static float plane_bias(const hl_shadow_frame *f, const float n[3], const float 
     return (nr + nu) / nl * half;
 }
 
+/* The flat bodies left out of map f (shadow_map.h) that lie between the
+ * light and a receiver: V times the share of the light's irradiance at
+ * the receiver whose rays miss the body, texel by texel of the light
+ * (each texel's luminance moment against the receiver's normal, its ray
+ * along the texel's centre direction, the body its extent in its
+ * plane). Exact up to the texels' size, with no depth bias, so the
+ * underside of a body resting on the ground is dark to the contact,
+ * while rays that pass beyond the ground's edge still arrive. A
+ * receiver on the plane itself is not behind it. */
+static void flat_occlusion(hl_frame_state *st, const hl_shadow_frame *f, const hl_light_split *split, uint32_t k,
+                           uint32_t n)
+{
+    const hl_area_light *L = &split->lights[k];
+    const uint32_t F = split->F;
+    for (uint32_t o = 0; o < st->nobj && o < 32; o++) {
+        hl_flat_body fb;
+        if (!(f->skip_mask >> o & 1u) || !hl_shadow_maps_flat(st->sm, o, &fb)) continue;
+        float sl = fb.n[0] * L->dir[0] + fb.n[1] * L->dir[1] + fb.n[2] * L->dir[2];
+        float sin_ext = L->extent < 0.5f * (float)HL_PI ? sinf(L->extent) : 2.0f;
+        for (uint32_t i = 0; i < n; i++) {
+            if (st->idx[i] >= st->vstart[o] && st->idx[i] < st->vstart[o] + st->nverts[o]) continue;
+            const float *x = st->cpos + 3 * (size_t)i, *nv = st->wnrm + 3 * (size_t)st->idx[i];
+            float q[3] = {x[0] - fb.p[0], x[1] - fb.p[1], x[2] - fb.p[2]};
+            float sr = fb.n[0] * q[0] + fb.n[1] * q[1] + fb.n[2] * q[2];
+            /* on the plane, or the light's whole cone on its side */
+            if (sr == 0.0f || (sr * sl > 0.0f && fabsf(sl) >= sin_ext)) continue;
+            double all = 0.0, open = 0.0;
+            for (uint32_t y = L->y0; y < L->y1; y++)
+                for (uint32_t xx = L->x0; xx < L->x1; xx++) {
+                    size_t t = (size_t)L->face * F * F + (size_t)y * F + xx;
+                    const float *m = split->texel_moment + 9 * t, *w = split->texel_dir + 3 * t;
+                    double e = 0.0;
+                    for (int c = 0; c < 3; c++)
+                        e += HL_FRAME_LUM[c] * ((double)nv[0] * m[3 * c] + (double)nv[1] * m[3 * c + 1] +
+                                                (double)nv[2] * m[3 * c + 2]);
+                    if (!(e > 0.0)) continue;
+                    all += e;
+                    float sw = fb.n[0] * w[0] + fb.n[1] * w[1] + fb.n[2] * w[2];
+                    if (!(sr * sw < 0.0f)) { open += e; continue; } /* the ray leaves the plane behind */
+                    float tt = -sr / sw;
+                    float h[3] = {q[0] + tt * w[0], q[1] + tt * w[1], q[2] + tt * w[2]};
+                    float a = h[0] * fb.u[0] + h[1] * fb.u[1] + h[2] * fb.u[2];
+                    float b = h[0] * fb.v[0] + h[1] * fb.v[1] + h[2] * fb.v[2];
+                    if (!(a >= fb.lo[0] && a <= fb.hi[0] && b >= fb.lo[1] && b <= fb.hi[1])) open += e;
+                }
+            if (all > 0.0) st->V[i] *= (float)(open / all);
+        }
+    }
+}
+
 /* Visibility of batch light kb (split light k) at the receivers it
  * reaches, added to acc as V E. */
 static hl_result shade_light(hl_frame_state *st, const hl_light_split *split, uint32_t kb, uint32_t k)
@@ -256,6 +307,7 @@ static hl_result shade_light(hl_frame_state *st, const hl_light_split *split, ui
     }
     hl_result r = hl_csm_visibility(st->csm, kb, theta, f, st->uvd, n, st->V, NULL);
     if (r != HL_OK) return r;
+    if (f->skip_mask) flat_occlusion(st, f, split, k, n);
     for (uint32_t i = 0; i < n; i++) {
         size_t v = st->idx[i];
         for (int c = 0; c < 3; c++) st->acc[3 * v + (size_t)c] += st->V[i] * E[3 * v + (size_t)c];

@@ -56,16 +56,19 @@
  * (and must then stay in the maps). */
 #define HL_SHADOW_PLANE_TOL 1e-5
 
-/* Another body is on the light's side of a flat body's plane when no
- * corner of its box is more than this fraction of the scene's extent
- * behind the plane: a body resting on the ground touches it, and its
- * float box may dip a hair below. */
+/* Another body is on one side of a flat body's plane when no corner of
+ * its box is more than this fraction of the scene's extent on the other:
+ * a body resting on the ground touches it, and its float box may dip a
+ * hair below. */
 #define HL_SHADOW_SIDE_TOL 1e-4
 
 /* A flat body is never left out for a light within this cosine of its
  * plane: seen edge-on it covers no texel anyway, and the side test is
  * then ill-conditioned. */
 #define HL_SHADOW_PLANE_MIN_COS 1e-3
+
+/* Floats of a flat body's plane record (find_plane). */
+#define HL_SHADOW_PLANE_F 12
 
 /* Work-items per map on a CPU device (wg 1): each takes ntris / 64
  * consecutive triangles, so 2 cores get 64 K items to balance. */
@@ -80,8 +83,7 @@ struct hl_shadow_maps {
     float *xf;     /* 12 per object */
     float *box;    /* 6 per object: own-coordinate min and max */
     float *corners; /* 24 per object: the boxes' corners in world space */
-    float *plane;   /* 4 per object: own-coordinate unit normal n and w with
-                       n . p = w for every vertex; all 0 when not flat */
+    float *plane;   /* HL_SHADOW_PLANE_F per object: find_plane's record */
     float *fitpts;  /* 24 per object: the corners a map is fitted to */
     int skip_planes;
     hl_shadow_frame *frames;
@@ -291,11 +293,14 @@ static void copy_objects(hl_shadow_maps *sm, const hl_dyn_object *objects)
     }
 }
 
-/* The plane of a flat object (own coordinates), from the area-weighted
- * normal of its triangles; zeros when it is not flat. */
+/* The plane record of a flat object (own coordinates, HL_SHADOW_PLANE_F
+ * floats): unit normal n, w with n . p = w for every vertex, an in-plane
+ * axis u, the vertices' extent along u and along v = n x u, and 1 (flat);
+ * all zeros when it is not flat. The normal is the area-weighted sum of
+ * its triangles' normals. */
 static void find_plane(const hl_dyn_object *ob, const float *box, float *pl)
 {
-    pl[0] = pl[1] = pl[2] = pl[3] = 0.0f;
+    memset(pl, 0, HL_SHADOW_PLANE_F * sizeof *pl);
     double n[3] = {0, 0, 0}, c[3] = {0, 0, 0};
     for (uint32_t t = 0; t < ob->ntris; t++) {
         const float *a = ob->pos + 3 * (size_t)ob->tri[3 * (size_t)t], *b = ob->pos + 3 * (size_t)ob->tri[3 * (size_t)t + 1],
@@ -312,17 +317,52 @@ static void find_plane(const hl_dyn_object *ob, const float *box, float *pl)
     double w = (n[0] * c[0] + n[1] * c[1] + n[2] * c[2]) / ob->nverts;
     double diag = sqrt((box[3] - box[0]) * (box[3] - box[0]) + (box[4] - box[1]) * (box[4] - box[1]) +
                        (box[5] - box[2]) * (box[5] - box[2]));
+    /* u: across the axis least aligned with n */
+    int m = fabs(n[0]) <= fabs(n[1]) && fabs(n[0]) <= fabs(n[2]) ? 0 : fabs(n[1]) <= fabs(n[2]) ? 1 : 2;
+    double e[3] = {0, 0, 0}, u[3], vv[3];
+    e[m] = 1.0;
+    cross3(n, e, u);
+    normalize3(u);
+    cross3(n, u, vv);
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
     for (uint32_t v = 0; v < ob->nverts; v++) {
         const float *p = ob->pos + 3 * (size_t)v;
         if (fabs(n[0] * p[0] + n[1] * p[1] + n[2] * p[2] - w) > HL_SHADOW_PLANE_TOL * diag) return;
+        double a = u[0] * p[0] + u[1] * p[1] + u[2] * p[2], b = vv[0] * p[0] + vv[1] * p[1] + vv[2] * p[2];
+        lo[0] = fmin(lo[0], a), hi[0] = fmax(hi[0], a), lo[1] = fmin(lo[1], b), hi[1] = fmax(hi[1], b);
     }
-    for (int k = 0; k < 3; k++) pl[k] = (float)n[k];
+    for (int k = 0; k < 3; k++) pl[k] = (float)n[k], pl[4 + k] = (float)u[k];
     pl[3] = (float)w;
+    pl[7] = (float)lo[0], pl[8] = (float)hi[0], pl[9] = (float)lo[1], pl[10] = (float)hi[1];
+    pl[11] = 1.0f;
 }
 
 void hl_shadow_maps_skip_planes(hl_shadow_maps *sm, int on)
 {
     if (sm) sm->skip_planes = on && sm->method == HL_SHADOW_RASTER;
+}
+
+/* a rotation (the 3x3 of xf) applied to a vector */
+static void rotate3(const float *x, const float *a, double *out)
+{
+    for (int k = 0; k < 3; k++) out[k] = (double)x[4 * k] * a[0] + (double)x[4 * k + 1] * a[1] + (double)x[4 * k + 2] * a[2];
+}
+
+int hl_shadow_maps_flat(const hl_shadow_maps *sm, uint32_t o, hl_flat_body *fb)
+{
+    if (!sm || o >= sm->nobj) return 0;
+    const float *pl = sm->plane + HL_SHADOW_PLANE_F * (size_t)o, *x = sm->xf + 12 * (size_t)o;
+    if (pl[11] != 1.0f) return 0;
+    double n[3], u[3], v[3], p[3];
+    rotate3(x, pl, n);
+    rotate3(x, pl + 4, u);
+    cross3(n, u, v);
+    for (int k = 0; k < 3; k++) p[k] = n[k] * pl[3] + x[4 * k + 3];
+    for (int k = 0; k < 3; k++) {
+        fb->n[k] = (float)n[k], fb->u[k] = (float)u[k], fb->v[k] = (float)v[k], fb->p[k] = (float)p[k];
+    }
+    fb->lo[0] = pl[7], fb->hi[0] = pl[8], fb->lo[1] = pl[9], fb->hi[1] = pl[10];
+    return 1;
 }
 
 /* The bodies light dir may leave out (shadow_map.h); needs world_corners. */
@@ -335,30 +375,25 @@ static uint32_t skip_mask(const hl_shadow_maps *sm, const float dir[3])
             lo[k] = fmin(lo[k], sm->corners[3 * i + (size_t)k]);
             hi[k] = fmax(hi[k], sm->corners[3 * i + (size_t)k]);
         }
-    double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2])), tol = HL_SHADOW_SIDE_TOL * ext;
     uint32_t mask = 0;
     for (uint32_t o = 0; o < sm->nobj && o < 32; o++) {
-        const float *pl = sm->plane + 4 * (size_t)o, *x = sm->xf + 12 * (size_t)o;
-        if (pl[0] == 0.0f && pl[1] == 0.0f && pl[2] == 0.0f) continue;
-        double n[3], p[3];
-        for (int k = 0; k < 3; k++) {
-            n[k] = (double)x[4 * k] * pl[0] + (double)x[4 * k + 1] * pl[1] + (double)x[4 * k + 2] * pl[2];
-            p[k] = ((double)x[4 * k] * pl[0] + (double)x[4 * k + 1] * pl[1] + (double)x[4 * k + 2] * pl[2]) * pl[3] +
-                   x[4 * k + 3];
-        }
-        double s = n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2];
+        hl_flat_body fb;
+        if (!hl_shadow_maps_flat(sm, o, &fb)) continue;
+        double s = fb.n[0] * dir[0] + fb.n[1] * dir[1] + fb.n[2] * dir[2];
         if (!(fabs(s) >= HL_SHADOW_PLANE_MIN_COS)) continue;
-        if (s < 0.0)
-            for (int k = 0; k < 3; k++) n[k] = -n[k];
-        int ok = 1;
-        for (uint32_t q = 0; q < sm->nobj && ok; q++) {
+        /* every other body on one side of the plane, either one */
+        int above = 1, below = 1;
+        for (uint32_t q = 0; q < sm->nobj && (above || below); q++) {
             if (q == o) continue;
-            for (int c = 0; c < 8 && ok; c++) {
+            for (int c = 0; c < 8; c++) {
                 const float *w = sm->corners + 24 * (size_t)q + 3 * c;
-                ok = n[0] * (w[0] - p[0]) + n[1] * (w[1] - p[1]) + n[2] * (w[2] - p[2]) >= -HL_SHADOW_SIDE_TOL * ext;
+                double h = fb.n[0] * (w[0] - fb.p[0]) + fb.n[1] * (w[1] - fb.p[1]) + fb.n[2] * (w[2] - fb.p[2]);
+                above &= h >= -tol;
+                below &= h <= tol;
             }
         }
-        if (ok) mask |= 1u << o;
+        if (above || below) mask |= 1u << o;
     }
     return mask;
 }
@@ -421,13 +456,14 @@ hl_result hl_shadow_maps_create(hl_context *ctx, const hl_dyn_object *objects, u
     sm->box = malloc((size_t)nobj * 24);
     sm->corners = malloc((size_t)nobj * 96);
     sm->fitpts = malloc((size_t)nobj * 96);
-    sm->plane = malloc((size_t)nobj * 16);
+    sm->plane = malloc((size_t)nobj * HL_SHADOW_PLANE_F * sizeof(float));
     if (!sm->pos || !sm->tri || !sm->xf || !sm->box || !sm->corners || !sm->fitpts || !sm->plane) {
         hl_shadow_maps_destroy(sm);
         return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for %u vertices and %u triangles", sm->nverts, sm->ntris);
     }
     copy_objects(sm, objects);
-    for (uint32_t o = 0; o < nobj; o++) find_plane(&objects[o], sm->box + 6 * (size_t)o, sm->plane + 4 * (size_t)o);
+    for (uint32_t o = 0; o < nobj; o++)
+        find_plane(&objects[o], sm->box + 6 * (size_t)o, sm->plane + HL_SHADOW_PLANE_F * (size_t)o);
     hl_result r = HL_OK;
     if (method == HL_SHADOW_EMBREE) r = create_embree(sm, objects);
     else if (ctx->cl) r = create_device(sm);

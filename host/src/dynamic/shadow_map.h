@@ -61,14 +61,27 @@ hl_result hl_shadow_maps_render_in(hl_shadow_maps *sm, const hl_shadow_frame *fr
 
 /* Flat bodies out of the maps (off by default; the rasteriser only, the
  * Embree path draws every body). A body whose vertices lie on one plane
- * cannot shadow itself, and when every other body lies on the light's
- * side of that plane it cannot shadow them either: for that light it is
- * left out of the map and of the frame's fit (frame.skip_mask). The map
- * then spans the casters only, so a bunny on a ground four times its
- * width gets four times finer texels and a depth range of its own
- * height, and the ground's receivers never meet their own plane in the
- * map. Bodies 32 and up are always drawn (the mask has 32 bits). */
+ * cannot shadow itself. When every other body lies on one side of that
+ * plane, it is left out of the map and of the frame's fit
+ * (frame.skip_mask): with the light on the bodies' side it shadows none
+ * of them, and with the light on the other side it hides the light from
+ * every point of them whose ray meets it, which the caller works out
+ * from the plane (hl_shadow_maps_flat) exactly, with no depth bias at
+ * the contact. The map then spans the casters only, so a bunny on a
+ * ground four times its width gets four times finer texels and a depth
+ * range of its own height. Bodies 32 and up are always drawn (the mask
+ * has 32 bits). */
 void hl_shadow_maps_skip_planes(hl_shadow_maps *sm, int on);
+
+/* A flat body's plane in world space at its current transform. */
+typedef struct hl_flat_body {
+    float n[3], p[3];   /* unit normal, a point of the plane */
+    float u[3], v[3];   /* unit axes in the plane, v = n x u */
+    float lo[2], hi[2]; /* the body's extent along u and v, from p */
+} hl_flat_body;
+
+/* 1 and *fb when body o is flat (all its vertices on one plane), else 0. */
+int hl_shadow_maps_flat(const hl_shadow_maps *sm, uint32_t o, hl_flat_body *fb);
 
 /* A variant leaving the maps in a device buffer for the convolution stage
  * (no read-back) is not written yet. */
