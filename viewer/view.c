@@ -81,7 +81,7 @@ static const char *const usage_view =
     "  --ground             MESH loaded as one body \"object\" with a ground plane\n"
     "                       (body \"ground\"), as relight-dynamic --ground\n"
     "  --lights K           area lights with shadows (default 32)\n"
-    "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 256)\n"
+    "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 128)\n"
     "  --order M            convolution shadow map order, 4 to 16 (default 16)\n"
     "  --time T             seconds into the animation (default 0)\n"
     "  --play               start playing the animation (in real time, looping)\n"

@@ -588,9 +588,11 @@ HL_API float hl_exposure_auto(const hl_mesh *mesh, const float *vertex_rgb);
  *     B = albedo / pi * (sum_k V_k E_k(n) + ambient(n)),
  * E_k the light's exact irradiance on the vertex normal. The visibility
  * V_k approximates the exact one: blockers nearer a receiver than about
- * 0.75/M of the shadow map's depth range (5% at M = 16), or than the
+ * 0.75/M of the casters' depth range (5% at M = 16), or than the
  * receiver-plane bias at grazing light, are not seen (contact shadows
- * leak). Cost per frame grows with K x R^2 x M (maps and tables) and
+ * leak). A flat body with every other body on one side of it (a ground)
+ * stays out of the shadow maps; what it hides is taken from its plane.
+ * Cost per frame grows with K x R^2 x M (maps and tables) and
  * K x vertices x M (evaluation).
  */
 
@@ -598,7 +600,7 @@ typedef struct hl_dynamic hl_dynamic;
 
 /* hl_dynamic_desc fields and defaults (all zero: the defaults):
  *   shadow_res   R: shadow map size, a multiple of 16 from 16 to 1024
- *                (0: 256)
+ *                (0: 128)
  *   order        M: convolution shadow map order, 4..16 (0: 16)
  */
 typedef struct hl_dynamic_desc {

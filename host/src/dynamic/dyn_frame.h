@@ -62,7 +62,7 @@
 #define HL_FRAME_BIAS_CAP 0.02f
 
 typedef struct hl_frame_settings {
-    uint32_t R;           /* shadow map size; 0: HL_SHADOW_DEFAULT_R (256) */
+    uint32_t R;           /* shadow map size; 0: HL_SHADOW_DEFAULT_R (128) */
     uint32_t M;           /* CSM order, 4..16; 0: HL_CSM_M_DEFAULT (16) */
     uint32_t Mb;          /* blocker-search order, 4..M; 0: M */
     uint64_t budget;      /* bytes for one batch's CSM; 0: HL_FRAME_DEFAULT_BUDGET */
