@@ -17,11 +17,11 @@
  *                        a small run writes its PLY.
  * dyn_frame.file         a glTF file of two bodies, one animated: the
  *                        merged mesh at a time and after a move.
- * timing [MIB]           not a ctest case (asserts nothing): the bunny on
- *                        its ground at K = 32, R = 256, M = 16, a first
- *                        frame, the same again, and one with the bunny
- *                        moved; MIB: the batch budget (default
- *                        HL_FRAME_DEFAULT_BUDGET).
+ * timing [MIB [R]]       not a ctest case (asserts nothing): the bunny on
+ *                        its ground at K = 32, R (default 256), M = 16, a
+ *                        first frame, the same again, and one with the
+ *                        bunny moved; MIB: the batch budget (0: the
+ *                        default, HL_FRAME_DEFAULT_BUDGET).
  * Depends on: dyn_frame.h, scene.h, area_lights.h, hl_test.h,
  * scene_gen.h, HL_REPO_DATA (bunny_lowres.obj), HL_BIN.
  */
@@ -675,7 +675,7 @@ done:
 
 /* ------------------------------------------------------------ timing */
 
-static void timing(uint64_t budget)
+static void timing(uint64_t budget, uint32_t R)
 {
     hl_context *ctx = hl_test_cl_context(2);
     if (!ctx) return;
@@ -683,7 +683,7 @@ static void timing(uint64_t budget)
     hl_env *env = sky(ctx);
     hl_light_split *s = split_of(ctx, env, 32);
     hl_frame_state *st = NULL;
-    hl_frame_settings set = {.R = 256, .M = 16, .budget = budget, .min_share = -1.0f};
+    hl_frame_settings set = {.R = R, .M = 16, .budget = budget, .min_share = -1.0f};
     if (!s || !bunny_open(ctx, &b) || hl_frame_state_create(ctx, b.obj, 2, s->count, &set, &st) != HL_OK) {
         fprintf(stderr, "%s\n", hl_context_last_error(ctx));
         return;
@@ -713,8 +713,9 @@ static void timing(uint64_t budget)
 
 int main(int argc, char **argv)
 {
-    if (argc > 1 && !strcmp(argv[1], "timing")) { /* timing [BATCH_BUDGET_MIB] */
-        timing(argc > 2 ? (uint64_t)strtoull(argv[2], NULL, 10) << 20 : 0);
+    if (argc > 1 && !strcmp(argv[1], "timing")) { /* timing [BATCH_BUDGET_MIB [R]] */
+        timing(argc > 2 ? (uint64_t)strtoull(argv[2], NULL, 10) << 20 : 0,
+               argc > 3 ? (uint32_t)strtoul(argv[3], NULL, 10) : 256);
         return 0;
     }
     static const hl_test_case cases[] = {{"unshadowed", case_unshadowed}, {"motion", case_motion}, {"below", case_below},

@@ -38,6 +38,7 @@ struct hl_frame_state {
     hl_dyn_irr *irr;           /* the irradiance kernel, its tables of */
     uint64_t irr_serial;       /* this split (hl_light_split.serial) */
     uint8_t *any;              /* max_lights: some receiver gets light */
+    float blk[6 * HL_FRAME_FLAT_BLOCKS * HL_FRAME_FLAT_BLOCKS]; /* light_blocks */
 };
 
 /* Linear Rec.709 luminance, as area_lights.c ranks its lights by. */
@@ -226,18 +227,60 @@ static float plane_bias(const hl_shadow_frame *f, const float n[3], const float 
 
 /* The flat bodies left out of map f (shadow_map.h) that lie between the
  * light and a receiver: V times the share of the light's irradiance at
- * the receiver whose rays miss the body, texel by texel of the light
- * (each texel's luminance moment against the receiver's normal, its ray
- * along the texel's centre direction, the body its extent in its
- * plane). Exact up to the texels' size, with no depth bias, so the
+ * the receiver whose rays miss the body, block by block of the light's
+ * texels (light_blocks: each block's luminance moment against the
+ * receiver's normal, its ray along the moment, the body its extent in
+ * its plane). Exact up to the blocks' size, with no depth bias, so the
  * underside of a body resting on the ground is dark to the contact,
  * while rays that pass beyond the ground's edge still arrive. A
  * receiver on the plane itself is not behind it. */
+/* The light in at most HL_FRAME_FLAT_BLOCKS^2 blocks of texels, 6 floats
+ * each: the block's luminance moment (n . it is the block's irradiance
+ * where the block is above n's horizon) and its unit direction (the
+ * moment's). Returns the count. */
+static uint32_t light_blocks(const hl_light_split *split, const hl_area_light *L, float *blk)
+{
+    const uint32_t F = split->F, w = L->x1 - L->x0, h = L->y1 - L->y0;
+    const uint32_t bx = w < HL_FRAME_FLAT_BLOCKS ? w : HL_FRAME_FLAT_BLOCKS;
+    const uint32_t by = h < HL_FRAME_FLAT_BLOCKS ? h : HL_FRAME_FLAT_BLOCKS;
+    uint32_t n = 0;
+    for (uint32_t j = 0; j < by; j++)
+        for (uint32_t i = 0; i < bx; i++) {
+            double m[3] = {0, 0, 0};
+            for (uint32_t y = L->y0 + j * h / by; y < L->y0 + (j + 1) * h / by; y++)
+                for (uint32_t x = L->x0 + i * w / bx; x < L->x0 + (i + 1) * w / bx; x++) {
+                    const float *t = split->texel_moment + 9 * ((size_t)L->face * F * F + (size_t)y * F + x);
+                    for (int c = 0; c < 3; c++)
+                        for (int k = 0; k < 3; k++) m[k] += HL_FRAME_LUM[c] * t[3 * c + k];
+                }
+            double len = sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+            if (!(len > 0.0)) continue;
+            float *b = blk + 6 * (size_t)n++;
+            for (int k = 0; k < 3; k++) b[k] = (float)m[k], b[3 + k] = (float)(m[k] / len);
+        }
+    return n;
+}
+
+/* Whether the ray from the receiver (q: its offset from the plane's
+ * point, sr = n . q) along unit w meets the flat body's extent. */
+static int flat_hit(const hl_flat_body *fb, const float q[3], float sr, const float *w)
+{
+    float sw = fb->n[0] * w[0] + fb->n[1] * w[1] + fb->n[2] * w[2];
+    if (!(sr * sw < 0.0f)) return 0; /* the ray leaves the plane behind */
+    float tt = -sr / sw;
+    float h[3] = {q[0] + tt * w[0], q[1] + tt * w[1], q[2] + tt * w[2]};
+    float a = h[0] * fb->u[0] + h[1] * fb->u[1] + h[2] * fb->u[2];
+    float b = h[0] * fb->v[0] + h[1] * fb->v[1] + h[2] * fb->v[2];
+    return a >= fb->lo[0] && a <= fb->hi[0] && b >= fb->lo[1] && b <= fb->hi[1];
+}
+
 static void flat_occlusion(hl_frame_state *st, const hl_shadow_frame *f, const hl_light_split *split, uint32_t k,
                            uint32_t n)
 {
     const hl_area_light *L = &split->lights[k];
     const uint32_t F = split->F;
+    float *blk = st->blk;
+    uint32_t nblk = light_blocks(split, L, blk);
     for (uint32_t o = 0; o < st->nobj && o < 32; o++) {
         hl_flat_body fb;
         if (!(f->skip_mask >> o & 1u) || !hl_shadow_maps_flat(st->sm, o, &fb)) continue;
@@ -250,26 +293,25 @@ static void flat_occlusion(hl_frame_state *st, const hl_shadow_frame *f, const h
             float sr = fb.n[0] * q[0] + fb.n[1] * q[1] + fb.n[2] * q[2];
             /* on the plane, or the light's whole cone on its side */
             if (sr == 0.0f || (sr * sl > 0.0f && fabsf(sl) >= sin_ext)) continue;
-            double all = 0.0, open = 0.0;
-            for (uint32_t y = L->y0; y < L->y1; y++)
-                for (uint32_t xx = L->x0; xx < L->x1; xx++) {
-                    size_t t = (size_t)L->face * F * F + (size_t)y * F + xx;
-                    const float *m = split->texel_moment + 9 * t, *w = split->texel_dir + 3 * t;
-                    double e = 0.0;
-                    for (int c = 0; c < 3; c++)
-                        e += HL_FRAME_LUM[c] * ((double)nv[0] * m[3 * c] + (double)nv[1] * m[3 * c + 1] +
-                                                (double)nv[2] * m[3 * c + 2]);
-                    if (!(e > 0.0)) continue;
-                    all += e;
-                    float sw = fb.n[0] * w[0] + fb.n[1] * w[1] + fb.n[2] * w[2];
-                    if (!(sr * sw < 0.0f)) { open += e; continue; } /* the ray leaves the plane behind */
-                    float tt = -sr / sw;
-                    float h[3] = {q[0] + tt * w[0], q[1] + tt * w[1], q[2] + tt * w[2]};
-                    float a = h[0] * fb.u[0] + h[1] * fb.u[1] + h[2] * fb.u[2];
-                    float b = h[0] * fb.v[0] + h[1] * fb.v[1] + h[2] * fb.v[2];
-                    if (!(a >= fb.lo[0] && a <= fb.hi[0] && b >= fb.lo[1] && b <= fb.hi[1])) open += e;
-                }
-            if (all > 0.0) st->V[i] *= (float)(open / all);
+            /* the rays of the four corner texels all meet the body: so do
+               those of every texel between (their directions lie in the
+               corners' convex hull, and so do their hits in the plane,
+               as does the body's extent) */
+            int corners_in = 1;
+            for (int c = 0; c < 4 && corners_in; c++) {
+                uint32_t cx = c & 1 ? L->x1 - 1 : L->x0, cy = c & 2 ? L->y1 - 1 : L->y0;
+                corners_in = flat_hit(&fb, q, sr, split->texel_dir + 3 * ((size_t)L->face * F * F + (size_t)cy * F + cx));
+            }
+            if (corners_in) { st->V[i] = 0.0f; continue; }
+            float all = 0.0f, open = 0.0f;
+            for (uint32_t j = 0; j < nblk; j++) {
+                const float *m = blk + 6 * (size_t)j;
+                float e = nv[0] * m[0] + nv[1] * m[1] + nv[2] * m[2];
+                if (!(e > 0.0f)) continue;
+                all += e;
+                if (!flat_hit(&fb, q, sr, m + 3)) open += e;
+            }
+            if (all > 0.0f) st->V[i] *= open / all;
         }
     }
 }

@@ -61,6 +61,13 @@
  * of bodies that are not flat as a whole (a box) at the same error. */
 #define HL_FRAME_BIAS_CAP 0.02f
 
+/* Blocks a side that a light is cut into for the occlusion by flat
+ * bodies (dyn_frame.c, flat_occlusion): a 32 x 32 texel light becomes
+ * 8 x 8 blocks of 4 x 4 texels, so a receiver costs at most 64 ray-plane
+ * tests a light. The shadow of a ground edge is as soft as a block
+ * (under 11 degrees at F = 32), far below the lights' own size. */
+#define HL_FRAME_FLAT_BLOCKS 8u
+
 typedef struct hl_frame_settings {
     uint32_t R;           /* shadow map size; 0: HL_SHADOW_DEFAULT_R (128) */
     uint32_t M;           /* CSM order, 4..16; 0: HL_CSM_M_DEFAULT (16) */
