@@ -34,7 +34,7 @@ static const char *const usage_dyn =
     "\n"
     "Limits: the visibility approximates the exact one (smooth shadow test, filter\n"
     "width from the average blocker depth and the light's spread). On the bunny with\n"
-    "its ground under eight HDR maps it is 2.6 to 5.2% (relative L2) from the exact\n"
+    "its ground under eight HDR maps it is 2.6 to 5.1% (relative L2) from the exact\n"
     "result at rest and 2.0 to 4.1% with the bunny moved; --reference exact prints it\n"
     "for a frame. Blockers closer to a receiver than about 0.75/M of the casters' depth\n"
     "range are not seen, so contact shadows leak a little. A flat body with the others\n"
