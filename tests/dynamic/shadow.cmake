@@ -3,4 +3,6 @@
 # kernel against twin, closed forms, rasteriser against Embree, motion,
 # frame fitting and bad input.
 hl_test_exe(test_shadow_raster ${CMAKE_CURRENT_LIST_DIR}/test_shadow_raster.c)
-hl_test_cases(test_shadow_raster shadow_raster twin analytic embree motion frame skip bad_input)
+hl_test_cases(test_shadow_raster shadow_raster twin analytic embree motion frame bad_input)
+hl_test_exe(test_shadow_skip ${CMAKE_CURRENT_LIST_DIR}/test_shadow_skip.c)
+hl_test_cases(test_shadow_skip shadow_skip planes)

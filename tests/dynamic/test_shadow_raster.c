@@ -15,13 +15,11 @@
  *            vertices moved by hand, both methods; Embree builds no BVH.
  * frame      fitted frames hold every vertex, depths in (0, 1), for +Y,
  *            -Y, the horizon and random lights; the border ring is empty.
- * skip       flat bodies out of the maps they cannot shadow: which
- *            lights leave the ground out, and the map is then the
- *            bunny's alone, to the bit; also with the ground turned over.
  * bad_input  clear errors for impossible objects, transforms, R, lights.
  *
  * Every check prints its tolerance and worst error (hl_check_error).
- * Depends on: haarlight_core, shadow_map.h, HL_REPO_DATA (bunny_lowres).
+ * Depends on: haarlight_core, shadow_map.h, shadow_scene.h, HL_REPO_DATA
+ * (bunny_lowres). The flat-body cases are test_shadow_skip.c's.
  */
 #include <float.h>
 #include <stdint.h>
@@ -29,137 +27,7 @@
 #include "hl_test.h"
 #include "hl_internal.h"
 #include "shadow_map.h"
-
-#define R_TEST 256u
-
-/* ---------------------------------------------------------------- scene */
-
-/* The bunny and a ground of GROUND_N x GROUND_N quads under it, as two
- * objects with identity transforms. */
-#define GROUND_N 96u
-
-typedef struct scene {
-    hl_mesh *bunny;
-    float *gpos;
-    uint32_t *gtri;
-    hl_dyn_object obj[2];
-} scene;
-
-static const float XF_ID[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-
-static hl_context *ref_ctx(void) { return hl_test_ref_context(2); }
-
-
-static int scene_load(hl_context *ctx, scene *s)
-{
-    memset(s, 0, sizeof *s);
-    char path[1024];
-    snprintf(path, sizeof path, "%s/bunny_lowres.obj", hl_test_env("HL_REPO_DATA", "data"));
-    if (hl_mesh_load(ctx, path, NULL, &s->bunny, NULL) != HL_OK) {
-        fprintf(stderr, "%s\n", hl_context_last_error(ctx));
-        return 0;
-    }
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (uint32_t v = 0; v < s->bunny->vertex_count; v++)
-        for (int c = 0; c < 3; c++) {
-            lo[c] = fminf(lo[c], s->bunny->positions[3 * v + c]);
-            hi[c] = fmaxf(hi[c], s->bunny->positions[3 * v + c]);
-        }
-    const uint32_t n = GROUND_N + 1;
-    float half = 0.75f * fmaxf(hi[0] - lo[0], hi[2] - lo[2]), cx = 0.5f * (lo[0] + hi[0]), cz = 0.5f * (lo[2] + hi[2]);
-    s->gpos = malloc((size_t)n * n * 12);
-    s->gtri = malloc((size_t)GROUND_N * GROUND_N * 24);
-    for (uint32_t j = 0; j < n; j++)
-        for (uint32_t i = 0; i < n; i++) {
-            float *p = s->gpos + 3 * (size_t)(j * n + i);
-            p[0] = cx - half + 2.0f * half * (float)i / (float)GROUND_N;
-            p[1] = lo[1];
-            p[2] = cz - half + 2.0f * half * (float)j / (float)GROUND_N;
-        }
-    for (uint32_t j = 0; j < GROUND_N; j++)
-        for (uint32_t i = 0; i < GROUND_N; i++) {
-            uint32_t a = j * n + i, *t = s->gtri + 6 * (size_t)(j * GROUND_N + i);
-            t[0] = a; t[1] = a + n; t[2] = a + 1;
-            t[3] = a + 1; t[4] = a + n; t[5] = a + n + 1;
-        }
-    s->obj[0] = (hl_dyn_object){.pos = s->bunny->positions, .nverts = s->bunny->vertex_count, .tri = s->bunny->indices,
-                                .ntris = s->bunny->triangle_count};
-    s->obj[1] = (hl_dyn_object){.pos = s->gpos, .nverts = n * n, .tri = s->gtri, .ntris = 2 * GROUND_N * GROUND_N};
-    memcpy(s->obj[0].xf, XF_ID, 48);
-    memcpy(s->obj[1].xf, XF_ID, 48);
-    return 1;
-}
-
-static void scene_free(scene *s)
-{
-    hl_mesh_destroy(s->bunny);
-    free(s->gpos); free(s->gtri);
-}
-
-static void unit3(float *d)
-{
-    double n = sqrt((double)d[0] * d[0] + (double)d[1] * d[1] + (double)d[2] * d[2]);
-    for (int c = 0; c < 3; c++) d[c] = (float)(d[c] / n);
-}
-
-/* Lights: +Y, -Y, a grazing one, one on the horizon, then random ones. */
-static void light_dirs(float (*d)[3], uint32_t K)
-{
-    static const float fixed[4][3] = {{0, 1, 0}, {0, -1, 0}, {0.6f, 0.02f, 0.8f}, {-1, 0, 0}};
-    for (uint32_t k = 0; k < K; k++) {
-        if (k < 4) memcpy(d[k], fixed[k], 12);
-        else
-            do {
-                for (int c = 0; c < 3; c++) d[k][c] = (float)((double)(hl_rng_next() >> 11) / 9007199254740992.0 * 2.0 - 1.0);
-            } while (d[k][0] * d[k][0] + d[k][1] * d[k][1] + d[k][2] * d[k][2] < 0.01f);
-        unit3(d[k]);
-    }
-}
-
-/* A rotation by angle about unit axis a, then a translation t. */
-static void make_xf(const double *a, double angle, const double *t, float *xf)
-{
-    double c = cos(angle), s = sin(angle), C = 1.0 - c;
-    double R[9] = {c + a[0] * a[0] * C,        a[0] * a[1] * C - a[2] * s, a[0] * a[2] * C + a[1] * s,
-                   a[1] * a[0] * C + a[2] * s, c + a[1] * a[1] * C,        a[1] * a[2] * C - a[0] * s,
-                   a[2] * a[0] * C - a[1] * s, a[2] * a[1] * C + a[0] * s, c + a[2] * a[2] * C};
-    for (int r = 0; r < 3; r++) {
-        for (int k = 0; k < 3; k++) xf[4 * r + k] = (float)R[3 * r + k];
-        xf[4 * r + 3] = (float)t[r];
-    }
-}
-
-static float *render(hl_context *ctx, const hl_dyn_object *obj, uint32_t nobj, hl_shadow_method m, const float (*dirs)[3],
-                     uint32_t K, hl_shadow_frame *frames)
-{
-    hl_shadow_maps *sm = NULL;
-    float *depth = malloc((size_t)K * R_TEST * R_TEST * 4);
-    if (hl_shadow_maps_create(ctx, obj, nobj, R_TEST, m, &sm) != HL_OK ||
-        hl_shadow_maps_render(sm, dirs, K, depth, frames) != HL_OK) {
-        fprintf(stderr, "%s\n", hl_context_last_error(ctx));
-        free(depth);
-        depth = NULL;
-    }
-    hl_shadow_maps_destroy(sm);
-    return depth;
-}
-
-/* Compares two sets of K maps: texels covered by one only, and the worst
- * depth difference where both are covered. */
-static void compare_maps(const float *a, const float *b, size_t n, size_t *mismatch, double *worst, size_t *covered)
-{
-    *mismatch = 0;
-    *worst = 0.0;
-    *covered = 0;
-    for (size_t i = 0; i < n; i++) {
-        int ca = a[i] < HL_SHADOW_EMPTY, cb = b[i] < HL_SHADOW_EMPTY;
-        if (ca != cb) { (*mismatch)++; continue; }
-        if (!ca) continue;
-        (*covered)++;
-        double e = fabs((double)a[i] - (double)b[i]);
-        if (!(e <= *worst)) *worst = e;
-    }
-}
+#include "shadow_scene.h"
 
 /* ================================================================= twin */
 
@@ -215,143 +83,6 @@ static void case_twin(void)
     }
     hl_shadow_maps_destroy(sc); hl_shadow_maps_destroy(sr); free(a); free(b); scene_free(&s); hl_context_destroy(cl);
     hl_context_destroy(ref);
-}
-
-/* ================================================================= skip */
-
-/* Flat bodies out of the maps (hl_shadow_maps_skip_planes): with the
- * bunny on one side of the ground, the ground is left out for lights
- * above it and below it (the caller works out what it hides from the
- * plane), and kept for a light on its horizon; the bunny never; the
- * frame then is the bunny's own fit and the map the bunny's alone, to
- * the bit. The ground's plane in world space holds its corners and its
- * area. The same with the ground turned upside down (its own normal
- * -Y). With a second bunny under the ground, the ground stays in every
- * map. The Embree path draws every body. */
-static void skip_one(hl_context *ctx, scene *s, const char *what)
-{
-    enum { K = 4 };
-    float dirs[K][3];
-    light_dirs(dirs, K); /* +Y, -Y, grazing from above, the horizon */
-    const uint32_t want[K] = {2u, 2u, 2u, 0u};
-    hl_shadow_maps *sm = NULL, *alone = NULL;
-    hl_shadow_frame fr[K];
-    size_t n = (size_t)K * R_TEST * R_TEST;
-    float *a = malloc(n * 4), *b = malloc(n * 4);
-    HL_CHECK(hl_shadow_maps_create(ctx, s->obj, 2, R_TEST, HL_SHADOW_RASTER, &sm) == HL_OK &&
-             hl_shadow_maps_create(ctx, s->obj, 1, R_TEST, HL_SHADOW_RASTER, &alone) == HL_OK,
-             "%s", hl_context_last_error(ctx));
-    if (sm && alone) {
-        hl_shadow_maps_skip_planes(sm, 1);
-        HL_CHECK(hl_shadow_maps_render(sm, (const float(*)[3])dirs, K, a, fr) == HL_OK, "%s", hl_context_last_error(ctx));
-        uint32_t wrong = 0;
-        for (int k = 0; k < K; k++) wrong += fr[k].skip_mask != want[k];
-        HL_CHECK(wrong == 0, "%s: masks %u %u %u %u, expected 2 2 2 0", what, fr[0].skip_mask, fr[1].skip_mask,
-                 fr[2].skip_mask, fr[3].skip_mask);
-        /* light 0: the bunny's own frame and map */
-        hl_shadow_frame own;
-        HL_CHECK(hl_shadow_maps_render(alone, (const float(*)[3])dirs, 1, b, &own) == HL_OK, "%s", hl_context_last_error(ctx));
-        HL_CHECK(own.width == fr[0].width && own.depth_range == fr[0].depth_range &&
-                 !memcmp(own.origin, fr[0].origin, 12), "%s: the frame is not the bunny's own fit (width %g against %g)",
-                 what, (double)fr[0].width, (double)own.width);
-        size_t mism, cov;
-        double worst;
-        compare_maps(a, b, (size_t)R_TEST * R_TEST, &mism, &worst, &cov);
-        char w[160];
-        snprintf(w, sizeof w, "%s: light +Y, depth against the bunny alone", what);
-        hl_check_error(w, worst, 0.0);
-        snprintf(w, sizeof w, "%s: light +Y, texels covered by one only", what);
-        hl_check_error(w, (double)mism, 0.0);
-    }
-    /* the plane: the ground's corners on it, inside its extent, which
-       has the ground's area */
-    hl_flat_body fb;
-    HL_CHECK(sm && hl_shadow_maps_flat(sm, 1, &fb) && !hl_shadow_maps_flat(sm, 0, &fb), "%s: flat bodies", what);
-    if (sm && hl_shadow_maps_flat(sm, 1, &fb)) {
-        const uint32_t nn = GROUND_N + 1, corner[4] = {0, GROUND_N, nn * GROUND_N, nn * nn - 1};
-        double off = 0, out = 0, side = 0;
-        for (int c = 0; c < 4; c++) {
-            float w[3];
-            const float *x = s->obj[1].xf, *p = s->obj[1].pos + 3 * (size_t)corner[c];
-            for (int k = 0; k < 3; k++) w[k] = x[4 * k] * p[0] + x[4 * k + 1] * p[1] + x[4 * k + 2] * p[2] + x[4 * k + 3];
-            double q[3] = {w[0] - fb.p[0], w[1] - fb.p[1], w[2] - fb.p[2]};
-            off = fmax(off, fabs(q[0] * fb.n[0] + q[1] * fb.n[1] + q[2] * fb.n[2]));
-            double a = q[0] * fb.u[0] + q[1] * fb.u[1] + q[2] * fb.u[2], b2 = q[0] * fb.v[0] + q[1] * fb.v[1] + q[2] * fb.v[2];
-            out = fmax(out, fmax(fmax(fb.lo[0] - a, a - fb.hi[0]), fmax(fb.lo[1] - b2, b2 - fb.hi[1])));
-        }
-        side = s->gpos[3 * (size_t)GROUND_N] - s->gpos[0]; /* the ground's side along x */
-        char w[160];
-        snprintf(w, sizeof w, "%s: ground corners off its plane, world units", what);
-        hl_check_error(w, off, 1e-5 * side);
-        snprintf(w, sizeof w, "%s: ground corners outside its extent, world units", what);
-        hl_check_error(w, fmax(out, 0.0), 1e-5 * side);
-        snprintf(w, sizeof w, "%s: extent's area over the ground's, minus 1", what);
-        hl_check_error(w, fabs((fb.hi[0] - fb.lo[0]) * (fb.hi[1] - fb.lo[1]) / (side * side) - 1.0), 1e-5);
-    }
-    hl_shadow_maps_destroy(sm);
-    hl_shadow_maps_destroy(alone);
-    free(a);
-    free(b);
-}
-
-/* A bunny above the ground and one below: the ground separates bodies,
- * so it stays in every map. */
-static void skip_straddle(hl_context *ctx, scene *s)
-{
-    hl_dyn_object three[3] = {s->obj[0], s->obj[1], s->obj[0]};
-    const double ax[3] = {0, 1, 0}, t[3] = {0, -10.0 * (double)(s->gpos[3 * (size_t)GROUND_N] - s->gpos[0]), 0};
-    make_xf(ax, 0.0, t, three[2].xf);
-    enum { K = 4 };
-    float dirs[K][3], *d = malloc((size_t)K * R_TEST * R_TEST * 4);
-    light_dirs(dirs, K);
-    hl_shadow_frame fr[K];
-    hl_shadow_maps *sm = NULL;
-    HL_CHECK(hl_shadow_maps_create(ctx, three, 3, R_TEST, HL_SHADOW_RASTER, &sm) == HL_OK, "%s",
-             hl_context_last_error(ctx));
-    if (sm) {
-        hl_shadow_maps_skip_planes(sm, 1);
-        HL_CHECK(hl_shadow_maps_render(sm, (const float(*)[3])dirs, K, d, fr) == HL_OK, "%s", hl_context_last_error(ctx));
-        uint32_t any = 0;
-        for (int k = 0; k < K; k++) any |= fr[k].skip_mask;
-        HL_CHECK(any == 0, "a ground between two bodies was left out (masks %u %u %u %u)", fr[0].skip_mask,
-                 fr[1].skip_mask, fr[2].skip_mask, fr[3].skip_mask);
-    }
-    hl_shadow_maps_destroy(sm);
-    free(d);
-}
-
-static void case_skip(void)
-{
-    hl_context *ctx = ref_ctx();
-    scene s;
-    if (!scene_load(ctx, &s)) { HL_CHECK(0, "setup failed"); hl_context_destroy(ctx); return; }
-    skip_one(ctx, &s, "ground");
-    skip_straddle(ctx, &s);
-    /* the ground upside down in its own coordinates, (x, -y, 2 cz - z),
-       put back in place by its transform: a half turn about X, then z
-       moved by 2 cz */
-    float cz = 0.5f * (s.gpos[2] + s.gpos[3 * (size_t)(GROUND_N + 1) * (GROUND_N + 1) - 1]);
-    for (size_t v = 0; v < s.obj[1].nverts; v++) {
-        s.gpos[3 * v + 1] = -s.gpos[3 * v + 1];
-        s.gpos[3 * v + 2] = 2.0f * cz - s.gpos[3 * v + 2];
-    }
-    const double ax[3] = {1, 0, 0}, t[3] = {0, 0, 2.0 * cz};
-    make_xf(ax, 3.14159265358979323846, t, s.obj[1].xf);
-    skip_one(ctx, &s, "ground turned over");
-    /* Embree: every body drawn */
-    hl_shadow_maps *sm = NULL;
-    float dir[1][3] = {{0, 1, 0}}, *d = malloc((size_t)R_TEST * R_TEST * 4);
-    hl_shadow_frame fr;
-    HL_CHECK(hl_shadow_maps_create(ctx, s.obj, 2, R_TEST, HL_SHADOW_EMBREE, &sm) == HL_OK, "%s", hl_context_last_error(ctx));
-    if (sm) {
-        hl_shadow_maps_skip_planes(sm, 1);
-        HL_CHECK(hl_shadow_maps_render(sm, (const float(*)[3])dir, 1, d, &fr) == HL_OK && fr.skip_mask == 0,
-                 "Embree left a body out (mask %u)", fr.skip_mask);
-    }
-    hl_shadow_maps_destroy(sm);
-    free(d);
-    scene_free(&s);
-    hl_context_destroy(ctx);
 }
 
 /* ============================================================= analytic */
@@ -831,8 +562,7 @@ static void case_bad_input(void)
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {{"twin", case_twin},     {"analytic", case_analytic}, {"embree", case_embree},
-                                         {"motion", case_motion}, {"frame", case_frame},       {"skip", case_skip},
-                                         {"bad_input", case_bad_input},
+                                         {"motion", case_motion}, {"frame", case_frame},       {"bad_input", case_bad_input},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }
