@@ -1,0 +1,68 @@
+/* capture.h - lighting captured from the scene: the surroundings of an
+ * object (triangles, each emitting a radiance or dark) seen from one point,
+ * rendered straight into the dual-paraboloid lighting the relighter's
+ * env2para stage writes (same layout, same meaning: three planes R, G, B
+ * of 2 N^2 texels, each the mean radiance over its texel), so it can take
+ * that stage's place. On the OpenCL device (kernels/capture/capture.cl)
+ * or, on the reference backend, through the plain-C twin on the
+ * context's threads.
+ */
+#ifndef HL_CAPTURE_H
+#define HL_CAPTURE_H
+
+#include "hl_internal.h"
+
+/* Rays per side of the whole paraboloid (N S) when the caller gives S = 0:
+ * S = max(1, 256 / N), so the sub-sample grid is the same at every N
+ * (sub-cells at most 4 / 256 radians wide) and a capture costs
+ * 2 x 256^2 rays whatever N. Measured (tests/capture, capture.energy): a
+ * square light's energy within 0.24% at N = 64 (S = 4) and 128 (S = 2),
+ * 1.3% at N S = 64 and 15% at N S = 16 (edges along the grid); S = 8 at
+ * N = 64 gains nothing (0.24%) for 4 times the rays. */
+#define HL_CAPTURE_DEFAULT_NS 256u
+/* Most rays per texel side: 16 x 16 rays already resolve an edge to
+ * 1/16 texel, finer than the map path's own cells. */
+#define HL_CAPTURE_MAX_S 16u
+/* The S a capture of resolution N uses for S = 0. */
+static inline uint32_t hl_capture_default_s(uint32_t N)
+{
+    uint32_t S = N >= HL_CAPTURE_DEFAULT_NS ? 1u : HL_CAPTURE_DEFAULT_NS / N;
+    return S > HL_CAPTURE_MAX_S ? HL_CAPTURE_MAX_S : S;
+}
+/* Most triangles: every ray tests all of them (brute force, cost 2 N^2 x
+ * S^2 x triangles), meant for a lamp and a few walls; a larger scene
+ * wants a hierarchy this module does not build. */
+#define HL_CAPTURE_MAX_TRIS 65536u
+
+typedef struct hl_capture_scene {
+    const float *positions; /* 9 per triangle: three corners, world space */
+    const float *emission;  /* 3 per triangle: emitted RGB radiance, >= 0
+                               (0: a dark occluder); both sides emit */
+    uint32_t triangle_count;
+    float center[3];        /* the capture point (the object's centre) */
+    /* What the surroundings leave open: NULL for black, or a lighting map
+       in the same layout (3 x 2 N^2, e.g. env2para's output for an
+       environment), whose texel value lights the share of the texel's
+       rays that hit nothing. */
+    const float *fallback_L;
+} hl_capture_scene;
+
+typedef struct hl_capture hl_capture;
+
+/* A capture of resolution N (a power of two, 8 to 256, as the transport's)
+ * with S x S rays per texel (0: HL_CAPTURE_DEFAULT_NS / N, at least 1
+ * and at most HL_CAPTURE_MAX_S), on ctx's backend. */
+hl_result hl_capture_create(hl_context *ctx, uint32_t N, uint32_t S, hl_capture **out);
+/* Renders scene into L (3 x 2 N^2 floats). Checks the scene first: NaN or
+ * infinite positions or centre, negative or non-finite radiance, no
+ * triangles or too many, a bad fallback map. */
+hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L);
+void hl_capture_destroy(hl_capture *c);
+
+/* The twin (twins/capture.c): texel j of the map from packed triangles
+ * (4 x 4 floats each: v0 - centre, v1 - v0, v2 - v0, emitted RGB and a
+ * pad), env_L NULL for black. */
+void hl_ref_capture_texel(const float *tris, uint32_t ntris, uint32_t N, uint32_t S, const float *env_L,
+                          uint32_t j, float *L);
+
+#endif

@@ -1,0 +1,6 @@
+# Lighting captured from the surroundings (host/src/capture,
+# kernels/capture): the kernel against its twin, the energy of a square
+# light against its solid angle, a cross-check through the environment
+# path, and bad input.
+hl_test_exe(test_capture ${CMAKE_CURRENT_LIST_DIR}/test_capture.c)
+hl_test_cases(test_capture capture twin energy crosscheck bad)
