@@ -5,23 +5,38 @@
  * It shoots S x S stratified rays through the texel's footprint in the
  * (s, t) plane, each weighted by the solid angle it stands for,
  * 4 / (1 + s^2 + t^2)^2 (rays beyond the unit disc are skipped), finds
- * the nearest triangle by brute force (Moller-Trumbore, both sides) and
- * averages the emitted radiance: the texel's mean radiance, what env2para
- * writes. Rays that hit nothing take the texel's value of env_L (when
- * have_env), weighted by their share. Cost: 2 N^2 texels x S^2 rays x
- * ntris triangles. Triangles: 4 float4 each (v0 relative to the capture
- * point, e1 = v1 - v0, e2 = v2 - v0, emitted RGB). Output: three planes
- * (R, G, B) of ncoef = 2 N^2 texels.
+ * the nearest triangle (Moller-Trumbore, both sides, every triangle in
+ * order, the first on a tie) and averages the emitted radiance: the
+ * texel's mean radiance, what env2para writes. Rays that hit nothing take
+ * the texel's value of env_L (when have_env), weighted by their share.
+ * Cost: 2 N^2 texels x (triangles + S^2 x the triangles whose bounding
+ * cone meets the texel's); at worst 2 N^2 S^2 x triangles.
+ * Triangles: HL_CAPTURE_F4 float4 each: v0 relative to the capture point,
+ * e1 = v1 - v0, e2 = v2 - v0, emitted RGB, the bounding cone (unit axis,
+ * half-angle in radians; more than pi: every direction), the half-angle's
+ * cosine and sine. Output: three
+ * planes (R, G, B) of ncoef = 2 N^2 texels.
  */
 #pragma OPENCL FP_CONTRACT OFF
 
-/* Nearest triangle along direction (dx, dy, dz) from the origin, or -1. */
-static int hl_capture_nearest(global const float4 *tris, uint ntris, float dx, float dy, float dz)
+#define HL_CAPTURE_F4 6
+/* Most triangles: one bit each in a work-item's cull mask. */
+#define HL_CAPTURE_MASK_WORDS 128
+/* Radians added to a texel's cone: more than the float error of the acos
+ * of a dot product near 1 (about sqrt(2 * 2^-24) = 3.5e-4), so a cull is
+ * never wrong and the hits are those of testing every triangle. */
+#define HL_CAPTURE_CONE_MARGIN 4e-3f
+
+/* Nearest marked triangle along direction (dx, dy, dz) from the origin,
+ * or -1; mask NULL: every triangle. */
+static int hl_capture_nearest(global const float4 *tris, uint ntris, const uint *mask, float dx, float dy, float dz)
 {
     float best = INFINITY;
     int hit = -1;
     for (uint i = 0; i < ntris; i++) {
-        float4 v0 = tris[4 * i], e1 = tris[4 * i + 1], e2 = tris[4 * i + 2];
+        if (mask && !((mask[i >> 5] >> (i & 31u)) & 1u)) continue;
+        global const float4 *T = tris + HL_CAPTURE_F4 * i;
+        float4 v0 = T[0], e1 = T[1], e2 = T[2];
         float px = dy * e2.z - dz * e2.y, py = dz * e2.x - dx * e2.z, pz = dx * e2.y - dy * e2.x;
         float det = e1.x * px + e1.y * py + e1.z * pz;
         if (det == 0.0f) continue; /* the ray lies in the triangle's plane */
@@ -41,6 +56,18 @@ static int hl_capture_nearest(global const float4 *tris, uint ntris, float dx, f
     return hit;
 }
 
+/* Unit direction through (s, t) of a map whose pole is sy * Y. */
+static float4 hl_capture_dir(float s, float t, float sy)
+{
+    float r2 = s * s + t * t, k = 1.0f / (1.0f + r2);
+    return (float4)(2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k, 0.0f);
+}
+
+static float hl_capture_angle(float4 a, float4 b)
+{
+    return acos(clamp(a.x * b.x + a.y * b.y + a.z * b.z, -1.0f, 1.0f));
+}
+
 kernel void hl_capture(global const float4 *tris, uint ntris, uint N, uint S, global const float *env_L,
                        uint have_env, global float *L)
 {
@@ -53,15 +80,31 @@ kernel void hl_capture(global const float4 *tris, uint ntris, uint N, uint S, gl
     float ns = s0 > 0.0f ? s0 : (s1 < 0.0f ? s1 : 0.0f), nt = t0 > 0.0f ? t0 : (t1 < 0.0f ? t1 : 0.0f);
     float ar = 0.0f, ag = 0.0f, ab = 0.0f, wsum = 0.0f, wmiss = 0.0f;
     if (ns * ns + nt * nt < 1.0f) {
+        /* the texel's cone: the paraboloid map takes circles to circles,
+           so the cap through its farthest corner holds all of it */
+        float4 axis = hl_capture_dir(s0 + 0.5f * h, t0 + 0.5f * h, sy);
+        float beta = fmax(fmax(hl_capture_angle(axis, hl_capture_dir(s0, t0, sy)), hl_capture_angle(axis, hl_capture_dir(s1, t0, sy))),
+                          fmax(hl_capture_angle(axis, hl_capture_dir(s0, t1, sy)), hl_capture_angle(axis, hl_capture_dir(s1, t1, sy))));
+        beta += HL_CAPTURE_CONE_MARGIN;
+        /* the cones meet when the axes' angle is at most alpha + beta:
+           their dot product at least cos(alpha + beta), no acos per pair */
+        float cb = cos(beta), sb = sin(beta);
+        uint mask[HL_CAPTURE_MASK_WORDS];
+        for (uint w = 0; w < (ntris + 31u) >> 5; w++) mask[w] = 0u;
+        for (uint i = 0; i < ntris; i++) {
+            float4 cone = tris[HL_CAPTURE_F4 * i + 4], cs = tris[HL_CAPTURE_F4 * i + 5];
+            float dot = axis.x * cone.x + axis.y * cone.y + axis.z * cone.z;
+            if (cone.w + beta >= 3.14159265f || dot >= cs.x * cb - cs.y * sb) mask[i >> 5] |= 1u << (i & 31u);
+        }
         for (uint a = 0; a < S; a++)
             for (uint b = 0; b < S; b++) {
                 float s = s0 + ((float)b + 0.5f) * hs, t = t0 + ((float)a + 0.5f) * hs;
                 float r2 = s * s + t * t;
                 if (r2 > 1.0f) continue;
                 float k = 1.0f / (1.0f + r2), dw = 4.0f * k * k;
-                int hit = hl_capture_nearest(tris, ntris, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
+                int hit = hl_capture_nearest(tris, ntris, mask, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
                 if (hit >= 0) {
-                    float4 em = tris[4 * (uint)hit + 3];
+                    float4 em = tris[HL_CAPTURE_F4 * (uint)hit + 3];
                     ar += dw * em.x;
                     ag += dw * em.y;
                     ab += dw * em.z;
@@ -72,12 +115,13 @@ kernel void hl_capture(global const float4 *tris, uint ntris, uint N, uint S, gl
             }
         if (wsum == 0.0f) {
             /* a sliver of the rim no sub-sample fell in: one ray at the
-               in-disc point nearest the texel centre, as geom.c does */
+               in-disc point nearest the texel centre, as geom.c does
+               (every triangle: the point may lie outside the texel) */
             float cs = s0 + 0.5f * h, ct = t0 + 0.5f * h, q = 0.9999999f / sqrt(cs * cs + ct * ct);
             float s = cs * q, t = ct * q, r2 = s * s + t * t, k = 1.0f / (1.0f + r2);
-            int hit = hl_capture_nearest(tris, ntris, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
+            int hit = hl_capture_nearest(tris, ntris, 0, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
             if (hit >= 0) {
-                float4 em = tris[4 * (uint)hit + 3];
+                float4 em = tris[HL_CAPTURE_F4 * (uint)hit + 3];
                 ar = em.x;
                 ag = em.y;
                 ab = em.z;

@@ -142,6 +142,22 @@ static void case_twin(void)
     /* same operations in the same order (contraction off, correctly
        rounded division and sqrt on the device) */
     hl_check_error("capture OpenCL vs C twin (relative)", worst, 1e-6);
+    /* the cones cull only triangles no ray of the texel could hit: the
+       twin with them against the twin testing every triangle */
+    {
+        const uint32_t N = 64, S = 4, nc = 2 * N * N;
+        float *tris = malloc((size_t)s.n * HL_CAPTURE_FLOATS * 4), *a = malloc((size_t)nc * 12), *b = malloc((size_t)nc * 12);
+        hl_capture_scene sc = scene_of(&s, centre, NULL);
+        hl_capture_pack(&sc, tris);
+        for (uint32_t j = 0; j < nc; j++) {
+            hl_ref_capture_texel(tris, s.n, N, S, NULL, 1, j, a);
+            hl_ref_capture_texel(tris, s.n, N, S, NULL, 0, j, b);
+        }
+        double diff = 0.0;
+        for (size_t j = 0; j < 3 * (size_t)nc; j++) diff = fmax(diff, fabs((double)a[j] - b[j]));
+        hl_check_error("N=64 S=4 twin with cones vs every triangle (absolute)", diff, 0.0);
+        free(tris); free(a); free(b);
+    }
     hl_context_destroy(cl);
     hl_context_destroy(ref);
 }

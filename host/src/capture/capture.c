@@ -97,13 +97,16 @@ static hl_result check_scene(hl_context *ctx, uint32_t ncoef, const hl_capture_s
     return HL_OK;
 }
 
-/* Corners relative to the centre (in double, then rounded once) and the
- * two edges, so every ray starts at the origin. */
-static void pack(const hl_capture_scene *s, float *tris)
+/* Corners relative to the centre (in double, then rounded once), the two
+ * edges, so every ray starts at the origin, and the cone from the origin
+ * around the triangle's bounding sphere, from the rounded corners the
+ * kernel tests: everything (half-angle 4 > pi) when the origin is inside
+ * the sphere. */
+void hl_capture_pack(const hl_capture_scene *s, float *tris)
 {
     for (uint32_t i = 0; i < s->triangle_count; i++) {
         const float *p = s->positions + 9 * (size_t)i;
-        float *o = tris + 16 * (size_t)i;
+        float *o = tris + HL_CAPTURE_FLOATS * (size_t)i;
         for (int a = 0; a < 3; a++) {
             o[a] = (float)((double)p[a] - s->center[a]);
             o[4 + a] = (float)((double)p[3 + a] - p[a]);
@@ -111,6 +114,30 @@ static void pack(const hl_capture_scene *s, float *tris)
             o[12 + a] = s->emission[3 * (size_t)i + a];
         }
         o[3] = o[7] = o[11] = o[15] = 0.0f;
+        double c[3][3], m[3] = {0, 0, 0}, R2 = 0.0, d2 = 0.0;
+        for (int a = 0; a < 3; a++) {
+            c[0][a] = o[a];
+            c[1][a] = (double)o[a] + o[4 + a];
+            c[2][a] = (double)o[a] + o[8 + a];
+            m[a] = (c[0][a] + c[1][a] + c[2][a]) / 3.0;
+            d2 += m[a] * m[a];
+        }
+        for (int v = 0; v < 3; v++) {
+            double e2 = 0.0;
+            for (int a = 0; a < 3; a++) e2 += (c[v][a] - m[a]) * (c[v][a] - m[a]);
+            if (e2 > R2) R2 = e2;
+        }
+        double R = sqrt(R2) * (1.0 + 1e-6), d = sqrt(d2);
+        if (d <= R) {
+            o[16] = o[17] = o[18] = 0.0f;
+            o[19] = 4.0f;
+        } else {
+            for (int a = 0; a < 3; a++) o[16 + a] = (float)(m[a] / d);
+            o[19] = nextafterf((float)asin(R / d), 4.0f);
+        }
+        o[20] = (float)cos((double)o[19]);
+        o[21] = (float)sin((double)o[19]);
+        o[22] = o[23] = 0.0f;
     }
 }
 
@@ -130,7 +157,7 @@ static void *ref_worker(void *arg)
         uint32_t t0 = atomic_fetch_add(&j->next, HL_CAPTURE_CHUNK);
         if (t0 >= c->ncoef) break;
         uint32_t t1 = t0 + HL_CAPTURE_CHUNK < c->ncoef ? t0 + HL_CAPTURE_CHUNK : c->ncoef;
-        for (uint32_t t = t0; t < t1; t++) hl_ref_capture_texel(c->tris, j->ntris, c->N, c->S, j->env_L, t, j->L);
+        for (uint32_t t = t0; t < t1; t++) hl_ref_capture_texel(c->tris, j->ntris, c->N, c->S, j->env_L, 1, t, j->L);
     }
     return NULL;
 }
@@ -139,7 +166,7 @@ static hl_result run_device(hl_capture *c, uint32_t ntris, const float *env_L, f
 {
     hl_context *ctx = c->ctx;
     cl_command_queue q = ctx->cl->queue;
-    size_t tbytes = (size_t)ntris * 64;
+    size_t tbytes = (size_t)ntris * HL_CAPTURE_FLOATS * 4;
     CL_TRY(ctx, clEnqueueWriteBuffer(q, c->tris_d, CL_FALSE, 0, tbytes, c->tris, 0, NULL, NULL), "uploading the surroundings");
     cl_uint have_env = env_L != NULL;
     if (env_L)
@@ -170,12 +197,12 @@ hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L)
     if (r != HL_OK) return r;
     const uint32_t n = scene->triangle_count;
     if (n > c->cap_tris) {
-        float *p = realloc(c->tris, (size_t)n * 64);
+        float *p = realloc(c->tris, (size_t)n * HL_CAPTURE_FLOATS * 4);
         if (!p) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "capture: out of memory for %u triangles", n);
         c->tris = p;
         if (ctx->cl) {
             hl_cl_release_buf(ctx->cl, &c->tris_d);
-            r = hl_cl_make_buf(ctx, &c->tris_d, CL_MEM_READ_ONLY, (size_t)n * 64, NULL, "the surroundings");
+            r = hl_cl_make_buf(ctx, &c->tris_d, CL_MEM_READ_ONLY, (size_t)n * HL_CAPTURE_FLOATS * 4, NULL, "the surroundings");
             if (r != HL_OK) {
                 c->cap_tris = 0;
                 return r;
@@ -183,7 +210,7 @@ hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L)
         }
         c->cap_tris = n;
     }
-    pack(scene, c->tris);
+    hl_capture_pack(scene, c->tris);
     if (ctx->cl) return run_device(c, n, scene->fallback_L, L);
     ref_job job = {c, n, scene->fallback_L, L, 0};
     atomic_init(&job.next, 0u);

@@ -29,10 +29,18 @@ static inline uint32_t hl_capture_default_s(uint32_t N)
     uint32_t S = N >= HL_CAPTURE_DEFAULT_NS ? 1u : HL_CAPTURE_DEFAULT_NS / N;
     return S > HL_CAPTURE_MAX_S ? HL_CAPTURE_MAX_S : S;
 }
-/* Most triangles: every ray tests all of them (brute force, cost 2 N^2 x
- * S^2 x triangles), meant for a lamp and a few walls; a larger scene
- * wants a hierarchy this module does not build. */
-#define HL_CAPTURE_MAX_TRIS 65536u
+/* Most triangles: one bit each in a texel's cull mask (128 words, as
+ * HL_CAPTURE_MASK_WORDS in kernels/capture/capture.cl). Every ray tests
+ * every triangle whose bounding cone meets its texel's (no hierarchy):
+ * meant for a lamp and a few walls. */
+#define HL_CAPTURE_MAX_TRIS 4096u
+/* Floats per packed triangle (HL_CAPTURE_F4 float4 in the kernel). */
+#define HL_CAPTURE_FLOATS 24u
+/* Radians added to a texel's cone (as in the kernel): more than the float
+ * error of the acos of a dot product near 1 (about sqrt(2 * 2^-24) =
+ * 3.5e-4), so a cull is never wrong and the hits are those of testing
+ * every triangle. */
+#define HL_CAPTURE_CONE_MARGIN 4e-3f
 
 typedef struct hl_capture_scene {
     const float *positions; /* 9 per triangle: three corners, world space */
@@ -60,9 +68,15 @@ hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L)
 void hl_capture_destroy(hl_capture *c);
 
 /* The twin (twins/capture.c): texel j of the map from packed triangles
- * (4 x 4 floats each: v0 - centre, v1 - v0, v2 - v0, emitted RGB and a
- * pad), env_L NULL for black. */
+ * (HL_CAPTURE_FLOATS each, in fours: v0 - centre, v1 - v0, v2 - v0,
+ * emitted RGB, the bounding cone seen from the centre: unit axis and
+ * half-angle, 4 for every direction, then its cosine and sine), env_L
+ * NULL for black. use_cones 0 tests every triangle with every ray (the
+ * test's check that the cones cull nothing they should not). */
 void hl_ref_capture_texel(const float *tris, uint32_t ntris, uint32_t N, uint32_t S, const float *env_L,
-                          uint32_t j, float *L);
+                          int use_cones, uint32_t j, float *L);
+/* Packs scene's triangles into tris (HL_CAPTURE_FLOATS each) as the
+ * kernel and the twin read them; the scene must have passed the checks. */
+void hl_capture_pack(const hl_capture_scene *scene, float *tris);
 
 #endif
