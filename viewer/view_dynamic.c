@@ -281,13 +281,12 @@ static int render(viewer *v)
     vw_dyn *y = &v->dy;
     if (y->env_dirty) {
         y->env_dirty = 0;
-        if (hl_dynamic_set_env(y->d, v->envs[v->cur].env, (int32_t)y->lights, 0.0f, v->rd.rotate_deg, &y->li) !=
-            HL_OK) {
-            vw_say(v, 1, "dynamic lights: %s", hl_context_last_error(v->ctx));
-            return 0;
-        }
+        y->env_failed = hl_dynamic_set_env(y->d, v->envs[v->cur].env, (int32_t)y->lights, 0.0f, v->rd.rotate_deg,
+                                           &y->li) != HL_OK;
+        if (y->env_failed) vw_say(v, 1, "dynamic lights: %s", hl_context_last_error(v->ctx));
     }
     y->dirty = 0;
+    if (y->env_failed) return 0;
     if (hl_dynamic_render(y->d, y->time, &y->rgb, &y->st) != HL_OK) {
         vw_say(v, 1, "dynamic frame: %s", hl_context_last_error(v->ctx));
         return 0;

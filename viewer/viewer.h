@@ -117,6 +117,9 @@ typedef struct vw_dyn {
     double time, t_start, t_end, play_clock;
     int playing;
     int env_dirty;          /* the lights must be split again (map or rotation) */
+    int env_failed;         /* the last split failed: no dynamic frame until
+                               the next map or rotation (the old lights would
+                               not match the map on screen) */
     int dirty;              /* a body moved or the time changed */
     int showing;            /* the colours on screen are the dynamic method's */
     int ok;                 /* the last frame rendered */

@@ -255,11 +255,12 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
                                    o->rd.rotate_deg, &li);
         if (r == HL_OK) r = hl_dynamic_render(dy, (double)d->time, &rgb, &st);
         if (r == HL_OK && !o->cd.quiet) report(d->scene, d->env, ctx, &li, &st);
+        /* the frame's exposure, so that a reference and its frame look alike */
+        if (r == HL_OK && !o->exposure_set) exposure = hl_exposure_auto(hl_dynamic_mesh(dy), rgb);
         if (r == HL_OK && d->reference) r = swap_in_reference(ctx, dy, env, d->reference, o->cd.quiet, &rgb, &ref);
         const hl_mesh *mesh = dy ? hl_dynamic_mesh(dy) : NULL;
         const char *ext = ext_of(d->out);
         int is_ply = !strcasecmp(ext, ".ply"), is_glb = !strcasecmp(ext, ".glb"), is_img = !is_ply && !is_glb;
-        if (r == HL_OK && !o->exposure_set) exposure = hl_exposure_auto(mesh, rgb);
         if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, mesh, rgb, d->out, d->ply8, exposure);
         if (r == HL_OK && is_glb) r = hl_mesh_save_glb(ctx, mesh, rgb, d->out, exposure);
         if (r == HL_OK && is_img) r = cli_camera_complete(ctx, mesh, o);

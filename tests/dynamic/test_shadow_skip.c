@@ -6,6 +6,7 @@
  *            not on its horizon), the map then the bunny's alone to the
  *            bit, the ground's plane and extent in world space; also with
  *            the ground turned over, and kept with bodies on both sides;
+ *            a triangle (not filling its extent) kept for lights below;
  *            the Embree path draws every body.
  *
  * Every check prints its tolerance and worst error (hl_check_error).
@@ -65,7 +66,8 @@ static void skip_one(hl_context *ctx, scene *s, const char *what)
     /* the plane: the ground's corners on it, inside its extent, which
        has the ground's area */
     hl_flat_body fb;
-    HL_CHECK(sm && hl_shadow_maps_flat(sm, 1, &fb) && !hl_shadow_maps_flat(sm, 0, &fb), "%s: flat bodies", what);
+    HL_CHECK(sm && hl_shadow_maps_flat(sm, 1, &fb) && fb.rect && !hl_shadow_maps_flat(sm, 0, &fb),
+             "%s: flat bodies (the ground a filled rectangle, the bunny not flat)", what);
     if (sm && hl_shadow_maps_flat(sm, 1, &fb)) {
         const uint32_t nn = GROUND_N + 1, corner[4] = {0, GROUND_N, nn * GROUND_N, nn * nn - 1};
         double off = 0, out = 0, side = 0;
@@ -91,6 +93,39 @@ static void skip_one(hl_context *ctx, scene *s, const char *what)
     hl_shadow_maps_destroy(alone);
     free(a);
     free(b);
+}
+
+/* A flat body that does not fill its extent (the ground's half, one
+ * triangle): left out for a light above it, where it hides nothing from
+ * the bunny, but kept in the map for a light below it, since what it hides
+ * could not be taken from its extent. */
+static void skip_triangle(hl_context *ctx, scene *s)
+{
+    const float *g = s->gpos;
+    const uint32_t nn = GROUND_N + 1;
+    float tri_pos[9];
+    memcpy(tri_pos, g, 12);
+    memcpy(tri_pos + 3, g + 3 * (size_t)GROUND_N, 12);
+    memcpy(tri_pos + 6, g + 3 * (size_t)(nn * GROUND_N), 12);
+    uint32_t tri_idx[3] = {0, 2, 1};
+    hl_dyn_object two[2] = {s->obj[0], {.pos = tri_pos, .nverts = 3, .tri = tri_idx, .ntris = 1}};
+    memcpy(two[1].xf, XF_ID, 48);
+    float dirs[2][3] = {{0, 1, 0}, {0, -1, 0}}, *d = malloc((size_t)2 * R_TEST * R_TEST * 4);
+    hl_shadow_frame fr[2];
+    hl_shadow_maps *sm = NULL;
+    hl_flat_body fb;
+    HL_CHECK(hl_shadow_maps_create(ctx, two, 2, R_TEST, HL_SHADOW_RASTER, &sm) == HL_OK, "%s",
+             hl_context_last_error(ctx));
+    if (sm) {
+        hl_shadow_maps_skip_planes(sm, 1);
+        HL_CHECK(hl_shadow_maps_flat(sm, 1, &fb) && !fb.rect, "a triangle taken for a filled rectangle");
+        HL_CHECK(hl_shadow_maps_render(sm, (const float(*)[3])dirs, 2, d, fr) == HL_OK, "%s", hl_context_last_error(ctx));
+        HL_CHECK(fr[0].skip_mask == 2u && fr[1].skip_mask == 0u,
+                 "triangle ground: masks %u (light above, expected 2) and %u (below, expected 0)", fr[0].skip_mask,
+                 fr[1].skip_mask);
+    }
+    hl_shadow_maps_destroy(sm);
+    free(d);
 }
 
 /* A bunny above the ground and one below: the ground separates bodies,
@@ -126,6 +161,7 @@ static void case_skip(void)
     if (!scene_load(ctx, &s)) { HL_CHECK(0, "setup failed"); hl_context_destroy(ctx); return; }
     skip_one(ctx, &s, "ground");
     skip_straddle(ctx, &s);
+    skip_triangle(ctx, &s);
     /* the ground upside down in its own coordinates, (x, -y, 2 cz - z),
        put back in place by its transform: a half turn about X, then z
        moved by 2 cz */

@@ -283,7 +283,9 @@ static void flat_occlusion(hl_frame_state *st, const hl_shadow_frame *f, const h
     uint32_t nblk = light_blocks(split, L, blk);
     for (uint32_t o = 0; o < st->nobj && o < 32; o++) {
         hl_flat_body fb;
-        if (!(f->skip_mask >> o & 1u) || !hl_shadow_maps_flat(st->sm, o, &fb)) continue;
+        /* a flat body that does not fill its extent is only left out for
+           lights on the others' side (shadow_map.h): nothing to take */
+        if (!(f->skip_mask >> o & 1u) || !hl_shadow_maps_flat(st->sm, o, &fb) || !fb.rect) continue;
         float sl = fb.n[0] * L->dir[0] + fb.n[1] * L->dir[1] + fb.n[2] * L->dir[2];
         float sin_ext = L->extent < 0.5f * (float)HL_PI ? sinf(L->extent) : 2.0f;
         for (uint32_t i = 0; i < n; i++) {
@@ -419,7 +421,9 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
     const float inv_pi = (float)(1.0 / 3.14159265358979323846);
     for (uint32_t b = 0; b < nobj; b++) {
         const float *acc = st->acc + 3 * (size_t)st->vstart[b];
-        for (size_t i = 0; i < 3 * (size_t)st->nverts[b]; i++) rgb[b][i] = albedo[b][i] * inv_pi * acc[i];
+        /* the folded lights' SH9 term can dip below 0 at some normals
+           when their light is directional; light is never negative */
+        for (size_t i = 0; i < 3 * (size_t)st->nverts[b]; i++) rgb[b][i] = albedo[b][i] * inv_pi * fmaxf(acc[i], 0.0f);
     }
     t1 = hl_now();
     fs.t_shading = t1 - t;

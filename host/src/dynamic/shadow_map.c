@@ -68,7 +68,14 @@
 #define HL_SHADOW_PLANE_MIN_COS 1e-3
 
 /* Floats of a flat body's plane record (find_plane). */
-#define HL_SHADOW_PLANE_F 12
+#define HL_SHADOW_PLANE_F 13
+
+/* A flat body fills its extent (a rectangle in its plane) when its
+ * triangles' area is this close to the extent's: then what it hides can
+ * be taken from the extent (dyn_frame.c). A disc, an L or a ground with
+ * holes, or a rectangle turned in its plane against the extent's axes,
+ * fall short and stay in the maps for lights on the far side. */
+#define HL_SHADOW_RECT_TOL 1e-3
 
 /* Work-items per map on a CPU device (wg 1): each takes ntris / 64
  * consecutive triangles, so 2 cores get 64 K items to balance. */
@@ -295,9 +302,10 @@ static void copy_objects(hl_shadow_maps *sm, const hl_dyn_object *objects)
 
 /* The plane record of a flat object (own coordinates, HL_SHADOW_PLANE_F
  * floats): unit normal n, w with n . p = w for every vertex, an in-plane
- * axis u, the vertices' extent along u and along v = n x u, and 1 (flat);
- * all zeros when it is not flat. The normal is the area-weighted sum of
- * its triangles' normals. */
+ * axis u, the vertices' extent along u and along v = n x u, 1 (flat), and
+ * 1 when the triangles fill that extent (HL_SHADOW_RECT_TOL); all zeros
+ * when it is not flat. The normal is the area-weighted sum of its
+ * triangles' normals. */
 static void find_plane(const hl_dyn_object *ob, const float *box, float *pl)
 {
     memset(pl, 0, HL_SHADOW_PLANE_F * sizeof *pl);
@@ -309,8 +317,15 @@ static void find_plane(const hl_dyn_object *ob, const float *box, float *pl)
         cross3(e1, e2, x);
         for (int k = 0; k < 3; k++) n[k] += x[k];
     }
-    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), area = 0.0;
     if (!(len > 0.0) || !ob->nverts) return;
+    for (uint32_t t = 0; t < ob->ntris; t++) {
+        const float *a = ob->pos + 3 * (size_t)ob->tri[3 * (size_t)t], *b = ob->pos + 3 * (size_t)ob->tri[3 * (size_t)t + 1],
+                    *d = ob->pos + 3 * (size_t)ob->tri[3 * (size_t)t + 2];
+        double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]}, x[3];
+        cross3(e1, e2, x);
+        area += 0.5 * sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+    }
     for (int k = 0; k < 3; k++) n[k] /= len;
     for (uint32_t v = 0; v < ob->nverts; v++)
         for (int k = 0; k < 3; k++) c[k] += ob->pos[3 * (size_t)v + k];
@@ -335,6 +350,8 @@ static void find_plane(const hl_dyn_object *ob, const float *box, float *pl)
     pl[3] = (float)w;
     pl[7] = (float)lo[0], pl[8] = (float)hi[0], pl[9] = (float)lo[1], pl[10] = (float)hi[1];
     pl[11] = 1.0f;
+    double box_area = (hi[0] - lo[0]) * (hi[1] - lo[1]);
+    pl[12] = box_area > 0.0 && fabs(area / box_area - 1.0) <= HL_SHADOW_RECT_TOL ? 1.0f : 0.0f;
 }
 
 void hl_shadow_maps_skip_planes(hl_shadow_maps *sm, int on)
@@ -362,6 +379,7 @@ int hl_shadow_maps_flat(const hl_shadow_maps *sm, uint32_t o, hl_flat_body *fb)
         fb->n[k] = (float)n[k], fb->u[k] = (float)u[k], fb->v[k] = (float)v[k], fb->p[k] = (float)p[k];
     }
     fb->lo[0] = pl[7], fb->hi[0] = pl[8], fb->lo[1] = pl[9], fb->hi[1] = pl[10];
+    fb->rect = pl[12] == 1.0f;
     return 1;
 }
 
@@ -393,7 +411,10 @@ static uint32_t skip_mask(const hl_shadow_maps *sm, const float dir[3])
                 below &= h <= tol;
             }
         }
-        if (above || below) mask |= 1u << o;
+        /* with the others on the light's side it hides nothing from them;
+           on the far side, what it hides is taken from its extent, which
+           only a body filling it may have taken */
+        if ((s > 0.0 && above) || (s < 0.0 && below) || (fb.rect && (above || below))) mask |= 1u << o;
     }
     return mask;
 }

@@ -68,11 +68,11 @@ hl_result hl_shadow_maps_render_in(hl_shadow_maps *sm, const hl_shadow_frame *fr
  * Embree path draws every body). A body whose vertices lie on one plane
  * cannot shadow itself. When every other body lies on one side of that
  * plane, it is left out of the map and of the frame's fit
- * (frame.skip_mask): with the light on the bodies' side it shadows none
- * of them, and with the light on the other side it hides the light from
- * every point of them whose ray meets it, which the caller works out
- * from the plane (hl_shadow_maps_flat) exactly, with no depth bias at
- * the contact. The map then spans the casters only, so a bunny on a
+ * (frame.skip_mask) for lights on the bodies' side, where it shadows
+ * none of them; and, when it is a filled rectangle (flat.rect), also for
+ * lights on the other side, where it hides the light from every point
+ * whose ray meets the rectangle, which the caller works out from the
+ * plane (hl_shadow_maps_flat) with no depth bias at the contact. The map then spans the casters only, so a bunny on a
  * ground four times its width gets four times finer texels and a depth
  * range of its own height. Bodies 32 and up are always drawn (the mask
  * has 32 bits). */
@@ -83,6 +83,7 @@ typedef struct hl_flat_body {
     float n[3], p[3];   /* unit normal, a point of the plane */
     float u[3], v[3];   /* unit axes in the plane, v = n x u */
     float lo[2], hi[2]; /* the body's extent along u and v, from p */
+    int rect;           /* its triangles fill that extent (a rectangle) */
 } hl_flat_body;
 
 /* 1 and *fb when body o is flat (all its vertices on one plane), else 0. */
