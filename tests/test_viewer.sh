@@ -64,6 +64,17 @@ view() {
   return $rc
 }
 
+# must_differ A.exr B.exr EV WHY: compare's exit 1 (they differ) passes;
+# 0 (the same picture) fails with WHY; anything else (unreadable) fails.
+must_differ() {
+  "$compare" compare "$1" "$2" "$3" >"$tmp/cmp.txt" 2>&1
+  case $? in
+    1) ;;
+    0) fail "$4" ;;
+    *) cat "$tmp/cmp.txt"; fail "cannot compare $1 with $2" ;;
+  esac
+}
+
 # same_picture NAME VIEW.exr RELIGHT.exr EV
 same_picture() {
   echo "$1:"
@@ -137,8 +148,7 @@ dynamic_moved)
   same_picture "--dynamic SCENE.hlt, object moved by 3,0,2" "$tmp/view.exr" "$tmp/rd.exr" 0.5
   hud_says "--dynamic SCENE.hlt, object moved" "dynamic K 4: irradiance .* + shadow maps .* + CSM build .* + CSM eval .* + shading .* = .* ms, 1 body moved"
   echo "the moved picture must not be the picture at rest:"
-  "$compare" compare "$tmp/view.exr" "$tmp/prt.exr" 0.5 >"$tmp/cmp.txt" 2>&1 &&
-    fail "the moved frame looks like the frame at rest: the move did not show"
+  must_differ "$tmp/view.exr" "$tmp/prt.exr" 0.5 "the moved frame looks like the frame at rest: the move did not show"
   view --dynamic "$data/bunny_lowres.obj" --ground "${dyn[@]}" "${dcam[@]}" "${mv[@]}" --no-glare --frames 2 \
     --screenshot "$tmp/view2.exr" || fail "view --dynamic MESH --ground --move exited with an error"
   same_picture "--dynamic MESH --ground, object moved by 3,0,2" "$tmp/view2.exr" "$tmp/rd.exr" 0.5
@@ -183,8 +193,7 @@ dynamic_anim)
     hud_says "--time $t" "dynamic K 4: .*, t $t""0 s of 0.00-2.00 paused"
   done
   echo "the box at 0.5 s and at 1.5 s must differ:"
-  "$compare" compare "$tmp/view0.5.exr" "$tmp/view1.5.exr" -1 >"$tmp/cmp.txt" 2>&1 &&
-    fail "the frames at 0.5 s and 1.5 s are the same picture: --time did nothing"
+  must_differ "$tmp/view0.5.exr" "$tmp/view1.5.exr" -1 "the frames at 0.5 s and 1.5 s are the same picture: --time did nothing"
   # playing: every frame after the first is a new dynamic frame
   view --dynamic "$tmp/anim.gltf" "${dyn[@]}" "${acam[@]}" --play --no-glare --frames 4 ||
     fail "view --dynamic --play exited with an error"
