@@ -20,21 +20,25 @@
 #pragma OPENCL FP_CONTRACT OFF
 
 #define HL_CAPTURE_F4 6
-/* Most triangles: one bit each in a work-item's cull mask. */
-#define HL_CAPTURE_MASK_WORDS 128
+/* Candidates a texel lists (ushort indices); a texel whose cone meets more
+ * tests every triangle. 256: a few walls and a lamp list far fewer. */
+#define HL_CAPTURE_LIST 256
+
 /* Radians added to a texel's cone: more than the float error of the acos
  * of a dot product near 1 (about sqrt(2 * 2^-24) = 3.5e-4), so a cull is
  * never wrong and the hits are those of testing every triangle. */
 #define HL_CAPTURE_CONE_MARGIN 4e-3f
 
-/* Nearest marked triangle along direction (dx, dy, dz) from the origin,
- * or -1; mask NULL: every triangle. */
-static int hl_capture_nearest(global const float4 *tris, uint ntris, const uint *mask, float dx, float dy, float dz)
+/* Nearest triangle along direction (dx, dy, dz) from the origin, or -1:
+ * of the n listed ones (ascending), or of all when list is NULL. */
+static int hl_capture_nearest(global const float4 *tris, uint ntris, const ushort *list, uint n, float dx, float dy,
+                              float dz)
 {
     float best = INFINITY;
     int hit = -1;
-    for (uint i = 0; i < ntris; i++) {
-        if (mask && !((mask[i >> 5] >> (i & 31u)) & 1u)) continue;
+    uint count = list ? n : ntris;
+    for (uint e = 0; e < count; e++) {
+        uint i = list ? (uint)list[e] : e;
         global const float4 *T = tris + HL_CAPTURE_F4 * i;
         float4 v0 = T[0], e1 = T[1], e2 = T[2];
         float px = dy * e2.z - dz * e2.y, py = dz * e2.x - dx * e2.z, pz = dx * e2.y - dy * e2.x;
@@ -89,20 +93,24 @@ kernel void hl_capture(global const float4 *tris, uint ntris, uint N, uint S, gl
         /* the cones meet when the axes' angle is at most alpha + beta:
            their dot product at least cos(alpha + beta), no acos per pair */
         float cb = cos(beta), sb = sin(beta);
-        uint mask[HL_CAPTURE_MASK_WORDS];
-        for (uint w = 0; w < (ntris + 31u) >> 5; w++) mask[w] = 0u;
-        for (uint i = 0; i < ntris; i++) {
+        ushort list[HL_CAPTURE_LIST];
+        uint n = 0;
+        for (uint i = 0; i < ntris && n <= HL_CAPTURE_LIST; i++) {
             float4 cone = tris[HL_CAPTURE_F4 * i + 4], cs = tris[HL_CAPTURE_F4 * i + 5];
             float dot = axis.x * cone.x + axis.y * cone.y + axis.z * cone.z;
-            if (cone.w + beta >= 3.14159265f || dot >= cs.x * cb - cs.y * sb) mask[i >> 5] |= 1u << (i & 31u);
+            if (cone.w + beta >= 3.14159265f || dot >= cs.x * cb - cs.y * sb) {
+                if (n < HL_CAPTURE_LIST) list[n] = (ushort)i;
+                n++;
+            }
         }
+        const ushort *use = n <= HL_CAPTURE_LIST ? list : 0; /* overflow: every triangle */
         for (uint a = 0; a < S; a++)
             for (uint b = 0; b < S; b++) {
                 float s = s0 + ((float)b + 0.5f) * hs, t = t0 + ((float)a + 0.5f) * hs;
                 float r2 = s * s + t * t;
                 if (r2 > 1.0f) continue;
                 float k = 1.0f / (1.0f + r2), dw = 4.0f * k * k;
-                int hit = hl_capture_nearest(tris, ntris, mask, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
+                int hit = hl_capture_nearest(tris, ntris, use, n, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
                 if (hit >= 0) {
                     float4 em = tris[HL_CAPTURE_F4 * (uint)hit + 3];
                     ar += dw * em.x;
@@ -119,7 +127,7 @@ kernel void hl_capture(global const float4 *tris, uint ntris, uint N, uint S, gl
                (every triangle: the point may lie outside the texel) */
             float cs = s0 + 0.5f * h, ct = t0 + 0.5f * h, q = 0.9999999f / sqrt(cs * cs + ct * ct);
             float s = cs * q, t = ct * q, r2 = s * s + t * t, k = 1.0f / (1.0f + r2);
-            int hit = hl_capture_nearest(tris, ntris, 0, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
+            int hit = hl_capture_nearest(tris, ntris, 0, 0u, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
             if (hit >= 0) {
                 float4 em = tris[HL_CAPTURE_F4 * (uint)hit + 3];
                 ar = em.x;

@@ -30,13 +30,13 @@
 
 /* A growing triangle soup. */
 typedef struct soup {
-    float pos[9 * 256], em[3 * 256];
+    float pos[9 * 512], em[3 * 512];
     uint32_t n;
 } soup;
 
 static void add_tri(soup *s, const double a[3], const double b[3], const double c[3], const float e[3])
 {
-    if (s->n >= 256) return;
+    if (s->n >= 512) return;
     for (int k = 0; k < 3; k++) {
         s->pos[9 * s->n + k] = (float)a[k];
         s->pos[9 * s->n + 3 + k] = (float)b[k];
@@ -123,10 +123,18 @@ static void case_twin(void)
         for (int withenv = 0; cr && cc && withenv < 2; withenv++) {
             hl_capture_scene sc = scene_of(&s, centre, withenv ? env : NULL);
             HL_CHECK(hl_capture_run(cr, &sc, a) == HL_OK, "%s", hl_context_last_error(ref));
-            double t0 = hl_now();
             HL_CHECK(hl_capture_run(cc, &sc, b) == HL_OK, "%s", hl_context_last_error(cl));
-            if (N == 64)
-                printf("N=%u S=%u %u triangles: OpenCL capture %.2f ms\n", N, Ss[k], s.n, (hl_now() - t0) * 1e3);
+            if (N == 64 && !withenv) {
+                /* for the record (bench is where speed is judged): the
+                   fastest of 7 captures, upload and read-back included */
+                double best = INFINITY;
+                for (int rep = 0; rep < 7; rep++) {
+                    double t0 = hl_now();
+                    hl_capture_run(cc, &sc, b);
+                    best = fmin(best, hl_now() - t0);
+                }
+                printf("N=%u S=%u %u triangles: OpenCL capture %.2f ms (fastest of 7)\n", N, Ss[k], s.n, best * 1e3);
+            }
             double lit = 0.0;
             for (size_t j = 0; j < 3 * (size_t)nc; j++) {
                 worst = fmax(worst, fabs((double)a[j] - b[j]) / fmax(1.0, fabs(a[j])));
@@ -157,6 +165,42 @@ static void case_twin(void)
         for (size_t j = 0; j < 3 * (size_t)nc; j++) diff = fmax(diff, fabs((double)a[j] - b[j]));
         hl_check_error("N=64 S=4 twin with cones vs every triangle (absolute)", diff, 0.0);
         free(tris); free(a); free(b);
+    }
+    /* 400 large triangles around the centre (corners 2 to 3 away in any
+       direction: most hold the centre in their bounding sphere, so their
+       cone is every direction): more candidates than a texel's list
+       holds, so the texels test every triangle */
+    {
+        static soup big;
+        big.n = 0;
+        while (big.n < 400) {
+            double p[3][3];
+            for (int v = 0; v < 3; v++) {
+                double z = 2.0 * hl_rng_unit() - 1.0, ph = 2.0 * HL_PI * hl_rng_unit(), r = 2.0 + hl_rng_unit();
+                p[v][0] = r * sqrt(1.0 - z * z) * cos(ph); p[v][1] = r * z; p[v][2] = r * sqrt(1.0 - z * z) * sin(ph);
+            }
+            const float e[3] = {(float)hl_rng_unit(), (float)hl_rng_unit(), 0.0f};
+            add_tri(&big, p[0], p[1], p[2], e);
+        }
+        const uint32_t N = 16, nc = 2 * N * N;
+        float *tris = malloc((size_t)big.n * HL_CAPTURE_FLOATS * 4), *a = malloc((size_t)nc * 12), *b = malloc((size_t)nc * 12);
+        float *d = malloc((size_t)nc * 12);
+        hl_capture_scene sc = scene_of(&big, centre, NULL);
+        hl_capture_pack(&sc, tris);
+        for (uint32_t j = 0; j < nc; j++) hl_ref_capture_texel(tris, big.n, N, 2, NULL, 0, j, b);
+        hl_capture *cc = NULL;
+        HL_CHECK(hl_capture_create(cl, N, 2, &cc) == HL_OK && hl_capture_run(cc, &sc, d) == HL_OK, "%s",
+                 hl_context_last_error(cl));
+        for (uint32_t j = 0; j < nc; j++) hl_ref_capture_texel(tris, big.n, N, 2, NULL, 1, j, a);
+        double diff = 0.0, dd = 0.0;
+        for (size_t j = 0; j < 3 * (size_t)nc; j++) {
+            diff = fmax(diff, fabs((double)a[j] - b[j]));
+            dd = fmax(dd, fabs((double)d[j] - b[j]));
+        }
+        hl_check_error("N=16 400 triangles, lists overflowing: twin with cones vs every triangle (absolute)", diff, 0.0);
+        hl_check_error("N=16 400 triangles, lists overflowing: OpenCL vs twin (absolute)", dd, 0.0);
+        hl_capture_destroy(cc);
+        free(tris); free(a); free(b); free(d);
     }
     hl_context_destroy(cl);
     hl_context_destroy(ref);

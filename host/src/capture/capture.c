@@ -98,10 +98,10 @@ static hl_result check_scene(hl_context *ctx, uint32_t ncoef, const hl_capture_s
 }
 
 /* Corners relative to the centre (in double, then rounded once), the two
- * edges, so every ray starts at the origin, and the cone from the origin
- * around the triangle's bounding sphere, from the rounded corners the
- * kernel tests: everything (half-angle 4 > pi) when the origin is inside
- * the sphere. */
+ * edges, so every ray starts at the origin, and a cone from the origin
+ * holding the triangle (from the rounded corners the kernel tests): the
+ * narrower of the one around its bounding sphere and the one around its
+ * corners' directions; everything (half-angle 4 > pi) when neither holds. */
 void hl_capture_pack(const hl_capture_scene *s, float *tris)
 {
     for (uint32_t i = 0; i < s->triangle_count; i++) {
@@ -127,14 +127,39 @@ void hl_capture_pack(const hl_capture_scene *s, float *tris)
             for (int a = 0; a < 3; a++) e2 += (c[v][a] - m[a]) * (c[v][a] - m[a]);
             if (e2 > R2) R2 = e2;
         }
-        double R = sqrt(R2) * (1.0 + 1e-6), d = sqrt(d2);
-        if (d <= R) {
-            o[16] = o[17] = o[18] = 0.0f;
-            o[19] = 4.0f;
-        } else {
-            for (int a = 0; a < 3; a++) o[16 + a] = (float)(m[a] / d);
-            o[19] = nextafterf((float)asin(R / d), 4.0f);
+        double R = sqrt(R2) * (1.0 + 1e-6), d = sqrt(d2), axis[3] = {0, 0, 0}, alpha = 4.0;
+        if (d > R) {
+            for (int a = 0; a < 3; a++) axis[a] = m[a] / d;
+            alpha = asin(R / d);
         }
+        /* a large triangle close by: the cap around its corners' mean
+           direction through the farthest corner holds it when that cap is
+           less than a hemisphere (such a cap is convex on the sphere) */
+        double u[3][3], sum[3] = {0, 0, 0}, ls = 0.0;
+        int ok = 1;
+        for (int v = 0; v < 3; v++) {
+            double l = sqrt(c[v][0] * c[v][0] + c[v][1] * c[v][1] + c[v][2] * c[v][2]);
+            if (l == 0.0) ok = 0;
+            for (int a = 0; a < 3 && ok; a++) {
+                u[v][a] = c[v][a] / l;
+                sum[a] += u[v][a];
+            }
+        }
+        for (int a = 0; a < 3 && ok; a++) ls += sum[a] * sum[a];
+        if (ok && ls > 0.0) {
+            double cmin = 1.0;
+            for (int v = 0; v < 3; v++) {
+                double dp = (sum[0] * u[v][0] + sum[1] * u[v][1] + sum[2] * u[v][2]) / sqrt(ls);
+                if (dp < cmin) cmin = dp;
+            }
+            double beta = acos(cmin > 1.0 ? 1.0 : cmin) * (1.0 + 1e-6);
+            if (beta < 0.5 * HL_PI - 1e-3 && beta < alpha) {
+                for (int a = 0; a < 3; a++) axis[a] = sum[a] / sqrt(ls);
+                alpha = beta;
+            }
+        }
+        for (int a = 0; a < 3; a++) o[16 + a] = (float)axis[a];
+        o[19] = alpha >= 4.0 ? 4.0f : nextafterf((float)alpha, 4.0f);
         o[20] = (float)cos((double)o[19]);
         o[21] = (float)sin((double)o[19]);
         o[22] = o[23] = 0.0f;

@@ -29,11 +29,13 @@ static inline uint32_t hl_capture_default_s(uint32_t N)
     uint32_t S = N >= HL_CAPTURE_DEFAULT_NS ? 1u : HL_CAPTURE_DEFAULT_NS / N;
     return S > HL_CAPTURE_MAX_S ? HL_CAPTURE_MAX_S : S;
 }
-/* Most triangles: one bit each in a texel's cull mask (128 words, as
- * HL_CAPTURE_MASK_WORDS in kernels/capture/capture.cl). Every ray tests
- * every triangle whose bounding cone meets its texel's (no hierarchy):
- * meant for a lamp and a few walls. */
+/* Most triangles (ushort indices in a texel's candidate list). Every ray
+ * tests every triangle whose bounding cone meets its texel's (no
+ * hierarchy): meant for a lamp and a few walls. */
 #define HL_CAPTURE_MAX_TRIS 4096u
+/* Candidates a texel lists (HL_CAPTURE_LIST in the kernel, 512 bytes of
+ * private memory); a texel whose cone meets more tests every triangle. */
+#define HL_CAPTURE_LIST 256u
 /* Floats per packed triangle (HL_CAPTURE_F4 float4 in the kernel). */
 #define HL_CAPTURE_FLOATS 24u
 /* Radians added to a texel's cone (as in the kernel): more than the float

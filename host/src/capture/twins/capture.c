@@ -10,15 +10,16 @@
 
 #include "capture.h"
 
-/* Nearest marked triangle along direction (dx, dy, dz) from the origin,
- * or -1 (Moller-Trumbore, both sides, first index on a tie); mask NULL:
- * every triangle. */
-static int nearest(const float *tris, uint32_t ntris, const uint32_t *mask, float dx, float dy, float dz)
+/* Nearest triangle along direction (dx, dy, dz) from the origin, or -1
+ * (Moller-Trumbore, both sides, first on a tie): of the n listed ones
+ * (ascending), or of all when list is NULL. */
+static int nearest(const float *tris, uint32_t ntris, const uint16_t *list, uint32_t n, float dx, float dy, float dz)
 {
     float best = INFINITY;
     int hit = -1;
-    for (uint32_t i = 0; i < ntris; i++) {
-        if (mask && !((mask[i >> 5] >> (i & 31u)) & 1u)) continue;
+    uint32_t count = list ? n : ntris;
+    for (uint32_t e = 0; e < count; e++) {
+        uint32_t i = list ? (uint32_t)list[e] : e;
         const float *v0 = tris + HL_CAPTURE_FLOATS * (size_t)i, *e1 = v0 + 4, *e2 = v0 + 8;
         float px = dy * e2[2] - dz * e2[1], py = dz * e2[0] - dx * e2[2], pz = dx * e2[1] - dy * e2[0];
         float det = e1[0] * px + e1[1] * py + e1[2] * pz;
@@ -61,10 +62,11 @@ static float corner_angle(const float axis[3], float s, float t, float sy)
     return angle(axis, d);
 }
 
-/* Marks the triangles whose cone meets the cone of the texel [s0, s1] x
- * [t0, t1]: the paraboloid map takes circles to circles, so the cap
- * through the farthest corner holds all of the texel. */
-static void cull(const float *tris, uint32_t ntris, float s0, float t0, float h, float sy, uint32_t *mask)
+/* Lists the triangles whose cone meets the cone of the texel [s0, s1] x
+ * [t0, t1] (the paraboloid map takes circles to circles, so the cap
+ * through the farthest corner holds all of the texel); returns their
+ * count, more than HL_CAPTURE_LIST when the list overflowed. */
+static uint32_t cull(const float *tris, uint32_t ntris, float s0, float t0, float h, float sy, uint16_t *list)
 {
     float axis[3], s1 = s0 + h, t1 = t0 + h;
     dir_of(s0 + 0.5f * h, t0 + 0.5f * h, sy, axis);
@@ -74,12 +76,16 @@ static void cull(const float *tris, uint32_t ntris, float s0, float t0, float h,
     /* the cones meet when the axes' angle is at most alpha + beta: their
        dot product at least cos(alpha + beta), no acos per pair */
     float cb = cosf(beta), sb = sinf(beta);
-    for (uint32_t w = 0; w < (ntris + 31u) >> 5; w++) mask[w] = 0u;
-    for (uint32_t i = 0; i < ntris; i++) {
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < ntris && n <= HL_CAPTURE_LIST; i++) {
         const float *cone = tris + HL_CAPTURE_FLOATS * (size_t)i + 16, *cs = cone + 4;
         float dot = axis[0] * cone[0] + axis[1] * cone[1] + axis[2] * cone[2];
-        if (cone[3] + beta >= 3.14159265f || dot >= cs[0] * cb - cs[1] * sb) mask[i >> 5] |= 1u << (i & 31u);
+        if (cone[3] + beta >= 3.14159265f || dot >= cs[0] * cb - cs[1] * sb) {
+            if (n < HL_CAPTURE_LIST) list[n] = (uint16_t)i;
+            n++;
+        }
     }
+    return n;
 }
 
 void hl_ref_capture_texel(const float *tris, uint32_t ntris, uint32_t N, uint32_t S, const float *env_L,
@@ -93,15 +99,16 @@ void hl_ref_capture_texel(const float *tris, uint32_t ntris, uint32_t N, uint32_
     float ns = s0 > 0.0f ? s0 : (s1 < 0.0f ? s1 : 0.0f), nt = t0 > 0.0f ? t0 : (t1 < 0.0f ? t1 : 0.0f);
     float ar = 0.0f, ag = 0.0f, ab = 0.0f, wsum = 0.0f, wmiss = 0.0f;
     if (ns * ns + nt * nt < 1.0f) {
-        uint32_t mask[HL_CAPTURE_MAX_TRIS / 32];
-        if (use_cones) cull(tris, ntris, s0, t0, h, sy, mask);
+        uint16_t list[HL_CAPTURE_LIST];
+        uint32_t n = use_cones ? cull(tris, ntris, s0, t0, h, sy, list) : HL_CAPTURE_LIST + 1;
+        const uint16_t *use = n <= HL_CAPTURE_LIST ? list : NULL; /* overflow: every triangle */
         for (uint32_t a = 0; a < S; a++)
             for (uint32_t b = 0; b < S; b++) {
                 float s = s0 + ((float)b + 0.5f) * hs, t = t0 + ((float)a + 0.5f) * hs;
                 float r2 = s * s + t * t;
                 if (r2 > 1.0f) continue;
                 float k = 1.0f / (1.0f + r2), dw = 4.0f * k * k;
-                int hit = nearest(tris, ntris, use_cones ? mask : NULL, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
+                int hit = nearest(tris, ntris, use, n, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
                 if (hit >= 0) {
                     const float *em = tris + HL_CAPTURE_FLOATS * (size_t)hit + 12;
                     ar += dw * em[0];
@@ -118,7 +125,7 @@ void hl_ref_capture_texel(const float *tris, uint32_t ntris, uint32_t N, uint32_
                (every triangle: the point may lie outside the texel) */
             float cs = s0 + 0.5f * h, ct = t0 + 0.5f * h, q = 0.9999999f / sqrtf(cs * cs + ct * ct);
             float s = cs * q, t = ct * q, r2 = s * s + t * t, k = 1.0f / (1.0f + r2);
-            int hit = nearest(tris, ntris, NULL, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
+            int hit = nearest(tris, ntris, NULL, 0, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
             if (hit >= 0) {
                 const float *em = tris + HL_CAPTURE_FLOATS * (size_t)hit + 12;
                 ar = em[0];
