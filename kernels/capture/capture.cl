@@ -14,8 +14,9 @@
  * Triangles: HL_CAPTURE_F4 float4 each: v0 relative to the capture point,
  * e1 = v1 - v0, e2 = v2 - v0, emitted RGB, the bounding cone (unit axis,
  * half-angle in radians; more than pi: every direction), the half-angle's
- * cosine and sine. Output: three
- * planes (R, G, B) of ncoef = 2 N^2 texels.
+ * cosine and sine. Output: three planes (R, G, B) of ncoef = 2 N^2
+ * texels. Ray casting, not rasterisation: a straight edge is a circle arc
+ * in a paraboloid map, and a few triangles cost little per ray.
  */
 #pragma OPENCL FP_CONTRACT OFF
 

@@ -21,7 +21,8 @@
  * N = 64 gains nothing (0.24%) for 4 times the rays. */
 #define HL_CAPTURE_DEFAULT_NS 256u
 /* Most rays per texel side: 16 x 16 rays already resolve an edge to
- * 1/16 texel, finer than the map path's own cells. */
+ * 1/16 texel, finer than the map path's own cells (0.4 texel); the
+ * default reaches it at N = 16 (and stops there at N = 8, N S = 128). */
 #define HL_CAPTURE_MAX_S 16u
 /* The S a capture of resolution N uses for S = 0. */
 static inline uint32_t hl_capture_default_s(uint32_t N)
@@ -29,9 +30,11 @@ static inline uint32_t hl_capture_default_s(uint32_t N)
     uint32_t S = N >= HL_CAPTURE_DEFAULT_NS ? 1u : HL_CAPTURE_DEFAULT_NS / N;
     return S > HL_CAPTURE_MAX_S ? HL_CAPTURE_MAX_S : S;
 }
-/* Most triangles (ushort indices in a texel's candidate list). Every ray
- * tests every triangle whose bounding cone meets its texel's (no
- * hierarchy): meant for a lamp and a few walls. */
+/* Most triangles. Every ray tests every triangle whose bounding cone
+ * meets its texel's (no hierarchy), so the cost grows with the triangles
+ * whose cones are wide: meant for a lamp and a few walls, and a scene of
+ * thousands wants a hierarchy first (the candidate lists' ushort indices
+ * would allow 65535). */
 #define HL_CAPTURE_MAX_TRIS 4096u
 /* Candidates a texel lists (HL_CAPTURE_LIST in the kernel, 512 bytes of
  * private memory); a texel whose cone meets more tests every triangle. */
