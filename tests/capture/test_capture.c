@@ -4,11 +4,15 @@
  *
  * capture.twin        the OpenCL kernel against the twin (the reference
  *                     backend) on ~100 triangles, with and without a
- *                     fallback map: the same operations in the same order.
+ *                     fallback map: the same operations in the same order;
+ *                     the cones' culling against testing every triangle,
+ *                     also with the candidate lists overflowing.
  * capture.energy      an emissive square of side a at distance D, on the
- *                     +Y axis and on the +X axis (across the maps' seam):
- *                     sum L_j Omega_j against L 4 asin(a^2 / (a^2 + 4 D^2)),
- *                     N = 16, 64, 128.
+ *                     +Y axis and on the +X axis (across the maps' seam),
+ *                     turned five ways about it: sum L_j Omega_j against
+ *                     L 4 asin(a^2 / (a^2 + 4 D^2)), N = 16, 64, 128, S = 1
+ *                     to 8 and the default; a closed emitting box gives
+ *                     its radiance in every texel.
  * capture.crosscheck  the same surroundings ray-cast here into an
  *                     equirectangular image, put through the ordinary
  *                     environment path (hl_env_create, hl_env_to_cells,
