@@ -10,6 +10,8 @@
 #ifndef HL_TEST_LIGHT_UTIL_H
 #define HL_TEST_LIGHT_UTIL_H
 
+#include <unistd.h>
+
 static inline hl_context *ctx_of(hl_backend b)
 {
     hl_context_desc d = {.backend = b, .cl_platform = -1, .cl_device = -1};
@@ -24,7 +26,9 @@ static inline const char *make_transport(const char *name, const char *extra)
 {
     static char path[1024];
     char cmd[4096];
-    snprintf(path, sizeof path, "%s/%s", hl_test_env("HL_TMP", "/tmp"), name);
+    /* named by the process too: ctest runs the select and relight cases
+       at once, and two precomputes of one name lock each other out */
+    snprintf(path, sizeof path, "%s/%ld_%s", hl_test_env("HL_TMP", "/tmp"), (long)getpid(), name);
     snprintf(cmd, sizeof cmd, "'%s' precompute '%s/bunny_lowres.obj' --ground --ground-res 12 -C 32 -N 32 -q %s -o '%s'",
              hl_test_env("HL_BIN", "haarlight"), hl_test_env("HL_REPO_DATA", "data"), extra, path);
     if (system(cmd) != 0) {
