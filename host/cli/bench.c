@@ -597,8 +597,7 @@ int cmd_bench(int argc, char **argv)
         free(b);
         return u;
     }
-    if (mkdir(b->o.outdir, 0777) != 0 && errno != EEXIST) {
-        fprintf(stderr, "haarlight: %s: cannot create the output folder: %s\n", b->o.outdir, strerror(errno));
+    if (!cli_make_dir(b->o.outdir)) {
         free(b);
         return 1;
     }

@@ -34,6 +34,11 @@ int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context
  * NULL) once they are created, and unwatches them before destroying them. */
 void cli_watch(hl_context *a, hl_context *b);
 void cli_unwatch(void);
+/* The extension of path's file name, from its last dot ("" when none). */
+const char *cli_ext_of(const char *path);
+/* Makes the folder dir unless it exists; prints why and returns 0 when
+ * it cannot. */
+int cli_make_dir(const char *dir);
 /* Prints the context's last error; returns the exit code for r. */
 int cli_fail(hl_context *ctx, hl_result r);
 /* hl_env_load, then (unless quiet) a line on stderr saying how many

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "cli.h"
 
@@ -116,4 +117,17 @@ int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context
         return 0;
     }
     return 1;
+}
+
+const char *cli_ext_of(const char *path)
+{
+    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+    return dot && (!slash || dot > slash) ? dot : "";
+}
+
+int cli_make_dir(const char *dir)
+{
+    if (mkdir(dir, 0777) == 0 || errno == EEXIST) return 1;
+    fprintf(stderr, "haarlight: %s: cannot create the output folder: %s\n", dir, strerror(errno));
+    return 0;
 }

@@ -33,12 +33,6 @@ static const char *const usage_relight =
     "running:\n"
     CLI_USAGE_RUNNING;
 
-static const char *ext_of(const char *path)
-{
-    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
-    return dot && (!slash || dot > slash) ? dot : "";
-}
-
 int cmd_relight(int argc, char **argv)
 {
     const char *usage = usage_relight;
@@ -70,7 +64,7 @@ int cmd_relight(int argc, char **argv)
     if (!scene) return usage_error(usage, "%s", "no SCENE.hlt given");
     if (!out) return usage_error(usage, "%s", "no output given (-o OUT.ply|.glb|.exr|.png)");
     if (env_path && want_sky) return usage_error(usage, "%s", "--env and the sky options contradict each other");
-    const char *ext = ext_of(out);
+    const char *ext = cli_ext_of(out);
     int is_ply = !strcasecmp(ext, ".ply"), is_glb = !strcasecmp(ext, ".glb"),
         is_img = !strcasecmp(ext, ".exr") || !strcasecmp(ext, ".png");
     if (!is_ply && !is_glb && !is_img) return usage_error(usage, "output %s: expected a .ply, .glb, .exr or .png name", out);

@@ -87,12 +87,6 @@ typedef struct dyn_opts {
     float move[DYN_MAX_MOVES][3];
 } dyn_opts;
 
-static const char *ext_of(const char *path)
-{
-    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
-    return dot && (!slash || dot > slash) ? dot : "";
-}
-
 /* BODY:X,Y,Z, the name up to the last ':' */
 static int parse_move(const char *v, dyn_opts *d)
 {
@@ -176,7 +170,7 @@ static int parse_args(int argc, char **argv, dyn_opts *d, cli_scene_opts *o)
     if (d->env && d->sky) return usage_error(usage_dyn, "%s", "--env and the sky options contradict each other");
     if (d->reference && o->rd.rotate_deg != 0.0f)
         return usage_error(usage_dyn, "%s", "--reference integrates the map as given: drop --rotate");
-    const char *ext = ext_of(d->out);
+    const char *ext = cli_ext_of(d->out);
     if (strcasecmp(ext, ".ply") && strcasecmp(ext, ".glb") && strcasecmp(ext, ".exr") && strcasecmp(ext, ".png"))
         return usage_error(usage_dyn, "output %s: expected a .ply, .glb, .exr or .png name", d->out);
     return -1; /* go on */
@@ -259,7 +253,7 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
         if (r == HL_OK && !o->exposure_set) exposure = hl_exposure_auto(hl_dynamic_mesh(dy), rgb);
         if (r == HL_OK && d->reference) r = swap_in_reference(ctx, dy, env, d->reference, o->cd.quiet, &rgb, &ref);
         const hl_mesh *mesh = dy ? hl_dynamic_mesh(dy) : NULL;
-        const char *ext = ext_of(d->out);
+        const char *ext = cli_ext_of(d->out);
         int is_ply = !strcasecmp(ext, ".ply"), is_glb = !strcasecmp(ext, ".glb"), is_img = !is_ply && !is_glb;
         if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, mesh, rgb, d->out, d->ply8, exposure);
         if (r == HL_OK && is_glb) r = hl_mesh_save_glb(ctx, mesh, rgb, d->out, exposure);

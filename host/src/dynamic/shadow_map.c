@@ -383,17 +383,24 @@ int hl_shadow_maps_flat(const hl_shadow_maps *sm, uint32_t o, hl_flat_body *fb)
     return 1;
 }
 
-/* The bodies light dir may leave out (shadow_map.h); needs world_corners. */
-static uint32_t skip_mask(const hl_shadow_maps *sm, const float dir[3])
+/* The scene's largest extent from the bodies' world corners (once a
+ * render, for skip_mask's tolerance). */
+static double scene_extent(const hl_shadow_maps *sm)
 {
-    if (!sm->skip_planes) return 0;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t i = 0; i < 8 * (size_t)sm->nobj; i++)
         for (int k = 0; k < 3; k++) {
             lo[k] = fmin(lo[k], sm->corners[3 * i + (size_t)k]);
             hi[k] = fmax(hi[k], sm->corners[3 * i + (size_t)k]);
         }
-    double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2])), tol = HL_SHADOW_SIDE_TOL * ext;
+    return fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+}
+
+/* The bodies light dir may leave out (shadow_map.h); ext: scene_extent. */
+static uint32_t skip_mask(const hl_shadow_maps *sm, const float dir[3], double ext)
+{
+    if (!sm->skip_planes) return 0;
+    double tol = HL_SHADOW_SIDE_TOL * ext;
     uint32_t mask = 0;
     for (uint32_t o = 0; o < sm->nobj && o < 32; o++) {
         hl_flat_body fb;
@@ -420,9 +427,9 @@ static uint32_t skip_mask(const hl_shadow_maps *sm, const float dir[3])
 }
 
 /* Frame k for light dir, fitted to the corners of the bodies not left out. */
-static void fit_one(hl_shadow_maps *sm, const float dir[3], hl_shadow_frame *fr)
+static void fit_one(hl_shadow_maps *sm, const float dir[3], double ext, hl_shadow_frame *fr)
 {
-    uint32_t mask = skip_mask(sm, dir), n = 0;
+    uint32_t mask = skip_mask(sm, dir, ext), n = 0;
     for (uint32_t o = 0; o < sm->nobj; o++)
         if (o >= 32 || !(mask >> o & 1u)) memcpy(sm->fitpts + 24 * (size_t)n++, sm->corners + 24 * (size_t)o, 96);
     hl_shadow_fit_frame(sm->fitpts, 8 * n, dir, sm->R, fr);
@@ -632,8 +639,9 @@ hl_result hl_shadow_maps_render(hl_shadow_maps *sm, const float (*dirs)[3], uint
     }
     TRY(ensure_k(sm, K));
     world_corners(sm);
+    double ext = scene_extent(sm);
     for (uint32_t k = 0; k < K; k++) {
-        fit_one(sm, dirs[k], &sm->frames[k]);
+        fit_one(sm, dirs[k], ext, &sm->frames[k]);
         hl_shadow_frame_pack(&sm->frames[k], sm->packed + 16 * (size_t)k);
     }
     if (frames) memcpy(frames, sm->frames, (size_t)K * sizeof *frames);
