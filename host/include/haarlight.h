@@ -490,6 +490,62 @@ HL_API hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, 
                            hl_relight_stats *stats);
 HL_API void hl_relighter_destroy(hl_relighter *r);
 
+/* ---------------------------------------------------- captured lighting */
+
+/* Surroundings: triangles around the object that give light (an emissive
+ * material) or hide what lies behind them (no emission: dark). The
+ * relighter renders them, as seen from the object's centre, into its
+ * paraboloid lighting at every lighting change (kernels/capture), in
+ * place of the environment where they cover it; the environment (or
+ * black, with none set) lights what they leave open.
+ * Limit: the capture is from one point, so surroundings close to a large
+ * object light all of it as if from its centre. */
+typedef struct hl_surroundings hl_surroundings;
+
+/* Loads any file assimp reads. Each triangle's emitted radiance is its
+ * material's emissive colour times its emissive strength (glTF's
+ * KHR_materials_emissive_strength; 1 without it); every node that holds
+ * triangles is a rigid body, named as in the file, moved by the file's
+ * first node animation (as hl_dynamic_create_from_file). Errors name the
+ * file (HL_ERR_IO, HL_ERR_FORMAT, HL_ERR_MESH): no triangles, non-finite
+ * positions, negative or non-finite emission, more than 4096 triangles. */
+HL_API hl_result hl_surroundings_load(hl_context *ctx, const char *path, hl_surroundings **out);
+/* From arrays (copied): one body "surroundings", no animation.
+ * positions: 9 floats per triangle (three corners); emission: 3 per
+ * triangle (RGB radiance, >= 0; both sides emit). */
+HL_API hl_result hl_surroundings_create(hl_context *ctx, const float *positions, const float *emission,
+                                        uint32_t triangle_count, hl_surroundings **out);
+HL_API void hl_surroundings_destroy(hl_surroundings *s);
+
+HL_API uint32_t hl_surroundings_triangle_count(const hl_surroundings *s);
+/* Bodies, their names (NULL out of range), whether a body emits, and the
+ * animation's time range in seconds (both 0 without one). */
+HL_API uint32_t hl_surroundings_body_count(const hl_surroundings *s);
+HL_API const char *hl_surroundings_body_name(const hl_surroundings *s, uint32_t body);
+HL_API int hl_surroundings_body_emits(const hl_surroundings *s, uint32_t body);
+HL_API void hl_surroundings_time_range(const hl_surroundings *s, double *start, double *end);
+
+/* Poses the surroundings at time t (seconds, finite, >= 0; clamped to the
+ * animation's keys) and gives body its program transform xf (row-major
+ * 3x4 [R | t], rigid as hl_dynamic_set_transform asks, applied after the
+ * animation, replacing an earlier one). */
+HL_API hl_result hl_surroundings_set_time(hl_surroundings *s, double t);
+HL_API hl_result hl_surroundings_set_transform(hl_surroundings *s, uint32_t body, const float xf[12]);
+/* The triangles in world space at the current time and transforms:
+ * 9 floats per triangle and 3 of emission, owned by s, valid until the
+ * next call on s. */
+HL_API hl_result hl_surroundings_triangles(hl_surroundings *s, const float **positions, const float **emission);
+
+/* Lights the relighter from s (NULL: the environment alone again). s is
+ * read at every hl_relighter_run and must outlive its use; a run in which
+ * the triangles (as hl_surroundings_triangles gives them) and the
+ * environment are unchanged since the last run costs nothing
+ * (stats->reused). The environment is optional with surroundings (none:
+ * black where they leave the sphere open); rotate_deg turns the
+ * environment only. The capture point is the centre of the bounding box
+ * of the transport's object (its ground left out). */
+HL_API hl_result hl_relighter_set_surroundings(hl_relighter *r, hl_surroundings *s);
+
 /* ---------------------------------------------------------------- images */
 
 typedef struct hl_image {
