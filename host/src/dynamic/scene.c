@@ -7,7 +7,9 @@
  * Depends on: assimp C API (Debian libassimp-dev 5.2) with the guards of
  * io/assimp_guard.h in the same order as io/mesh_import.c, the shared
  * mesh builder (hl_mesh_build_) and hl_mesh_add_ground, scene.h,
- * hl_internal.h, POSIX (stat).
+ * hl_internal.h, POSIX (stat). With keep_triangles (for the captured
+ * lighting's surroundings) bodies skip the mesh builder and the materials'
+ * emission is read.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -18,6 +20,7 @@
 #include <sys/stat.h>
 
 #include <assimp/cimport.h>
+#include <assimp/material.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
@@ -116,7 +119,9 @@ void hl_dyn_scene_destroy(hl_dyn_scene *s)
         free(s->bodies[b].normal);
         free(s->bodies[b].albedo);
         free(s->bodies[b].tri);
+        free(s->bodies[b].tri_mesh);
     }
+    free(s->mesh_emission);
     free(s->nodes);
     free(s->bodies);
     free(s->world);
@@ -309,9 +314,44 @@ static hl_result count_meshes(hl_dyn_scene *s, const struct aiScene *as, const s
     return HL_OK;
 }
 
+/* keep_triangles: the merged triangles as they are, three vertices each,
+ * with the file mesh each came from (the faces walked in merge_meshes's
+ * order). */
+static hl_result keep_body(hl_dyn_scene *s, const struct aiScene *as, const struct aiNode *an, const merged *m,
+                           dyn_body *b)
+{
+    hl_context *ctx = s->ctx;
+    if (m->nt > UINT32_MAX / 3)
+        return hl_fail(ctx, HL_ERR_MESH, "%s: node \"%s\": %llu triangles exceed the 2^32 vertex limit", s->name,
+                       an->mName.data, (unsigned long long)m->nt);
+    b->pos = hl_malloc(ctx, (size_t)m->nt * 9 * sizeof(float), "triangle corners");
+    b->tri = hl_malloc(ctx, (size_t)m->nt * 3 * sizeof(uint32_t), "triangle indices");
+    b->tri_mesh = hl_malloc(ctx, (size_t)m->nt * sizeof(uint32_t), "triangle meshes");
+    if (!b->pos || !b->tri || !b->tri_mesh) return HL_ERR_OUT_OF_MEMORY;
+    size_t t = 0;
+    for (unsigned i = 0; i < an->mNumMeshes; i++) {
+        const struct aiMesh *am = as->mMeshes[an->mMeshes[i]];
+        for (unsigned f = 0; f < am->mNumFaces; f++) {
+            if (am->mFaces[f].mNumIndices != 3) continue;
+            for (int c = 0; c < 3; c++) {
+                uint32_t ix = m->idx[3 * t + (size_t)c];
+                if (ix >= m->nv)
+                    return hl_fail(ctx, HL_ERR_MESH, "%s: node \"%s\": mesh \"%s\" has a face index out of range",
+                                   s->name, an->mName.data, am->mName.data);
+                memcpy(b->pos + 9 * t + 3 * (size_t)c, m->pos + 3 * (size_t)ix, 3 * sizeof(float));
+                b->tri[3 * t + (size_t)c] = (uint32_t)(3 * t + (size_t)c);
+            }
+            b->tri_mesh[t++] = an->mMeshes[i];
+        }
+    }
+    b->nverts = (uint32_t)(3 * m->nt);
+    b->ntris = (uint32_t)m->nt;
+    return HL_OK;
+}
+
 /* Node k becomes the next body if its meshes hold triangles. */
 static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const struct aiNode *an, uint32_t k,
-                           const hl_mesh_load_desc *desc)
+                           const hl_mesh_load_desc *desc, int keep)
 {
     hl_context *ctx = s->ctx;
     merged m;
@@ -334,6 +374,7 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
     if (!hl_dyn_polar_(L, Q, K) || !hl_dyn_inv3_(K, kinv))
         return hl_fail(ctx, HL_ERR_MESH, "%s: node \"%s\": its world transform is singular (a zero scale)", s->name,
                        an->mName.data);
+    if (keep) m.normals = m.colors = 0;
     m.pos = hl_malloc(ctx, (size_t)m.nv * 3 * sizeof(float), "vertex positions");
     m.nrm = m.normals ? hl_malloc(ctx, (size_t)m.nv * 3 * sizeof(float), "vertex normals") : NULL;
     m.col = m.colors ? hl_malloc(ctx, (size_t)m.nv * 3 * sizeof(float), "vertex colours") : NULL;
@@ -345,9 +386,18 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
     if (r == HL_OK) {
         snprintf(name, nlen, "%s (node \"%s\")", s->name, an->mName.data);
         merge_meshes(as, an, K, &m);
-        r = hl_mesh_build_(ctx, name, (uint32_t)m.nv, m.pos, m.nrm, m.col, (uint32_t)m.nt, m.idx, desc, &mesh, NULL);
+        if (keep) {
+            dyn_body *b = &s->bodies[s->nbodies];
+            r = keep_body(s, as, an, &m, b);
+            b->node = k;
+            memcpy(b->kinv, kinv, sizeof kinv);
+            set_identity(b->P);
+            s->nbodies++; /* even on failure, so that destroy frees its arrays */
+            if (r == HL_OK) s->nodes[k].body = (int32_t)(s->nbodies - 1);
+        } else
+            r = hl_mesh_build_(ctx, name, (uint32_t)m.nv, m.pos, m.nrm, m.col, (uint32_t)m.nt, m.idx, desc, &mesh, NULL);
     }
-    if (r == HL_OK) {
+    if (r == HL_OK && !keep) {
         s->nodes[k].body = (int32_t)s->nbodies;
         body_take(&s->bodies[s->nbodies++], mesh, k, kinv);
     }
@@ -357,6 +407,27 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
     free(m.idx);
     free(name);
     return r;
+}
+
+/* keep_triangles: each file mesh's emission, from its material. */
+static hl_result read_emission(hl_dyn_scene *s, const struct aiScene *as)
+{
+    s->nmeshes = as->mNumMeshes;
+    s->mesh_emission = hl_calloc(s->ctx, as->mNumMeshes ? as->mNumMeshes : 1, 3 * sizeof(float), "mesh emission");
+    if (!s->mesh_emission) return HL_ERR_OUT_OF_MEMORY;
+    for (unsigned i = 0; i < as->mNumMeshes; i++) {
+        unsigned mi = as->mMeshes[i]->mMaterialIndex; /* in range: validated by the import */
+        if (!as->mMaterials || mi >= as->mNumMaterials) continue;
+        const struct aiMaterial *mat = as->mMaterials[mi];
+        struct aiColor4D c;
+        ai_real k = 1;
+        if (aiGetMaterialColor(mat, AI_MATKEY_COLOR_EMISSIVE, &c) != aiReturn_SUCCESS) continue;
+        if (aiGetMaterialFloatArray(mat, AI_MATKEY_EMISSIVE_INTENSITY, &k, NULL) != aiReturn_SUCCESS) k = 1;
+        s->mesh_emission[3 * i] = (float)(c.r * k);
+        s->mesh_emission[3 * i + 1] = (float)(c.g * k);
+        s->mesh_emission[3 * i + 2] = (float)(c.b * k);
+    }
+    return HL_OK;
 }
 
 static hl_result check_desc(hl_context *ctx, const char *path, const hl_dyn_scene_desc *d, double up[9])
@@ -399,7 +470,8 @@ hl_result hl_dyn_scene_load_desc(hl_context *ctx, const char *path, const hl_dyn
     if (r == HL_OK) hl_dyn_compose_(s, s->t_start, NULL); /* the world transforms at the start, no body yet */
     hl_mesh_load_desc md = d.mesh;
     md.up_axis = 0; /* the turn is the scene's, applied to the root */
-    for (uint32_t k = 0; k < nn && r == HL_OK; k++) r = make_body(s, as, src[k], k, &md);
+    if (r == HL_OK && d.keep_triangles) r = read_emission(s, as);
+    for (uint32_t k = 0; k < nn && r == HL_OK; k++) r = make_body(s, as, src[k], k, &md, d.keep_triangles);
     if (r == HL_OK && s->nbodies == 0)
         r = hl_fail(ctx, HL_ERR_MESH, "%s: no node of the scene holds a triangle: no geometry to move", path);
     free(src);
@@ -518,6 +590,42 @@ hl_result hl_dyn_scene_from_mesh(hl_context *ctx, const hl_mesh *mesh, const hl_
     return HL_OK;
 }
 
+hl_result hl_dyn_scene_from_triangles(hl_context *ctx, const char *name, const char *body_name,
+                                      const float *positions, uint32_t count, hl_dyn_scene **out)
+{
+    if (out) *out = NULL;
+    if (!name || !body_name || !positions || !out || count == 0 || count > UINT32_MAX / 3)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_dyn_scene_from_triangles: triangles and out are required");
+    hl_dyn_scene *s = scene_new(ctx, name, 1);
+    if (!s) return HL_ERR_OUT_OF_MEMORY;
+    dyn_node *n = &s->nodes[0];
+    dyn_body *b = &s->bodies[0];
+    s->nbodies = 1;
+    n->name = dup_str(ctx, body_name);
+    n->parent = -1;
+    n->body = 0;
+    set_identity(n->rest);
+    n->rest_q[0] = 1.0;
+    n->scale[0] = n->scale[1] = n->scale[2] = 1.0;
+    set_identity(b->P);
+    for (int i = 0; i < 9; i++) b->kinv[i] = i % 4 == 0 ? 1.0 : 0.0;
+    b->pos = hl_malloc(ctx, (size_t)count * 9 * sizeof(float), "triangle corners");
+    b->tri = hl_malloc(ctx, (size_t)count * 3 * sizeof(uint32_t), "triangle indices");
+    b->tri_mesh = hl_calloc(ctx, count, sizeof(uint32_t), "triangle meshes");
+    s->nmeshes = 1;
+    s->mesh_emission = hl_calloc(ctx, 1, 3 * sizeof(float), "mesh emission");
+    if (!n->name || !b->pos || !b->tri || !b->tri_mesh || !s->mesh_emission) {
+        hl_dyn_scene_destroy(s);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    memcpy(b->pos, positions, (size_t)count * 9 * sizeof(float));
+    for (uint32_t i = 0; i < 3 * count; i++) b->tri[i] = i;
+    b->nverts = 3 * count;
+    b->ntris = count;
+    *out = s;
+    return HL_OK;
+}
+
 /* ---------------------------------------------------------------- queries */
 
 uint32_t hl_dyn_scene_body_count(const hl_dyn_scene *s) { return s ? s->nbodies : 0; }
@@ -538,6 +646,18 @@ int32_t hl_dyn_scene_body_parent(const hl_dyn_scene *s, uint32_t body)
     int32_t n = s->nodes[s->bodies[body].node].parent;
     while (n >= 0 && s->nodes[n].body < 0) n = s->nodes[n].parent;
     return n >= 0 ? s->nodes[n].body : -1;
+}
+
+const uint32_t *hl_dyn_scene_body_tri_mesh(const hl_dyn_scene *s, uint32_t body)
+{
+    return s && body < s->nbodies ? s->bodies[body].tri_mesh : NULL;
+}
+
+uint32_t hl_dyn_scene_mesh_count(const hl_dyn_scene *s) { return s ? s->nmeshes : 0; }
+
+const float *hl_dyn_scene_mesh_emission(const hl_dyn_scene *s, uint32_t mesh)
+{
+    return s && s->mesh_emission && mesh < s->nmeshes ? s->mesh_emission + 3 * (size_t)mesh : NULL;
 }
 
 int32_t hl_dyn_scene_find(const hl_dyn_scene *s, const char *name)

@@ -63,11 +63,20 @@ typedef struct hl_dyn_scene hl_dyn_scene;
  *                   k: the k-th (counting from 0); HL_DYN_NO_ANIMATION
  *   animation_name  NULL, or the name of the animation to use (overrides
  *                   animation)
+ *   keep_triangles  1: each body holds its node's triangles as the file
+ *                   gives them, in file order, three vertices of its own
+ *                   each (tri 0 1 2, 3 4 5, ...), none welded or dropped,
+ *                   no normals and no albedo (NULL), with the file
+ *                   mesh each came from (hl_dyn_scene_body_tri_mesh) and
+ *                   that mesh's emission (hl_dyn_scene_mesh_emission):
+ *                   what the surroundings need to keep each triangle's
+ *                   light on it (host/src/capture/surroundings.c)
  */
 typedef struct hl_dyn_scene_desc {
     hl_mesh_load_desc mesh;
     int animation;
     const char *animation_name;
+    int keep_triangles;
 } hl_dyn_scene_desc;
 
 /* Loads any file assimp reads as a scene of rigid bodies, with the
@@ -86,6 +95,13 @@ hl_result hl_dyn_scene_load_desc(hl_context *ctx, const char *path, const hl_dyn
 hl_result hl_dyn_scene_from_mesh(hl_context *ctx, const hl_mesh *mesh, const hl_ground_desc *ground,
                                  hl_dyn_scene **out);
 
+/* A scene of one body named body_name, at the identity without
+ * animation, holding count triangles (9 floats each, copied) as
+ * keep_triangles keeps them, all from mesh 0 (no emission of its own);
+ * name is the scene's, for messages. Corners are not checked here. */
+hl_result hl_dyn_scene_from_triangles(hl_context *ctx, const char *name, const char *body_name,
+                                      const float *positions, uint32_t count, hl_dyn_scene **out);
+
 void hl_dyn_scene_destroy(hl_dyn_scene *scene);
 
 /* ------------------------------------------------------------ queries */
@@ -97,6 +113,16 @@ const char *hl_dyn_scene_body_name(const hl_dyn_scene *scene, uint32_t body);
 const float *hl_dyn_scene_body_albedo(const hl_dyn_scene *scene, uint32_t body);
 /* The body whose node is the nearest ancestor of this body's node, or -1. */
 int32_t hl_dyn_scene_body_parent(const hl_dyn_scene *scene, uint32_t body);
+/* With keep_triangles: the index of the file's mesh (assimp's, in the
+ * file's order) each of the body's triangles came from (NULL otherwise or
+ * out of range), and the number of the file's meshes. */
+const uint32_t *hl_dyn_scene_body_tri_mesh(const hl_dyn_scene *scene, uint32_t body);
+uint32_t hl_dyn_scene_mesh_count(const hl_dyn_scene *scene);
+/* With keep_triangles: mesh m's material's emissive colour
+ * (AI_MATKEY_COLOR_EMISSIVE, 0 without one) times its emissive intensity
+ * (AI_MATKEY_EMISSIVE_INTENSITY, 1 without one), RGB, as the file has it
+ * (not checked); NULL otherwise or out of range. */
+const float *hl_dyn_scene_mesh_emission(const hl_dyn_scene *scene, uint32_t mesh);
 /* The first body of that name (in depth-first order of the nodes), or -1. */
 int32_t hl_dyn_scene_find(const hl_dyn_scene *scene, const char *name);
 /* The chosen animation's name (NULL for none) and its key range in
@@ -161,6 +187,7 @@ typedef struct dyn_body {
     uint32_t node;
     double kinv[9];        /* inverse of the baked stretch K */
     double P[12];          /* the program's transform */
+    uint32_t *tri_mesh;    /* keep_triangles: the file mesh of each triangle */
 } dyn_body;
 
 struct hl_dyn_scene {
@@ -173,6 +200,8 @@ struct hl_dyn_scene {
     char *anim_name;       /* NULL: no animation */
     double t_start, t_end;
     double *world;         /* scratch: 12 per node */
+    uint32_t nmeshes;      /* keep_triangles: the file's meshes */
+    float *mesh_emission;  /* keep_triangles: 3 per file mesh */
 };
 
 struct aiScene;
