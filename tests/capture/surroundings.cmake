@@ -3,4 +3,4 @@
 # materials and glTF's emissive strength, dark occluders, node animation,
 # program transforms, and bad input.
 hl_test_exe(test_surroundings ${CMAKE_CURRENT_LIST_DIR}/test_surroundings.c)
-hl_test_cases(test_surroundings surroundings emissive dark animation transform bad)
+hl_test_cases(test_surroundings surroundings emissive dark animation transform bad example)

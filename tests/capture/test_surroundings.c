@@ -26,9 +26,15 @@
  *                         and arrays), more than 4096 triangles (file and
  *                         arrays): each refused with the file or arrays
  *                         named.
+ * surroundings.example    data/surroundings/lamp_orbit.gltf: 44 triangles,
+ *                         3 bodies, the lamp alone emitting 120 x its warm
+ *                         factor, its centre on its circle (radius 8,
+ *                         height 9) at +X at 0 s, -X at 2 s, +X at 4 s.
+ *                         (hl.surroundings.example_file checks the file is
+ *                         what tests/tools/make_surroundings writes.)
  *
  * Depends on: haarlight_core (public surroundings API), hl_test.h,
- * surr_gltf.h, HL_TMP.
+ * surr_gltf.h, HL_TMP, HL_REPO_DATA.
  */
 #include <math.h>
 #include <stdint.h>
@@ -336,10 +342,54 @@ static void test_bad(void)
     hl_context_destroy(ctx);
 }
 
+/* The mean of the lamp's corners (triangles 0..7, an octahedron about its
+ * centre) at time t. */
+static void lamp_centre(hl_surroundings *s, double t, float c[3])
+{
+    const float *p = NULL, *e = NULL;
+    c[0] = c[1] = c[2] = NAN;
+    if (hl_surroundings_set_time(s, t) != HL_OK || hl_surroundings_triangles(s, &p, &e) != HL_OK) return;
+    double m[3] = {0, 0, 0};
+    for (int v = 0; v < 24; v++)
+        for (int k = 0; k < 3; k++) m[k] += p[3 * v + k] / 24.0;
+    for (int k = 0; k < 3; k++) c[k] = (float)m[k];
+}
+
+static void test_example(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    char path[1024];
+    snprintf(path, sizeof path, "%s/surroundings/lamp_orbit.gltf", hl_test_env("HL_REPO_DATA", "data"));
+    hl_surroundings *s = load_ok(ctx, path);
+    if (!s) { hl_context_destroy(ctx); return; }
+    HL_CHECK(hl_surroundings_triangle_count(s) == 44 && hl_surroundings_body_count(s) == 3, "%u triangles, %u bodies",
+             hl_surroundings_triangle_count(s), hl_surroundings_body_count(s));
+    int emitting = 0;
+    for (uint32_t b = 0; b < hl_surroundings_body_count(s); b++) emitting += hl_surroundings_body_emits(s, b);
+    HL_CHECK(emitting == 1 && hl_surroundings_body_emits(s, 0) && !strcmp(hl_surroundings_body_name(s, 0), "lamp"),
+             "the lamp alone emits");
+    const float *p = NULL, *e = NULL;
+    HL_CHECK(hl_surroundings_triangles(s, &p, &e) == HL_OK, "triangles");
+    const float warm[3] = {120.0f, 120.0f * 0.85f, 120.0f * 0.6f};
+    double we = 0.0;
+    for (int t = 0; e && t < 8; t++) we = fmax(we, max_err(e + 3 * t, warm, 3) / 120.0);
+    hl_check_error("example: the lamp's radiance, relative", we, EMIT_TOL);
+    static const float want[3][3] = {{8, 9, 0}, {-8, 9, 0}, {8, 9, 0}};
+    double wp = 0.0;
+    for (int i = 0; i < 3; i++) {
+        float c[3];
+        lamp_centre(s, 2.0 * i, c);
+        wp = fmax(wp, max_err(c, want[i], 3));
+    }
+    hl_check_error("example: the lamp's centre at 0, 2 and 4 s", wp, 10 * ROT_TOL);
+    hl_surroundings_destroy(s);
+    hl_context_destroy(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {{"emissive", test_emissive}, {"dark", test_dark},
                                          {"animation", test_animation}, {"transform", test_transform},
-                                         {"bad", test_bad}, {NULL, NULL}};
+                                         {"bad", test_bad}, {"example", test_example}, {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }
