@@ -57,6 +57,12 @@ typedef struct cli_scene_opts {
     int eye_set;    /* --eye was given */
     int target_set; /* --target was given */
     hl_env_layout layout; /* --layout */
+    /* Set by a command before parsing when it takes --surroundings and
+     * --time (relight); elsewhere they are unknown options. */
+    int accept_surroundings;
+    const char *surroundings; /* --surroundings FILE, or NULL */
+    double time;              /* --time T, seconds (default 0) */
+    int time_set;
 } cli_scene_opts;
 
 void cli_scene_opts_init(cli_scene_opts *o);
@@ -68,6 +74,10 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
  * centre (the automatic framing's target), --target alone is seen from the
  * automatic framing's offset. Fails like hl_camera_query_view. */
 hl_result cli_camera_complete(hl_context *ctx, const hl_mesh *mesh, cli_scene_opts *o);
+/* Loads o->surroundings (when given) posed at o->time, and (unless quiet)
+ * prints what it holds: triangles, emitting bodies, the animation's range
+ * and the time used. *out stays NULL without --surroundings. */
+hl_result cli_surroundings_load(hl_context *ctx, const cli_scene_opts *o, hl_surroundings **out, int quiet);
 /* "WxH", each side 1 to 16384. */
 int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
 
@@ -85,6 +95,18 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
     "  --select transport|area|unweighted\n"                                              \
     "                       how the terms are chosen: |L_i| x mean |T_i| over the vertices\n" \
     "                       (the default), x support area, or x 1\n"
+#define CLI_USAGE_SURROUNDINGS                                                            \
+    "  --surroundings FILE  light from surroundings: any mesh file assimp reads (glTF, FBX,\n" \
+    "                       OBJ, ...); emissive materials give light (emissive colour x\n" \
+    "                       glTF emissive strength), the others are dark and hide what\n" \
+    "                       lies behind them; at most 4096 triangles. They are rendered\n" \
+    "                       as seen from ONE point, the centre of the object's bounding\n" \
+    "                       box (ground left out), so surroundings close to a large\n" \
+    "                       object light all of it as if from its centre. Directions\n" \
+    "                       they leave open are lit by --env or --sky if given, else\n" \
+    "                       black. They light the object but are not drawn themselves\n" \
+    "  --time T             seconds into the surroundings' own node animation (default 0;\n" \
+    "                       held at the first or last key outside its range)\n"
 #define CLI_USAGE_CAMERA                                                                  \
     "  --size WxH           image size (default 960x720)\n"                              \
     "  --fov DEG            vertical field of view (default 35)\n"                       \

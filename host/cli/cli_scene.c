@@ -1,11 +1,13 @@
 /* cli_scene.c - the options that `relight` and `view` share: lighting
  * terms and selection, rotation, the built-in sky's sun, the camera, the
- * exposure and the device. One parser, so that both commands read them
- * alike and say the same thing about a bad value.
+ * exposure and the device, and the surroundings (--surroundings, --time;
+ * for the commands that set accept_surroundings). One parser, so that
+ * both commands read them alike and say the same thing about a bad value.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
@@ -47,6 +49,20 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
         "--size", "--fov", "--eye", "--target", "--up", "--device", "--device-memory", "--threads", "--layout", NULL};
     int known = 0;
     for (int k = 0; with_value[k]; k++) known |= !strcmp(a, with_value[k]);
+    int surr = o->accept_surroundings && (!strcmp(a, "--surroundings") || !strcmp(a, "--time"));
+    if (surr) {
+        if (*i + 1 >= argc) return -usage_error(usage, "option %s needs a value", a);
+        v = argv[++*i];
+        if (!strcmp(a, "--surroundings")) o->surroundings = v;
+        else {
+            char *end = NULL;
+            o->time = strtod(v, &end);
+            if (end == v || *end || !isfinite(o->time) || o->time < 0.0)
+                return -usage_error(usage, "--time %s: expected seconds, a finite number >= 0", v);
+            o->time_set = 1;
+        }
+        return 1;
+    }
     if (known) {
         if (*i + 1 >= argc) return -usage_error(usage, "option %s needs a value", a);
         v = argv[++*i];
@@ -106,4 +122,34 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
         return 0;
     }
     return 1;
+}
+
+hl_result cli_surroundings_load(hl_context *ctx, const cli_scene_opts *o, hl_surroundings **out, int quiet)
+{
+    *out = NULL;
+    if (!o->surroundings) return HL_OK;
+    hl_surroundings *s = NULL;
+    hl_result r = hl_surroundings_load(ctx, o->surroundings, &s);
+    if (r == HL_OK) r = hl_surroundings_set_time(s, o->time);
+    if (r != HL_OK) {
+        hl_surroundings_destroy(s);
+        return r;
+    }
+    if (!quiet) {
+        uint32_t nb = hl_surroundings_body_count(s), ne = 0;
+        for (uint32_t b = 0; b < nb; b++) ne += hl_surroundings_body_emits(s, b) != 0;
+        double t0 = 0.0, t1 = 0.0;
+        hl_surroundings_time_range(s, &t0, &t1);
+        fprintf(stderr, "surroundings %s: %u triangles, %u of %u bodies emitting", o->surroundings,
+                hl_surroundings_triangle_count(s), ne, nb);
+        if (t1 > t0) {
+            double used = o->time < t0 ? t0 : o->time > t1 ? t1 : o->time;
+            fprintf(stderr, "; animation %g to %g s, posed at %g s%s\n", t0, t1, used,
+                    used == o->time ? "" : o->time < t0 ? " (held at the first key)" : " (held at the last key)");
+        } else
+            fprintf(stderr, "; no animation%s\n", o->time_set ? " (--time has nothing to move)" : "");
+        if (ne == 0) fprintf(stderr, "surroundings %s: no body emits: they only hide the environment\n", o->surroundings);
+    }
+    *out = s;
+    return HL_OK;
 }
