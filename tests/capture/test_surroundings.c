@@ -9,7 +9,8 @@
  *                         in file order, each with factor x strength, at
  *                         its node's translation; a second material
  *                         without strength gives its factor; asking for
- *                         the triangles twice gives the same bytes.
+ *                         the triangles twice gives the same bytes; the
+ *                         same file as .glb gives the same radiance.
  * surroundings.dark       a box with no material and one with a zero
  *                         emissive factor: radiance 0, bodies not emitting.
  * surroundings.animation  translation keys (0, 1, 3 s) sampled at 0, 0.5,
@@ -77,6 +78,43 @@ static double max_err(const float *a, const float *b, size_t n)
     return w;
 }
 
+/* The .gltf at src (surr_gltf.h's: one buffer, a base64 data URI at its
+ * end) as a .glb at dst: the JSON without the URI, padded with spaces,
+ * and the buffer decoded into the BIN chunk. Returns 0 on success. */
+static int to_glb(const char *src, const char *dst)
+{
+    static char text[1 << 20];
+    static unsigned char bin[1 << 20];
+    static const char key[] = ",\"uri\":\"data:application/octet-stream;base64,";
+    FILE *f = fopen(src, "rb");
+    if (!f) return -1;
+    size_t n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = 0;
+    char *u = strstr(text, key), *q = u ? strchr(u + sizeof key - 1, '"') : NULL;
+    if (!q) return -1;
+    size_t nb = 0;
+    uint32_t acc = 0;
+    int bits = 0;
+    for (const char *c = u + sizeof key - 1; c < q && *c != '='; c++) {
+        const char *a = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+        acc = acc << 6 | (uint32_t)(strchr(a, *c) - a);
+        if ((bits += 6) >= 8) bin[nb++] = (unsigned char)(acc >> (bits -= 8));
+    }
+    memmove(u, q + 1, strlen(q + 1) + 1); /* the JSON without the URI */
+    n = strlen(text);
+    while (n > 0 && (text[n - 1] == '\n')) n--;
+    while (n % 4) text[n++] = ' ';
+    while (nb % 4) bin[nb++] = 0;
+    const uint32_t head[5] = {0x46546C67u, 2u, (uint32_t)(12 + 8 + n + 8 + nb), (uint32_t)n, 0x4E4F534Au};
+    const uint32_t bhead[2] = {(uint32_t)nb, 0x004E4942u}; /* "glTF", "JSON", "BIN\0" */
+    f = fopen(dst, "wb");
+    if (!f) return -1;
+    int ok = fwrite(head, 4, 5, f) == 5 && fwrite(text, 1, n, f) == n && fwrite(bhead, 4, 2, f) == 2 &&
+             fwrite(bin, 1, nb, f) == nb;
+    return fclose(f) == 0 && ok ? 0 : -1;
+}
+
 static hl_surroundings *load_ok(hl_context *ctx, const char *path)
 {
     hl_surroundings *s = NULL;
@@ -97,6 +135,12 @@ static void test_emissive(void)
     sc.node[1] = (sgf_node){.name = "dim", .parent = -1, .tris = QUAD, .ntris = 2, .material = 1, .t = {5, 0, 0}};
     const char *path = tmp_name("emissive.gltf");
     HL_CHECK(sgf_write(&sc, path) == 0, "cannot write %s", path);
+    float want_p[45], want_e[15];
+    for (int t = 0; t < 5; t++)
+        for (int k = 0; k < 9; k++) want_p[9 * t + k] = QUAD[9 * (t % 3) + k] + sc.node[t < 3 ? 0 : 1].t[k % 3];
+    for (int t = 0; t < 5; t++)
+        for (int c = 0; c < 3; c++)
+            want_e[3 * t + c] = t < 3 ? sc.material[0].emissive[c] * 40.0f : sc.material[1].emissive[c];
     hl_surroundings *s = load_ok(ctx, path);
     if (s) {
         HL_CHECK(hl_surroundings_triangle_count(s) == 5, "%u triangles, expected 5 (the sliver kept)",
@@ -106,12 +150,6 @@ static void test_emissive(void)
         HL_CHECK(hl_surroundings_body_emits(s, 0) && hl_surroundings_body_emits(s, 1), "both bodies emit");
         const float *p = NULL, *e = NULL, *p2 = NULL, *e2 = NULL;
         HL_CHECK(hl_surroundings_triangles(s, &p, &e) == HL_OK, "%s", hl_context_last_error(ctx));
-        float want_p[45], want_e[15];
-        for (int t = 0; t < 5; t++)
-            for (int k = 0; k < 9; k++) want_p[9 * t + k] = QUAD[9 * (t % 3) + k] + sc.node[t < 3 ? 0 : 1].t[k % 3];
-        for (int t = 0; t < 5; t++)
-            for (int c = 0; c < 3; c++)
-                want_e[3 * t + c] = t < 3 ? sc.material[0].emissive[c] * 40.0f : sc.material[1].emissive[c];
         if (p && e) {
             hl_check_error("emissive: world corners against the node translation", max_err(p, want_p, 45), POS_TOL);
             hl_check_error("emissive: radiance = factor x strength per triangle", max_err(e, want_e, 15), EMIT_TOL);
@@ -120,6 +158,16 @@ static void test_emissive(void)
                  "asking twice gives the same arrays");
         hl_surroundings_destroy(s);
     }
+    const char *glb = tmp_name("emissive.glb");
+    HL_CHECK(to_glb(path, glb) == 0, "cannot write %s", glb);
+    s = load_ok(ctx, glb);
+    if (s) {
+        const float *p = NULL, *e = NULL;
+        HL_CHECK(hl_surroundings_triangles(s, &p, &e) == HL_OK && hl_surroundings_triangle_count(s) == 5, "glb");
+        if (e) hl_check_error("emissive: the same scene as .glb, radiance", max_err(e, want_e, 15), EMIT_TOL);
+        hl_surroundings_destroy(s);
+    }
+    remove(glb);
     remove(path);
     hl_context_destroy(ctx);
 }
