@@ -25,8 +25,10 @@ packages=(build-essential cmake pkg-config
           libgl1-mesa-dev libgl1-mesa-dri xvfb xauth valgrind
           clang libclang-rt-14-dev)
 # only `./setup.sh test` needs these: the model files of assimp's own test
-# suite, which hl.assimp_models.testmodels loads one by one
-test_packages=(assimp-testmodels)
+# suite, which hl.assimp_models.testmodels loads one by one; Slurm and
+# MUNGE, for hl.slurm.array (it runs its own one-node cluster: its own
+# daemons, config and key, not the system's)
+test_packages=(assimp-testmodels slurm-wlm munge)
 if [ "$what" = test ]; then packages+=("${test_packages[@]}"); fi
 missing=()
 for p in "${packages[@]}"; do

@@ -1,0 +1,202 @@
+#!/usr/bin/env bash
+# precompute-array.sh - one transport file precomputed on a Slurm cluster:
+# an array job of N shards (`haarlight precompute --shard I/N`, one task
+# each), then a job that runs once they all succeeded and joins them
+# (`haarlight merge`) into the same bytes as one whole run. Depends on
+# Slurm's sbatch and scontrol, and on the haarlight command.
+#
+# One command submits both jobs:
+#
+#   precompute-array.sh submit [-s SBATCH_OPTION]... [-m SBATCH_OPTION]... [--wait]
+#                       N MESH OUT.hlt [PRECOMPUTE_OPTION...]
+#
+#   e.g.  HAARLIGHT=~/haarlight/build/haarlight precompute-array.sh submit \
+#           -s --partition=cpu -s --time=4:00:00 -s --cpus-per-task=16 \
+#           -m --cpus-per-task=1 64 dragon.obj dragon.hlt --ground -N 64
+#
+#   N                 shards: the array is --array=0-(N-1) (at most the
+#                     cluster's MaxArraySize, often 1001)
+#   MESH, OUT.hlt     as `haarlight precompute MESH -o OUT.hlt`
+#   PRECOMPUTE_OPTION any of precompute's options but -o, --shard and
+#                     --resume, which this script sets; every shard and the
+#                     merge must see the same ones
+#   -s SBATCH_OPTION  passed to sbatch for both jobs (partition, account,
+#                     time, cpus); repeat for several
+#   -m SBATCH_OPTION  passed to sbatch for the merge job only, after the -s
+#                     ones (sbatch takes the last of a repeated option)
+#   --wait            return once the merge job has ended; exit 0 only if it
+#                     completed, else list the tasks that did not
+#
+# haarlight is $HAARLIGHT, else `haarlight` on PATH, resolved to a full
+# path when submitting; MESH and OUT.hlt become full paths too. The
+# compute nodes must see these paths (a shared file system). The shards
+# and every job's log go to OUT.hlt.shards/; they are kept after the merge
+# (remove them by hand). A task that is requeued (node failure,
+# preemption) or submitted again continues its shard from the shard's
+# .partial file (precompute --resume); a task whose shard is already whole
+# is not run again (so after changing the options remove OUT.hlt.shards/:
+# merge refuses shards made with other options). If a task fails, Slurm
+# cancels the merge job (--kill-on-invalid-dep); submit again with the
+# same arguments to redo only what is missing.
+#
+# The two job steps, which submit uses, can also be submitted by hand:
+#   sbatch --array=0-(N-1) precompute-array.sh task N MESH SHARD_DIR [PRECOMPUTE_OPTION...]
+#   sbatch --dependency=afterok:ARRAY_JOB_ID precompute-array.sh merge N OUT.hlt SHARD_DIR
+set -u
+
+# the shard files' names inside SHARD_DIR, I counted from 0 (the array's
+# task id); every name of a run carries N, so runs with another N never
+# mix their shards
+shard_name() { printf 'shard-%s-of-%s.hls' "$1" "$2"; }
+
+# usage [CODE]: the comment above; 2 (a usage error) unless asked for
+usage() {
+  sed -n '/^# One command submits/,/^#   sbatch --dependency/p' "$0" | sed 's/^# \{0,1\}//' >&2
+  exit "${1:-2}"
+}
+# die MESSAGE [CODE]: 2 for usage errors, 1 for the rest
+die() { echo "precompute-array: $1" >&2; exit "${2:-1}"; }
+
+# the haarlight binary: $HAARLIGHT, else PATH
+find_haarlight() {
+  local h="${HAARLIGHT:-}"
+  if [ -z "$h" ]; then
+    h="$(command -v haarlight)" || die "haarlight not found: set HAARLIGHT or put it on PATH" 2
+  fi
+  [ -x "$h" ] || die "HAARLIGHT=$h is not an executable file" 2
+  echo "$h"
+}
+
+is_count() { [[ "$1" =~ ^[1-9][0-9]*$ ]]; }
+
+# the precompute options: this script owns -o, --shard and --resume
+check_options() {
+  local a
+  for a in "$@"; do
+    case "$a" in
+      -o|--output|--output=*|--shard|--shard=*|--resume)
+        die "precompute option $a is set by this script; leave it out" 2 ;;
+    esac
+  done
+}
+
+task() {
+  [ $# -ge 3 ] || usage
+  local n="$1" mesh="$2" dir="$3"; shift 3
+  is_count "$n" || die "N must be a whole number >= 1, not '$n'" 2
+  local i="${SLURM_ARRAY_TASK_ID:-}"
+  [ -n "$i" ] || die "task: SLURM_ARRAY_TASK_ID is not set; submit with sbatch --array=0-$((n - 1))" 2
+  [ "$i" -lt "$n" ] || die "task: array task $i is outside 0..$((n - 1))" 2
+  local hl shard; hl="$(find_haarlight)" || exit 2
+  shard="$dir/$(shard_name "$i" "$n")"
+  if [ -f "$shard" ] && [ ! -e "$shard.partial" ]; then
+    echo "precompute-array: $shard is already whole; nothing to do"
+    exit 0
+  fi
+  # a host thread per CPU Slurm gave the task, unless the options say
+  local threads=()
+  if [ -n "${SLURM_CPUS_PER_TASK:-}" ] && ! printf '%s\n' "$@" | grep -q '^--threads'; then
+    threads=(--threads "$SLURM_CPUS_PER_TASK")
+  fi
+  echo "precompute-array: shard $i/$n of $mesh on $(hostname) (job ${SLURM_JOB_ID:-?}, restart ${SLURM_RESTART_COUNT:-0})"
+  # --resume continues the shard's .partial if a previous attempt left one
+  # and starts afresh if not, so a requeued task loses at most a chunk
+  exec "$hl" precompute "$mesh" --shard "$i/$n" -o "$shard" --resume "${threads[@]}" "$@"
+}
+
+merge() {
+  [ $# -eq 3 ] || usage
+  local n="$1" out="$2" dir="$3"
+  is_count "$n" || die "N must be a whole number >= 1, not '$n'" 2
+  local hl i shards=(); hl="$(find_haarlight)" || exit 2
+  for ((i = 0; i < n; i++)); do shards+=("$dir/$(shard_name "$i" "$n")"); done
+  echo "precompute-array: merging $n shards from $dir into $out on $(hostname)"
+  exec "$hl" merge -o "$out" "${shards[@]}"
+}
+
+# job_state ID: the job's state as scontrol knows it (empty once the
+# controller has forgotten it, MinJobAge after its end)
+job_state() {
+  scontrol show job -o "$1" 2>/dev/null | grep -o 'JobState=[A-Z_]*' | head -n 1 | cut -d= -f2
+}
+
+# report_merge ARRAY MERGE OUT DIR: after sbatch --wait (which exits 0 even
+# when the merge was cancelled), tell how it ended
+report_merge() {
+  local array="$1" merge_id="$2" out="$3" dir="$4" state
+  state="$(job_state "$merge_id")"
+  if [ "$state" = COMPLETED ] || { [ -z "$state" ] && [ -f "$out" ]; }; then
+    echo "precompute-array: wrote $out"
+    return 0
+  fi
+  echo "precompute-array: the merge job $merge_id ended ${state:-unknown}; the array's tasks:" >&2
+  local line field
+  scontrol show job -o "$array" 2>/dev/null | while read -r line; do
+    for field in ArrayTaskId JobState ExitCode; do
+      printf ' %s' "$(grep -o "$field=[^ ]*" <<<"$line" | head -n 1)"
+    done
+    echo
+  done | sort -t= -k2 -n >&2
+  echo "precompute-array: logs in $dir" >&2
+  return 1
+}
+
+submit() {
+  local common=() merge_only=() wait=0
+  while [ $# -gt 0 ]; do
+    case "$1" in
+      -s) [ $# -ge 2 ] || usage; common+=("$2"); shift 2 ;;
+      -m) [ $# -ge 2 ] || usage; merge_only+=("$2"); shift 2 ;;
+      --wait) wait=1; shift ;;
+      -h|--help) usage 0 ;;
+      *) break ;;
+    esac
+  done
+  [ $# -ge 3 ] || usage
+  local n="$1" mesh="$2" out="$3"; shift 3
+  is_count "$n" || die "N must be a whole number >= 1, not '$n'" 2
+  check_options "$@"
+  [ -f "$mesh" ] && [ -r "$mesh" ] || die "cannot read the mesh $mesh" 2
+  local hl; hl="$(find_haarlight)" || exit 2
+  "$hl" precompute --help 2>&1 | grep -q -- '--shard' \
+    || die "$hl has no precompute --shard; use a newer haarlight" 2
+  hl="$(realpath "$hl")" && mesh="$(realpath "$mesh")" && out="$(realpath -m "$out")" \
+    || die "cannot resolve the paths" 2
+  [ -d "$(dirname "$out")" ] || die "the folder of $out does not exist" 2
+  local dir="$out.shards" self; self="$(realpath "$0")"
+  mkdir -p "$dir" || die "cannot make $dir"
+
+  local array merge_id wait_opt=()
+  array="$(sbatch --parsable --job-name=hl-precompute --array="0-$((n - 1))" --requeue \
+             --open-mode=append --output="$dir/task-%a.out" --export=ALL,HAARLIGHT="$hl" \
+             "${common[@]}" "$self" task "$n" "$mesh" "$dir" "$@")" \
+    || die "sbatch refused the array job"
+  array="${array%%;*}" # --parsable prints ID[;CLUSTER]
+  echo "precompute-array: array job $array: $n shards of $mesh into $dir"
+  if [ "$wait" -eq 1 ]; then
+    wait_opt=(--wait)
+    echo "precompute-array: submitting the merge job and waiting for it to end"
+  fi
+  merge_id="$(sbatch --parsable --job-name=hl-merge --dependency="afterok:$array" --kill-on-invalid-dep=yes \
+                --output="$dir/merge.out" --export=ALL,HAARLIGHT="$hl" \
+                "${common[@]}" "${merge_only[@]}" "${wait_opt[@]}" "$self" merge "$n" "$out" "$dir")"
+  local rc=$?
+  merge_id="${merge_id%%;*}"
+  [ -n "$merge_id" ] || die "sbatch refused the merge job (exit $rc); cancel the array with: scancel $array"
+  if [ "$wait" -eq 0 ]; then
+    echo "precompute-array: merge job $merge_id writes $out once the array has succeeded"
+    return 0
+  fi
+  echo "precompute-array: merge job $merge_id has ended"
+  report_merge "$array" "$merge_id" "$out" "$dir"
+}
+
+[ $# -ge 1 ] || usage
+mode="$1"; shift
+case "$mode" in
+  submit) submit "$@" ;;
+  task) task "$@" ;;
+  merge) merge "$@" ;;
+  -h|--help) usage 0 ;;
+  *) usage ;;
+esac

@@ -1,0 +1,137 @@
+#!/usr/bin/env bash
+# test_slurm.sh CASE - the users' Slurm array-job script,
+# host/cli/slurm/precompute-array.sh.
+#   array  on a real one-node Slurm cluster started on this machine
+#          (cluster.sh beside this script: munged, slurmctld and slurmd
+#          from Debian's slurm-wlm and munge, which setup.sh installs for
+#          the tests), four shards as an array job and their merge as a
+#          job depending on it must equal one ordinary run byte for byte.
+#          Skips (77), saying why, without root, without Slurm or MUNGE,
+#          or where haarlight has no precompute --shard or merge.
+#   usage  the script's refusals, which need no cluster: each exits 2 with
+#          a message naming the problem, before anything is submitted.
+# Env: HL_BIN (the binary), HL_REPO_DATA (data/), HL_SRC (the source tree).
+set -u
+bin="${HL_BIN:?}"
+data="${HL_REPO_DATA:?}"
+src="${HL_SRC:-$(cd "$(dirname "$0")/../.." && pwd)}"
+here="$src/tests/slurm"
+script="$src/host/cli/slurm/precompute-array.sh"
+
+# four shards: more than the node's two CPUs, so tasks also wait their
+# turn, and an uneven split of the mesh's vertices (1839 = 4 * 459 + 3)
+SHARDS=4
+MESH="$data/bunny_lowres.obj"
+# small maps keep each shard to a second or so; the point is the split and
+# the join, which these exercise as any size would
+OPTS=(-C 16 -N 16 -q)
+# the whole submit-and-wait: it takes about ten seconds here (sbatch --wait
+# polls); three minutes means something is stuck, not slow
+JOB_TIMEOUT_S=180
+
+skip() { echo "SKIP: $*"; exit 77; }
+fails=0
+fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+
+tmp="$(mktemp -d "${TMPDIR:-/tmp}/hl-slurm.XXXXXX")" || { echo "FAIL: no temporary folder"; exit 1; }
+child=""
+cleanup() {
+  [ -n "$child" ] && kill -TERM "$child" 2>/dev/null
+  [ -d "$tmp/cluster" ] && "$here/cluster.sh" stop "$tmp/cluster"
+  rm -rf "$tmp"
+}
+trap cleanup EXIT
+trap 'exit 1' INT TERM
+
+# refuses WHAT PART -- ARGS...: the script with ARGS exits 2 and says PART
+refuses() {
+  local what="$1" part="$2"; shift 3
+  "$@" >"$tmp/out.txt" 2>"$tmp/err.txt"
+  local rc=$?
+  echo "$what: exit $rc: $(head -c 200 "$tmp/err.txt" | tr '\n' ' ')"
+  [ "$rc" -eq 2 ] || fail "$what: exit $rc, expected 2"
+  grep -q -- "$part" "$tmp/err.txt" || fail "$what: the message lacks '$part'"
+}
+
+case_usage() {
+  local hl=(env HAARLIGHT="$bin" "$script")
+  refuses "no arguments" "precompute-array.sh submit" -- "${hl[@]}"
+  refuses "unknown mode" "precompute-array.sh submit" -- "${hl[@]}" frobnicate
+  refuses "N of 0" "N must be a whole number" -- "${hl[@]}" submit 0 "$MESH" "$tmp/o.hlt"
+  refuses "N not a number" "not '4x'" -- "${hl[@]}" submit 4x "$MESH" "$tmp/o.hlt"
+  refuses "-o given" "option -o is set by this script" -- "${hl[@]}" submit 4 "$MESH" "$tmp/o.hlt" -o x.hlt
+  refuses "--shard given" "option --shard is set by this script" -- "${hl[@]}" submit 4 "$MESH" "$tmp/o.hlt" --shard 1/2
+  refuses "missing mesh" "cannot read the mesh $tmp/none.obj" -- "${hl[@]}" submit 4 "$tmp/none.obj" "$tmp/o.hlt"
+  refuses "missing folder" "the folder of $tmp/no/o.hlt does not exist" -- "${hl[@]}" submit 4 "$MESH" "$tmp/no/o.hlt"
+  refuses "no haarlight" "HAARLIGHT=$tmp/none is not an executable" -- \
+    env HAARLIGHT="$tmp/none" "$script" submit 4 "$MESH" "$tmp/o.hlt"
+  # a program without precompute --shard (true prints no help at all)
+  refuses "old haarlight" "has no precompute --shard" -- \
+    env HAARLIGHT="$(type -P true)" "$script" submit 4 "$MESH" "$tmp/o.hlt"
+  refuses "task outside an array" "SLURM_ARRAY_TASK_ID is not set" -- \
+    env -u SLURM_ARRAY_TASK_ID HAARLIGHT="$bin" "$script" task 4 "$MESH" "$tmp"
+  refuses "task beyond N" "array task 4 is outside 0..3" -- \
+    env SLURM_ARRAY_TASK_ID=4 HAARLIGHT="$bin" "$script" task 4 "$MESH" "$tmp"
+  [ -e "$tmp/o.hlt.shards" ] && fail "a refused submit made $tmp/o.hlt.shards"
+  return 0
+}
+
+case_array() {
+  local c
+  for c in munged slurmctld slurmd sbatch scontrol sinfo scancel; do
+    command -v "$c" >/dev/null 2>&1 || skip "$c not found (install slurm-wlm and munge: ./setup.sh test does)"
+  done
+  [ "$(id -u)" -eq 0 ] || skip "slurmd must run as root to start jobs; this runs as $(id -un)"
+  "$bin" precompute --help 2>&1 | grep -q -- '--shard' || skip "haarlight precompute has no --shard yet"
+  "$bin" merge --help >/dev/null 2>&1 || skip "haarlight has no merge yet"
+  [ -r "$MESH" ] || { echo "FAIL: cannot read $MESH"; exit 1; }
+
+  mkdir -p "$tmp/cluster" "$tmp/out"
+  # munged's socket must be reachable by every user through all its folders
+  chmod 711 "$tmp"
+  "$here/cluster.sh" start "$tmp/cluster" || { echo "FAIL: the cluster did not start"; exit 1; }
+  # shellcheck disable=SC1091
+  . "$tmp/cluster/env"
+  local start_ms took_ms rc i
+  start_ms=$(( $(date +%s%N) / 1000000 ))
+  # the jobs carry the cluster's mark, so that its stop ends any left
+  # behind (in the background, so that a signal to this script is handled
+  # at once)
+  env "$(cat "$tmp/cluster/mark")" HAARLIGHT="$bin" timeout "$JOB_TIMEOUT_S" \
+    "$script" submit --wait "$SHARDS" "$MESH" "$tmp/out/sharded.hlt" "${OPTS[@]}" &
+  child=$!
+  wait "$child"
+  rc=$?
+  child=""
+  took_ms=$(( $(date +%s%N) / 1000000 - start_ms ))
+  for c in "$tmp/out/sharded.hlt.shards"/*.out; do
+    [ -f "$c" ] && { echo "--- $(basename "$c")"; cat "$c"; }
+  done
+  [ "$rc" -eq 124 ] && { echo "FAIL: the jobs did not end within ${JOB_TIMEOUT_S} s"; squeue; exit 1; }
+  [ "$rc" -eq 0 ] || { echo "FAIL: the array job or the merge failed (exit $rc)"; exit 1; }
+  echo "slurm: $SHARDS shards and their merge took $((took_ms / 1000)).$(printf %03d $((took_ms % 1000))) s from submission"
+
+  # every shard went through Slurm as its own array task
+  for ((i = 0; i < SHARDS; i++)); do
+    grep -q "shard $i/$SHARDS" "$tmp/out/sharded.hlt.shards/task-$i.out" 2>/dev/null \
+      || fail "no log of array task $i"
+  done
+
+  "$bin" precompute "$MESH" -o "$tmp/out/single.hlt" "${OPTS[@]}" \
+    || { echo "FAIL: the single run failed"; exit 1; }
+  echo "compared: $SHARDS shards merged ($(stat -c %s "$tmp/out/sharded.hlt") bytes) with one run" \
+       "($(stat -c %s "$tmp/out/single.hlt") bytes) of $(basename "$MESH") ${OPTS[*]}"
+  if cmp "$tmp/out/sharded.hlt" "$tmp/out/single.hlt"; then
+    echo "identical: sha256 $(sha256sum <"$tmp/out/single.hlt" | cut -c1-16)..."
+  else
+    fail "the merged shards differ from one run"
+  fi
+}
+
+case "${1:-}" in
+  usage) case_usage ;;
+  array) case_array ;;
+  *) echo "usage: $0 usage|array" >&2; exit 2 ;;
+esac
+[ "$fails" -eq 0 ] || { echo "$fails failed"; exit 1; }
+echo "PASS"
