@@ -135,9 +135,8 @@ hl_result hl_surroundings_load(hl_context *ctx, const char *path, hl_surrounding
     if (r != HL_OK) return r;
     uint32_t nm = hl_dyn_scene_mesh_count(scene);
     float *strength = hl_malloc(ctx, (nm ? nm : 1) * sizeof(float), "emissive strengths");
-    int used = 0; /* (whether the file had glTF strengths: nothing differs) */
     if (!strength) r = HL_ERR_OUT_OF_MEMORY;
-    else r = hl_gltf_emissive_strength_(ctx, path, nm, strength, &used);
+    else r = hl_gltf_emissive_strength_(ctx, path, nm, strength);
     uint32_t t = 0;
     for (uint32_t b = 0; r == HL_OK && b < s->nbodies; b++) {
         const uint32_t *tm = hl_dyn_scene_body_tri_mesh(scene, b);

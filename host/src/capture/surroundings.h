@@ -23,8 +23,7 @@
  * strength 1. Errors (naming path): the file cannot be read, its JSON is
  * malformed, the primitives are not nmeshes (so the order cannot be
  * trusted), a strength not a finite number >= 0, a material index out of
- * range. *used is 1 when the extension was found. */
-hl_result hl_gltf_emissive_strength_(hl_context *ctx, const char *path, uint32_t nmeshes, float *strength,
-                                     int *used);
+ * range. */
+hl_result hl_gltf_emissive_strength_(hl_context *ctx, const char *path, uint32_t nmeshes, float *strength);
 
 #endif

@@ -227,10 +227,8 @@ static void parse_root(js *j, flist *mats, flist *prims, int *oom)
     }
 }
 
-hl_result hl_gltf_emissive_strength_(hl_context *ctx, const char *path, uint32_t nmeshes, float *strength,
-                                     int *used)
+hl_result hl_gltf_emissive_strength_(hl_context *ctx, const char *path, uint32_t nmeshes, float *strength)
 {
-    *used = 0;
     for (uint32_t m = 0; m < nmeshes; m++) strength[m] = 1.0f;
     size_t len = 0;
     int err = 0;
@@ -240,7 +238,6 @@ hl_result hl_gltf_emissive_strength_(hl_context *ctx, const char *path, uint32_t
         free(text);
         return HL_OK;
     }
-    *used = 1;
     js j = {text, text + len, 0};
     flist mats = {0}, prims = {0};
     int oom = 0;
