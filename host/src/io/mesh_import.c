@@ -11,8 +11,12 @@
  * by the guards of assimp_guard.c before it gets to them; load_assimp
  * gives the safe order of calls.
  *
+ * A gzipped file (`mesh.obj.gz`: any X.gz whose inner extension assimp
+ * reads) is decompressed into memory by gz_read.c and imported from there
+ * with the inner extension as the format's hint, through the same guards.
+ *
  * Dependencies: assimp C API (Debian libassimp-dev 5.2), assimp_guard.h,
- * POSIX (stat), hl_internal.h.
+ * gz_read.h (zlib), POSIX (stat, fmemopen), hl_internal.h.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -26,7 +30,24 @@
 #include <assimp/scene.h>
 
 #include "assimp_guard.h"
+#include "gz_read.h"
 #include "hl_internal.h"
+
+/* Where the importer reads from: the file itself, or its bytes in memory
+ * (a decompressed .gz) with the format's extension as assimp's hint. path
+ * is the file's name either way, for messages. */
+typedef struct mesh_src {
+    const char *path;
+    const uint8_t *data; /* NULL: assimp opens path */
+    size_t size;
+    const char *hint; /* extension without the dot, for data */
+} mesh_src;
+
+static const struct aiScene *import_scene(const mesh_src *src, unsigned flags)
+{
+    if (!src->data) return aiImportFile(src->path, flags);
+    return aiImportFileFromMemory((const char *)src->data, (unsigned)src->size, flags, src->hint);
+}
 
 /* Opens path to learn whether it is a readable, non-empty regular file, so
  * that a missing file is HL_ERR_IO and an empty one HL_ERR_FORMAT whatever
@@ -128,9 +149,10 @@ static void copy_scene(const struct aiScene *s, float *pos, float *nrm, float *c
     }
 }
 
-static hl_result load_assimp(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc,
+static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh_load_desc *desc,
                              hl_mesh **out, hl_mesh_stats *stats)
 {
+    const char *path = src->path;
     /* The safe order of calls with assimp 5.2's C API:
      * 1. aiImportFile with validation only: the raw scene, whose failures
      *    come back cleanly.
@@ -149,7 +171,7 @@ static hl_result load_assimp(hl_context *ctx, const char *path, const hl_mesh_lo
      * Vertex joining and normal generation stay off: the builder does both
      * and counts what it changed. The second import costs one more parse
      * of the file (under a second for every assimp test model). */
-    const struct aiScene *s = aiImportFile(path, aiProcess_ValidateDataStructure);
+    const struct aiScene *s = import_scene(src, aiProcess_ValidateDataStructure);
     if (!s) {
         char msg[512];
         snprintf(msg, sizeof msg, "%s", aiGetErrorString());
@@ -158,7 +180,7 @@ static hl_result load_assimp(hl_context *ctx, const char *path, const hl_mesh_lo
     hl_result r = hl_raw_scene_problem_(ctx, path, s);
     aiReleaseImport(s);
     if (r != HL_OK) return r;
-    s = aiImportFile(path, aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_PreTransformVertices);
+    s = import_scene(src, aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_PreTransformVertices);
     if (!s) {
         char msg[512];
         snprintf(msg, sizeof msg, "%s", aiGetErrorString());
@@ -209,6 +231,52 @@ done:
     return r;
 }
 
+/* ---------------------------------------------------------------- gzip */
+
+/* The longest inner extension taken as a format hint: assimp's own are at
+ * most 8 characters (".assbin"); anything longer is no format it reads. */
+#define GZ_MAX_EXT 15
+
+/* path = NAME.EXT.gz: decompressed into memory (at most HL_GZ_MAX_BYTES),
+ * put through the file guards under the name NAME.EXT (they go by the
+ * extension), and imported with EXT as the hint. */
+static hl_result load_gz(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
+                         hl_mesh_stats *stats)
+{
+    size_t n = strlen(path) - 3; /* without ".gz" */
+    char inner[4096], ext[GZ_MAX_EXT + 2];
+    if (n >= sizeof inner) return hl_fail(ctx, HL_ERR_IO, "%s: file name too long", path);
+    memcpy(inner, path, n);
+    inner[n] = 0;
+    const char *base = strrchr(inner, '/'), *dot = strrchr(base ? base : inner, '.');
+    if (!dot || !dot[1] || dot == (base ? base + 1 : inner))
+        return hl_fail(ctx, HL_ERR_FORMAT,
+                       "%s: a gzipped mesh needs its format's extension before .gz (as in mesh.obj.gz)", path);
+    if (strlen(dot) > GZ_MAX_EXT + 1 || !aiIsExtensionSupported(dot))
+        return hl_fail(ctx, HL_ERR_FORMAT, "%s: the importer reads no %.20s files, so cannot read this one", path, dot);
+    snprintf(ext, sizeof ext, "%s", dot);
+    uint8_t *data = NULL;
+    size_t size = 0;
+    hl_result r = hl_gz_read_file(ctx, path, HL_GZ_MAX_BYTES, &data, &size);
+    if (r != HL_OK) return r;
+    if (size == 0) r = hl_fail(ctx, HL_ERR_FORMAT, "%s: empty file inside the gzip stream", path);
+    char msg[160];
+    if (r == HL_OK) {
+        FILE *f = fmemopen(data, size, "rb");
+        if (!f) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: cannot read the decompressed data: %s", path, strerror(errno));
+        else {
+            if (hl_assimp_file_problem_(inner, f, size, msg, sizeof msg)) r = hl_fail(ctx, HL_ERR_FORMAT, "%s: %s", path, msg);
+            fclose(f);
+        }
+    }
+    if (r == HL_OK) {
+        mesh_src src = {.path = path, .data = data, .size = size, .hint = ext + 1};
+        r = load_assimp(ctx, &src, desc, out, stats);
+    }
+    free(data);
+    return r;
+}
+
 /* ---------------------------------------------------------------- public */
 
 hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc,
@@ -217,6 +285,7 @@ hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_des
     if (out) *out = NULL;
     if (stats) memset(stats, 0, sizeof *stats);
     if (!path || !out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_mesh_load: path and out are required");
+    if (hl_gz_is_gz_name(path)) return load_gz(ctx, path, desc, out, stats);
     FILE *f = NULL;
     size_t size = 0;
     hl_result r = open_checked(ctx, path, &f, &size);
@@ -225,5 +294,6 @@ hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_des
     int bad = hl_assimp_file_problem_(path, f, size, msg, sizeof msg);
     fclose(f);
     if (bad) return hl_fail(ctx, HL_ERR_FORMAT, "%s: %s", path, msg);
-    return load_assimp(ctx, path, desc, out, stats);
+    mesh_src src = {.path = path};
+    return load_assimp(ctx, &src, desc, out, stats);
 }
