@@ -155,7 +155,23 @@ typedef struct bench_speed {
     double dot, bytes, bw;
     double frac[3];    /* median, least, most */
     double sub_ms[2][2]; /* [OpenCL, reference][normal, subnormal] */
+    /* with --surroundings (bench_capture.c; cap_triangles 0: not measured) */
+    uint32_t cap_triangles;
+    double cap_rate;     /* lighting changes per second, each a new capture */
+    double cap_same;     /* seconds of a run in which nothing changed */
+    double cap_ms, cap_dot_ms, cap_ratio; /* capture alone, dots alone, their ratio (medians) */
 } bench_speed;
+
+/* The goal of lighting captured from surroundings: changes per second with
+ * a new capture each, at M = 200 (and the capture cheaper than the dot
+ * products). */
+#define BENCH_CAPTURE_GOAL 200.0
+
+/* The median of v (sorts it). */
+double bench_median(double *v, int n);
+/* `bench --surroundings`: rc lit by sur (then by its environment alone
+ * again), into sp's cap_* fields; B: room for the colours. */
+hl_result bench_capture(hl_relighter *rc, hl_surroundings *sur, uint32_t reps, float *B, bench_speed *sp);
 
 /* The output files: written as NAME.tmp.PID, renamed when complete. */
 enum { BENCH_CSV, BENCH_MD, BENCH_GP, BENCH_OUTS };

@@ -121,6 +121,10 @@ hl_result hl_bench_ref_ground(hl_bench_ref *b, double **ground);
 hl_result hl_bench_bytes_read(hl_relighter *r, double *bytes);
 hl_result hl_bench_time_dots(hl_relighter *r, uint32_t reps, double *seconds);
 hl_result hl_bench_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, double *bytes_per_s);
+/* The mean time of the capture of the relighter's surroundings alone (the
+ * stage that takes env2para's place; hl_relighter_set_surroundings and
+ * one run first) over reps launches. */
+hl_result hl_bench_time_capture(hl_relighter *r, uint32_t reps, double *seconds);
 
 /* `bench-precompute`: d with its defaults filled in and checked (errors
  * name the option), then Embree's raw occlusion rate (rays/s) on the rays

@@ -9,26 +9,42 @@
  * order, the first on a tie) and averages the emitted radiance: the
  * texel's mean radiance, what env2para writes. Rays that hit nothing take
  * the texel's value of env_L (when have_env), weighted by their share.
- * Cost: 2 N^2 texels x (triangles + S^2 x the triangles whose bounding
- * cone meets the texel's); at worst 2 N^2 S^2 x triangles.
+ * A texel lists the triangles of its tile's list (made on the host) whose
+ * bounding cone meets its cone and whose view (the planes through the
+ * capture point and their edges) it does not lie wholly outside of, with
+ * a margin. Cost: 2 N^2 texels x (its tile's triangles + S^2 x its own);
+ * at worst 2 N^2 S^2 x triangles. It casts no ray where none is
+ * listed, or where one listed triangle's view holds the texel's cone with
+ * a margin and every other listed one lies behind that triangle's plane
+ * (the rays would all hit it first): the same sums, without the rays.
  * Triangles: HL_CAPTURE_F4 float4 each: v0 relative to the capture point,
  * e1 = v1 - v0, e2 = v2 - v0, emitted RGB, the bounding cone (unit axis,
  * half-angle in radians; more than pi: every direction), the half-angle's
- * cosine and sine. Output: three planes (R, G, B) of ncoef = 2 N^2
- * texels. Ray casting, not rasterisation: a straight edge is a circle arc
- * in a paraboloid map, and a few triangles cost little per ray.
+ * cosine and sine, the plane (unit normal away from the capture point,
+ * distance), the edges' planes through the capture point (unit normals
+ * into the view; 0 for a triangle seen edge-on). Texel table (cones): two
+ * float4 a texel: its cone's unit axis and 0 if none of it is in the disc,
+ * 1 if some of its rays are, 2 for a rim sliver none of its rays reach;
+ * the half-angle's cosine and sine, the sine of the half-angle plus the
+ * cover margin, the half-angle (capture.h, hl_capture_texel_cones).
+ * Output: three planes (R, G, B) of ncoef = 2 N^2 texels. Ray casting, not
+ * rasterisation: a straight edge is a circle arc in a paraboloid map, and
+ * a few triangles cost little per ray.
  */
 #pragma OPENCL FP_CONTRACT OFF
 
-#define HL_CAPTURE_F4 6
+#define HL_CAPTURE_F4 10
 /* Candidates a texel lists (ushort indices); a texel whose cone meets more
  * tests every triangle. 256: a few walls and a lamp list far fewer. */
 #define HL_CAPTURE_LIST 256
 
-/* Radians added to a texel's cone: more than the float error of the acos
- * of a dot product near 1 (about sqrt(2 * 2^-24) = 3.5e-4), so a cull is
- * never wrong and the hits are those of testing every triangle. */
-#define HL_CAPTURE_CONE_MARGIN 4e-3f
+/* Tiles per side of each map (capture.h): a texel's candidates are among
+ * its tile's, listed by the host. */
+#define HL_CAPTURE_TILES 8u
+
+/* "Behind a plane" allows a corner this far in front, relative to the
+ * plane's distance (capture.h). */
+#define HL_CAPTURE_PLANE_TOL 1e-5f
 
 /* Nearest triangle along direction (dx, dy, dz) from the origin, or -1:
  * of the n listed ones (ascending), or of all when list is NULL. */
@@ -61,57 +77,90 @@ static int hl_capture_nearest(global const float4 *tris, uint ntris, const ushor
     return hit;
 }
 
-/* Unit direction through (s, t) of a map whose pole is sy * Y. */
-static float4 hl_capture_dir(float s, float t, float sy)
+/* Whether the texel's cone (axis ax, sc the sine of its half-angle plus
+ * the cover margin) lies wholly outside one of the triangle's edge planes:
+ * no ray of the texel can hit it (never for a triangle seen edge-on). */
+static int hl_capture_outside(global const float4 *T, float4 ax, float sc)
 {
-    float r2 = s * s + t * t, k = 1.0f / (1.0f + r2);
-    return (float4)(2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k, 0.0f);
+    float4 n0 = T[7], n1 = T[8], n2 = T[9];
+    return ax.x * n0.x + ax.y * n0.y + ax.z * n0.z < -sc || ax.x * n1.x + ax.y * n1.y + ax.z * n1.z < -sc ||
+           ax.x * n2.x + ax.y * n2.y + ax.z * n2.z < -sc;
 }
 
-static float hl_capture_angle(float4 a, float4 b)
+/* The listed triangle that every ray of the texel (cone axis ax, sine sc
+ * of its half-angle plus the cover margin) hits first, or -1: of those
+ * whose view holds the texel's cone, the one with every other listed
+ * triangle behind its plane. */
+static int hl_capture_cover(global const float4 *tris, const ushort *list, uint n, float4 ax, float sc)
 {
-    return acos(clamp(a.x * b.x + a.y * b.y + a.z * b.z, -1.0f, 1.0f));
+    for (uint e = 0; e < n; e++) {
+        global const float4 *T = tris + HL_CAPTURE_F4 * (uint)list[e];
+        float4 n0 = T[7], n1 = T[8], n2 = T[9];
+        if (!(ax.x * n0.x + ax.y * n0.y + ax.z * n0.z >= sc && ax.x * n1.x + ax.y * n1.y + ax.z * n1.z >= sc &&
+              ax.x * n2.x + ax.y * n2.y + ax.z * n2.z >= sc))
+            continue;
+        float4 pl = T[6];
+        float lim = pl.w - HL_CAPTURE_PLANE_TOL * pl.w;
+        int in = 1;
+        for (uint f = 0; f < n && in; f++) {
+            if (f == e) continue;
+            global const float4 *B = tris + HL_CAPTURE_F4 * (uint)list[f];
+            float4 v0 = B[0], e1 = B[1], e2 = B[2];
+            for (int v = 0; v < 3 && in; v++) {
+                float x = v0.x + (v == 1 ? e1.x : v == 2 ? e2.x : 0.0f);
+                float y = v0.y + (v == 1 ? e1.y : v == 2 ? e2.y : 0.0f);
+                float z = v0.z + (v == 1 ? e1.z : v == 2 ? e2.z : 0.0f);
+                in = pl.x * x + pl.y * y + pl.z * z >= lim;
+            }
+        }
+        if (in) return (int)list[e];
+    }
+    return -1;
 }
 
 kernel void hl_capture(global const float4 *tris, uint ntris, uint N, uint S, global const float *env_L,
-                       uint have_env, global float *L)
+                       uint have_env, global float *L, global const float4 *cones, global const uint *tile_start,
+                       global const ushort *tile_list)
 {
     uint ncoef = 2u * N * N, j = get_global_id(0);
     if (j >= ncoef) return;
     uint map = j / (N * N), rem = j % (N * N), row = rem / N, col = rem % N;
     float h = 2.0f / (float)N, hs = h / (float)S, sy = map ? -1.0f : 1.0f;
-    float s0 = -1.0f + (float)col * h, t0 = -1.0f + (float)row * h, s1 = s0 + h, t1 = t0 + h;
-    /* the texel's point nearest the pole: none of it in the disc, no light */
-    float ns = s0 > 0.0f ? s0 : (s1 < 0.0f ? s1 : 0.0f), nt = t0 > 0.0f ? t0 : (t1 < 0.0f ? t1 : 0.0f);
+    float s0 = -1.0f + (float)col * h, t0 = -1.0f + (float)row * h;
+    float4 axis = cones[2u * j], cb4 = cones[2u * j + 1u];
     float ar = 0.0f, ag = 0.0f, ab = 0.0f, wsum = 0.0f, wmiss = 0.0f;
-    if (ns * ns + nt * nt < 1.0f) {
-        /* the texel's cone: the paraboloid map takes circles to circles,
-           so the cap through its farthest corner holds all of it */
-        float4 axis = hl_capture_dir(s0 + 0.5f * h, t0 + 0.5f * h, sy);
-        float beta = fmax(fmax(hl_capture_angle(axis, hl_capture_dir(s0, t0, sy)), hl_capture_angle(axis, hl_capture_dir(s1, t0, sy))),
-                          fmax(hl_capture_angle(axis, hl_capture_dir(s0, t1, sy)), hl_capture_angle(axis, hl_capture_dir(s1, t1, sy))));
-        beta += HL_CAPTURE_CONE_MARGIN;
+    if (axis.w != 0.0f) { /* some of the texel in the disc */
         /* the cones meet when the axes' angle is at most alpha + beta:
            their dot product at least cos(alpha + beta), no acos per pair */
-        float cb = cos(beta), sb = sin(beta);
+        float cb = cb4.x, sb = cb4.y, beta = cb4.w;
         ushort list[HL_CAPTURE_LIST];
-        uint n = 0;
-        for (uint i = 0; i < ntris && n <= HL_CAPTURE_LIST; i++) {
+        uint n = 0, T = N / HL_CAPTURE_TILES;
+        uint tile = map * HL_CAPTURE_TILES * HL_CAPTURE_TILES + row / T * HL_CAPTURE_TILES + col / T;
+        for (uint e = tile_start[tile]; e < tile_start[tile + 1u] && n <= HL_CAPTURE_LIST; e++) {
+            uint i = (uint)tile_list[e];
             float4 cone = tris[HL_CAPTURE_F4 * i + 4], cs = tris[HL_CAPTURE_F4 * i + 5];
             float dot = axis.x * cone.x + axis.y * cone.y + axis.z * cone.z;
-            if (cone.w + beta >= 3.14159265f || dot >= cs.x * cb - cs.y * sb) {
+            if ((cone.w + beta >= 3.14159265f || dot >= cs.x * cb - cs.y * sb) &&
+                !hl_capture_outside(tris + HL_CAPTURE_F4 * i, axis, cb4.z)) {
                 if (n < HL_CAPTURE_LIST) list[n] = (ushort)i;
                 n++;
             }
         }
         const ushort *use = n <= HL_CAPTURE_LIST ? list : 0; /* overflow: every triangle */
-        for (uint a = 0; a < S; a++)
+        /* no ray to cast where no triangle is listed, or where one listed
+           triangle is in front of every ray: the same sums */
+        int all = use && n == 0 ? -1 : use ? hl_capture_cover(tris, list, n, axis, cb4.z) : -1;
+        int cast = !(use && (n == 0 || all >= 0));
+        /* nothing listed and some rays in the disc: all of them miss */
+        const int none = use && n == 0 && axis.w == 1.0f;
+        if (none) wsum = wmiss = 1.0f;
+        for (uint a = 0; !none && a < S; a++)
             for (uint b = 0; b < S; b++) {
                 float s = s0 + ((float)b + 0.5f) * hs, t = t0 + ((float)a + 0.5f) * hs;
                 float r2 = s * s + t * t;
                 if (r2 > 1.0f) continue;
                 float k = 1.0f / (1.0f + r2), dw = 4.0f * k * k;
-                int hit = hl_capture_nearest(tris, ntris, use, n, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
+                int hit = cast ? hl_capture_nearest(tris, ntris, use, n, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k) : all;
                 if (hit >= 0) {
                     float4 em = tris[HL_CAPTURE_F4 * (uint)hit + 3];
                     ar += dw * em.x;

@@ -19,10 +19,14 @@
 struct hl_capture {
     hl_context *ctx;
     uint32_t N, S, ncoef;
-    float *tris;         /* 16 floats per triangle, packed */
-    uint32_t cap_tris;   /* triangles tris (and tris_d) have room for */
+    float *tris;         /* HL_CAPTURE_FLOATS per triangle, packed */
+    float *cones;        /* the texel table (hl_capture_texel_cones) */
+    float *tile_cones;   /* the tiles' (hl_capture_tile_cones) */
+    uint32_t tile_start[HL_CAPTURE_NTILES + 1];
+    uint16_t *tile_list; /* the tiles' candidates, room for cap_tris each */
+    uint32_t cap_tris;   /* triangles tris (and tris_d, tile_list) have room for */
     cl_kernel k;
-    cl_mem tris_d, env_d, L_d;
+    cl_mem tris_d, env_d, L_d, cones_d, tstart_d, tlist_d;
 };
 
 void hl_capture_destroy(hl_capture *c)
@@ -33,8 +37,14 @@ void hl_capture_destroy(hl_capture *c)
         hl_cl_release_buf(c->ctx->cl, &c->tris_d);
         hl_cl_release_buf(c->ctx->cl, &c->env_d);
         hl_cl_release_buf(c->ctx->cl, &c->L_d);
+        hl_cl_release_buf(c->ctx->cl, &c->cones_d);
+        hl_cl_release_buf(c->ctx->cl, &c->tstart_d);
+        hl_cl_release_buf(c->ctx->cl, &c->tlist_d);
     }
     free(c->tris);
+    free(c->cones);
+    free(c->tile_cones);
+    free(c->tile_list);
     free(c);
 }
 
@@ -52,6 +62,14 @@ hl_result hl_capture_create(hl_context *ctx, uint32_t N, uint32_t S, hl_capture 
     c->N = N;
     c->S = S;
     c->ncoef = 2 * N * N;
+    c->cones = hl_malloc(ctx, (size_t)c->ncoef * HL_CAPTURE_CONE_FLOATS * 4, "the capture's texel table");
+    c->tile_cones = hl_malloc(ctx, (size_t)HL_CAPTURE_NTILES * HL_CAPTURE_CONE_FLOATS * 4, "the capture's tile table");
+    if (!c->cones || !c->tile_cones) {
+        hl_capture_destroy(c);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    hl_capture_texel_cones(N, S, c->cones);
+    hl_capture_tile_cones(N, c->tile_cones);
     if (ctx->cl) {
         cl_int e;
         c->k = clCreateKernel(ctx->cl->program, "hl_capture", &e);
@@ -59,6 +77,11 @@ hl_result hl_capture_create(hl_context *ctx, uint32_t N, uint32_t S, hl_capture 
                                       : hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: the kernel hl_capture: %s (%d)", hl_cl_err_name(e), (int)e);
         if (r == HL_OK) r = hl_cl_make_buf(ctx, &c->env_d, CL_MEM_READ_ONLY, (size_t)c->ncoef * 12, NULL, "the capture's fallback lighting");
         if (r == HL_OK) r = hl_cl_make_buf(ctx, &c->L_d, CL_MEM_WRITE_ONLY, (size_t)c->ncoef * 12, NULL, "the captured lighting");
+        if (r == HL_OK)
+            r = hl_cl_make_buf(ctx, &c->cones_d, CL_MEM_READ_ONLY, (size_t)c->ncoef * HL_CAPTURE_CONE_FLOATS * 4, c->cones,
+                               "the capture's texel table");
+        if (r == HL_OK)
+            r = hl_cl_make_buf(ctx, &c->tstart_d, CL_MEM_READ_ONLY, sizeof c->tile_start, NULL, "the capture's tile lists");
         if (r != HL_OK) {
             hl_capture_destroy(c);
             return r;
@@ -95,6 +118,130 @@ static hl_result check_scene(hl_context *ctx, uint32_t ncoef, const hl_capture_s
                 return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "capture: the fallback lighting's value %u is %g: it must be finite and >= 0",
                                j, (double)s->fallback_L[j]);
     return HL_OK;
+}
+
+/* The triangle's plane (unit normal away from the capture point, and its
+ * distance) and its edges' planes through the capture point (unit normals
+ * into its view), from the rounded corners c; the edges' normals 0 when
+ * the plane passes (nearly) through the capture point, so that nothing is
+ * taken as covered by a triangle seen edge-on. */
+static void pack_planes(const double c[3][3], float *o)
+{
+    double e1[3], e2[3], m[3], lm = 0.0, cmax = 0.0;
+    for (int a = 0; a < 3; a++) {
+        e1[a] = c[1][a] - c[0][a];
+        e2[a] = c[2][a] - c[0][a];
+    }
+    m[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    m[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    m[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    for (int a = 0; a < 3; a++) lm += m[a] * m[a];
+    for (int v = 0; v < 3; v++)
+        cmax = fmax(cmax, sqrt(c[v][0] * c[v][0] + c[v][1] * c[v][1] + c[v][2] * c[v][2]));
+    lm = sqrt(lm);
+    double d = lm > 0.0 ? (m[0] * c[0][0] + m[1] * c[0][1] + m[2] * c[0][2]) / lm : 0.0;
+    const double sg = d < 0.0 ? -1.0 : 1.0;
+    for (int k = 24; k < 40; k++) o[k] = 0.0f;
+    for (int a = 0; a < 3 && lm > 0.0; a++) o[24 + a] = (float)(sg * m[a] / lm);
+    o[27] = (float)fabs(d);
+    /* 1e-6 of the farthest corner: the plane's distance is then far
+       above its rounding, and the view a solid angle, not a sliver */
+    if (!(fabs(d) > 1e-6 * cmax)) return;
+    for (int k = 0; k < 3; k++) {
+        const double *p = c[(k + 1) % 3], *q = c[(k + 2) % 3], *r = c[k];
+        double n[3] = {p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]};
+        double ln = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), side = n[0] * r[0] + n[1] * r[1] + n[2] * r[2];
+        if (!(ln > 0.0) || side == 0.0) {
+            for (int z = 28; z < 40; z++) o[z] = 0.0f;
+            return;
+        }
+        for (int a = 0; a < 3; a++) o[28 + 4 * k + a] = (float)((side > 0.0 ? 1.0 : -1.0) * n[a] / ln);
+    }
+}
+
+/* Unit direction through (s, t) of a map whose pole is sy * Y. */
+static void para_dir(double s, double t, double sy, double d[3])
+{
+    const double r2 = s * s + t * t, k = 1.0 / (1.0 + r2);
+    d[0] = 2.0 * s * k;
+    d[1] = sy * (1.0 - r2) * k;
+    d[2] = 2.0 * t * k;
+}
+
+/* Whether a ray of texel (col, row) lands in the disc: the float sums
+ * the kernel and the twin make. */
+static int any_ray_in_disc(uint32_t N, uint32_t S, uint32_t col, uint32_t row)
+{
+    float h = 2.0f / (float)N, hs = h / (float)S;
+    float s0 = -1.0f + (float)col * h, t0 = -1.0f + (float)row * h;
+    for (uint32_t a = 0; a < S; a++)
+        for (uint32_t b = 0; b < S; b++) {
+            float s = s0 + ((float)b + 0.5f) * hs, t = t0 + ((float)a + 0.5f) * hs;
+            if (!(s * s + t * t > 1.0f)) return 1;
+        }
+    return 0;
+}
+
+/* The cone holding the square [s0, s0 + w] x [t0, t0 + w] of the map
+ * whose pole is sy * Y (HL_CAPTURE_CONE_FLOATS, the flag left as is):
+ * about the direction through its centre, through its farthest corner.
+ * The square's preimage of that cap is a disc (the cap is far from the
+ * map's opposite pole), which holds the corners, so all of the square. */
+static void square_cone(double s0, double t0, double w, double sy, float *o)
+{
+    double axis[3], beta = 0.0;
+    para_dir(s0 + 0.5 * w, t0 + 0.5 * w, sy, axis);
+    const double cs[4][2] = {{s0, t0}, {s0 + w, t0}, {s0, t0 + w}, {s0 + w, t0 + w}};
+    for (int k = 0; k < 4; k++) {
+        double d[3];
+        para_dir(cs[k][0], cs[k][1], sy, d);
+        double dp = axis[0] * d[0] + axis[1] * d[1] + axis[2] * d[2];
+        beta = fmax(beta, acos(dp > 1.0 ? 1.0 : dp < -1.0 ? -1.0 : dp));
+    }
+    beta += HL_CAPTURE_CONE_MARGIN;
+    for (int a = 0; a < 3; a++) o[a] = (float)axis[a];
+    o[4] = (float)cos(beta);
+    o[5] = (float)sin(beta);
+    o[6] = beta + HL_CAPTURE_COVER_MARGIN < 0.5 * HL_PI ? (float)sin(beta + HL_CAPTURE_COVER_MARGIN) : 2.0f;
+    o[7] = (float)beta;
+}
+
+void hl_capture_texel_cones(uint32_t N, uint32_t S, float *cones)
+{
+    const double h = 2.0 / N;
+    for (uint32_t j = 0; j < 2 * N * N; j++) {
+        uint32_t map = j / (N * N), rem = j % (N * N), row = rem / N, col = rem % N;
+        const double s0 = -1.0 + col * h, t0 = -1.0 + row * h, s1 = s0 + h, t1 = t0 + h;
+        /* the texel's point nearest the pole: none of it in the disc, no light */
+        const double ns = s0 > 0.0 ? s0 : (s1 < 0.0 ? s1 : 0.0), nt = t0 > 0.0 ? t0 : (t1 < 0.0 ? t1 : 0.0);
+        float *o = cones + HL_CAPTURE_CONE_FLOATS * (size_t)j;
+        square_cone(s0, t0, h, map ? -1.0 : 1.0, o);
+        o[3] = !(ns * ns + nt * nt < 1.0) ? 0.0f : any_ray_in_disc(N, S, col, row) ? 1.0f : 2.0f;
+    }
+}
+
+void hl_capture_tile_cones(uint32_t N, float *cones)
+{
+    (void)N; /* a tile is the same square of the map at every N */
+    const double w = 2.0 / HL_CAPTURE_TILES;
+    for (uint32_t k = 0; k < HL_CAPTURE_NTILES; k++) {
+        uint32_t map = k / (HL_CAPTURE_TILES * HL_CAPTURE_TILES), rem = k % (HL_CAPTURE_TILES * HL_CAPTURE_TILES);
+        float *o = cones + HL_CAPTURE_CONE_FLOATS * (size_t)k;
+        square_cone(-1.0 + (rem % HL_CAPTURE_TILES) * w, -1.0 + (rem / HL_CAPTURE_TILES) * w, w, map ? -1.0 : 1.0, o);
+        o[3] = 1.0f;
+    }
+}
+
+void hl_capture_tile_lists(const float *tris, uint32_t ntris, const float *tile_cones, uint32_t *start, uint16_t *list)
+{
+    uint32_t n = 0;
+    for (uint32_t k = 0; k < HL_CAPTURE_NTILES; k++) {
+        start[k] = n;
+        for (uint32_t i = 0; i < ntris; i++)
+            if (hl_capture_meets(tris + HL_CAPTURE_FLOATS * (size_t)i, tile_cones + HL_CAPTURE_CONE_FLOATS * (size_t)k))
+                list[n++] = (uint16_t)i;
+    }
+    start[HL_CAPTURE_NTILES] = n;
 }
 
 /* Corners relative to the centre (in double, then rounded once), the two
@@ -163,6 +310,7 @@ void hl_capture_pack(const hl_capture_scene *s, float *tris)
         o[20] = (float)cos((double)o[19]);
         o[21] = (float)sin((double)o[19]);
         o[22] = o[23] = 0.0f;
+        pack_planes(c, o);
     }
 }
 
@@ -182,52 +330,86 @@ static void *ref_worker(void *arg)
         uint32_t t0 = atomic_fetch_add(&j->next, HL_CAPTURE_CHUNK);
         if (t0 >= c->ncoef) break;
         uint32_t t1 = t0 + HL_CAPTURE_CHUNK < c->ncoef ? t0 + HL_CAPTURE_CHUNK : c->ncoef;
-        for (uint32_t t = t0; t < t1; t++) hl_ref_capture_texel(c->tris, j->ntris, c->N, c->S, j->env_L, 1, t, j->L);
+        for (uint32_t t = t0; t < t1; t++) hl_ref_capture_texel(c->tris, j->ntris, c->cones, c->tile_start, c->tile_list, c->N, c->S, j->env_L, 1, t, j->L);
     }
     return NULL;
 }
 
-static hl_result run_device(hl_capture *c, uint32_t ntris, const float *env_L, float *L)
+/* Enqueues the capture of the packed triangles on the device: fallback
+ * lighting from env (a cl_mem of 3 x ncoef floats, or NULL for black),
+ * output into L (the same size). Nothing waits: c->tris is read by the
+ * upload until the queue has passed it, so the caller waits (a blocking
+ * read or clFinish) before the next pack. */
+static hl_result enqueue_device(hl_capture *c, uint32_t ntris, cl_mem env, cl_mem L)
 {
     hl_context *ctx = c->ctx;
     cl_command_queue q = ctx->cl->queue;
     size_t tbytes = (size_t)ntris * HL_CAPTURE_FLOATS * 4;
     CL_TRY(ctx, clEnqueueWriteBuffer(q, c->tris_d, CL_FALSE, 0, tbytes, c->tris, 0, NULL, NULL), "uploading the surroundings");
-    cl_uint have_env = env_L != NULL;
-    if (env_L)
-        CL_TRY(ctx, clEnqueueWriteBuffer(q, c->env_d, CL_FALSE, 0, (size_t)c->ncoef * 12, env_L, 0, NULL, NULL),
-               "uploading the fallback lighting");
+    CL_TRY(ctx, clEnqueueWriteBuffer(q, c->tstart_d, CL_FALSE, 0, sizeof c->tile_start, c->tile_start, 0, NULL, NULL),
+           "uploading the tile lists");
+    if (c->tile_start[HL_CAPTURE_NTILES])
+        CL_TRY(ctx, clEnqueueWriteBuffer(q, c->tlist_d, CL_FALSE, 0, (size_t)c->tile_start[HL_CAPTURE_NTILES] * 2,
+                                         c->tile_list, 0, NULL, NULL),
+               "uploading the tile lists");
+    cl_uint have_env = env != NULL;
+    cl_mem envm = env ? env : c->env_d; /* an unused argument still needs a buffer */
     cl_uint nt = ntris, N = c->N, S = c->S;
 #define SETARG(i, v) CL_TRY(ctx, clSetKernelArg(c->k, i, sizeof(v), &(v)), "clSetKernelArg (hl_capture)")
     SETARG(0, c->tris_d);
     SETARG(1, nt);
     SETARG(2, N);
     SETARG(3, S);
-    SETARG(4, c->env_d);
+    SETARG(4, envm);
     SETARG(5, have_env);
-    SETARG(6, c->L_d);
+    SETARG(6, L);
+    SETARG(7, c->cones_d);
+    SETARG(8, c->tstart_d);
+    SETARG(9, c->tlist_d);
 #undef SETARG
     size_t local = ctx->cl->wg ? ctx->cl->wg : 1;
     size_t global = ((size_t)c->ncoef + local - 1) / local * local;
     CL_TRY(ctx, clEnqueueNDRangeKernel(q, c->k, 1, NULL, &global, &local, 0, NULL, NULL), "hl_capture");
+    return HL_OK;
+}
+
+static hl_result run_device(hl_capture *c, uint32_t ntris, const float *env_L, float *L)
+{
+    hl_context *ctx = c->ctx;
+    cl_command_queue q = ctx->cl->queue;
+    if (env_L)
+        CL_TRY(ctx, clEnqueueWriteBuffer(q, c->env_d, CL_FALSE, 0, (size_t)c->ncoef * 12, env_L, 0, NULL, NULL),
+               "uploading the fallback lighting");
+    hl_result r = enqueue_device(c, ntris, env_L ? c->env_d : NULL, c->L_d);
+    if (r != HL_OK) {
+        clFinish(q);
+        return r;
+    }
     CL_TRY(ctx, clEnqueueReadBuffer(q, c->L_d, CL_TRUE, 0, (size_t)c->ncoef * 12, L, 0, NULL, NULL), "reading the captured lighting");
     return HL_OK;
 }
 
-hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L)
+/* Checks scene and packs its triangles into c->tris (growing it and the
+ * device's copy as needed). */
+static hl_result load_scene(hl_capture *c, const hl_capture_scene *scene)
 {
     hl_context *ctx = c->ctx;
-    if (!L) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "capture: no output map given");
     hl_result r = check_scene(ctx, c->ncoef, scene);
     if (r != HL_OK) return r;
     const uint32_t n = scene->triangle_count;
     if (n > c->cap_tris) {
         float *p = realloc(c->tris, (size_t)n * HL_CAPTURE_FLOATS * 4);
-        if (!p) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "capture: out of memory for %u triangles", n);
-        c->tris = p;
+        uint16_t *l = p ? realloc(c->tile_list, (size_t)n * HL_CAPTURE_NTILES * 2) : NULL;
+        if (p) c->tris = p;
+        if (l) c->tile_list = l;
+        if (!p || !l) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "capture: out of memory for %u triangles", n);
         if (ctx->cl) {
             hl_cl_release_buf(ctx->cl, &c->tris_d);
+            hl_cl_release_buf(ctx->cl, &c->tlist_d);
             r = hl_cl_make_buf(ctx, &c->tris_d, CL_MEM_READ_ONLY, (size_t)n * HL_CAPTURE_FLOATS * 4, NULL, "the surroundings");
+            if (r == HL_OK)
+                r = hl_cl_make_buf(ctx, &c->tlist_d, CL_MEM_READ_ONLY, (size_t)n * HL_CAPTURE_NTILES * 2, NULL,
+                                   "the capture's tile lists");
             if (r != HL_OK) {
                 c->cap_tris = 0;
                 return r;
@@ -236,6 +418,27 @@ hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L)
         c->cap_tris = n;
     }
     hl_capture_pack(scene, c->tris);
+    hl_capture_tile_lists(c->tris, n, c->tile_cones, c->tile_start, c->tile_list);
+    return HL_OK;
+}
+
+hl_result hl_capture_enqueue(hl_capture *c, const hl_capture_scene *scene, void *env_mem, void *L_mem)
+{
+    if (!c->ctx->cl) return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "capture: a device buffer needs the OpenCL backend");
+    if (scene->fallback_L)
+        return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "capture: the fallback lighting goes in env_mem here");
+    hl_result r = load_scene(c, scene);
+    if (r != HL_OK) return r;
+    return enqueue_device(c, scene->triangle_count, (cl_mem)env_mem, (cl_mem)L_mem);
+}
+
+hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L)
+{
+    hl_context *ctx = c->ctx;
+    if (!L) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "capture: no output map given");
+    hl_result r = load_scene(c, scene);
+    if (r != HL_OK) return r;
+    const uint32_t n = scene->triangle_count;
     if (ctx->cl) return run_device(c, n, scene->fallback_L, L);
     ref_job job = {c, n, scene->fallback_L, L, 0};
     atomic_init(&job.next, 0u);

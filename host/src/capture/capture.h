@@ -40,12 +40,31 @@ static inline uint32_t hl_capture_default_s(uint32_t N)
  * private memory); a texel whose cone meets more tests every triangle. */
 #define HL_CAPTURE_LIST 256u
 /* Floats per packed triangle (HL_CAPTURE_F4 float4 in the kernel). */
-#define HL_CAPTURE_FLOATS 24u
+#define HL_CAPTURE_FLOATS 40u
+/* Floats per texel of the cone table (two float4 in the kernel). */
+#define HL_CAPTURE_CONE_FLOATS 8u
+/* Tiles per side of each map: a texel looks for candidates only among its
+ * tile's, which the host lists at every capture (128 tiles x triangles
+ * tests; at N = 64 a tile is 8 x 8 texels, about 30 degrees). */
+#define HL_CAPTURE_TILES 8u
+#define HL_CAPTURE_NTILES (2u * HL_CAPTURE_TILES * HL_CAPTURE_TILES)
 /* Radians added to a texel's cone (as in the kernel): more than the float
  * error of the acos of a dot product near 1 (about sqrt(2 * 2^-24) =
  * 3.5e-4), so a cull is never wrong and the hits are those of testing
  * every triangle. */
 #define HL_CAPTURE_CONE_MARGIN 4e-3f
+/* A texel whose cone lies inside one triangle's view by this much more
+ * (radians) takes that triangle's radiance for every ray without casting
+ * them, when every other candidate lies behind the triangle's plane: far
+ * more than the float error of Moller-Trumbore's edge tests on a ray that
+ * far inside, so the rays would have hit it. */
+#define HL_CAPTURE_COVER_MARGIN 4e-3
+/* "Behind the plane" allows a corner this far in front (relative to the
+ * plane's distance): a neighbour sharing an edge has corners on the plane,
+ * which float rounding puts either side. Only triangles within this of
+ * coplanar and overlapping (z-fighting, arbitrary either way) can then
+ * differ from casting the rays. */
+#define HL_CAPTURE_PLANE_TOL 1e-5f
 
 typedef struct hl_capture_scene {
     const float *positions; /* 9 per triangle: three corners, world space */
@@ -70,16 +89,61 @@ hl_result hl_capture_create(hl_context *ctx, uint32_t N, uint32_t S, hl_capture 
  * infinite positions or centre, negative or non-finite radiance, no
  * triangles or too many, a bad fallback map. */
 hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L);
+/* As hl_capture_run on the OpenCL backend, with the maps in device
+ * memory (cl_mem of 3 x 2 N^2 floats): the fallback lighting from env_mem
+ * (NULL: black; scene->fallback_L must be NULL), the capture into L_mem.
+ * Enqueued only: the caller waits on the context's queue (a blocking read
+ * or clFinish) before the next call on c, whose triangles the upload
+ * reads until then. */
+hl_result hl_capture_enqueue(hl_capture *c, const hl_capture_scene *scene, void *env_mem, void *L_mem);
 void hl_capture_destroy(hl_capture *c);
 
 /* The twin (twins/capture.c): texel j of the map from packed triangles
  * (HL_CAPTURE_FLOATS each, in fours: v0 - centre, v1 - v0, v2 - v0,
  * emitted RGB, the bounding cone seen from the centre: unit axis and
- * half-angle, 4 for every direction, then its cosine and sine), env_L
- * NULL for black. use_cones 0 tests every triangle with every ray (the
- * test's check that the cones cull nothing they should not). */
-void hl_ref_capture_texel(const float *tris, uint32_t ntris, uint32_t N, uint32_t S, const float *env_L,
-                          int use_cones, uint32_t j, float *L);
+ * half-angle, 4 for every direction, then its cosine and sine; the plane:
+ * unit normal away from the centre and distance; the three edges' planes
+ * through the centre: unit normals into the triangle's view, all 0 where
+ * the triangle is seen edge-on) and the texel table, env_L NULL for
+ * black. use_cones 0 tests every triangle with every ray (the test's
+ * check that the cones and the cover cull nothing they should not). */
+void hl_ref_capture_texel(const float *tris, uint32_t ntris, const float *cones, const uint32_t *tile_start,
+                          const uint16_t *tile_list, uint32_t N, uint32_t S, const float *env_L, int use_cones,
+                          uint32_t j, float *L);
+/* The texel table of resolution N with S x S rays a texel
+ * (HL_CAPTURE_CONE_FLOATS per texel, 2 N^2 texels): the cone holding the
+ * texel (the paraboloid map takes circles to circles, so the cap through
+ * its farthest corner holds all of it), as unit axis, then 0 where none
+ * of the texel is in the disc, 1 where some of its rays are, 2 where it
+ * touches the disc but none of its rays do (a sliver of the rim); the
+ * half-angle's cosine and sine (HL_CAPTURE_CONE_MARGIN added), the sine of
+ * the half-angle plus HL_CAPTURE_COVER_MARGIN (2 where that passes a
+ * right angle), and the half-angle. In double, rounded once. */
+void hl_capture_texel_cones(uint32_t N, uint32_t S, float *cones);
+/* The tiles' cones (HL_CAPTURE_CONE_FLOATS each, HL_CAPTURE_NTILES), as
+ * the texels'. */
+void hl_capture_tile_cones(uint32_t N, float *cones);
+/* The tiles' candidate lists of packed triangles: tile k's are
+ * list[start[k] .. start[k + 1]), ascending (list: room for
+ * HL_CAPTURE_NTILES x ntris). A tile's cone holds its texels' cones, so a
+ * texel's candidates are among its tile's. */
+void hl_capture_tile_lists(const float *tris, uint32_t ntris, const float *tile_cones, uint32_t *start, uint16_t *list);
+
+/* Whether packed triangle T can be hit by a ray of the cone c (a texel's
+ * or a tile's, HL_CAPTURE_CONE_FLOATS): their bounding cones meet, and c
+ * does not lie wholly outside one of T's edge planes (T seen edge-on has
+ * normals 0: never outside). The kernel makes the same float tests. */
+static inline int hl_capture_meets(const float *T, const float *c)
+{
+    const float *cone = T + 16, *cs = T + 20, *en = T + 28;
+    /* the cones meet when the axes' angle is at most alpha + beta: their
+       dot product at least cos(alpha + beta), no acos per pair */
+    float dot = c[0] * cone[0] + c[1] * cone[1] + c[2] * cone[2];
+    if (!(cone[3] + c[7] >= 3.14159265f || dot >= cs[0] * c[4] - cs[1] * c[5])) return 0;
+    for (int k = 0; k < 3; k++)
+        if (c[0] * en[4 * k] + c[1] * en[4 * k + 1] + c[2] * en[4 * k + 2] < -c[6]) return 0;
+    return 1;
+}
 /* Packs scene's triangles into tris (HL_CAPTURE_FLOATS each) as the
  * kernel and the twin read them; the scene must have passed the checks. */
 void hl_capture_pack(const hl_capture_scene *scene, float *tris);

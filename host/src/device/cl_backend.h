@@ -87,6 +87,14 @@ hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight);
 /* keep 1: the dot products leave negative sums as they are (measuring
  * what the clamp at zero changes); 0, the default: clamped. */
 void hl_cl_light_keep_negative(hl_cl_light *l, int keep);
+/* The next lighting changes take their paraboloid lighting from cap's
+ * capture of scene (both kept by the caller until the last such change),
+ * lit where it leaves the sphere open by the environment (with_env) or
+ * black; cap NULL: from the environment again. */
+struct hl_capture;
+struct hl_capture_scene;
+hl_result hl_cl_light_set_capture(hl_cl_light *l, struct hl_capture *cap, const struct hl_capture_scene *scene,
+                                  int with_env);
 /* A lighting change in one submission: env2para, Haar of R, G, B,
  * selection, dot products; B4 gets 4 floats per vertex. */
 hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, float *B4,
@@ -121,6 +129,9 @@ hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const ui
 
 /* The dot-product kernel alone on the current lighting, mean of reps
  * launches queued together. */
+/* The capture alone (after a lighting change that captured), mean over
+ * reps launches. */
+hl_result hl_cl_light_time_capture(hl_cl_light *l, uint32_t reps, double *seconds);
 hl_result hl_cl_light_time_relight(hl_cl_light *l, uint32_t reps, double *seconds);
 /* The dot products' work-items (ranges of tiles), and the column entries
  * each would walk for the kept slots in bits (per_range: one per range);

@@ -30,6 +30,13 @@ struct hl_cl_light {
     uint64_t col_entries;                           /* tile entries in all columns */
     uint32_t *col_start;                            /* host copy, for counting bytes */
     uint32_t *order;                                /* vertex at each position */
+    /* lighting captured from surroundings (hl_cl_light_set_capture): the
+       capture writes Lp in env2para's place, env2para (when capture_env)
+       writing the fallback lighting into Lenv first */
+    struct hl_capture *capture;
+    const struct hl_capture_scene *cscene;
+    int capture_env;
+    cl_mem Lenv;
 };
 
 /* Orders the vertices, cuts them into ranges and uploads t's rows as

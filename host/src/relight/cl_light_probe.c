@@ -7,6 +7,7 @@
  */
 #include <stdlib.h>
 
+#include "capture.h"
 #include "cl_light.h"
 
 uint32_t hl_cl_light_ranges(const hl_cl_light *l) { return l->nranges; }
@@ -69,6 +70,25 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
     }
     free(per);
     *bytes = b;
+    return HL_OK;
+}
+
+hl_result hl_cl_light_time_capture(hl_cl_light *l, uint32_t reps, double *seconds)
+{
+    if (!l->capture) return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "no surroundings have been captured yet");
+    /* the capture alone, as a lighting change enqueues it (packing and
+       uploading the triangles included), one at a time: the next pack
+       rewrites what an upload reads */
+    cl_mem env = l->capture_env ? l->Lenv : NULL;
+    TRY(hl_capture_enqueue(l->capture, l->cscene, env, l->Lp));
+    CL_TRY(l->ctx, clFinish(l->cl->queue), "clFinish");
+    double t0 = hl_now();
+    for (uint32_t i = 0; i < reps; i++) {
+        TRY(hl_capture_enqueue(l->capture, l->cscene, env, l->Lp));
+        /* the next pack rewrites what this upload reads */
+        CL_TRY(l->ctx, clFinish(l->cl->queue), "clFinish");
+    }
+    *seconds = (hl_now() - t0) / (reps ? reps : 1);
     return HL_OK;
 }
 

@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "capture.h"
 #include "cl_light.h"
 
 void hl_cl_light_destroy(hl_cl_light *l)
@@ -17,7 +18,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
                      &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rel, &l->rstart, &l->back, &l->albedo, &l->B,
-                     &l->acc, &l->ord, &l->klist};
+                     &l->acc, &l->ord, &l->klist, &l->Lenv};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(l->cl, all[i]);
     for (int i = 0; i < 4; i++) hl_free_big(l->host[i]);
     free(l->col_start);
@@ -108,7 +109,7 @@ static hl_result light_launch(hl_cl_light *l, int which, size_t items)
     return HL_OK;
 }
 
-static hl_result enq_env2para(hl_cl_light *l, uint32_t s0, float f)
+static hl_result enq_env2para(hl_cl_light *l, uint32_t s0, float f, cl_mem out)
 {
     /* CPU: 64 chunks of consecutive cells or texels; a GPU: one each per
        work-item */
@@ -121,7 +122,7 @@ static hl_result enq_env2para(hl_cl_light *l, uint32_t s0, float f)
     k = l->cl->k[K_ENV2PARA];
     per = l->cl->wg == 1 ? (nc + 63) / 64 : 1;
     LARG(k, 0, l->turned); LARG(k, 1, l->start); LARG(k, 2, l->runs); LARG(k, 3, nc); LARG(k, 4, per);
-    LARG(k, 5, l->Lp);
+    LARG(k, 5, out);
     return light_launch(l, K_ENV2PARA, (nc + per - 1) / per);
 }
 
@@ -158,10 +159,32 @@ void hl_cl_light_keep_negative(hl_cl_light *l, int keep) { l->keep_negative = ke
 
 hl_result hl_cl_light_enq_relight(hl_cl_light *l) { return enq_relight_to(l, l->B); }
 
-/* The lighting stages up to the kept terms: env2para, Haar, selection. */
+hl_result hl_cl_light_set_capture(hl_cl_light *l, struct hl_capture *cap, const struct hl_capture_scene *scene,
+                                  int with_env)
+{
+    if (cap && with_env && !l->Lenv)
+        TRY(hl_cl_make_buf(l->ctx, &l->Lenv, CL_MEM_READ_WRITE, (size_t)3 * l->g->ncoef * 4, NULL,
+                           "the environment behind the surroundings"));
+    l->capture = cap;
+    l->cscene = cap ? scene : NULL;
+    l->capture_env = cap && with_env;
+    return HL_OK;
+}
+
+/* The paraboloid lighting into Lp: env2para, or the capture of the
+ * surroundings over env2para's lighting (or black). */
+static hl_result enq_paraboloid(hl_cl_light *l, uint32_t s0, float f)
+{
+    if (!l->capture) return enq_env2para(l, s0, f, l->Lp);
+    if (l->capture_env) TRY(enq_env2para(l, s0, f, l->Lenv));
+    return hl_capture_enqueue(l->capture, l->cscene, l->capture_env ? l->Lenv : NULL, l->Lp);
+}
+
+/* The lighting stages up to the kept terms: the paraboloid lighting,
+ * Haar, selection. */
 static hl_result enq_lighting(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp)
 {
-    TRY(enq_env2para(l, s0, f));
+    TRY(enq_paraboloid(l, s0, f));
     TRY(enq_haar3(l));
     return enq_select(l, sp);
 }
@@ -202,7 +225,7 @@ hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_p
 
 hl_result hl_cl_light_stage_env2para(hl_cl_light *l, uint32_t s0, float f, float *Lp)
 {
-    TRY(enq_env2para(l, s0, f));
+    TRY(enq_env2para(l, s0, f, l->Lp));
     LREAD(l->Lp, (size_t)3 * l->g->ncoef * 4, Lp, CL_TRUE);
     return HL_OK;
 }

@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "capture.h"
 #include "cl_backend.h"
 #include "lighting.h"
 #include "twins.h"
@@ -38,6 +39,15 @@ struct hl_relighter {
     hl_relight_desc last;
     uint64_t last_serial;
     hl_relight_stats last_stats;
+    /* surroundings (hl_relighter_set_surroundings): the capture, a copy of
+       the triangles it last captured (9 + 3 floats each, so an unchanged
+       frame is found by comparing) and the scene it reads */
+    hl_surroundings *sur;
+    hl_capture *cap;
+    float *sur_pos, *sur_em;
+    uint32_t sur_n, sur_room;
+    hl_capture_scene cscene;
+    float *Lenv;            /* reference: the environment behind them */
 };
 
 void hl_relighter_destroy(hl_relighter *r)
@@ -56,7 +66,25 @@ void hl_relighter_destroy(hl_relighter *r)
     free(r->used);
     free(r->bits);
     free(r->keys);
+    hl_capture_destroy(r->cap);
+    free(r->sur_pos);
+    free(r->sur_em);
+    free(r->Lenv);
     free(r);
+}
+
+/* The capture point: the centre of the bounding box of the object's
+ * vertices (those before the ground). */
+static void object_centre(const hl_mesh *m, float c[3])
+{
+    uint32_t n = m->object_vertex_count ? m->object_vertex_count : m->vertex_count;
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t v = 0; v < n; v++)
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fminf(lo[a], m->positions[3 * (size_t)v + a]);
+            hi[a] = fmaxf(hi[a], m->positions[3 * (size_t)v + a]);
+        }
+    for (int a = 0; a < 3; a++) c[a] = n ? 0.5f * (lo[a] + hi[a]) : 0.0f;
 }
 
 hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out)
@@ -102,6 +130,7 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
             if (ss > r->max_row_norm) r->max_row_norm = ss;
         }
         r->max_row_norm = sqrt(r->max_row_norm);
+        object_centre(t->mesh, r->cscene.center);
         r->uploaded_weights = HL_SELECT_AREA;
         if (ctx->backend == HL_BACKEND_OPENCL) res = hl_cl_light_create(ctx, r->g, r->lg, t, r->albedo4, &r->cl);
     }
@@ -110,6 +139,50 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
         return res;
     }
     *out = r;
+    return HL_OK;
+}
+
+hl_result hl_relighter_set_surroundings(hl_relighter *r, hl_surroundings *s)
+{
+    if (!r) return HL_ERR_INVALID_ARGUMENT;
+    if (s && !r->cap) {
+        hl_result res = hl_capture_create(r->ctx, r->g->N, 0, &r->cap);
+        if (res != HL_OK) return res;
+    }
+    if (s && !r->cl && !r->Lenv) {
+        r->Lenv = hl_malloc(r->ctx, (size_t)r->g->ncoef * 12, "the environment behind the surroundings");
+        if (!r->Lenv) return HL_ERR_OUT_OF_MEMORY;
+    }
+    r->sur = s;
+    r->sur_n = 0; /* the next run captures whatever the triangles are */
+    r->env_serial++;
+    return HL_OK;
+}
+
+/* Takes the surroundings' current triangles: a new lighting (env_serial)
+ * when they differ from the last captured ones. */
+static hl_result take_surroundings(hl_relighter *r)
+{
+    const float *pos = NULL, *em = NULL;
+    hl_result res = hl_surroundings_triangles(r->sur, &pos, &em);
+    if (res != HL_OK) return res;
+    const uint32_t n = hl_surroundings_triangle_count(r->sur);
+    if (n == r->sur_n && !memcmp(pos, r->sur_pos, (size_t)n * 36) && !memcmp(em, r->sur_em, (size_t)n * 12))
+        return HL_OK;
+    if (n > r->sur_room) {
+        float *p = realloc(r->sur_pos, (size_t)n * 36), *e = p ? realloc(r->sur_em, (size_t)n * 12) : NULL;
+        if (p) r->sur_pos = p;
+        if (e) r->sur_em = e;
+        if (!p || !e) return hl_fail(r->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for %u triangles of surroundings", n);
+        r->sur_room = n;
+    }
+    memcpy(r->sur_pos, pos, (size_t)n * 36);
+    memcpy(r->sur_em, em, (size_t)n * 12);
+    r->sur_n = n;
+    r->cscene.positions = r->sur_pos;
+    r->cscene.emission = r->sur_em;
+    r->cscene.triangle_count = n;
+    r->env_serial++;
     return HL_OK;
 }
 
@@ -184,7 +257,16 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
 {
     const hl_geom *g = r->g;
     const hl_transport *t = r->t;
-    hl_ref_env2para(r->cells, r->lg->wc, r->lg->tap_start, r->lg->taps, s0, f, g->ncoef, r->Lp);
+    if (r->sur) {
+        /* the surroundings over the environment (or black) */
+        if (r->cells) hl_ref_env2para(r->cells, r->lg->wc, r->lg->tap_start, r->lg->taps, s0, f, g->ncoef, r->Lenv);
+        r->cscene.fallback_L = r->cells ? r->Lenv : NULL;
+        hl_result res = hl_capture_run(r->cap, &r->cscene, r->Lp);
+        r->cscene.fallback_L = NULL;
+        if (res != HL_OK) return res;
+    } else {
+        hl_ref_env2para(r->cells, r->lg->wc, r->lg->tap_start, r->lg->taps, s0, f, g->ncoef, r->Lp);
+    }
     for (int c = 0; c < 3; c++) hl_ref_haar(g, r->Lp + (size_t)c * g->ncoef, r->Lw + (size_t)c * g->ncoef);
     *sr = hl_ref_select(r->Lw, g->ncoef, weight, sp, r->Lsel, r->used, r->bits, g->nblocks, r->keys);
     for (uint32_t v = 0; v < t->info.vertex_count; v++) {
@@ -226,7 +308,12 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
     if (!d.select) d.select = HL_SELECT_TRANSPORT;
     if (d.select > HL_SELECT_TRANSPORT) return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "unknown selection scheme %u", d.select);
     if (!isfinite(d.rotate_deg)) return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "rotation is not a finite number");
-    if (!r->cells) return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "no environment set (hl_relighter_set_env)");
+    if (!r->cells && !r->sur)
+        return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "no environment or surroundings set (hl_relighter_set_env)");
+    if (r->sur) {
+        hl_result res = take_surroundings(r);
+        if (res != HL_OK) return res;
+    }
     const uint32_t V = r->t->info.vertex_count;
     hl_relight_stats st = {0};
     double t0 = hl_now();
@@ -251,6 +338,7 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         hl_select_result sr;
         r->have_last = 0; /* B4 or out may be half written on failure */
         if (r->cl) hl_cl_light_keep_negative(r->cl, d.keep_negative);
+        if (res == HL_OK && r->cl) res = hl_cl_light_set_capture(r->cl, r->sur ? r->cap : NULL, &r->cscene, r->cells != NULL);
         if (res == HL_OK && out) res = hl_cl_light_run_into(r->cl, s0, f, sp, out, gl, &sr);
         else if (res == HL_OK)
             res = r->cl ? hl_cl_light_run(r->cl, s0, f, sp, r->B4, &sr)

@@ -27,6 +27,13 @@ hl_result hl_bench_time_dots(hl_relighter *r, uint32_t reps, double *seconds)
     return hl_cl_light_time_relight(l, reps, seconds);
 }
 
+hl_result hl_bench_time_capture(hl_relighter *r, uint32_t reps, double *seconds)
+{
+    hl_cl_light *l = hl_relighter_device(r); /* NULL on the reference backend */
+    if (!l) return hl_fail(NULL, HL_ERR_UNSUPPORTED, "no OpenCL device behind this relighter");
+    return hl_cl_light_time_capture(l, reps, seconds);
+}
+
 hl_result hl_bench_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, double *bytes_per_s)
 {
     return hl_cl_read_bandwidth(ctx, bytes, reps, bytes_per_s);

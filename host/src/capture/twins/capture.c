@@ -2,8 +2,8 @@
  * paraboloid texel of the captured lighting, the same float operations in
  * the same order (the build turns contraction off), so the kernel can be
  * checked against it and the reference backend gives the same map.
- * The cones' acos may round differently from the device's, but the cone
- * margin keeps every cull right on both, so the hits are the same.
+ * The texels' cones come from one table (hl_capture_texel_cones) that both
+ * read, so the culls, too, are the same.
  * Depends on: capture.h, libm.
  */
 #include <math.h>
@@ -40,47 +40,15 @@ static int nearest(const float *tris, uint32_t ntris, const uint16_t *list, uint
     return hit;
 }
 
-/* Unit direction through (s, t) of a map whose pole is sy * Y. */
-static void dir_of(float s, float t, float sy, float d[3])
+/* Lists the triangles of the texel's tile that can be hit by a ray of the
+ * texel (hl_capture_meets); returns their count, more than
+ * HL_CAPTURE_LIST when the list overflowed. */
+static uint32_t cull(const float *tris, const uint16_t *tl, uint32_t tn, const float *cone_t, uint16_t *list)
 {
-    float r2 = s * s + t * t, k = 1.0f / (1.0f + r2);
-    d[0] = 2.0f * s * k;
-    d[1] = sy * ((1.0f - r2) * k);
-    d[2] = 2.0f * t * k;
-}
-
-static float angle(const float a[3], const float b[3])
-{
-    float c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    return acosf(c < -1.0f ? -1.0f : c > 1.0f ? 1.0f : c);
-}
-
-static float corner_angle(const float axis[3], float s, float t, float sy)
-{
-    float d[3];
-    dir_of(s, t, sy, d);
-    return angle(axis, d);
-}
-
-/* Lists the triangles whose cone meets the cone of the texel [s0, s1] x
- * [t0, t1] (the paraboloid map takes circles to circles, so the cap
- * through the farthest corner holds all of the texel); returns their
- * count, more than HL_CAPTURE_LIST when the list overflowed. */
-static uint32_t cull(const float *tris, uint32_t ntris, float s0, float t0, float h, float sy, uint16_t *list)
-{
-    float axis[3], s1 = s0 + h, t1 = t0 + h;
-    dir_of(s0 + 0.5f * h, t0 + 0.5f * h, sy, axis);
-    float beta = fmaxf(fmaxf(corner_angle(axis, s0, t0, sy), corner_angle(axis, s1, t0, sy)),
-                       fmaxf(corner_angle(axis, s0, t1, sy), corner_angle(axis, s1, t1, sy)));
-    beta += HL_CAPTURE_CONE_MARGIN;
-    /* the cones meet when the axes' angle is at most alpha + beta: their
-       dot product at least cos(alpha + beta), no acos per pair */
-    float cb = cosf(beta), sb = sinf(beta);
     uint32_t n = 0;
-    for (uint32_t i = 0; i < ntris && n <= HL_CAPTURE_LIST; i++) {
-        const float *cone = tris + HL_CAPTURE_FLOATS * (size_t)i + 16, *cs = cone + 4;
-        float dot = axis[0] * cone[0] + axis[1] * cone[1] + axis[2] * cone[2];
-        if (cone[3] + beta >= 3.14159265f || dot >= cs[0] * cb - cs[1] * sb) {
+    for (uint32_t e = 0; e < tn && n <= HL_CAPTURE_LIST; e++) {
+        const uint32_t i = tl[e];
+        if (hl_capture_meets(tris + HL_CAPTURE_FLOATS * (size_t)i, cone_t)) {
             if (n < HL_CAPTURE_LIST) list[n] = (uint16_t)i;
             n++;
         }
@@ -88,27 +56,66 @@ static uint32_t cull(const float *tris, uint32_t ntris, float s0, float t0, floa
     return n;
 }
 
-void hl_ref_capture_texel(const float *tris, uint32_t ntris, uint32_t N, uint32_t S, const float *env_L,
-                          int use_cones, uint32_t j, float *L)
+/* The listed triangle that every ray of the texel hits first, or -1: its
+ * view (the three planes through the capture point and its edges) holds
+ * the texel's cone with HL_CAPTURE_COVER_MARGIN to spare, and every other
+ * listed triangle lies behind its plane (to HL_CAPTURE_PLANE_TOL). Of the
+ * triangles whose view holds the texel, only the nearest can pass. */
+static int cover(const float *tris, const uint16_t *list, uint32_t n, const float *cone_t)
+{
+    const float sc = cone_t[6];
+    for (uint32_t e = 0; e < n; e++) {
+        const float *T = tris + HL_CAPTURE_FLOATS * (size_t)list[e], *en = T + 28;
+        int in = 1;
+        for (int k = 0; k < 3 && in; k++)
+            in = cone_t[0] * en[4 * k] + cone_t[1] * en[4 * k + 1] + cone_t[2] * en[4 * k + 2] >= sc;
+        if (!in) continue;
+        const float *pl = T + 24;
+        const float lim = pl[3] - HL_CAPTURE_PLANE_TOL * pl[3];
+        for (uint32_t f = 0; f < n && in; f++) {
+            if (f == e) continue;
+            const float *B = tris + HL_CAPTURE_FLOATS * (size_t)list[f];
+            for (int v = 0; v < 3 && in; v++) {
+                float x = B[0] + (v == 1 ? B[4] : v == 2 ? B[8] : 0.0f);
+                float y = B[1] + (v == 1 ? B[5] : v == 2 ? B[9] : 0.0f);
+                float z = B[2] + (v == 1 ? B[6] : v == 2 ? B[10] : 0.0f);
+                in = pl[0] * x + pl[1] * y + pl[2] * z >= lim;
+            }
+        }
+        if (in) return (int)list[e];
+    }
+    return -1;
+}
+
+void hl_ref_capture_texel(const float *tris, uint32_t ntris, const float *cones, const uint32_t *tile_start,
+                          const uint16_t *tile_list, uint32_t N, uint32_t S, const float *env_L, int use_cones,
+                          uint32_t j, float *L)
 {
     const uint32_t ncoef = 2u * N * N;
     uint32_t map = j / (N * N), rem = j % (N * N), row = rem / N, col = rem % N;
     float h = 2.0f / (float)N, hs = h / (float)S, sy = map ? -1.0f : 1.0f;
-    float s0 = -1.0f + (float)col * h, t0 = -1.0f + (float)row * h, s1 = s0 + h, t1 = t0 + h;
-    /* the texel's point nearest the pole: none of it in the disc, no light */
-    float ns = s0 > 0.0f ? s0 : (s1 < 0.0f ? s1 : 0.0f), nt = t0 > 0.0f ? t0 : (t1 < 0.0f ? t1 : 0.0f);
+    float s0 = -1.0f + (float)col * h, t0 = -1.0f + (float)row * h;
+    const float *cone_t = cones + 8 * (size_t)j;
     float ar = 0.0f, ag = 0.0f, ab = 0.0f, wsum = 0.0f, wmiss = 0.0f;
-    if (ns * ns + nt * nt < 1.0f) {
+    if (cone_t[3] != 0.0f) { /* some of the texel in the disc */
         uint16_t list[HL_CAPTURE_LIST];
-        uint32_t n = use_cones ? cull(tris, ntris, s0, t0, h, sy, list) : HL_CAPTURE_LIST + 1;
+        const uint32_t T = N / HL_CAPTURE_TILES, tile = map * HL_CAPTURE_TILES * HL_CAPTURE_TILES + row / T * HL_CAPTURE_TILES + col / T;
+        uint32_t n = use_cones ? cull(tris, tile_list + tile_start[tile], tile_start[tile + 1] - tile_start[tile], cone_t, list)
+                               : HL_CAPTURE_LIST + 1;
         const uint16_t *use = n <= HL_CAPTURE_LIST ? list : NULL; /* overflow: every triangle */
-        for (uint32_t a = 0; a < S; a++)
+        /* no ray to cast where no triangle is listed, or where one
+           listed triangle is in front of every ray: the same sums */
+        const int all = use && n == 0 ? -1 : use ? cover(tris, list, n, cone_t) : -1, cast = !(use && (n == 0 || all >= 0));
+        /* nothing listed and some rays in the disc: all of them miss */
+        const int none = use && n == 0 && cone_t[3] == 1.0f;
+        if (none) wsum = wmiss = 1.0f;
+        for (uint32_t a = 0; !none && a < S; a++)
             for (uint32_t b = 0; b < S; b++) {
                 float s = s0 + ((float)b + 0.5f) * hs, t = t0 + ((float)a + 0.5f) * hs;
                 float r2 = s * s + t * t;
                 if (r2 > 1.0f) continue;
                 float k = 1.0f / (1.0f + r2), dw = 4.0f * k * k;
-                int hit = nearest(tris, ntris, use, n, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
+                int hit = cast ? nearest(tris, ntris, use, n, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k) : all;
                 if (hit >= 0) {
                     const float *em = tris + HL_CAPTURE_FLOATS * (size_t)hit + 12;
                     ar += dw * em[0];
