@@ -208,7 +208,28 @@ relight_bad)
   expect_error env_and_sky 2 "contradict" "$tmp/o.ply" -- relight "$tmp/b.hlt" --env "$data/city.exr" --sun-size 3 -o "$tmp/o.ply"
   expect_error unwritable 1 "no/dir" "" -- relight "$tmp/b.hlt" --sky -o "$tmp/no/dir/o.png"
   ;;
-*) echo "usage: $0 bad_input|bad_options|cl_equals_ref|info|interrupt|opencl_faults|relight|relight_bad"; exit 2 ;;
+relight_surroundings)
+  # lit by the example surroundings (a lamp orbiting the bunny): loads and
+  # says what it holds, two times give different colours, bad options exit 2
+  m="$data/bunny_lowres.obj"
+  sur="$data/surroundings/lamp_orbit.gltf"
+  "$bin" precompute "$m" --ground --ground-res 12 -C 16 -N 16 -q -o "$tmp/s.hlt" || fail "precompute"
+  "$bin" relight "$tmp/s.hlt" --surroundings "$sur" -o "$tmp/s0.ply" 2>"$tmp/s0.txt" || fail "relight --surroundings"
+  cat "$tmp/s0.txt"
+  grep -q "44 triangles, 1 of 3 bodies emitting; animation 0 to 4 s, posed at 0 s" "$tmp/s0.txt" || fail "no line saying what the surroundings hold"
+  grep -q "open directions black" "$tmp/s0.txt" || fail "without --env or --sky the open directions are not said to be black"
+  "$bin" relight "$tmp/s.hlt" --surroundings "$sur" --time 2 -o "$tmp/s2.ply" -q || fail "relight --time 2"
+  "$bin" relight "$tmp/s.hlt" --surroundings "$sur" --time 9 --sky -o "$tmp/s9.ply" 2>"$tmp/s9.txt" || fail "relight --time 9 --sky"
+  grep -q "posed at 4 s (held at the last key)" "$tmp/s9.txt" || fail "--time past the end not said to be held"
+  [ -s "$tmp/s0.ply" ] && [ -s "$tmp/s2.ply" ] || fail "no PLY written"
+  cmp -s "$tmp/s0.ply" "$tmp/s2.ply" && fail "the lamp at 0 s and at 2 s gave identical colours"
+  expect_error time_negative 2 "--time" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --time -1 -o "$tmp/o.ply"
+  expect_error time_nan 2 "--time" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --time nan -o "$tmp/o.ply"
+  expect_error time_text 2 "--time" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --time soon -o "$tmp/o.ply"
+  expect_error time_alone 2 "--time needs --surroundings" "$tmp/o.ply" -- relight "$tmp/s.hlt" --time 1 -o "$tmp/o.ply"
+  expect_error surroundings_missing 1 "nosuch.gltf" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$tmp/nosuch.gltf" -o "$tmp/o.ply"
+  ;;
+*) echo "usage: $0 bad_input|bad_options|cl_equals_ref|info|interrupt|opencl_faults|relight|relight_bad|relight_surroundings"; exit 2 ;;
 esac
 echo "$((fails == 0 ? 1 : 0)) passed, $fails failed" >/dev/null
 [ "$fails" -eq 0 ] && echo "${1}: passed" || echo "${1}: FAILED ($fails)"

@@ -97,14 +97,15 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
     "                       (the default), x support area, or x 1\n"
 #define CLI_USAGE_SURROUNDINGS                                                            \
     "  --surroundings FILE  light from surroundings: any mesh file assimp reads (glTF, FBX,\n" \
-    "                       OBJ, ...); emissive materials give light (emissive colour x\n" \
-    "                       glTF emissive strength), the others are dark and hide what\n" \
-    "                       lies behind them; at most 4096 triangles. They are rendered\n" \
-    "                       as seen from ONE point, the centre of the object's bounding\n" \
-    "                       box (ground left out), so surroundings close to a large\n" \
-    "                       object light all of it as if from its centre. Directions\n" \
-    "                       they leave open are lit by --env or --sky if given, else\n" \
-    "                       black. They light the object but are not drawn themselves\n" \
+    "                       OBJ, ...), at most 4096 triangles; emissive materials give\n" \
+    "                       light (emissive colour x intensity, or x glTF's emissive\n" \
+    "                       strength), the others are dark and hide what lies behind\n" \
+    "                       them. They are seen from ONE point, the centre of the\n"      \
+    "                       object's bounding box (ground left out), so surroundings\n"  \
+    "                       close to a large object light all of it as if from its\n"    \
+    "                       centre. Directions they leave open are lit by --env or --sky\n" \
+    "                       if given, else black; --rotate turns only the environment.\n" \
+    "                       They light the object but are not drawn in images\n"         \
     "  --time T             seconds into the surroundings' own node animation (default 0;\n" \
     "                       held at the first or last key outside its range)\n"
 #define CLI_USAGE_CAMERA                                                                  \

@@ -1,5 +1,7 @@
-/* relight.c - `haarlight relight`: a transport file under an environment
- * to vertex colours (PLY) or a rendered image (EXR, PNG).
+/* relight.c - `haarlight relight`: a transport file under an environment,
+ * or lit by surroundings captured around it (with or without an
+ * environment), to vertex colours (PLY, glTF) or a rendered image (EXR,
+ * PNG).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
@@ -11,8 +13,11 @@
 
 static const char *const usage_relight =
     "usage: haarlight relight SCENE.hlt (--env ENV.exr | --sky) -o OUT [options]\n"
+    "       haarlight relight SCENE.hlt --surroundings FILE [--time T] [--env ENV.exr | --sky]\n"
+    "                         -o OUT [options]\n"
     "\n"
-    "Relights a transport file from `haarlight precompute` under an environment.\n"
+    "Relights a transport file from `haarlight precompute` under an environment, or\n"
+    "lit by surroundings (a lamp, walls) captured around the object.\n"
     "OUT by extension: .ply (mesh with per-vertex colours), .glb (binary glTF 2.0: linear\n"
     "colours in COLOR_0, tone-mapped ones in COLOR_1), .exr (linear image),\n"
     ".png (tone-mapped image). Images are rendered headless with Embree.\n"
@@ -20,8 +25,10 @@ static const char *const usage_relight =
     "lighting:\n"
     "  --env ENV.exr|.hdr   equirectangular OpenEXR (any compression, DWAB included) or\n"
     "                       Radiance .hdr (run-length or flat)\n"
-    "  --sky                the built-in procedural sun and sky (the default without --env)\n"
+    "  --sky                the built-in procedural sun and sky (the default without --env\n"
+    "                       and --surroundings)\n"
     CLI_USAGE_SKY
+    CLI_USAGE_SURROUNDINGS
     CLI_USAGE_LAYOUT
     CLI_USAGE_LIGHTING
     "output:\n"
@@ -39,6 +46,7 @@ int cmd_relight(int argc, char **argv)
     const char *scene = NULL, *env_path = NULL, *out = NULL;
     cli_scene_opts o;
     cli_scene_opts_init(&o);
+    o.accept_surroundings = 1;
     int ply8 = 0, no_bg = 0, want_sky = 0;
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i];
@@ -64,6 +72,9 @@ int cmd_relight(int argc, char **argv)
     if (!scene) return usage_error(usage, "%s", "no SCENE.hlt given");
     if (!out) return usage_error(usage, "%s", "no output given (-o OUT.ply|.glb|.exr|.png)");
     if (env_path && want_sky) return usage_error(usage, "%s", "--env and the sky options contradict each other");
+    if (o.time_set && !o.surroundings) return usage_error(usage, "%s", "--time needs --surroundings");
+    /* without --surroundings the sky is the default; with them, no map: black where they leave open */
+    int use_env = env_path || want_sky || !o.surroundings;
     const char *ext = cli_ext_of(out);
     int is_ply = !strcasecmp(ext, ".ply"), is_glb = !strcasecmp(ext, ".glb"),
         is_img = !strcasecmp(ext, ".exr") || !strcasecmp(ext, ".png");
@@ -80,22 +91,31 @@ int cmd_relight(int argc, char **argv)
     hl_env *env = NULL;
     hl_relighter *rl = NULL;
     hl_image *img = NULL;
+    hl_surroundings *surr = NULL;
     float *rgb = NULL;
     hl_relight_stats st;
     hl_result r = hl_transport_load(ctx, scene, &t);
-    if (r == HL_OK) r = env_path ? cli_env_load(ctx, env_path, o.layout, &env, cd.quiet) : hl_env_create_sky(ctx, &o.sky, &env);
+    if (r == HL_OK && use_env)
+        r = env_path ? cli_env_load(ctx, env_path, o.layout, &env, cd.quiet) : hl_env_create_sky(ctx, &o.sky, &env);
+    if (r == HL_OK) r = cli_surroundings_load(ctx, &o, &surr, cd.quiet);
     if (r == HL_OK) r = hl_relighter_create(ctx, t, &rl);
-    if (r == HL_OK) r = hl_relighter_set_env(rl, env);
+    if (r == HL_OK && env) r = hl_relighter_set_env(rl, env);
+    if (r == HL_OK && surr) r = hl_relighter_set_surroundings(rl, surr);
     if (r == HL_OK) {
         rgb = malloc((size_t)t->info.vertex_count * 12);
         if (!rgb) r = HL_ERR_OUT_OF_MEMORY;
     }
     if (r == HL_OK) r = hl_relighter_run(rl, &rd, rgb, &st);
+    char under[1200];
+    const char *map = env_path ? env_path : env ? "the procedural sky" : NULL;
+    if (surr) snprintf(under, sizeof under, "the surroundings %s at %g s, open directions %s", o.surroundings, o.time,
+                       map ? map : "black");
+    else snprintf(under, sizeof under, "%s", map ? map : "?");
     if (r == HL_OK && !cd.quiet)
         fprintf(stderr,
                 "relit %s under %s on %s: %u lighting terms keep %.4f%% of the lighting energy "
                 "(error bound %.4g per unit albedo); %.0f%% of blocks skipped; %.2f ms\n",
-                scene, env_path ? env_path : "the procedural sky", hl_context_device_name(ctx), st.terms_kept,
+                scene, under, hl_context_device_name(ctx), st.terms_kept,
                 100.0 * st.energy_kept, st.error_bound, 100.0 * st.blocks_skipped, 1e3 * st.seconds);
     if (r == HL_OK && !cd.quiet && st.negative_vertices)
         fprintf(stderr, "negative light: %u of %u vertices summed below zero and were clamped to 0 (the most negative "
@@ -115,6 +135,7 @@ int cmd_relight(int argc, char **argv)
     free(rgb);
     hl_image_destroy(img);
     hl_relighter_destroy(rl);
+    hl_surroundings_destroy(surr);
     hl_env_destroy(env);
     hl_transport_destroy(t);
     cli_unwatch();
