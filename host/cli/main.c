@@ -1,7 +1,8 @@
 /* main.c - the `haarlight` command line.
  *
  * Subcommands: precompute, info, devices, bench-precompute; relight, check
- * and bench (relight.c, check.c, bench.c); view (viewer/, when built). Usage errors
+ * and bench (relight.c, check.c, bench.c); merge (merge.c); view (viewer/,
+ * when built). Usage errors
  * exit 2, failures exit 1 with a message naming the file and the problem.
  */
 #define _POSIX_C_SOURCE 200809L
@@ -25,7 +26,9 @@ static const char *const usage_main =
     "usage: haarlight COMMAND [options]\n"
     "\n"
     "commands:\n"
-    "  precompute MESH -o SCENE.hlt   mesh to compressed wavelet transport\n"
+    "  precompute MESH -o SCENE.hlt   mesh to compressed wavelet transport (--shard I/N: one\n"
+    "                                 part of a run spread over machines)\n"
+    "  merge -o SCENE.hlt SHARD...    join the shards of precompute --shard into SCENE.hlt\n"
     "  info SCENE.hlt                 what a transport file holds\n"
     "  devices                        list OpenCL platforms and devices\n"
     "  relight SCENE.hlt -o OUT       relight under an environment: .ply, .glb, .exr or .png\n"
@@ -42,8 +45,9 @@ static const char *const usage_main =
 static const char *const usage_precompute =
     "usage: haarlight precompute MESH -o SCENE.hlt [options]\n"
     "\n"
-    "Reads MESH (OBJ, PLY, glTF, ... through assimp), casts visibility rays with\n"
-    "Embree, and writes per-vertex sparse quantised Haar transport.\n"
+    "Reads MESH (OBJ, PLY, glTF, ... through assimp; MESH.gz, as mesh.obj.gz, is read\n"
+    "as it is), casts visibility rays with Embree, and writes per-vertex sparse\n"
+    "quantised Haar transport.\n"
     "\n"
     "mesh:\n"
     "  --ground             add a finely tessellated ground plane under the object\n"
@@ -75,7 +79,13 @@ static const char *const usage_precompute =
     "  --chunk V            vertices per chunk; bounds memory (default 1024)\n"
     "  --resume             continue an interrupted run from SCENE.hlt.partial (Ctrl-C,\n"
     "                       or a killed process, leaves it); same mesh and options\n"
-    "                       required, and the result is the same bytes\n"
+    "                       (and --shard) required, and the result is the same bytes\n"
+    "  --shard I/N          compute only shard I of N (0 <= I < N, N at most the vertex\n"
+    "                       count): the I-th of N contiguous, equal (to one vertex)\n"
+    "                       ranges of vertices; -o then names a shard file, which\n"
+    "                       relight and info refuse. `haarlight merge -o SCENE.hlt`\n"
+    "                       with all N shards (same mesh and options) writes the\n"
+    "                       same bytes as one run without --shard\n"
     "  -q, --quiet          no progress line\n";
 
 /* The contexts of the running command, for the SIGINT and SIGTERM
@@ -123,7 +133,23 @@ typedef struct pre_opts {
     hl_precompute_desc pd;
     hl_context_desc cd;
     int terms_set, energy_set, terms_all;
+    uint32_t shard_index, shard_count; /* --shard I/N; count 0 when not given */
 } pre_opts;
+
+/* Defined in merge.c (cli.h is the helpers' header). */
+int cmd_merge(int argc, char **argv);
+
+/* "I/N" with 0 <= I < N: 1, or 0 when malformed. */
+static int parse_shard(const char *v, uint32_t *index, uint32_t *count)
+{
+    const char *slash = strchr(v, '/');
+    char a[16];
+    size_t k = slash ? (size_t)(slash - v) : 0;
+    if (!slash || k == 0 || k >= sizeof a) return 0;
+    memcpy(a, v, k);
+    a[k] = 0;
+    return parse_u32(a, index) && parse_u32(slash + 1, count) && *count >= 1 && *index < *count;
+}
 
 #define NEED_ARG()                                                                   \
     do {                                                                             \
@@ -229,6 +255,11 @@ static int pre_running_opt(int argc, char **argv, int *ip, const char *usage, pr
         if (!parse_u32(v, &o->pd.chunk) || o->pd.chunk < 1 || o->pd.chunk > (1u << 20))
             return usage_error(usage, "--chunk %s: expected 1 to 1048576", v);
     } else if (!strcmp(a, "--resume")) o->pd.resume = 1;
+    else if (!strcmp(a, "--shard")) {
+        NEED_ARG();
+        if (!parse_shard(v, &o->shard_index, &o->shard_count))
+            return usage_error(usage, "--shard %s: expected I/N with 0 <= I < N, as 3/8", v);
+    }
     else if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) o->cd.quiet = 1;
     else return 0;
     *ip = i;
@@ -303,17 +334,22 @@ static int cmd_precompute(int argc, char **argv)
     hl_precompute_stats st;
     if (r == HL_OK) {
         if (!o.cd.quiet) fprintf(stderr, "device: %s\n", hl_context_device_name(ctx));
-        r = hl_precompute(ctx, mesh, &o.pd, o.out, &st);
+        r = hl_precompute_shard(ctx, mesh, &o.pd, o.shard_index, o.shard_count, o.out, &st);
     }
     int rc = 0;
+    uint32_t first = 0, end = mesh ? mesh->vertex_count : 0;
+    if (o.shard_count) hl_shard_range(end, o.shard_index, o.shard_count, &first, &end);
     if (r != HL_OK) rc = cli_fail(ctx, r);
     else if (!o.cd.quiet) {
         uint64_t dirs = st.rays_cast + st.rays_culled;
+        if (o.shard_count)
+            fprintf(stderr, "shard %u of %u: vertices %u..%u of %u (join all %u with haarlight merge)\n",
+                    o.shard_index, o.shard_count, first, end - 1, mesh->vertex_count, o.shard_count);
         fprintf(stderr,
                 "wrote %s: %u vertices, %.1f coefficients kept per vertex\n"
                 "rays: %llu cast, %llu culled below the horizon (%.1f%%)\n"
                 "time: %.2f s total, %.2f s casting rays (%.1f Mrays/s), %.2f s waiting for the stages\n",
-                o.out, mesh->vertex_count, (double)st.coefficients_kept / mesh->vertex_count,
+                o.out, end - first, (double)st.coefficients_kept / (end - first),
                 (unsigned long long)st.rays_cast, (unsigned long long)st.rays_culled,
                 dirs ? 100.0 * (double)st.rays_culled / (double)dirs : 0.0, st.seconds_total, st.seconds_rays,
                 st.seconds_rays > 0 ? (double)st.rays_cast / st.seconds_rays * 1e-6 : 0.0, st.seconds_kernels);
@@ -404,6 +440,7 @@ static int cmd_bench_precompute(int argc, char **argv)
     int u = parse_pre(argc, argv, usage_precompute, &o);
     if (u) return u;
     if (o.pd.resume) return usage_error(usage_precompute, "%s", "--resume: bench-precompute times a whole run");
+    if (o.shard_count) return usage_error(usage_precompute, "%s", "--shard: bench-precompute times a whole run");
     char tmp[256];
     if (!o.out) {
         snprintf(tmp, sizeof tmp, "/tmp/haarlight-bench-%d.hlt", (int)getpid());
@@ -454,6 +491,7 @@ int main(int argc, char **argv)
     const char *cmd = argv[1];
     if (!strcmp(cmd, "precompute")) return cmd_precompute(argc - 2, argv + 2);
     if (!strcmp(cmd, "info")) return cmd_info(argc - 2, argv + 2);
+    if (!strcmp(cmd, "merge")) return cmd_merge(argc - 2, argv + 2);
     if (!strcmp(cmd, "devices")) return cmd_devices(argc - 2, argv + 2);
     if (!strcmp(cmd, "relight")) return cmd_relight(argc - 2, argv + 2);
     if (!strcmp(cmd, "relight-dynamic")) return cmd_relight_dynamic(argc - 2, argv + 2);

@@ -191,6 +191,45 @@ void hl_view_gl_colours_destroy(hl_gl_colours *c);
  * it: glFinish). Nothing is copied to the host. */
 hl_result hl_view_run_gl(hl_relighter *r, const hl_relight_desc *desc, hl_gl_colours *c, hl_relight_stats *stats);
 
+/* ---------------------------------------------------------------- shards */
+
+/* A precompute spread over machines: shard i of n (n >= 1, i < n, n at
+ * most the vertex count) computes the vertices [*first, *end) that this
+ * gives: contiguous, lengths differing by at most one, from V, i and n
+ * alone. */
+void hl_shard_range(uint32_t vertex_count, uint32_t index, uint32_t count, uint32_t *first, uint32_t *end);
+
+/* hl_precompute for shard shard_index of shard_count only: writes a shard
+ * file at out_path (the whole mesh, then the rows of the shard's vertices;
+ * a magic of its own, so hl_transport_load refuses it and names the
+ * shard). Resumes like a whole run (desc->resume: the .partial must be of
+ * the same shard). shard_count 0 is hl_precompute itself. */
+hl_result hl_precompute_shard(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *desc,
+                              uint32_t shard_index, uint32_t shard_count, const char *out_path,
+                              hl_precompute_stats *stats);
+
+/* What a merge did. */
+typedef struct hl_merge_stats {
+    uint32_t shards, vertices;
+    uint64_t coefficients_kept;
+    uint64_t bytes_read, bytes_written;
+    double seconds;
+} hl_merge_stats;
+
+/* Joins the shard files (any order) of one sharded precompute into the
+ * transport file out_path, byte for byte the file one unsharded run with
+ * the same mesh and options writes; atomically (out_path + ".partial",
+ * renamed when complete; nothing is left on failure). Streams: it holds a
+ * few MiB of buffers, never a whole shard or the mesh. Refuses, naming the
+ * file: a file that is not a shard (a whole transport file, an unfinished
+ * .partial, anything else); shards of different meshes, options or shard
+ * counts; a missing or repeated shard; a truncated or corrupt shard (every
+ * checksum and row is checked); out_path being one of the shards.
+ * HL_ERR_INVALID_ARGUMENT, HL_ERR_FORMAT or HL_ERR_IO; HL_ERR_INTERRUPTED
+ * when ctx is cancelled. stats may be NULL. */
+hl_result hl_transport_merge(hl_context *ctx, const char *out_path, const char *const *shard_paths, uint32_t count,
+                             hl_merge_stats *stats);
+
 #ifdef __cplusplus
 }
 #endif

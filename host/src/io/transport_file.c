@@ -3,6 +3,11 @@
  * writer has it), checkpoints and resume, and the atomic publish (header,
  * fsync, rename onto path, sync of the directory).
  *
+ * A shard writer (precompute --shard i/n) writes the whole mesh but the
+ * rows of its own vertices only, under TF_SHARD_MAGIC; a copying writer
+ * (merge) takes the mesh section's bytes from another file instead of a
+ * mesh in memory.
+ *
  * The byte layout lives in host/FORMAT.md and transport_layout.h; the
  * loader is transport_load.c, the report transport_report.c.
  *
@@ -46,7 +51,8 @@ struct hl_tfile_writer {
     char *tmp_path;
     int fd;
     int failed; /* after an I/O error only abort is useful */
-    tf_header hdr;
+    tf_header hdr; /* hdr.shard.count 0: a whole file */
+    uint32_t rows_total; /* vertices this file holds: V, or the shard's */
     uint32_t appended;
     uint64_t coefficients;
     tf_stream rows, entries;
@@ -154,16 +160,10 @@ static int info_params_differ(const hl_transport_info *a, const hl_transport_inf
            a->block_count != b->block_count;
 }
 
-/* Checks the arguments and plans the header; no file is touched. */
-static hl_result writer_new(hl_context *ctx, const char *path, const hl_transport_info *info, const hl_mesh *mesh,
-                            hl_tfile_writer **out)
+/* The mesh's agreement with info, and its contents. */
+static hl_result mesh_problem(hl_context *ctx, const char *path, const hl_transport_info *info, const hl_mesh *mesh)
 {
     char msg[256];
-    *out = NULL;
-    if (!path || !*path || !info || !mesh)
-        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "transport writer: path, info, mesh and out are required");
-    if (hl_tf_info_problem(info, msg, sizeof msg))
-        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: transport parameters: %s", path, msg);
     if (mesh->vertex_count != info->vertex_count || mesh->triangle_count != info->triangle_count ||
         mesh->object_vertex_count != info->object_vertex_count)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
@@ -175,6 +175,32 @@ static hl_result writer_new(hl_context *ctx, const char *path, const hl_transpor
     if (hl_tf_mesh_problem(mesh->vertex_count, mesh->triangle_count, mesh->positions, mesh->normals,
                            mesh->albedo, mesh->indices, msg, sizeof msg))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: mesh: %s", path, msg);
+    return HL_OK;
+}
+
+/* Checks the arguments and plans the header; no file is touched. mesh may
+ * be NULL for a copying writer; shard NULL or of count 0: a whole file. */
+static hl_result writer_new(hl_context *ctx, const char *path, const hl_transport_info *info, const hl_mesh *mesh,
+                            const tf_shard *shard, hl_tfile_writer **out)
+{
+    char msg[256];
+    *out = NULL;
+    if (!path || !*path || !info)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "transport writer: path, info, mesh and out are required");
+    if (hl_tf_info_problem(info, msg, sizeof msg))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: transport parameters: %s", path, msg);
+    tf_shard sh = {0, 0, 0, info->vertex_count};
+    if (shard && shard->count) {
+        if (shard->index >= shard->count || shard->count > info->vertex_count)
+            return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                           "%s: shard %u of %u: the index must be below the count, and the count at most the %u "
+                           "vertices", path, shard->index, shard->count, info->vertex_count);
+        sh.index = shard->index;
+        sh.count = shard->count;
+        tf_shard_range(info->vertex_count, sh.index, sh.count, &sh.first, &sh.end);
+    }
+    hl_result r = mesh ? mesh_problem(ctx, path, info, mesh) : HL_OK;
+    if (r != HL_OK) return r;
 
     hl_tfile_writer *w = hl_calloc(ctx, 1, sizeof *w, "the transport writer");
     if (!w) return HL_ERR_OUT_OF_MEMORY;
@@ -189,6 +215,8 @@ static hl_result writer_new(hl_context *ctx, const char *path, const hl_transpor
 
     tf_header *h = &w->hdr;
     h->info = *info;
+    h->shard = sh;
+    w->rows_total = sh.end - sh.first;
     h->info.version = TF_VERSION;
     h->info.coefficients_kept = 0;
     h->info.rays_cast = h->info.rays_culled = 0;
@@ -196,7 +224,7 @@ static hl_result writer_new(hl_context *ctx, const char *path, const hl_transpor
     h->sec[SEC_MESH].offset = TF_HEADER_SIZE;
     h->sec[SEC_MESH].size = mesh_bytes(info->vertex_count, info->triangle_count);
     h->sec[SEC_ROWS].offset = align_up(h->sec[SEC_MESH].offset + h->sec[SEC_MESH].size);
-    h->sec[SEC_ROWS].size = (uint64_t)info->vertex_count * row_record_bytes(info->block_count);
+    h->sec[SEC_ROWS].size = (uint64_t)w->rows_total * row_record_bytes(info->block_count);
     h->sec[SEC_ENTRIES].offset = align_up(h->sec[SEC_ROWS].offset + h->sec[SEC_ROWS].size);
     *out = w;
     return HL_OK;
@@ -233,45 +261,48 @@ static uint32_t mesh_crc(const hl_mesh *mesh)
     return crc;
 }
 
-hl_result hl_tfile_writer_open(hl_context *ctx, const char *path, const hl_transport_info *info,
-                               const hl_mesh *mesh, hl_tfile_writer **out)
+/* Creates, locks and empties the partial file of a new writer. */
+static hl_result writer_create(hl_context *ctx, hl_tfile_writer *w)
 {
-    if (out) *out = NULL;
-    if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "transport writer: path, info, mesh and out are required");
-    hl_tfile_writer *w;
-    hl_result r = writer_new(ctx, path, info, mesh, &w);
-    if (r != HL_OK) return r;
-    tf_header *h = &w->hdr;
     w->fd = open(w->tmp_path, O_RDWR | O_CREAT | O_CLOEXEC, 0666);
     if (w->fd < 0) {
         int e = errno;
-        r = hl_fail(ctx, HL_ERR_IO, "%s: cannot create %s: %s", path, w->tmp_path, strerror(e));
+        hl_result r = hl_fail(ctx, HL_ERR_IO, "%s: cannot create %s: %s", w->path, w->tmp_path, strerror(e));
         writer_free(w);
         return r;
     }
-    r = writer_lock(w);
+    hl_result r = writer_lock(w);
     if (r == HL_OK && ftruncate(w->fd, 0) != 0) r = writer_io_error(w, "truncate");
-    if (r != HL_OK) {
-        writer_free(w); /* not ours to remove */
-        return r;
-    }
+    if (r != HL_OK) writer_free(w); /* not ours to remove */
+    return r;
+}
 
-    /* The mesh goes out now through the rows stream, which then restarts at
-     * the row table: one buffer serves both. */
+/* The mesh goes out through the rows stream, which then restarts at the
+ * row table: one buffer serves both. */
+static hl_result write_mesh(hl_tfile_writer *w, const hl_mesh *mesh)
+{
     size_t v3 = 3 * (size_t)mesh->vertex_count;
     tf_stream *s = &w->rows;
-    stream_start(s, h->sec[SEC_MESH].offset);
-    r = put_words(w, s, mesh->positions, v3);
+    stream_start(s, w->hdr.sec[SEC_MESH].offset);
+    hl_result r = put_words(w, s, mesh->positions, v3);
     if (r == HL_OK) r = put_words(w, s, mesh->normals, v3);
     if (r == HL_OK) r = put_words(w, s, mesh->albedo, v3);
     if (r == HL_OK) r = put_words(w, s, mesh->indices, 3 * (size_t)mesh->triangle_count);
     if (r == HL_OK) r = stream_flush(w, s);
-    if (r == HL_OK) r = write_padding(w, h->sec[SEC_MESH].offset + h->sec[SEC_MESH].size, h->sec[SEC_ROWS].offset);
+    w->hdr.sec[SEC_MESH].crc = s->crc;
+    return r;
+}
+
+/* After the mesh: the padding, the streams at their sections and the
+ * first checkpoint. Aborts the writer on failure. */
+static hl_result writer_start_rows(hl_tfile_writer *w, hl_tfile_writer **out)
+{
+    tf_header *h = &w->hdr;
+    hl_result r = write_padding(w, h->sec[SEC_MESH].offset + h->sec[SEC_MESH].size, h->sec[SEC_ROWS].offset);
     if (r != HL_OK) {
         hl_tfile_writer_abort(w);
         return r;
     }
-    h->sec[SEC_MESH].crc = s->crc;
     stream_start(&w->rows, h->sec[SEC_ROWS].offset);
     stream_start(&w->entries, h->sec[SEC_ENTRIES].offset);
     /* resumable from the start: the mesh is in */
@@ -282,6 +313,74 @@ hl_result hl_tfile_writer_open(hl_context *ctx, const char *path, const hl_trans
     }
     *out = w;
     return HL_OK;
+}
+
+hl_result hl_tfile_writer_open_shard(hl_context *ctx, const char *path, const hl_transport_info *info,
+                                     const hl_mesh *mesh, uint32_t shard_index, uint32_t shard_count,
+                                     hl_tfile_writer **out)
+{
+    if (out) *out = NULL;
+    if (!out || !mesh)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "transport writer: path, info, mesh and out are required");
+    tf_shard sh = {shard_index, shard_count, 0, 0};
+    hl_tfile_writer *w;
+    hl_result r = writer_new(ctx, path, info, mesh, &sh, &w);
+    if (r == HL_OK) r = writer_create(ctx, w);
+    if (r != HL_OK) return r;
+    r = write_mesh(w, mesh);
+    if (r != HL_OK) {
+        hl_tfile_writer_abort(w);
+        return r;
+    }
+    return writer_start_rows(w, out);
+}
+
+hl_result hl_tfile_writer_open(hl_context *ctx, const char *path, const hl_transport_info *info,
+                               const hl_mesh *mesh, hl_tfile_writer **out)
+{
+    return hl_tfile_writer_open_shard(ctx, path, info, mesh, 0, 0, out);
+}
+
+/* Copying buffer of the mesh section: as the loader's row reader. */
+#define TF_COPY_BYTES ((size_t)1 << 20)
+
+hl_result hl_tfile_writer_open_copy(hl_context *ctx, const char *path, const hl_transport_info *info, int src_fd,
+                                    const char *src_path, uint64_t mesh_offset, uint32_t mesh_crc,
+                                    hl_tfile_writer **out)
+{
+    if (out) *out = NULL;
+    if (!out || src_fd < 0 || !src_path)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "transport writer: path, info, source and out are required");
+    hl_tfile_writer *w;
+    hl_result r = writer_new(ctx, path, info, NULL, NULL, &w);
+    if (r == HL_OK) r = writer_create(ctx, w);
+    if (r != HL_OK) return r;
+    uint8_t *buf = hl_malloc(ctx, TF_COPY_BYTES, "the mesh copy");
+    uint64_t left = w->hdr.sec[SEC_MESH].size, from = mesh_offset, to = w->hdr.sec[SEC_MESH].offset;
+    uint32_t crc = 0;
+    if (!buf) r = HL_ERR_OUT_OF_MEMORY;
+    while (r == HL_OK && left > 0) {
+        size_t k = left < TF_COPY_BYTES ? (size_t)left : TF_COPY_BYTES;
+        int e = hl_tf_pread_all(src_fd, buf, k, from);
+        if (e != 0)
+            r = hl_fail(ctx, e < 0 ? HL_ERR_IO : HL_ERR_FORMAT, "%s: cannot read its mesh section: %s", src_path,
+                        e < 0 ? strerror(errno) : "the file ends inside it");
+        else if (hl_tf_pwrite_all(w->fd, buf, k, to) != 0) r = writer_io_error(w, "write");
+        crc = crc_update(crc, buf, k);
+        from += k;
+        to += k;
+        left -= k;
+    }
+    free(buf);
+    if (r == HL_OK && crc != mesh_crc)
+        r = hl_fail(ctx, HL_ERR_FORMAT, "%s: checksum mismatch in the mesh section (stored %08x, computed %08x)",
+                    src_path, (unsigned)mesh_crc, (unsigned)crc);
+    if (r != HL_OK) {
+        hl_tfile_writer_abort(w);
+        return r;
+    }
+    w->hdr.sec[SEC_MESH].crc = crc;
+    return writer_start_rows(w, out);
 }
 
 hl_result hl_tfile_writer_checkpoint(hl_tfile_writer *w, uint64_t rays_cast, uint64_t rays_culled)
@@ -330,11 +429,26 @@ static int file_crc(hl_tfile_writer *w, uint64_t off, uint64_t n, uint32_t *crc)
 hl_result hl_tfile_writer_resume(hl_context *ctx, const char *path, const hl_transport_info *info,
                                  const hl_mesh *mesh, hl_tfile_writer **out, hl_tfile_progress *done)
 {
+    return hl_tfile_writer_resume_shard(ctx, path, info, mesh, 0, 0, out, done);
+}
+
+/* A whole file's range is not stored (its shard words are zero). */
+static int shard_differs(const tf_shard *a, const tf_shard *b)
+{
+    return a->index != b->index || a->count != b->count || (a->count && (a->first != b->first || a->end != b->end));
+}
+
+hl_result hl_tfile_writer_resume_shard(hl_context *ctx, const char *path, const hl_transport_info *info,
+                                       const hl_mesh *mesh, uint32_t shard_index, uint32_t shard_count,
+                                       hl_tfile_writer **out, hl_tfile_progress *done)
+{
     if (out) *out = NULL;
     memset(done, 0, sizeof *done);
-    if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "transport writer: path, info, mesh and out are required");
+    if (!out || !mesh)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "transport writer: path, info, mesh and out are required");
+    tf_shard sh = {shard_index, shard_count, 0, 0};
     hl_tfile_writer *w;
-    hl_result r = writer_new(ctx, path, info, mesh, &w);
+    hl_result r = writer_new(ctx, path, info, mesh, &sh, &w);
     if (r != HL_OK) return r;
     w->fd = open(w->tmp_path, O_RDWR | O_CLOEXEC);
     if (w->fd < 0) {
@@ -357,10 +471,13 @@ hl_result hl_tfile_writer_resume(hl_context *ctx, const char *path, const hl_tra
         else if (get_u32(bytes + H_HEADER_CRC) != crc_update(0, bytes, H_HEADER_CRC)) why = "its checkpoint is corrupt";
         else if (get_u32(bytes + H_VERSION) != TF_VERSION) why = "written by another format version";
         else if (info_params_differ(&p.info, &h->info)) why = "made with other parameters or another mesh";
+        else if (shard_differs(&p.shard, &h->shard))
+            why = p.shard.count ? (h->shard.count ? "made for another shard" : "made for a shard (--shard)")
+                                : "made for a whole run, without --shard";
         else if (p.sec[SEC_MESH].offset != h->sec[SEC_MESH].offset || p.sec[SEC_MESH].size != h->sec[SEC_MESH].size ||
                  p.sec[SEC_MESH].crc != mesh_crc(mesh))
             why = "made from another mesh";
-        else if (appended > h->info.vertex_count || p.sec[SEC_ROWS].offset != h->sec[SEC_ROWS].offset ||
+        else if (appended > w->rows_total || p.sec[SEC_ROWS].offset != h->sec[SEC_ROWS].offset ||
                  p.sec[SEC_ROWS].size != rows || p.sec[SEC_ENTRIES].offset != h->sec[SEC_ENTRIES].offset ||
                  p.sec[SEC_ENTRIES].size != 2 * p.info.coefficients_kept)
             why = "its checkpoint is inconsistent";
@@ -410,16 +527,16 @@ hl_result hl_tfile_writer_append(hl_tfile_writer *w, uint32_t vertex_count, cons
     const hl_transport_info *info = &w->hdr.info;
     if (!rq || !block_counts || !nnz)
         return hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: append: arrays missing", w->path);
-    if (vertex_count > info->vertex_count - w->appended)
+    if (vertex_count > w->rows_total - w->appended)
         return hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT,
-                       "%s: append of %u vertices after %u would exceed vertex_count %u", w->path, vertex_count,
-                       w->appended, info->vertex_count);
+                       "%s: append of %u vertices after %u would exceed the %u vertices of the file", w->path,
+                       vertex_count, w->appended, w->rows_total);
 
     /* Validate everything first so that a refusal leaves the file as it was. */
     uint32_t B = info->block_count;
     char msg[256];
     for (uint32_t i = 0; i < vertex_count; i++) {
-        uint32_t v = w->appended + i;
+        uint32_t v = w->hdr.shard.first + w->appended + i;
         uint64_t sum = 0;
         if (hl_tf_row_quant_problem(info->quant, rq[i], msg, sizeof msg))
             return hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: vertex %u: %s", w->path, v, msg);
@@ -482,9 +599,9 @@ hl_result hl_tfile_writer_finish(hl_tfile_writer *w, const hl_transport_info *fi
     tf_header *h = &w->hdr;
     if (w->failed) {
         r = hl_fail(w->ctx, HL_ERR_IO, "%s: the writer failed earlier", w->path);
-    } else if (w->appended != h->info.vertex_count) {
+    } else if (w->appended != w->rows_total) {
         r = hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: finished after %u of %u vertices", w->path, w->appended,
-                    h->info.vertex_count);
+                    w->rows_total);
     } else if (final_info && info_params_differ(final_info, &h->info)) {
         r = hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: final parameters differ from those given at open",
                     w->path);
@@ -504,7 +621,7 @@ hl_result hl_tfile_writer_finish(hl_tfile_writer *w, const hl_transport_info *fi
         h->sec[SEC_ENTRIES].crc = w->entries.crc;
         h->file_size = h->sec[SEC_ENTRIES].offset + h->sec[SEC_ENTRIES].size;
         uint8_t bytes[TF_HEADER_SIZE];
-        hl_tf_header_encode(h, TF_MAGIC, 0, bytes);
+        hl_tf_header_encode(h, h->shard.count ? TF_SHARD_MAGIC : TF_MAGIC, 0, bytes);
         r = write_padding(w, h->sec[SEC_ROWS].offset + h->sec[SEC_ROWS].size, h->sec[SEC_ENTRIES].offset);
         if (r == HL_OK && hl_tf_pwrite_all(w->fd, bytes, sizeof bytes, 0) != 0) r = writer_io_error(w, "write");
         if (r == HL_OK && fsync(w->fd) != 0) r = writer_io_error(w, "sync");

@@ -38,6 +38,24 @@ hl_result hl_tfile_writer_open(hl_context *ctx, const char *path,
                                const hl_transport_info *info,
                                const hl_mesh *mesh, hl_tfile_writer **out);
 
+/* As open, for shard shard_index of shard_count (a precompute spread over
+ * machines, FORMAT.md "Shard files"): the whole mesh, then the rows of the
+ * shard's vertices only (transport_layout.h, tf_shard_range), appended in
+ * order from its first; finish writes the shard magic. shard_count 0 is a
+ * whole file, as open. */
+hl_result hl_tfile_writer_open_shard(hl_context *ctx, const char *path, const hl_transport_info *info,
+                                     const hl_mesh *mesh, uint32_t shard_index, uint32_t shard_count,
+                                     hl_tfile_writer **out);
+
+/* As open for a whole file, with the mesh section copied byte for byte
+ * from bytes mesh_offset.. of the open file src_fd (src_path in messages),
+ * whose CRC-32 must be mesh_crc (else HL_ERR_FORMAT naming src_path, and
+ * nothing is left on disk). The mesh is neither held nor re-checked: merge
+ * takes it from shards whose writer checked it. */
+hl_result hl_tfile_writer_open_copy(hl_context *ctx, const char *path, const hl_transport_info *info, int src_fd,
+                                    const char *src_path, uint64_t mesh_offset, uint32_t mesh_crc,
+                                    hl_tfile_writer **out);
+
 /* Appends the next vertex_count vertices in vertex order. Vertex i has
  * row parameters rq[i], block counts block_counts[i * block_count ..] and
  * nnz[i] entries (2 * nnz[i] bytes: in-block index, quantised value) at
@@ -75,7 +93,7 @@ hl_result hl_tfile_writer_checkpoint(hl_tfile_writer *w, uint64_t rays_cast, uin
  * later resume. */
 void hl_tfile_writer_keep(hl_tfile_writer *w);
 
-/* Vertices appended so far. */
+/* Vertices appended so far (of the shard's, for a shard writer). */
 uint32_t hl_tfile_writer_appended(const hl_tfile_writer *w);
 
 typedef struct hl_tfile_progress {
@@ -91,6 +109,11 @@ typedef struct hl_tfile_progress {
  * NULL (the caller opens a new one). done gets what is already written. */
 hl_result hl_tfile_writer_resume(hl_context *ctx, const char *path, const hl_transport_info *info,
                                  const hl_mesh *mesh, hl_tfile_writer **out, hl_tfile_progress *done);
+/* As resume, for a shard's partial file: it must have been made for the
+ * same shard (a whole run's is refused, and the other way round). */
+hl_result hl_tfile_writer_resume_shard(hl_context *ctx, const char *path, const hl_transport_info *info,
+                                       const hl_mesh *mesh, uint32_t shard_index, uint32_t shard_count,
+                                       hl_tfile_writer **out, hl_tfile_progress *done);
 
 /* Human report of a loaded transport for `haarlight info`: parameters,
  * counts, per-vertex statistics, ray counters and sizes. path is only

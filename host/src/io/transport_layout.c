@@ -9,6 +9,7 @@
 #define _POSIX_C_SOURCE 200809L /* pread, pwrite, O_CLOEXEC */
 #define _FILE_OFFSET_BITS 64
 #include <errno.h>
+#include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -25,6 +26,12 @@ void hl_tf_header_encode(const tf_header *h, const char *magic, uint32_t appende
     memset(out, 0, TF_HEADER_SIZE);
     memcpy(out + H_MAGIC, magic, 8);
     if (appended) put_u32(out + H_APPENDED, appended);
+    if (h->shard.count) {
+        put_u32(out + H_SHARD_INDEX, h->shard.index);
+        put_u32(out + H_SHARD_COUNT, h->shard.count);
+        put_u32(out + H_SHARD_FIRST, h->shard.first);
+        put_u32(out + H_SHARD_END, h->shard.end);
+    }
     put_u32(out + H_VERSION, TF_VERSION);
     put_u32(out + H_HEADER_SIZE, TF_HEADER_SIZE);
     put_u32(out + H_N, i->N);
@@ -78,6 +85,10 @@ void hl_tf_header_decode(const uint8_t *in, tf_header *h)
         h->sec[s].size = get_u64(in + H_SECTIONS + 16 * s + 8);
         h->sec[s].crc = get_u32(in + H_SECTION_CRCS + 4 * s);
     }
+    h->shard.index = get_u32(in + H_SHARD_INDEX);
+    h->shard.count = get_u32(in + H_SHARD_COUNT);
+    h->shard.first = get_u32(in + H_SHARD_FIRST);
+    h->shard.end = get_u32(in + H_SHARD_END);
     for (unsigned k = H_RESERVED; k < H_HEADER_CRC; k++)
         if (in[k]) h->reserved_nonzero = 1;
 }
@@ -107,6 +118,52 @@ int hl_tf_info_problem(const hl_transport_info *i, char *msg, size_t n)
     if (i->block_count != blocks_for(i->N))
         return snprintf(msg, n, "block_count = %u, but N = %u needs %u", i->block_count, i->N, blocks_for(i->N)), 1;
     return 0;
+}
+
+int hl_tf_sections_problem(const tf_header *h, const uint64_t expect[SEC_COUNT], char *msg, size_t n)
+{
+    static const char *const size_fields[SEC_COUNT] = {"mesh_size", "rows_size", "entries_size"};
+    static const char *const offset_fields[SEC_COUNT] = {"mesh_offset", "rows_offset", "entries_offset"};
+    uint64_t end = TF_HEADER_SIZE;
+    for (int s = 0; s < SEC_COUNT; s++) {
+        if (h->sec[s].size != expect[s])
+            return snprintf(msg, n, "header field %s = %" PRIu64 ", the counts need %" PRIu64, size_fields[s],
+                            h->sec[s].size, expect[s]), 1;
+        if (h->sec[s].offset < end || h->sec[s].offset % TF_ALIGN != 0 || h->sec[s].offset > h->file_size ||
+            h->sec[s].size > h->file_size - h->sec[s].offset)
+            return snprintf(msg, n, "header field %s = %" PRIu64
+                            " is misaligned, overlaps or lies outside the file (%" PRIu64 " bytes)",
+                            offset_fields[s], h->sec[s].offset, h->file_size), 1;
+        end = h->sec[s].offset + h->sec[s].size;
+    }
+    if (h->file_size != end)
+        return snprintf(msg, n, "header field file_size = %" PRIu64 " but the entries end at %" PRIu64, h->file_size,
+                        end), 1;
+    return 0;
+}
+
+int hl_tf_shard_header_problem(const tf_header *h, const uint8_t bytes[TF_HEADER_SIZE], char *msg, size_t n)
+{
+    const hl_transport_info *i = &h->info;
+    const tf_shard *s = &h->shard;
+    if (hl_tf_info_problem(i, msg, n)) return 1;
+    if (s->count == 0 || s->count > i->vertex_count || s->index >= s->count)
+        return snprintf(msg, n, "shard %u of %u is impossible for %u vertices", s->index, s->count, i->vertex_count), 1;
+    uint32_t first, end;
+    tf_shard_range(i->vertex_count, s->index, s->count, &first, &end);
+    if (s->first != first || s->end != end)
+        return snprintf(msg, n, "shard %u of %u holds vertices [%u, %u), but %u vertices split into %u give it [%u, %u)",
+                        s->index, s->count, s->first, s->end, i->vertex_count, s->count, first, end), 1;
+    for (unsigned k = H_RESERVED; k < H_HEADER_CRC; k++)
+        if (bytes[k] && (k < H_SHARD_INDEX || k >= H_SHARD_END + 4))
+            return snprintf(msg, n, "reserved header byte %u is not zero", k), 1;
+    uint64_t rows = (uint64_t)(end - first), max_coef = rows * slot_total(i->N);
+    if (i->coefficients_kept > max_coef)
+        return snprintf(msg, n, "header field coefficients_kept = %" PRIu64 " exceeds the shard's %" PRIu64
+                        " vertices x 2N^2", i->coefficients_kept, rows), 1;
+    const uint64_t expect[SEC_COUNT] = {mesh_bytes(i->vertex_count, i->triangle_count),
+                                        rows * row_record_bytes(i->block_count), 2 * i->coefficients_kept};
+    return hl_tf_sections_problem(h, expect, msg, n);
 }
 
 static int finite3(const float *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }

@@ -23,6 +23,12 @@
  * a checkpoint in the same layout, with the sections' sizes and checksums
  * so far and the vertices appended so far in the first reserved word. */
 #define TF_PARTIAL_MAGIC "HLTPART1"
+/* One shard of a precompute spread over machines (haarlight precompute
+ * --shard i/n): the header and mesh of the whole file, the rows and
+ * entries of vertices [first, end) only, and the shard in the reserved
+ * words H_SHARD_*. Its own magic, so that no reader takes it for a whole
+ * transport; `haarlight merge` joins the n shards into one. */
+#define TF_SHARD_MAGIC "HLTSHRD1"
 #define TF_VERSION HL_TRANSPORT_VERSION
 #define TF_HEADER_SIZE 192u
 #define TF_ALIGN 64u /* section alignment: lets a later reader mmap them */
@@ -52,6 +58,10 @@ enum {
     H_SECTION_CRCS = 144, /* 3 x u32 */
     H_RESERVED = 156,
     H_APPENDED = 156, /* partial files only */
+    H_SHARD_INDEX = 160, /* shard files and their partial files only: */
+    H_SHARD_COUNT = 164,
+    H_SHARD_FIRST = 168, /* the shard's vertices [first, end) */
+    H_SHARD_END = 172,
     H_HEADER_CRC = 188
 };
 
@@ -66,12 +76,18 @@ typedef struct tf_section {
     uint32_t crc;
 } tf_section;
 
+/* Shard index of count (count 0: a whole file, first 0, end V). */
+typedef struct tf_shard {
+    uint32_t index, count, first, end;
+} tf_shard;
+
 typedef struct tf_header {
     hl_transport_info info;
     uint32_t header_size;
     uint64_t file_size;
     tf_section sec[SEC_COUNT];
-    int reserved_nonzero;
+    tf_shard shard;
+    int reserved_nonzero; /* any of bytes H_RESERVED..H_HEADER_CRC - 1 */
 } tf_header;
 
 /* ---------------------------------------------------------------- bytes */
@@ -132,13 +148,23 @@ static inline uint64_t mesh_bytes(uint32_t vertices, uint32_t triangles)
 
 static inline uint64_t row_record_bytes(uint32_t block_count) { return 8u + 2u * (uint64_t)block_count; }
 
+/* The vertices [*first, *end) of shard i of n (n >= 1, i < n, n <= V):
+ * contiguous, in order, their lengths differing by at most one, and a
+ * function of V, i and n alone, so that every machine splits alike. */
+static inline void tf_shard_range(uint32_t V, uint32_t i, uint32_t n, uint32_t *first, uint32_t *end)
+{
+    *first = (uint32_t)((uint64_t)V * i / n);
+    *end = (uint32_t)((uint64_t)V * (i + 1) / n);
+}
+
 /* ---------------------------------------------------------------- header */
 
 /* magic: TF_MAGIC, or TF_PARTIAL_MAGIC for the checkpoint of an unfinished
  * file, which also records the vertices appended so far (H_APPENDED). */
 void hl_tf_header_encode(const tf_header *h, const char *magic, uint32_t appended, uint8_t out[TF_HEADER_SIZE]);
-/* Every field, unchecked; reserved_nonzero tells whether bytes
- * H_RESERVED..H_HEADER_CRC - 1 hold anything. */
+/* Every field, unchecked (the shard words too, whatever the magic);
+ * reserved_nonzero tells whether bytes H_RESERVED..H_HEADER_CRC - 1 hold
+ * anything. */
 void hl_tf_header_decode(const uint8_t *in, tf_header *h);
 
 /* ---------------------------------------------------------------- checks */
@@ -152,6 +178,13 @@ int hl_tf_info_problem(const hl_transport_info *i, char *msg, size_t n);
 /* Finite positions, unit normals, albedo in [0, 1], indices in range. */
 int hl_tf_mesh_problem(uint32_t vertices, uint32_t triangles, const float *pos, const float *nrm,
                        const float *alb, const uint32_t *idx, char *msg, size_t n);
+/* Sections against the sizes the counts imply (expect): ordered, 64-byte
+ * aligned, past the header, inside file_size, which must end the last. */
+int hl_tf_sections_problem(const tf_header *h, const uint64_t expect[SEC_COUNT], char *msg, size_t n);
+/* A shard file's header: parameters, the shard (index below count, count
+ * at most V, the range tf_shard_range gives), section sizes and offsets,
+ * the other reserved bytes zero. The magic and CRC are checked before. */
+int hl_tf_shard_header_problem(const tf_header *h, const uint8_t bytes[TF_HEADER_SIZE], char *msg, size_t n);
 /* A row's quantisation parameters under scheme quant. */
 int hl_tf_row_quant_problem(uint32_t quant, hl_row_quant rq, char *msg, size_t n);
 /* Checks one vertex's block counts and entries. entries may be NULL to

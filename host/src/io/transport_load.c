@@ -86,6 +86,17 @@ static hl_result read_header(tf_reader *rd, tf_header *h)
     hl_result r = read_range(rd, bytes, have, 0, "header");
     if (r != HL_OK) return r;
     size_t magic_have = have < 8 ? have : 8;
+    if (have >= H_SHARD_END + 4 && memcmp(bytes, TF_SHARD_MAGIC, 8) == 0)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT,
+                       "%s: a shard (%" PRIu32 " of %" PRIu32 ", vertices %" PRIu32 "..%" PRIu32
+                       ") of a precompute spread over machines, not a whole transport file: join the shards "
+                       "with `haarlight merge -o SCENE.hlt SHARD...`",
+                       rd->path, get_u32(bytes + H_SHARD_INDEX), get_u32(bytes + H_SHARD_COUNT),
+                       get_u32(bytes + H_SHARD_FIRST), get_u32(bytes + H_SHARD_END) - 1u);
+    if (have >= 8 && memcmp(bytes, TF_PARTIAL_MAGIC, 8) == 0)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT,
+                       "%s: an unfinished precompute, not a transport file: finish it with `haarlight precompute "
+                       "--resume` (the same mesh and options)", rd->path);
     if (memcmp(bytes, TF_MAGIC, magic_have) != 0)
         return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: not a haarlight transport file", rd->path);
     if (have >= H_VERSION + 4 && get_u32(bytes + H_VERSION) != TF_VERSION)
@@ -121,23 +132,7 @@ static hl_result read_header(tf_reader *rd, tf_header *h)
     const uint64_t expect[SEC_COUNT] = {mesh_bytes(i->vertex_count, i->triangle_count),
                                         (uint64_t)i->vertex_count * row_record_bytes(i->block_count),
                                         2 * i->coefficients_kept};
-    static const char *const size_fields[SEC_COUNT] = {"mesh_size", "rows_size", "entries_size"};
-    static const char *const offset_fields[SEC_COUNT] = {"mesh_offset", "rows_offset", "entries_offset"};
-    uint64_t end = TF_HEADER_SIZE;
-    for (int s = 0; s < SEC_COUNT; s++) {
-        if (h->sec[s].size != expect[s])
-            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header field %s = %" PRIu64 ", the counts need %" PRIu64,
-                           rd->path, size_fields[s], h->sec[s].size, expect[s]);
-        if (h->sec[s].offset < end || h->sec[s].offset % TF_ALIGN != 0 || h->sec[s].offset > h->file_size ||
-            h->sec[s].size > h->file_size - h->sec[s].offset)
-            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header field %s = %" PRIu64
-                           " is misaligned, overlaps or lies outside the file (%" PRIu64 " bytes)",
-                           rd->path, offset_fields[s], h->sec[s].offset, h->file_size);
-        end = h->sec[s].offset + h->sec[s].size;
-    }
-    if (h->file_size != end)
-        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header field file_size = %" PRIu64 " but the entries end at %" PRIu64,
-                       rd->path, h->file_size, end);
+    if (hl_tf_sections_problem(h, expect, msg, sizeof msg)) return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: %s", rd->path, msg);
     if (rd->file_size < h->file_size)
         return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: truncated: expected %" PRIu64 " bytes, file has %" PRIu64,
                        rd->path, h->file_size, rd->file_size);

@@ -4,6 +4,10 @@
  * the plain-C twins), then the rows are appended to the file. With OpenCL
  * the device works on chunk k while the host casts the rays of chunk k+1;
  * two host slots make that safe. Memory is bounded by the chunk size.
+ * A shard (hl_precompute_shard) runs the same chunks over its own range of
+ * vertices only and writes a shard file, which merge.c joins with the
+ * others; every row depends on its vertex alone (its rays, and the dither
+ * key of its global index), so the joined rows are those of one run.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -14,6 +18,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "haarlight_tools.h"
 #include "precompute.h"
 #include "rays.h"
 #include "twins.h"
@@ -175,7 +180,9 @@ typedef struct pc_run {
     hl_tfile_writer *w;
     hl_chunk_buf buf[2];
     uint32_t V, R;
-    uint32_t start; /* vertices already written (resume) */
+    uint32_t shard_index, shard_count; /* count 0: the whole mesh */
+    uint32_t lo, hi;  /* the vertices [lo, hi) this run computes */
+    uint32_t start; /* the first vertex not yet written (lo, or later on resume) */
     uint32_t nchunks;
     float offset, vis_scale;
     hl_trunc_params tp;
@@ -208,15 +215,19 @@ static void fill_info(pc_run *u)
 static hl_result resume_writer(pc_run *u)
 {
     hl_tfile_progress done;
-    hl_result r = hl_tfile_writer_resume(u->ctx, u->out_path, &u->info, u->mesh, &u->w, &done);
+    hl_result r = hl_tfile_writer_resume_shard(u->ctx, u->out_path, &u->info, u->mesh, u->shard_index,
+                                               u->shard_count, &u->w, &done);
     if (r == HL_OK && u->w) {
-        u->start = done.appended;
+        u->start = u->lo + done.appended;
         u->st.coefficients_kept = done.coefficients;
         u->vc.rays_cast = u->vc_done.rays_cast = done.rays_cast;
         u->vc.rays_culled = u->vc_done.rays_culled = done.rays_culled;
         u->vc_resumed = u->vc;
-        u->nchunks = (u->V - u->start + u->R - 1) / u->R;
-        if (!u->ctx->quiet)
+        u->nchunks = (u->hi - u->start + u->R - 1) / u->R;
+        if (!u->ctx->quiet && u->shard_count)
+            fprintf(stderr, "precompute: resuming %s.partial at vertex %u (shard %u/%u: vertices %u..%u)\n",
+                    u->out_path, u->start, u->shard_index, u->shard_count, u->lo, u->hi - 1);
+        else if (!u->ctx->quiet)
             fprintf(stderr, "precompute: resuming %s.partial at vertex %u of %u\n", u->out_path, u->start, u->V);
     } else if (r == HL_OK && !u->ctx->quiet) {
         fprintf(stderr, "precompute: no %s.partial to resume; starting from the beginning\n", u->out_path);
@@ -236,7 +247,8 @@ static hl_result run_open(pc_run *u)
     if (r == HL_OK) {
         fill_info(u);
         if (u->d.resume) r = resume_writer(u);
-        if (r == HL_OK && !u->w) r = hl_tfile_writer_open(ctx, u->out_path, &u->info, u->mesh, &u->w);
+        if (r == HL_OK && !u->w)
+            r = hl_tfile_writer_open_shard(ctx, u->out_path, &u->info, u->mesh, u->shard_index, u->shard_count, &u->w);
     }
     return r;
 }
@@ -261,14 +273,14 @@ static hl_result append_device_chunk(pc_run *u, int s, uint32_t k, hl_vis_counts
     u->st.seconds_kernels += hl_now() - t0;
     if (r != HL_OK) return r;
     const hl_chunk_buf *b = &u->buf[s];
-    uint32_t pf = u->start + k * u->R, pc = u->V - pf < u->R ? u->V - pf : u->R;
+    uint32_t pf = u->start + k * u->R, pc = u->hi - pf < u->R ? u->hi - pf : u->R;
     r = hl_tfile_writer_append(u->w, pc, b->rq, b->bc, b->entries, (size_t)u->g->ncoef * 2, b->nnz);
     for (uint32_t i = 0; i < pc; i++) u->st.coefficients_kept += b->nnz[i];
     /* the rays of chunk k are cast but its rows are not written */
     u->vc_done = vc_before;
     if (r == HL_OK) r = hl_tfile_writer_checkpoint(u->w, u->vc_done.rays_cast, u->vc_done.rays_culled);
     if (r != HL_OK) return r;
-    progress(u->ctx, pf + pc, u->V, u->vc.rays_cast, u->st.seconds_rays, u->t_start);
+    progress(u->ctx, pf + pc - u->lo, u->hi - u->lo, u->vc.rays_cast, u->st.seconds_rays, u->t_start);
     return HL_OK;
 }
 
@@ -287,7 +299,7 @@ static hl_result run_chunk(pc_run *u, int s, uint32_t first, uint32_t count)
     for (uint32_t i = 0; i < count; i++) u->st.coefficients_kept += b->nnz[i];
     u->vc_done = u->vc;
     if (r == HL_OK) r = hl_tfile_writer_checkpoint(u->w, u->vc_done.rays_cast, u->vc_done.rays_culled);
-    progress(u->ctx, first + count, u->V, u->vc.rays_cast, u->st.seconds_rays, u->t_start);
+    progress(u->ctx, first + count - u->lo, u->hi - u->lo, u->vc.rays_cast, u->st.seconds_rays, u->t_start);
     return r;
 }
 
@@ -298,7 +310,7 @@ static hl_result run_chunks(pc_run *u)
     for (uint32_t k = 0; r == HL_OK && k <= u->nchunks; k++) {
         int s = (int)(k & 1u);
         uint32_t first = u->start + k * u->R;
-        uint32_t count = k < u->nchunks ? (u->V - first < u->R ? u->V - first : u->R) : 0;
+        uint32_t count = k < u->nchunks ? (u->hi - first < u->R ? u->hi - first : u->R) : 0;
         hl_vis_counts vc_before = u->vc;
         if (k < u->nchunks && (r = cast_chunk(u, s, first, count)) != HL_OK) break;
         if (u->pipe && k > 0 && (r = append_device_chunk(u, 1 - s, k - 1, vc_before)) != HL_OK) break;
@@ -317,7 +329,7 @@ static hl_result run_close(pc_run *u, hl_result r, hl_precompute_stats *stats)
         hl_fail(u->ctx, HL_ERR_INTERRUPTED,
                 "interrupted: %s not written; %u of %u vertices are kept in %s.partial (run again with --resume "
                 "to continue)",
-                u->out_path, hl_tfile_writer_appended(u->w), u->V, u->out_path);
+                u->out_path, hl_tfile_writer_appended(u->w), u->hi - u->lo, u->out_path);
     if (r == HL_OK) {
         u->info.coefficients_kept = u->st.coefficients_kept;
         u->info.rays_cast = u->vc.rays_cast;
@@ -341,23 +353,41 @@ static hl_result run_close(pc_run *u, hl_result r, hl_precompute_stats *stats)
     return r;
 }
 
-hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *desc,
-                        const char *out_path, hl_precompute_stats *stats)
+hl_result hl_precompute_shard(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *desc,
+                              uint32_t shard_index, uint32_t shard_count, const char *out_path,
+                              hl_precompute_stats *stats)
 {
-    pc_run u = {.ctx = ctx, .mesh = mesh, .out_path = out_path};
+    pc_run u = {.ctx = ctx, .mesh = mesh, .out_path = out_path, .shard_index = shard_index, .shard_count = shard_count};
+    if (stats) memset(stats, 0, sizeof *stats);
     if (desc) u.d = *desc;
     hl_result r = hl_precompute_resolve(ctx, &u.d);
     if (r != HL_OK) return r;
     if (!mesh || mesh->vertex_count == 0 || mesh->triangle_count == 0)
         return hl_fail(ctx, HL_ERR_MESH, "the mesh is empty");
-    u.t_start = hl_now();
     u.V = mesh->vertex_count;
-    u.R = u.d.chunk < u.V ? u.d.chunk : u.V;
-    u.nchunks = (u.V + u.R - 1) / u.R;
+    u.lo = 0;
+    u.hi = u.V;
+    if (shard_count) {
+        if (shard_index >= shard_count || shard_count > u.V)
+            return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                           "shard %u/%u: the index must be below the count, and the count from 1 to the mesh's %u "
+                           "vertices", shard_index, shard_count, u.V);
+        hl_shard_range(u.V, shard_index, shard_count, &u.lo, &u.hi);
+    }
+    u.t_start = hl_now();
+    u.start = u.lo;
+    u.R = u.d.chunk < u.hi - u.lo ? u.d.chunk : u.hi - u.lo;
+    u.nchunks = (u.hi - u.lo + u.R - 1) / u.R;
     u.offset = u.d.ray_offset * hl_mesh_query_diagonal(mesh); /* 0: robust */
     u.vis_scale = (float)(1.0 / (HL_PI * u.d.supersample * u.d.supersample));
     u.tp = hl_precompute_trunc_params(&u.d);
     r = run_open(&u);
     if (r == HL_OK) r = run_chunks(&u);
     return run_close(&u, r, stats);
+}
+
+hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *desc,
+                        const char *out_path, hl_precompute_stats *stats)
+{
+    return hl_precompute_shard(ctx, mesh, desc, 0, 0, out_path, stats);
 }
