@@ -4,7 +4,8 @@
  * by the program, bounds).
  *
  * A body is one node of the file that holds meshes: its meshes merged,
- * welded and given normals by the shared mesh builder, in the node's own
+ * welded and given normals by the shared mesh builder (kept as they are
+ * with keep_triangles, below), in the node's own
  * coordinates with the static scale of its world transform baked in (the
  * stretch K of the polar decomposition M = Q K of its world matrix at
  * the animation's first key time, or at rest without one; for a node
