@@ -15,6 +15,18 @@
 #   dynamic_anim   an animated glTF (tests/viewer/viewer_scene.c): --time as
 #                  relight-dynamic's, and --play makes a new frame each frame
 #   dynamic_bad    --dynamic's errors before any window (no X needed)
+#   surroundings_capture  --surroundings data/surroundings/lamp_orbit.gltf
+#                  --time 0.5, alone and over the sky: the object as relight's
+#                  picture (the surroundings hidden with the key s, since
+#                  relight does not draw them), and drawn they change it
+#   surroundings_drag  --drag on the lamp moves it (horizontally) and its
+#                  light: the object no longer looks as relight's; b puts it
+#                  back (relight's picture again); a press on the object in
+#                  front of the surroundings grabs nothing
+#   surroundings_unchanged  b with nothing moved: the relighter finds nothing
+#                  changed (HUD "lighting: unchanged"); --play captures every
+#                  frame
+#   surroundings_bad  --surroundings' and --time's errors (no X needed)
 # Env: HL_BIN, HL_COMPARE (test_viewer), HL_SCENE_GEN (viewer_scene), HL_TMP, HL_REPO_DATA,
 # HL_VIEWER_BUILT (ON/OFF). Exit 77 = skipped.
 set -u
@@ -45,6 +57,10 @@ dyn_scene() {
 # camera: the automatic framing would follow a moved body in relight-dynamic.
 dyn=(--sky --lights 4 --shadow-res 64 --order 4)
 dcam=(--size 256x192 --exposure 0.5 --eye 16,10,24 --target 1,3,0)
+# The lamp and three dark occluders around the bunny (data/surroundings),
+# posed at 0.5 s; the automatic framing, which shows the lamp and the wall.
+sur=(--surroundings "$data/surroundings/lamp_orbit.gltf" --time 0.5)
+scam=(--size 320x240 --exposure 0.5)
 
 # hud_says NAME PATTERN: the last HUD line (the window title) printed at exit
 hud_says() {
@@ -68,7 +84,9 @@ view() {
 # 0 (the same picture) fails with WHY; anything else (unreadable) fails.
 must_differ() {
   "$compare" compare "$1" "$2" "$3" >"$tmp/cmp.txt" 2>&1
-  case $? in
+  local rc=$?
+  cat "$tmp/cmp.txt" # the differences measured, against the tolerances of a match
+  case $rc in
     1) ;;
     0) fail "$4" ;;
     *) cat "$tmp/cmp.txt"; fail "cannot compare $1 with $2" ;;
@@ -84,7 +102,8 @@ same_picture() {
 }
 
 case "${1:-}" in
-capture_sky|capture_env|drop|dynamic_rest|dynamic_moved|dynamic_drag|dynamic_anim)
+capture_sky|capture_env|drop|dynamic_rest|dynamic_moved|dynamic_drag|dynamic_anim|surroundings_capture|\
+surroundings_drag|surroundings_unchanged)
   [ "${HL_VIEWER_BUILT:-OFF}" = ON ] || skip "haarlight was built without the viewer (HL_WITH_VIEWER=OFF or no GLFW/OpenGL)"
   ;;
 esac
@@ -229,6 +248,83 @@ dynamic_bad)
   expect ground_on_hlt 2 "--ground" --dynamic "$tmp/s.hlt" --ground
   expect hlt_other_mesh 1 "not belong to that scene" --dynamic "$obj" --ground --hlt "$tmp/s.hlt"
   ;;
+surroundings_capture)
+  scene
+  for lit in alone sky; do
+    extra=(); [ $lit = sky ] && extra=(--sky --sun-elevation 20)
+    "$bin" relight "$tmp/s.hlt" "${sur[@]}" "${extra[@]}" "${scam[@]}" -q -o "$tmp/relight.exr" || fail "relight ($lit)"
+    # frame 1 with them drawn, then s hides them for frame 2, the screenshot
+    view "$tmp/s.hlt" "${sur[@]}" "${extra[@]}" "${scam[@]}" --no-glare --frames 2 --keys s \
+      --screenshot "$tmp/view.exr" || fail "view --surroundings ($lit) exited with an error"
+    same_picture "surroundings at 0.5 s ($lit), hidden" "$tmp/view.exr" "$tmp/relight.exr" 0.5
+    hud_says "surroundings ($lit)" "t 0.50 s of 0.00-4.00 paused, surroundings hidden"
+  done
+  view "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" --no-glare --frames 1 --screenshot "$tmp/drawn.exr" ||
+    fail "view --surroundings --frames 1 exited with an error"
+  hud_says "surroundings drawn" "capture + relight .* ms, t 0.50 s"
+  "$bin" relight "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" -q -o "$tmp/relight.exr" || fail "relight"
+  echo "drawn, the lamp and the wall must show:"
+  must_differ "$tmp/drawn.exr" "$tmp/relight.exr" 0.5 "the surroundings were not drawn"
+  ;;
+surroundings_drag)
+  scene
+  "$bin" relight "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" -q -o "$tmp/relight.exr" || fail "relight"
+  # the lamp is at pixel 237,40 at 0.5 s; dragged towards the camera's left
+  view "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" --no-glare --drag 237,40,150,60 --frames 2 --keys s \
+    --screenshot "$tmp/dragged.exr" || fail "view --drag exited with an error"
+  tr=$(sed -n 's/^view: dragged body "lamp" of the surroundings to translation \([^ ]*\)$/\1/p' "$tmp/view.txt")
+  echo "lamp dragged by: ${tr:-nothing}"
+  [ -n "$tr" ] || fail "the drag did not move the lamp"
+  awk -F, -v t="$tr" 'BEGIN { split(t, a, ","); exit !(a[2] == 0 && a[1] * a[1] + a[3] * a[3] > 1) }' ||
+    fail "the lamp's translation $tr is not horizontal or under 1 unit"
+  hud_says "--drag" "1 body moved"
+  echo "the object under the dragged lamp must not look as under the lamp in place:"
+  must_differ "$tmp/dragged.exr" "$tmp/relight.exr" 0.5 "dragging the lamp did not change the lighting"
+  view "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" --no-glare --drag 237,40,150,60 --frames 2 --keys bs \
+    --screenshot "$tmp/back.exr" || fail "view --drag --keys bs exited with an error"
+  same_picture "dragged, then b (the lamp back)" "$tmp/back.exr" "$tmp/relight.exr" 0.5
+  # a press on the bunny, which stands in front of the wall: nothing grabbed
+  view "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" --drag 100,120,150,60 --frames 1
+  rc=$?
+  [ $rc -eq 2 ] || fail "a drag starting on the object: exit $rc, expected 2"
+  grep -q "no body of the surroundings under window point 100,120" "$tmp/view.txt" ||
+    fail "a drag starting on the object: no message naming the pixel"
+  ;;
+surroundings_unchanged)
+  scene
+  # b with nothing moved asks for lighting; the relighter finds the same triangles
+  view "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" --no-glare --frames 2 --keys b || fail "view --keys b"
+  hud_says "b, nothing moved" "lighting: unchanged, t 0.50 s"
+  grep -q "surroundings: 1 captures with relight (mean .* ms); 1 frames found them and the map unchanged" \
+    "$tmp/view.txt" || fail "b with nothing moved: not 1 capture and 1 unchanged frame"
+  grep -q "frames with a lighting change" "$tmp/view.txt" && fail "b with nothing moved counted a lighting change"
+  # playing: a capture every frame
+  view "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" --no-glare --frames 3 --play || fail "view --play"
+  hud_says "--play" "capture + relight .* ms, t .* s of 0.00-4.00 playing"
+  grep -q "surroundings: 3 captures with relight (mean .* ms); 0 frames" "$tmp/view.txt" ||
+    fail "--play: not a capture every frame"
+  ;;
+surroundings_bad)
+  [ "${HL_VIEWER_BUILT:-OFF}" = ON ] || skip "haarlight was built without the viewer"
+  expect() {
+    local name="$1" want="$2" part="$3"; shift 3
+    "$bin" view "$@" >"$tmp/out.txt" 2>"$tmp/err.txt"
+    local rc=$?
+    echo "$name: exit $rc: $(grep -v '^DBG' "$tmp/err.txt" | head -c 300 | head -1)"
+    [ "$rc" -eq "$want" ] || fail "$name: exit code $rc, expected $want"
+    grep -q -- "$part" "$tmp/err.txt" || fail "$name: message lacks '$part'"
+  }
+  scene
+  printf 'not a mesh\n' >"$tmp/text.gltf"
+  expect missing 1 "nothere.gltf" "$tmp/s.hlt" --surroundings "$tmp/nothere.gltf"
+  expect not_a_mesh 1 "text.gltf" "$tmp/s.hlt" --surroundings "$tmp/text.gltf"
+  expect time_negative 2 "--time -1" "$tmp/s.hlt" --surroundings "${sur[1]}" --time -1
+  expect time_nan 2 "--time nan" "$tmp/s.hlt" --surroundings "${sur[1]}" --time nan
+  expect time_alone 2 "--time needs --surroundings" "$tmp/s.hlt" --time 1
+  expect play_alone 2 "--play is an option of --surroundings or --dynamic" "$tmp/s.hlt" --play
+  expect with_dynamic 2 "not --dynamic" --dynamic "$tmp/s.hlt" --surroundings "${sur[1]}"
+  expect no_value 2 "needs a value" "$tmp/s.hlt" --surroundings
+  ;;
 bad_input)
   # expect NAME RC MESSAGE ARGS...: exit code and a message part on stderr
   expect() {
@@ -256,6 +352,6 @@ bad_input)
     expect no_scene 2 "no SCENE.hlt" --frames 1
   fi
   ;;
-*) echo "usage: $0 capture_sky|capture_env|drop|bad_input|dynamic_rest|dynamic_moved|dynamic_drag|dynamic_anim|dynamic_bad"; exit 2 ;;
+*) echo "usage: $0 capture_sky|capture_env|drop|bad_input|dynamic_rest|dynamic_moved|dynamic_drag|dynamic_anim|dynamic_bad|surroundings_capture|surroundings_drag|surroundings_unchanged|surroundings_bad"; exit 2 ;;
 esac
 [ "$fails" -eq 0 ] && echo "passed" || { echo "$fails failure(s)"; exit 1; }

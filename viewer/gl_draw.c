@@ -1,7 +1,8 @@
 /* gl_draw.c - everything the viewer draws, in OpenGL 3.3 core.
  *
  * A frame: the mesh (per-vertex linear colours, interpolated like
- * hl_render's barycentrics) and then the environment behind it (a full-
+ * hl_render's barycentrics), the surroundings' flat triangles when there
+ * are any, and then the environment behind it (a full-
  * screen triangle at the far plane, each pixel reading the equirectangular
  * map along its own view direction with docs/CONVENTIONS.md's mapping, bilinear like
  * hl_env_query_smooth) into an RGBA16F target; optionally the glare (a
@@ -32,6 +33,8 @@
 
 struct vw_gl {
     GLuint vao, empty_vao, vbo_pos, vbo_rgb, ebo;
+    GLuint vao_sur, vbo_sur, prog_sur; /* the surroundings' triangles */
+    GLsizei sur_count;                 /* their vertices */
     GLsizei index_count;
     uint32_t vertex_count;
     int have_colours;
@@ -58,6 +61,28 @@ static const char *const vs_mesh =
 static const char *const fs_mesh =
     "#version 330 core\n"
     "in vec3 v_rgb;\n"
+    "out vec4 o;\n"
+    "void main() { o = vec4(v_rgb, 1.0); }\n";
+
+/* The surroundings: flat colours, each either radiance (an emitter, tone-
+ * mapped like the mesh) or a display value (a dark body's grey, divided
+ * by the exposure scale here so that the tone map gives it back). */
+static const char *const vs_sur =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_pos;\n"
+    "layout(location = 1) in vec3 a_rgb;\n"
+    "layout(location = 2) in float a_display;\n"
+    "uniform mat4 u_mvp;\n"
+    "uniform float u_scale;\n"
+    "flat out vec3 v_rgb;\n"
+    "void main() {\n"
+    "  v_rgb = a_display > 0.5 ? a_rgb / u_scale : a_rgb;\n"
+    "  gl_Position = u_mvp * vec4(a_pos, 1.0);\n"
+    "}\n";
+
+static const char *const fs_sur =
+    "#version 330 core\n"
+    "flat in vec3 v_rgb;\n"
     "out vec4 o;\n"
     "void main() { o = vec4(v_rgb, 1.0); }\n";
 
@@ -261,7 +286,8 @@ int vw_gl_create(const hl_mesh *mesh, const float thr[256], vw_gl **out, char *e
     g->prog_bright = g->prog_bg ? program(vs_full, fs_bright, "bright-pass", err, err_size) : 0;
     g->prog_blur = g->prog_bright ? program(vs_full, fs_blur, "blur", err, err_size) : 0;
     g->prog_final = g->prog_blur ? program(vs_full, fs_final, "tone-map", err, err_size) : 0;
-    if (!g->prog_final) {
+    g->prog_sur = g->prog_final ? program(vs_sur, fs_sur, "surroundings", err, err_size) : 0;
+    if (!g->prog_sur) {
         vw_gl_destroy(g);
         return 0;
     }
@@ -329,13 +355,13 @@ int vw_gl_create(const hl_mesh *mesh, const float thr[256], vw_gl **out, char *e
 void vw_gl_destroy(vw_gl *g)
 {
     if (!g) return;
-    GLuint progs[] = {g->prog_mesh, g->prog_bg, g->prog_bright, g->prog_blur, g->prog_final};
+    GLuint progs[] = {g->prog_mesh, g->prog_bg, g->prog_bright, g->prog_blur, g->prog_final, g->prog_sur};
     for (size_t i = 0; i < sizeof progs / sizeof progs[0]; i++)
         if (progs[i]) glDeleteProgram(progs[i]);
-    GLuint bufs[] = {g->vbo_pos, g->vbo_rgb, g->ebo};
-    glDeleteBuffers(3, bufs);
-    GLuint vaos[] = {g->vao, g->empty_vao};
-    glDeleteVertexArrays(2, vaos);
+    GLuint bufs[] = {g->vbo_pos, g->vbo_rgb, g->ebo, g->vbo_sur};
+    glDeleteBuffers(4, bufs);
+    GLuint vaos[] = {g->vao, g->empty_vao, g->vao_sur};
+    glDeleteVertexArrays(3, vaos);
     GLuint texs[] = {g->env_tex, g->thr_tex, g->tex_scene, g->tex_q[0], g->tex_q[1], g->tex_lin};
     glDeleteTextures(6, texs);
     glDeleteRenderbuffers(1, &g->rb_depth);
@@ -387,6 +413,33 @@ void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgba)
     g->have_colours = 1;
 }
 
+int vw_gl_set_surroundings(vw_gl *g, const float *verts, uint32_t vertex_count, char *err, size_t err_size)
+{
+    const GLsizei stride = 7 * sizeof(float);
+    if (!g->vao_sur) {
+        glGenVertexArrays(1, &g->vao_sur);
+        glGenBuffers(1, &g->vbo_sur);
+        glBindVertexArray(g->vao_sur);
+        glBindBuffer(GL_ARRAY_BUFFER, g->vbo_sur);
+        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, NULL);
+        glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride, (const void *)(3 * sizeof(float)));
+        glVertexAttribPointer(2, 1, GL_FLOAT, GL_FALSE, stride, (const void *)(6 * sizeof(float)));
+        for (GLuint a = 0; a < 3; a++) glEnableVertexAttribArray(a);
+        glBindVertexArray(0);
+    }
+    glBindBuffer(GL_ARRAY_BUFFER, g->vbo_sur);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)stride * vertex_count), verts, GL_DYNAMIC_DRAW);
+    g->sur_count = (GLsizei)vertex_count;
+    GLenum e = glGetError();
+    if (e != GL_NO_ERROR) {
+        snprintf(err, err_size, "OpenGL: error 0x%x while uploading %u vertices of surroundings", (unsigned)e,
+                 vertex_count);
+        g->sur_count = 0;
+        return 0;
+    }
+    return 1;
+}
+
 unsigned vw_gl_colour_buffer(const vw_gl *g) { return g->vbo_rgb; }
 
 void vw_gl_finish(void) { glFinish(); }
@@ -422,6 +475,13 @@ static void draw_scene(vw_gl *g, const vw_frame *f)
         glUniformMatrix4fv(loc(g->prog_mesh, "u_mvp"), 1, GL_FALSE, f->mvp);
         glBindVertexArray(g->vao);
         glDrawElements(GL_TRIANGLES, g->index_count, GL_UNSIGNED_INT, NULL);
+    }
+    if (f->surroundings && g->sur_count) {
+        glUseProgram(g->prog_sur);
+        glUniformMatrix4fv(loc(g->prog_sur, "u_mvp"), 1, GL_FALSE, f->mvp);
+        glUniform1f(loc(g->prog_sur, "u_scale"), (float)exp2((double)f->exposure_ev));
+        glBindVertexArray(g->vao_sur);
+        glDrawArrays(GL_TRIANGLES, 0, g->sur_count);
     }
     /* the background only where no triangle was drawn */
     glDepthFunc(GL_LEQUAL);

@@ -34,6 +34,8 @@
 
 static const char *const usage_view =
     "usage: haarlight view SCENE.hlt [--env ENV.exr ...] [--sky] [options]\n"
+    "       haarlight view SCENE.hlt --surroundings FILE [--time T] [--env ENV.exr ... | --sky]\n"
+    "                      [options]\n"
     "       haarlight view --dynamic (SCENE.hlt | MESH | SCENE) [options]\n"
     "\n"
     "Opens a window on a transport file from `haarlight precompute` and relights it\n"
@@ -46,8 +48,30 @@ static const char *const usage_view =
     "lighting:\n"
     "  --env ENV.exr        an equirectangular OpenEXR or Radiance .hdr; repeat for more\n"
     "                       (keys 1..9)\n"
-    "  --sky                the built-in sun and sky (the default without --env)\n"
+    "  --sky                the built-in sun and sky (the default without --env and\n"
+    "                       --surroundings)\n"
     CLI_USAGE_SKY
+    "  --surroundings FILE  light from surroundings: any mesh file assimp reads (glTF, FBX,\n"
+    "                       OBJ, ...); emissive materials give light (emissive colour x\n"
+    "                       glTF emissive strength), the others are dark and hide what\n"
+    "                       lies behind them; at most 4096 triangles. The relighter\n"
+    "                       captures them at every lighting change, as seen from ONE\n"
+    "                       point, the centre of the object's bounding box (ground left\n"
+    "                       out), so surroundings close to a large object light all of\n"
+    "                       it as if from its centre. Directions they leave open are lit\n"
+    "                       by --env or --sky if given, else black. They are drawn (an\n"
+    "                       emitter in its emitted colour at the exposure, a dark body\n"
+    "                       in grey; s hides them) and can be dragged and played (keys\n"
+    "                       below); a frame where nothing moved does no lighting work\n"
+    "                       (the HUD says \"lighting: unchanged\")\n"
+    "  --time T             seconds into the animation of the surroundings, or of\n"
+    "                       --dynamic's scene (default 0; held at the first or last key\n"
+    "                       outside its range)\n"
+    "  --play               start playing that animation (in real time, looping)\n"
+    "  --drag X0,Y0,X1,Y1   before the first frame, a left-button drag from window point\n"
+    "                       X0,Y0 to X1,Y1 through the mouse's own handlers (for tests;\n"
+    "                       prints the body's translation): a body of the surroundings,\n"
+    "                       or with --dynamic a body of the scene\n"
     CLI_USAGE_LAYOUT
     CLI_USAGE_LIGHTING
     "display:\n"
@@ -83,13 +107,9 @@ static const char *const usage_view =
     "  --lights K           area lights with shadows (default 32)\n"
     "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 128)\n"
     "  --order M            convolution shadow map order, 4 to 16 (default 16)\n"
-    "  --time T             seconds into the animation (default 0)\n"
-    "  --play               start playing the animation (in real time, looping)\n"
+    "  --time, --play, --drag  as above, on the dynamic scene\n"
     "  --move BODY:X,Y,Z    translate the body named BODY before the first frame\n"
     "                       (repeatable; as relight-dynamic's --move)\n"
-    "  --drag X0,Y0,X1,Y1   before the first frame, a left-button drag from window point\n"
-    "                       X0,Y0 to X1,Y1 through the mouse's own handlers (for tests;\n"
-    "                       prints the body's translation)\n"
     "running:\n"
     CLI_USAGE_RUNNING
     "\n" VW_KEYS;
@@ -146,8 +166,9 @@ static int open_window(viewer *v)
 /* Options; returns -1 to go on, else the exit code. */
 static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n_env_args)
 {
-    const char *usage = usage_view, *dyn_opt = NULL;
+    const char *usage = usage_view, *dyn_opt = NULL, *shared_opt = NULL;
     cli_scene_opts_init(&v->o);
+    v->o.accept_surroundings = 1; /* --surroundings and --time (also --dynamic's --time) */
     *n_env_args = 0;
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i];
@@ -157,7 +178,8 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
         k = vw_dyn_opt(v, argc, argv, &i, usage);
         if (k < 0) return -k;
         if (k) {
-            if (strcmp(a, "--dynamic")) dyn_opt = a;
+            if (!strcmp(a, "--play") || !strcmp(a, "--drag")) shared_opt = a; /* --dynamic's or the surroundings' */
+            else if (strcmp(a, "--dynamic")) dyn_opt = a;
             continue;
         }
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
@@ -211,8 +233,15 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
     }
     if (!v->scene) return usage_error(usage, "%s", v->dy.on ? "no SCENE given" : "no SCENE.hlt given");
     if (dyn_opt && !v->dy.on) return usage_error(usage, "%s is an option of --dynamic (give --dynamic)", dyn_opt);
+    if (v->dy.on && v->o.surroundings)
+        return usage_error(usage, "%s", "--surroundings light a transport through the relighter, not --dynamic's scene");
+    if (shared_opt && !v->dy.on && !v->o.surroundings)
+        return usage_error(usage, "%s is an option of --surroundings or --dynamic", shared_opt);
+    if (v->o.time_set && !v->dy.on && !v->o.surroundings)
+        return usage_error(usage, "%s", "--time needs --surroundings or --dynamic");
+    v->dy.time0 = (float)v->o.time; /* --dynamic's --time is read by the shared parser */
     if (v->shot_path && !v->frames_limit) v->frames_limit = 1;
-    if (v->o.sky_set || *n_env_args == 0) {
+    if (v->o.sky_set || (*n_env_args == 0 && !v->o.surroundings)) { /* surroundings alone: black, as relight */
         int have = 0;
         for (int i = 0; i < *n_env_args; i++) have |= env_args[i] == NULL;
         if (!have) env_args[(*n_env_args)++] = NULL;
@@ -257,7 +286,17 @@ static int load(viewer *v, const char **env_args, int n_env_args)
     }
     v->sun_el = v->o.sky.sun_elevation_deg != 0.0f ? v->o.sky.sun_elevation_deg : VW_SUN_DEFAULT_ELEVATION;
     v->sun_az = v->o.sky.sun_azimuth_deg;
-    v->sky_slot = -1;
+    v->sky_slot = v->black_slot = -1;
+    if (v->o.surroundings && !vw_sur_load(v)) return 0;
+    if (n_env_args == 0) { /* surroundings alone: a black map, drawn behind them and not given to the relighter */
+        static const float black[6] = {0};
+        hl_env *env = NULL;
+        if (hl_env_create(v->ctx, 2, 1, black, &env, NULL) != HL_OK) {
+            cli_fail(v->ctx, HL_ERR_OUT_OF_MEMORY);
+            return 0;
+        }
+        v->black_slot = vw_add_env(v, env, "none (black)");
+    }
     for (int i = 0; i < n_env_args; i++) {
         hl_env *env = NULL;
         hl_result r = env_args[i] ? cli_env_load(v->ctx, env_args[i], v->o.layout, &env, 0) : vw_make_sky(v, &env);
@@ -334,7 +373,7 @@ int cmd_view(int argc, char **argv)
         rc = rc == 1 ? -1 : rc == 2 ? 2 : 1;
     }
     if (rc < 0) rc = open_window(v) ? -1 : 3;
-    if (rc < 0) rc = setup_interop(v) ? -1 : 1;
+    if (rc < 0) rc = setup_interop(v) && vw_sur_attach(v) ? -1 : 1;
     if (rc < 0) {
         v->rd = v->o.rd;
         if (v->rd.terms == 0) v->rd.terms = VW_DEFAULT_TERMS;
@@ -349,7 +388,7 @@ int cmd_view(int argc, char **argv)
         v->loaded = -1;
         v->env_dirty = 1;
         if (!vw_update_camera(v, 1)) rc = 2;
-        else if (!vw_dyn_start(v)) rc = 2;
+        else if (!vw_dyn_start(v) || !vw_sur_start(v)) rc = 2;
     }
     if (rc < 0) {
         if (!v->o.cd.quiet)
@@ -370,6 +409,7 @@ int cmd_view(int argc, char **argv)
     for (int i = 0; i < v->n_envs; i++) hl_env_destroy(v->envs[i].env);
     free(v->rgb);
     vw_dyn_destroy(v);
+    vw_sur_destroy(v);
     hl_transport_destroy(v->t);
     hl_context_destroy(v->ctx);
     free(env_args);

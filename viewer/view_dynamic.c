@@ -24,13 +24,6 @@
  * drawn on one vertex buffer: positions may differ by float rounding of
  * the scene's rest transforms, at most this share of the mesh's diagonal. */
 #define VW_SAME_VERTEX_TOL 1e-5
-/* A drag follows the mouse ray to the plane through the grab point; near
- * the horizon that point runs off to infinity, so a move is held within
- * this many bounding radii of the scene. */
-#define VW_DRAG_MAX_RADII 4.0
-/* Rays closer than this to parallel with the drag plane (|dir.y|/|dir|)
- * move nothing. */
-#define VW_DRAG_MIN_SLOPE 1e-4
 
 static const float identity_xf[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
 
@@ -398,17 +391,8 @@ int vw_dyn_grab(viewer *v, double x, double y_px, double w, double h)
 void vw_dyn_drag(viewer *v, double x, double y_px, double w, double h)
 {
     vw_dyn *y = &v->dy;
-    double o[3] = {v->view.eye[0], v->view.eye[1], v->view.eye[2]}, d[3];
-    vw_pixel_ray(&v->view, x, y_px, w, h, d);
-    double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    if (!(fabs(d[1]) > VW_DRAG_MIN_SLOPE * len)) return;
-    double s = ((double)y->grab[1] - o[1]) / d[1];
-    if (!(s > 0.0)) return; /* the plane is behind the eye along this ray */
-    double delta[3], dist = 0.0, most = VW_DRAG_MAX_RADII * v->radius;
-    for (int k = 0; k < 3; k++) delta[k] = k == 1 ? 0.0 : o[k] + s * d[k] - y->grab[k];
-    dist = sqrt(delta[0] * delta[0] + delta[2] * delta[2]);
-    if (dist > most)
-        for (int k = 0; k < 3; k += 2) delta[k] *= most / dist;
+    double delta[3];
+    if (!vw_drag_delta(&v->view, x, y_px, w, h, y->grab, VW_DRAG_MAX_RADII * v->radius, delta)) return;
     float xf[12];
     memcpy(xf, y->drag_xf, sizeof xf);
     xf[3] += (float)delta[0];
@@ -426,7 +410,7 @@ int vw_dyn_start(viewer *v)
 {
     vw_dyn *y = &v->dy;
     y->play_clock = glfwGetTime(); /* --play counts from the first frame, not from glfwInit */
-    if (!y->drag_set) return 1;
+    if (!y->drag_set || !y->on) return 1; /* without --dynamic, --drag is the surroundings' */
     if (!vw_input_drag(v, y->drag[0], y->drag[1], y->drag[2], y->drag[3])) {
         fprintf(stderr, "haarlight: --drag: no body under window point %g,%g (the ground is not dragged)\n",
                 (double)y->drag[0], (double)y->drag[1]);

@@ -61,13 +61,16 @@ void vw_update_title(viewer *v)
     int n = 0;
     if (v->msg[0] && glfwGetTime() < v->msg_until) n = snprintf(title, size, "%s | ", v->msg);
     if (n < 0 || (size_t)n >= size) n = 0;
+    char lighting[300]; /* with surroundings: the capture's part */
+    if (v->su.s) vw_sur_hud(v, lighting, sizeof lighting);
+    else snprintf(lighting, sizeof lighting, "relight %.1f ms", 1e3 * v->t_relight);
     if (v->dy.on)
         dynamic_title(v, title + n, size - (size_t)n);
     else
         snprintf(title + n, size - (size_t)n,
-                 "%.0f fps | relight %.1f ms, upload %.2f ms, draw %.1f ms | M %s, energy %.3f%% | EV %+.1f | glare %s | "
+                 "%.0f fps | %s, upload %.2f ms, draw %.1f ms | M %s, energy %.3f%% | EV %+.1f | glare %s | "
                  "env %d/%d %s, rot %.0f | %s | %s",
-                 v->fps, 1e3 * v->t_relight, 1e3 * v->t_upload, 1e3 * v->t_draw, terms, 100.0 * v->st.energy_kept,
+                 v->fps, lighting, 1e3 * v->t_upload, 1e3 * v->t_draw, terms, 100.0 * v->st.energy_kept,
                  (double)v->exposure, v->glare ? "on" : "off", v->cur + 1, v->n_envs, v->envs[v->cur].label,
                  (double)v->rd.rotate_deg, hl_context_device_name(v->ctx), v->feed);
     glfwSetWindowTitle(v->win, title);
@@ -83,6 +86,17 @@ void vw_interop_off(viewer *v, const char *why)
     vw_say(v, 1, "%s", v->feed);
     hl_view_gl_colours_destroy(v->glmem);
     v->glmem = NULL;
+}
+
+/* The environment of slot i to the relighter; the black slot of
+ * --surroundings alone is not given until another map was, so that the
+ * relighter lights with them alone, as relight does. */
+static int relighter_env(viewer *v, int i)
+{
+    if (!v->rl || (i == v->black_slot && !v->rl_env_set)) return 1;
+    if (hl_relighter_set_env(v->rl, v->envs[i].env) != HL_OK) return 0;
+    v->rl_env_set = 1;
+    return 1;
 }
 
 /* The pending lighting work: a new sky, a new environment, a relight. */
@@ -108,7 +122,7 @@ static void update_lighting(viewer *v)
         const hl_env *env = v->envs[v->cur].env;
         /* the texture first: it fails before the relighter is touched */
         int gl_ok = vw_gl_set_env(v->gl, env, err, sizeof err);
-        int cl_ok = gl_ok && (!v->rl || hl_relighter_set_env(v->rl, env) == HL_OK);
+        int cl_ok = gl_ok && relighter_env(v, v->cur);
         if (gl_ok && !cl_ok) snprintf(err, sizeof err, "%s", vw_rl_error(v));
         if (!cl_ok) {
             vw_say(v, 1, "%s: %s (keeping the current lighting)", v->envs[v->cur].label, err);
@@ -118,7 +132,7 @@ static void update_lighting(viewer *v)
             }
             v->cur = v->loaded;
             vw_gl_set_env(v->gl, v->envs[v->cur].env, err, sizeof err);
-            if (gl_ok && (!v->rl || hl_relighter_set_env(v->rl, v->envs[v->cur].env) == HL_OK)) v->light_dirty = 1;
+            if (gl_ok && relighter_env(v, v->cur)) v->light_dirty = 1;
         } else {
             v->loaded = v->cur;
             v->light_dirty = 1;
@@ -130,6 +144,7 @@ static void update_lighting(viewer *v)
         v->light_dirty = 0;
         return;
     }
+    vw_sur_frame(v); /* surroundings moved: light_dirty */
     if (v->light_dirty) {
         v->light_dirty = 0;
         double t0 = glfwGetTime();
@@ -146,11 +161,13 @@ static void update_lighting(viewer *v)
             return;
         }
         double t1 = glfwGetTime();
+        vw_sur_note(v, 1, st.reused, t1 - t0);
         v->st = st;
         if (v->auto_requested) {
             v->auto_requested = 0;
             vw_auto_exposure(v);
         }
+        if (st.reused) return; /* nothing changed: the colours drawn are these already */
         if (on_device) vw_gl_colours_written(v->gl);
         else vw_gl_upload_colours(v->gl, rgba);
         v->t_relight = t1 - t0;
@@ -251,6 +268,12 @@ void vw_print_times(const viewer *v)
                 (unsigned long long)l->n, 1e3 * l->relight / (double)l->n, 1e3 * l->upload / (double)l->n,
                 1e3 * l->draw / (double)l->n, 1e3 * l->present / (double)l->n, 1e3 * l->frame / (double)l->n,
                 (double)l->n / l->frame);
+    if (v->su.s)
+        fprintf(stderr,
+                "  surroundings: %llu captures with relight (mean %.2f ms); %llu frames found them and the map "
+                "unchanged (lighting: unchanged, no capture, no relight)\n",
+                (unsigned long long)v->su.n_work, v->su.n_work ? 1e3 * v->su.t_work / (double)v->su.n_work : 0.0,
+                (unsigned long long)v->su.n_unchanged);
     fprintf(stderr, "  last HUD: %s\n", v->hud);
     uint64_t k = a->n - l->n;
     if (k)
@@ -262,7 +285,7 @@ void vw_print_times(const viewer *v)
 static int pending(const viewer *v)
 {
     return v->sky_dirty || v->env_dirty || v->light_dirty || v->camera_dirty || v->resized || v->redraw ||
-           v->shot_requested || v->auto_requested || v->spinning || vw_dyn_pending(v);
+           v->shot_requested || v->auto_requested || v->spinning || vw_dyn_pending(v) || vw_sur_pending(v);
 }
 
 int vw_run_loop(viewer *v)
@@ -299,11 +322,14 @@ int vw_run_loop(viewer *v)
         if (v->failed) return 1;
         int lit = v->t_relight > 0.0;
         vw_frame f;
-        vw_camera_matrix(&v->view, v->centre, v->radius, f.mvp);
+        /* the depth range holds the surroundings too, when they are drawn */
+    if (v->su.s) vw_camera_matrix(&v->view, v->su.centre, v->su.radius, f.mvp);
+    else vw_camera_matrix(&v->view, v->centre, v->radius, f.mvp);
         f.view = v->view;
         f.rotate_deg = v->rd.rotate_deg;
         f.exposure_ev = v->exposure;
         f.glare = v->glare;
+    f.surroundings = v->su.s && v->su.show;
         double t0 = glfwGetTime();
         vw_gl_draw(v->gl, &f);
         double t1 = glfwGetTime();

@@ -1,8 +1,9 @@
 /* view_input.c - what the keys, the mouse and dropped files do to the
  * viewer: the environment list (the built-in sky's slot, loaded and
  * dropped maps), turning the environment, moving the sun, changing M and
- * the exposure, the orbit and zoom of the camera, and (--dynamic) the
- * animation and dragging bodies (view_dynamic.c). The work itself
+ * the exposure, the orbit and zoom of the camera, and (--dynamic,
+ * --surroundings) the animation and dragging bodies (view_dynamic.c,
+ * view_surround.c). The work itself
  * waits for the next frame (view_frame.c): input only marks it.
  *
  * Dependencies: GLFW 3 (callbacks, key codes), the haarlight library.
@@ -151,9 +152,16 @@ static void on_char(GLFWwindow *w, unsigned int c)
     case 'r': case 'R': v->camera_dirty = 2; break;
     case 'b': case 'B':
         if (v->dy.on) vw_dyn_reset(v);
+        else vw_sur_reset(v);
+        break;
+    case 's': case 'S':
+        if (v->su.s) {
+            v->su.show = !v->su.show;
+            v->redraw = 1;
+        }
         break;
     case ' ':
-        if (!vw_dyn_toggle_play(v)) v->spinning = !v->spinning;
+        if (!vw_dyn_toggle_play(v) && !vw_sur_toggle_play(v)) v->spinning = !v->spinning;
         v->redraw = 1;
         break;
     case 'h': case 'H': case '?': fputs(VW_KEYS, stdout); fflush(stdout); break;
@@ -196,7 +204,9 @@ static void on_button(GLFWwindow *w, int button, int action, int mods)
     else if (button == GLFW_MOUSE_BUTTON_LEFT) {
         int ww = 0, wh = 0; /* cursor positions are in window coordinates */
         glfwGetWindowSize(w, &ww, &wh);
-        if (!(ww > 0 && wh > 0 && vw_dyn_grab(v, v->last_x, v->last_y, ww, wh))) v->drag = DRAG_ORBIT;
+        if (!(ww > 0 && wh > 0 &&
+              (vw_dyn_grab(v, v->last_x, v->last_y, ww, wh) || vw_sur_grab(v, v->last_x, v->last_y, ww, wh))))
+            v->drag = DRAG_ORBIT;
     }
 }
 
@@ -213,10 +223,12 @@ static void on_cursor(GLFWwindow *w, double x, double y)
         break;
     case DRAG_ENV: vw_rotate_env(v, (float)(dx * VW_DRAG_DEG_PER_PIXEL)); break;
     case DRAG_SUN: move_sun(v, (float)(-dy * VW_DRAG_DEG_PER_PIXEL), (float)(dx * VW_DRAG_DEG_PER_PIXEL)); break;
-    case DRAG_BODY: {
+    case DRAG_BODY:
+    case DRAG_SURR: {
         int ww = 0, wh = 0;
         glfwGetWindowSize(w, &ww, &wh);
-        if (ww > 0 && wh > 0) vw_dyn_drag(v, x, y, ww, wh);
+        if (ww > 0 && wh > 0 && v->drag == DRAG_BODY) vw_dyn_drag(v, x, y, ww, wh);
+        else if (ww > 0 && wh > 0) vw_sur_drag(v, x, y, ww, wh);
         break;
     }
     default: break;
@@ -260,7 +272,7 @@ int vw_input_drag(viewer *v, double x0, double y0, double x1, double y1)
 {
     glfwSetCursorPos(v->win, x0, y0); /* the press reads where the cursor is */
     on_button(v->win, GLFW_MOUSE_BUTTON_LEFT, GLFW_PRESS, 0);
-    int grabbed = v->drag == DRAG_BODY;
+    int grabbed = v->drag == DRAG_BODY || v->drag == DRAG_SURR;
     if (grabbed) on_cursor(v->win, x1, y1);
     on_button(v->win, GLFW_MOUSE_BUTTON_LEFT, GLFW_RELEASE, 0);
     return grabbed;

@@ -184,6 +184,47 @@ double vw_ray_triangle(const double o[3], const double d[3], const float *a, con
     return t > 0.0 ? t : -1.0;
 }
 
+/* The plane y = grab.y; rays closer than this to parallel with it
+ * (|dir.y| / |dir|) move nothing, since the meeting point runs off to
+ * infinity. */
+#define VW_DRAG_MIN_SLOPE 1e-4
+
+int vw_drag_delta(const hl_camera_view *cv, double x, double y, double w, double h, const float grab[3],
+                  double most, double delta[3])
+{
+    double o[3] = {cv->eye[0], cv->eye[1], cv->eye[2]}, d[3];
+    vw_pixel_ray(cv, x, y, w, h, d);
+    double len = sqrt(dot3(d, d));
+    if (!(fabs(d[1]) > VW_DRAG_MIN_SLOPE * len)) return 0;
+    double s = ((double)grab[1] - o[1]) / d[1];
+    if (!(s > 0.0)) return 0; /* the plane is behind the eye along this ray */
+    for (int k = 0; k < 3; k++) delta[k] = k == 1 ? 0.0 : o[k] + s * d[k] - grab[k];
+    double dist = sqrt(delta[0] * delta[0] + delta[2] * delta[2]);
+    if (dist > most)
+        for (int k = 0; k < 3; k += 2) delta[k] *= most / dist;
+    return 1;
+}
+
+void vw_sphere_union(const float c0[3], float r0, const float c1[3], float r1, float c[3], float *r)
+{
+    double d[3];
+    for (int k = 0; k < 3; k++) d[k] = (double)c1[k] - c0[k];
+    double dist = sqrt(dot3(d, d));
+    if (dist + r1 <= r0) { /* the second lies inside the first */
+        memcpy(c, c0, 3 * sizeof *c);
+        *r = r0;
+        return;
+    }
+    if (dist + r0 <= r1) {
+        memcpy(c, c1, 3 * sizeof *c);
+        *r = r1;
+        return;
+    }
+    double R = 0.5 * (dist + r0 + r1), t = (R - r0) / dist; /* dist > 0 here */
+    for (int k = 0; k < 3; k++) c[k] = (float)(c0[k] + t * d[k]);
+    *r = (float)R;
+}
+
 /* ---------------------------------------------------------------- colour feed */
 
 /* With cl_khr_gl_sharing the dot products write straight into the GL

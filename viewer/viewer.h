@@ -10,6 +10,9 @@
  *                 read-back (the only file that sees OpenGL)
  *   view_dynamic.c --dynamic: the dynamic method's scene, its frames,
  *                 the animation, picking and dragging bodies, its HUD
+ *   view_surround.c --surroundings: lighting captured from the scene's
+ *                 surroundings, their animation, picking and dragging
+ *                 their bodies, their triangles for drawing, their HUD
  *   view_util.c   what needs neither OpenGL nor GLFW: camera maths, the
  *                 tone-map table, the colour feed decision, file names,
  *                 mouse rays and their hits
@@ -56,7 +59,15 @@ int cmd_view(int argc, char **argv);
     "                         (the ground itself is not dragged; elsewhere: orbit)\n"         \
     "  space                  play / pause the animation (scenes without one: spin)\n"       \
     "  b                      bodies back to their animation, the time to --time (PRT\n"    \
-    "                         again where that is at rest and there is a transport)\n"
+    "                         again where that is at rest and there is a transport)\n"    \
+    "with --surroundings (lit as captured from ONE point, the centre of the object's\n"    \
+    "bounding box, ground left out):\n"                                                    \
+    "  left drag on a body    move that body of the surroundings across the horizontal\n" \
+    "                         plane through the grab point (elsewhere: orbit)\n"          \
+    "  space                  play / pause their animation, looping over its range (none:\n" \
+    "                         spin the environment)\n"                                      \
+    "  b                      their bodies back where the file puts them, the time to --time\n" \
+    "  s                      show / hide them (they light the object either way)\n"
 
 
 #define VW_MAX_ENVS 64
@@ -73,6 +84,11 @@ int cmd_view(int argc, char **argv);
 #define VW_SUN_KEY_ELEVATION 5.0f
 #define VW_SUN_KEY_AZIMUTH 15.0f
 #define VW_EXPOSURE_STEP 0.5f
+/* A drag (a body of --dynamic or of the surroundings) follows the mouse
+ * ray to the plane through the grab point; near the horizon that point
+ * runs off to infinity, so a move is held within this many bounding radii
+ * of the mesh. */
+#define VW_DRAG_MAX_RADII 4.0
 
 typedef struct vw_gl vw_gl;
 struct GLFWwindow;
@@ -88,7 +104,7 @@ typedef struct time_sums {
     uint64_t n;
 } time_sums;
 
-enum { DRAG_NONE, DRAG_ORBIT, DRAG_ENV, DRAG_SUN, DRAG_BODY };
+enum { DRAG_NONE, DRAG_ORBIT, DRAG_ENV, DRAG_SUN, DRAG_BODY, DRAG_SURR };
 
 /* --move options one run takes (as relight-dynamic's). */
 #define VW_MAX_MOVES 64
@@ -132,6 +148,28 @@ typedef struct vw_dyn {
     float drag_xf[12], grab[3];
 } vw_dyn;
 
+/* Lighting captured from the scene's surroundings (--surroundings). */
+typedef struct vw_sur {
+    hl_surroundings *s;     /* NULL without --surroundings */
+    uint32_t nb, nt;        /* bodies, triangles */
+    uint32_t *body;         /* each triangle's body (nb: not found) */
+    float (*xf)[12];        /* each body's transform after its animation */
+    uint32_t moved;         /* bodies whose transform is not the identity */
+    float *verts;           /* 3 vertices a triangle, 7 floats each, for drawing */
+    double time0, time, t_start, t_end, play_clock;
+    int playing, show;
+    int dirty;              /* moved or the time changed: pose, upload, relight */
+    int work;               /* the last frame captured and relit */
+    int unchanged;          /* the last frame asked and the relighter found
+                               nothing changed (stats.reused): no work */
+    float centre[3], radius; /* the sphere around the mesh and the surroundings */
+    uint64_t n_work, n_unchanged;
+    double t_work;          /* the sum of the capture + relight times */
+    uint32_t drag_body;     /* the body being dragged, its transform and the
+                               grab point at the press */
+    float drag_xf[12], grab[3];
+} vw_sur;
+
 typedef struct viewer {
     cli_scene_opts o;
     const char *scene, *shot_path;
@@ -145,6 +183,7 @@ typedef struct viewer {
     hl_transport *t;     /* NULL with --dynamic and no transport */
     const hl_mesh *mesh; /* the mesh drawn: the transport's or the dynamic scene's */
     vw_dyn dy;
+    vw_sur su;
     hl_relighter *rl;
     hl_context *gctx;  /* shares buffers with the window's GL context (interop);
                           the relighter lives on it when set, else on ctx */
@@ -153,6 +192,9 @@ typedef struct viewer {
     float *rgb;
     env_slot envs[VW_MAX_ENVS];
     int n_envs, cur, loaded, sky_slot;
+    int black_slot;    /* --surroundings without --env or --sky: no map (black),
+                          which the relighter is not given until another map was */
+    int rl_env_set;    /* the relighter has had an environment */
     float sun_el, sun_az;
     hl_relight_desc rd;
     hl_relight_stats st;
@@ -256,6 +298,29 @@ int vw_dyn_toggle_play(viewer *v);
 void vw_dyn_reset(viewer *v);
 void vw_dyn_destroy(viewer *v);
 
+/* ---------------------------------------------------------------- view_surround.c */
+
+/* Before any window: the surroundings posed at --time, each triangle's
+ * body; prints the error and returns 0 on failure. */
+int vw_sur_load(viewer *v);
+/* Once the relighter exists (after the CL/GL choice): it captures them. */
+int vw_sur_attach(viewer *v);
+/* Before the first frame: --play's clock, --drag through the mouse's path;
+ * 0 (printed) when --drag finds no body of the surroundings. */
+int vw_sur_start(viewer *v);
+/* The frame's part before the relight: the clock, the pose, the upload;
+ * marks the lighting dirty when something moved. */
+void vw_sur_frame(viewer *v);
+/* After a relight (or none: ran 0): what the frame did, for the HUD. */
+void vw_sur_note(viewer *v, int ran, int reused, double seconds);
+int vw_sur_pending(const viewer *v);
+void vw_sur_hud(const viewer *v, char *buf, size_t size);
+int vw_sur_grab(viewer *v, double x, double y, double w, double h);
+void vw_sur_drag(viewer *v, double x, double y, double w, double h);
+int vw_sur_toggle_play(viewer *v);
+void vw_sur_reset(viewer *v);
+void vw_sur_destroy(viewer *v);
+
 /* ---------------------------------------------------------------- gl_draw.c */
 
 /* What one frame shows. */
@@ -265,6 +330,7 @@ typedef struct vw_frame {
     float rotate_deg;       /* environment rotation (docs/CONVENTIONS.md) */
     float exposure_ev;
     int glare;
+    int surroundings;       /* draw the surroundings' triangles */
 } vw_frame;
 
 /* Needs a current OpenGL 3.3 core context. Uploads the mesh once; the
@@ -280,6 +346,10 @@ int vw_gl_resize(vw_gl *g, uint32_t w, uint32_t h, char *err, size_t err_size);
 int vw_gl_set_env(vw_gl *g, const hl_env *env, char *err, size_t err_size);
 /* Replaces the vertex positions (3 floats per vertex; bodies moved). */
 void vw_gl_upload_positions(vw_gl *g, const float *positions);
+/* The surroundings' triangles, 7 floats a vertex: position, colour, and
+ * 1 where the colour is a display value (divided by 2^EV when drawn) or 0
+ * where it is radiance (tone-mapped like the mesh). */
+int vw_gl_set_surroundings(vw_gl *g, const float *verts, uint32_t vertex_count, char *err, size_t err_size);
 /* Copies 4 floats per vertex (the dot products' layout) into the colour
  * buffer. */
 void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgba);
@@ -325,6 +395,15 @@ void vw_pixel_ray(const hl_camera_view *cv, double x, double y, double w, double
 /* Distance along the ray (o, d) to triangle (a, b, c), or -1 on a miss
  * (either side counts). */
 double vw_ray_triangle(const double o[3], const double d[3], const float *a, const float *b, const float *c);
+
+/* A drag across the horizontal plane through grab: the translation
+ * (y 0) from grab to where the ray through window pixel (x, y) meets that
+ * plane, held within `most` of grab; 0 when the ray meets it not at all
+ * or behind the eye. */
+int vw_drag_delta(const hl_camera_view *cv, double x, double y, double w, double h, const float grab[3],
+                  double most, double delta[3]);
+/* The smallest sphere around two spheres. */
+void vw_sphere_union(const float c0[3], float r0, const float c1[3], float r1, float c[3], float *r);
 
 /* "haarlight-view-NNN.png" in the current folder, the first not taken. */
 void vw_screenshot_name(char *buf, size_t size);
