@@ -66,6 +66,22 @@ static void object_box(const hl_mesh *m, double c[3], double *half_diag)
     *half_diag = 0.5 * sqrt(d2);
 }
 
+/* An OpenCL context and the bunny's transport (ground res x res) with the
+ * object's box; NULL, after a failed check, when either is missing. */
+static hl_transport *cl_bunny(hl_context **cl, int res, double c[3], double *hd)
+{
+    *cl = hl_test_cl_context(0);
+    HL_CHECK(*cl != NULL, "an OpenCL device is needed");
+    hl_transport *t = *cl ? bunny(*cl, res) : NULL;
+    HL_CHECK(!*cl || t != NULL, "transport");
+    if (t) object_box(t->mesh, c, hd);
+    else {
+        hl_context_destroy(*cl);
+        *cl = NULL;
+    }
+    return t;
+}
+
 /* An axis-aligned emissive (or dark) box of half side h about c. */
 static void add_box(soup *s, const double c[3], double h, const float e[3])
 {
@@ -204,14 +220,10 @@ static void case_twin(void)
 
 static void case_reuse(void)
 {
-    hl_context *cl = hl_test_cl_context(0);
-    HL_CHECK(cl != NULL, "an OpenCL device is needed");
-    if (!cl) return;
-    hl_transport *t = bunny(cl, 12);
-    HL_CHECK(t != NULL, "transport");
-    if (!t) { hl_context_destroy(cl); return; }
+    hl_context *cl = NULL;
     double c[3], hd;
-    object_box(t->mesh, c, &hd);
+    hl_transport *t = cl_bunny(&cl, 12, c, &hd);
+    if (!t) return;
     static soup s;
     lamp_scene(&s, c, 2.0 * hd, 0.3, 0.6, 3.0 * hd, 1);
     hl_surroundings *sur = surroundings_of(cl, &s);
@@ -252,14 +264,10 @@ static void case_reuse(void)
 
 static void case_crosscheck(void)
 {
-    hl_context *cl = hl_test_cl_context(0);
-    HL_CHECK(cl != NULL, "an OpenCL device is needed");
-    if (!cl) return;
-    hl_transport *t = bunny(cl, 12);
-    HL_CHECK(t != NULL, "transport");
-    if (!t) { hl_context_destroy(cl); return; }
+    hl_context *cl = NULL;
     double c[3], hd;
-    object_box(t->mesh, c, &hd);
+    hl_transport *t = cl_bunny(&cl, 12, c, &hd);
+    if (!t) return;
     const float o[3] = {(float)c[0], (float)c[1], (float)c[2]};
     static soup s;
     lamp_scene(&s, c, 2.0 * hd, 2.2, 0.5, 3.0 * hd, 1);
@@ -326,14 +334,10 @@ static void case_crosscheck(void)
 
 static void case_motion(void)
 {
-    hl_context *cl = hl_test_cl_context(0);
-    HL_CHECK(cl != NULL, "an OpenCL device is needed");
-    if (!cl) return;
-    hl_transport *t = bunny(cl, 40);
-    HL_CHECK(t != NULL, "transport");
-    if (!t) { hl_context_destroy(cl); return; }
+    hl_context *cl = NULL;
     double c[3], hd;
-    object_box(t->mesh, c, &hd);
+    hl_transport *t = cl_bunny(&cl, 40, c, &hd);
+    if (!t) return;
     const hl_mesh *me = t->mesh;
     const uint32_t V = me->vertex_count, V0 = me->object_vertex_count;
     hl_relighter *r = NULL;
