@@ -24,8 +24,8 @@
 #                  back (relight's picture again); a press on the object in
 #                  front of the surroundings grabs nothing
 #   surroundings_unchanged  b with nothing moved: the relighter finds nothing
-#                  changed (HUD "lighting: unchanged"); --play captures every
-#                  frame
+#                  changed (HUD "lighting: unchanged"); --play, or space,
+#                  captures every frame; space again pauses (unchanged again)
 #   surroundings_bad  --surroundings' and --time's errors (no X needed)
 # Env: HL_BIN, HL_COMPARE (test_viewer), HL_SCENE_GEN (viewer_scene), HL_TMP, HL_REPO_DATA,
 # HL_VIEWER_BUILT (ON/OFF). Exit 77 = skipped.
@@ -303,6 +303,15 @@ surroundings_unchanged)
   hud_says "--play" "capture + relight .* ms, t .* s of 0.00-4.00 playing"
   grep -q "surroundings: 3 captures with relight (mean .* ms); 0 frames" "$tmp/view.txt" ||
     fail "--play: not a capture every frame"
+  # space after frame 1: plays (frames 2 and 3 captured) ...
+  view "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" --no-glare --frames 3 --keys ' ' || fail "view --keys space"
+  hud_says "space" "t .* s of 0.00-4.00 playing"
+  grep -q "surroundings: 3 captures with relight" "$tmp/view.txt" || fail "space: the animation did not play"
+  # ... and pauses: frame 2 asks at the time of frame 1 and finds nothing changed
+  view "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" --no-glare --frames 3 --play --keys ' ' || fail "view --play --keys space"
+  hud_says "--play, space" "lighting: unchanged, t .* s of 0.00-4.00 paused"
+  grep -q "surroundings: 1 captures with relight (mean .* ms); 1 frames found them and the map unchanged" \
+    "$tmp/view.txt" || fail "--play, space: the paused frames were not found unchanged"
   ;;
 surroundings_bad)
   [ "${HL_VIEWER_BUILT:-OFF}" = ON ] || skip "haarlight was built without the viewer"

@@ -63,7 +63,8 @@ int cmd_view(int argc, char **argv);
     "with --surroundings (lit as captured from ONE point, the centre of the object's\n"    \
     "bounding box, ground left out):\n"                                                    \
     "  left drag on a body    move that body of the surroundings across the horizontal\n" \
-    "                         plane through the grab point (elsewhere: orbit)\n"          \
+    "                         plane through the grab point (elsewhere, or where the\n"    \
+    "                         object is in front or they are hidden: orbit)\n"            \
     "  space                  play / pause their animation, looping over its range (none:\n" \
     "                         spin the environment)\n"                                      \
     "  b                      their bodies back where the file puts them, the time to --time\n" \
