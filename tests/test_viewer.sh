@@ -18,7 +18,9 @@
 #   surroundings_capture  --surroundings data/surroundings/lamp_orbit.gltf
 #                  --time 0.5, alone and over the sky: the object as relight's
 #                  picture (the surroundings hidden with the key s, since
-#                  relight does not draw them), and drawn they change it
+#                  relight does not draw them), and drawn they change it; at
+#                  1.5 s from above, where none is in view, the first frame
+#                  as relight's, and not as relight's at 0.5 s
 #   surroundings_drag  --drag on the lamp moves it (horizontally) and its
 #                  light: the object no longer looks as relight's; b puts it
 #                  back (relight's picture again); a press on the object in
@@ -85,7 +87,8 @@ view() {
 must_differ() {
   "$compare" compare "$1" "$2" "$3" >"$tmp/cmp.txt" 2>&1
   local rc=$?
-  cat "$tmp/cmp.txt" # the differences measured, against the tolerances of a match
+  # the differences measured, against the tolerances of a match (FAIL here: they differ, as wanted)
+  sed 's/^/  (must differ) /' "$tmp/cmp.txt"
   case $rc in
     1) ;;
     0) fail "$4" ;;
@@ -265,6 +268,16 @@ surroundings_capture)
   "$bin" relight "$tmp/s.hlt" "${sur[@]}" "${scam[@]}" -q -o "$tmp/relight.exr" || fail "relight"
   echo "drawn, the lamp and the wall must show:"
   must_differ "$tmp/drawn.exr" "$tmp/relight.exr" 0.5 "the surroundings were not drawn"
+  # from above, none of them in view: the first frame itself, at 1.5 s (the lamp at -X)
+  top=(--size 256x192 --exposure 0.5 --eye 4,28,14 --target 0,2,1 --fov 26)
+  tsur=(--surroundings "$data/surroundings/lamp_orbit.gltf" --time 1.5)
+  "$bin" relight "$tmp/s.hlt" "${tsur[@]}" "${top[@]}" -q -o "$tmp/top.exr" || fail "relight from above"
+  view "$tmp/s.hlt" "${tsur[@]}" "${top[@]}" --no-glare --frames 1 --screenshot "$tmp/vtop.exr" ||
+    fail "view from above exited with an error"
+  same_picture "surroundings at 1.5 s, seen from above, first frame" "$tmp/vtop.exr" "$tmp/top.exr" 0.5
+  "$bin" relight "$tmp/s.hlt" "${sur[@]}" "${top[@]}" -q -o "$tmp/top05.exr" || fail "relight from above at 0.5 s"
+  echo "the lamp at 1.5 s must not light the bunny as at 0.5 s:"
+  must_differ "$tmp/vtop.exr" "$tmp/top05.exr" 0.5 "--time did not move the lamp's light"
   ;;
 surroundings_drag)
   scene
