@@ -168,6 +168,24 @@ typedef struct bench_speed {
  * products). */
 #define BENCH_CAPTURE_GOAL 200.0
 
+/* `bench --image` (bench_image.c): what it measures on. */
+typedef struct bench_image_in {
+    hl_context *cl, *ref;
+    struct hl_bench_ref *br;     /* the references of t[0] */
+    hl_transport *const *t;
+    const char *const *files;
+    int nfiles;
+    const bench_env *envs;
+    int nenvs;
+    const uint32_t *terms;
+    uint32_t nterms, select;
+    uint32_t frames;             /* pictures under the turning first map (1: none) */
+    uint32_t width, height;
+} bench_image_in;
+/* Image-space errors and temporal stability, as sections of md (and lines
+ * on stdout). */
+hl_result bench_image(const bench_image_in *in, FILE *md);
+
 /* The median of v (sorts it). */
 double bench_median(double *v, int n);
 /* `bench --surroundings`: rc lit by sur (then by its environment alone
