@@ -145,6 +145,14 @@ int hl_cl_light_tile_walk(const hl_cl_light *l, uint32_t rg, double entries, uin
 /* Bytes the dot-product kernel reads and writes for the last selection
  * (each byte once: what stays in cache is not counted twice). */
 hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes);
+/* Relight in parts (host/src/relight/cl_parts.c): the parts the dot
+ * products run in (1: all the columns on the device at once); the device
+ * bytes the columns of the relighter's cut take all at once (entries,
+ * starts, tile numbers, ranges); and the device memory a context's
+ * buffers hold now (counted against its limit). */
+uint32_t hl_cl_light_parts(const hl_cl_light *l);
+uint64_t hl_cl_light_column_bytes(const hl_cl_light *l);
+uint64_t hl_cl_memory_used(const hl_context *ctx);
 /* The device's read bandwidth: median of reps passes over `bytes`. */
 hl_result hl_cl_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, double *bytes_per_s);
 

@@ -72,6 +72,18 @@ hl_result hl_cl_big_buf(hl_context *ctx, cl_mem *m, size_t bytes, const void *in
     return hl_cl_make_buf(ctx, m, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, *keep, what);
 }
 
+hl_result hl_cl_adopt_buf(hl_context *ctx, cl_mem *m, size_t bytes, void **host, const char *what)
+{
+    if (ctx->cl->wg == 1 && bytes)
+        return hl_cl_make_buf(ctx, m, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, *host, what);
+    hl_result r = hl_cl_make_buf(ctx, m, CL_MEM_READ_ONLY, bytes, *host, what);
+    hl_free_big(*host);
+    *host = NULL;
+    return r;
+}
+
+uint64_t hl_cl_memory_used(const hl_context *ctx) { return ctx->cl ? ctx->cl->used : 0; }
+
 hl_result hl_cl_buffer(hl_context *ctx, size_t bytes, void **out)
 {
     *out = NULL;

@@ -83,6 +83,12 @@ void hl_cl_release_buf(struct hl_cl *cl, cl_mem *m);
  * it lives in our own memory (*keep, to free with hl_free_big after the
  * buffer is released), allocated with huge pages advised. */
 hl_result hl_cl_big_buf(hl_context *ctx, cl_mem *m, size_t bytes, const void *init, void **keep, const char *what);
+/* The same over memory the caller already filled (*host, from
+ * hl_alloc_big), so that the bytes are never held twice: on a CPU device
+ * the buffer uses *host in place (free it with hl_free_big after the
+ * buffer is released); elsewhere they are copied to the device and *host
+ * is freed and set to NULL, whether or not the buffer was made. */
+hl_result hl_cl_adopt_buf(hl_context *ctx, cl_mem *m, size_t bytes, void **host, const char *what);
 
 /* OpenGL buffers (cl_gl.c): enqueues taking m (from hl_cl_gl_buffer) from
  * OpenGL, and giving it back (the error code, for the caller's message). */

@@ -40,13 +40,13 @@ static uint32_t grid7(float x, float lo, float hi)
  * in the file's order (376k against 476k), and 76% of them fill every
  * lane (34% in file order). On a CPU device cut_ranges then deals the
  * curve's tiles to the ranges. The sums are the same in any order. */
-static hl_result vertex_order(hl_cl_light *l, const hl_transport *t)
+static hl_result vertex_order(hl_cl_light *l, const hl_transport *t, uint32_t **curve)
 {
     const size_t V = l->nverts;
     const hl_mesh *m = t->mesh;
-    l->order = malloc((V ? V : 1) * 4);
+    uint32_t *c = *curve = malloc((V ? V : 1) * 4);
     order_key *k = malloc((V ? V : 1) * sizeof *k);
-    if (!l->order || !k) {
+    if (!c || !k) {
         free(k);
         return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the vertex order");
     }
@@ -70,7 +70,7 @@ static hl_result vertex_order(hl_cl_light *l, const hl_transport *t)
         k[v].v = (uint32_t)v;
     }
     qsort(k, V, sizeof *k, order_cmp);
-    for (size_t i = 0; i < V; i++) l->order[i] = k[i].v;
+    for (size_t i = 0; i < V; i++) c[i] = k[i].v;
     free(k);
     return HL_OK;
 }
@@ -90,20 +90,27 @@ static hl_result vertex_order(hl_cl_light *l, const hl_transport *t)
  * the curve into R runs of equal stored terms instead gave the ranges
  * 174k and 203k kept entries at M = 200 under city.exr on the bunny with
  * ground (dealt: 188.7k and 188.1k); the dot products last as long as the
- * larger. The tiles themselves are unchanged, so the entry count is too. */
-static uint32_t cut_ranges(hl_cl_light *l, uint32_t **starts)
+ * larger. The tiles themselves are unchanged, so the entry count is too.
+ * mult > 1 (relight in parts, cl_parts.c) makes mult ranges a core, so
+ * that groups of them fit the device; l->order is made from curve. */
+static uint32_t cut_ranges(hl_cl_light *l, const uint32_t *curve, uint32_t mult, uint32_t **starts)
 {
     const size_t V = l->nverts, tiles = (V + HL_TILE - 1) / HL_TILE, max_tiles = 65535;
     if (l->cl->wg != 1) {
         const size_t per = 64 / HL_TILE, n = tiles ? (tiles + per - 1) / per : 1;
         uint32_t *rs = malloc((n + 1) * 4);
-        if (!rs) return 0;
+        l->order = malloc((V ? V : 1) * 4);
+        if (!rs || !l->order) {
+            free(rs);
+            return 0;
+        }
+        memcpy(l->order, curve, V * 4);
         for (size_t i = 0; i < n; i++) rs[i] = (uint32_t)(i * per * HL_TILE);
         rs[n] = (uint32_t)(tiles * HL_TILE);
         *starts = rs;
         return (uint32_t)n;
     }
-    size_t R = l->cl->units > 1 ? l->cl->units : 1;
+    size_t R = (l->cl->units > 1 ? l->cl->units : 1) * (size_t)mult;
     if (R < (tiles + max_tiles - 1) / max_tiles) R = (tiles + max_tiles - 1) / max_tiles; /* dealt: at most 65535 each */
     if (tiles && R > tiles) R = tiles;
     uint32_t *rs = malloc((R + 1) * 4), *o = malloc((V ? V : 1) * 4);
@@ -119,10 +126,9 @@ static uint32_t cut_ranges(hl_cl_light *l, uint32_t **starts)
     for (size_t r = 0; r < R; r++) {
         rs[r] = (uint32_t)n;
         for (size_t c = (r + R - shift) % R; c < tiles; c += R)
-            for (size_t v = c * HL_TILE; v < V && v < (c + 1) * HL_TILE; v++) o[n++] = l->order[v];
+            for (size_t v = c * HL_TILE; v < V && v < (c + 1) * HL_TILE; v++) o[n++] = curve[v];
     }
     rs[R] = (uint32_t)(tiles * HL_TILE);
-    free(l->order);
     l->order = o;
     *starts = rs;
     return (uint32_t)R;
@@ -147,6 +153,7 @@ typedef struct col_build {
     const hl_transport *t;
     size_t nc, nb, ts;      /* slots, blocks per row, most tiles in a range */
     size_t ncs, nrel, vpad; /* lengths of cs, of rel; positions with padding */
+    uint64_t run;           /* entries, entry 0 included */
     uint32_t *cs;           /* each (range, slot)'s first entry (first, its count) */
     uint32_t *fill;         /* pass 1: each (range, slot)'s entries so far */
     uint32_t *last;         /* the last tile seen to store each slot */
@@ -209,9 +216,7 @@ static void column_pass(col_build *b, int pass, size_t rg)
     }
 }
 
-/* Between the passes: the counts in cs become absolute starts, and the
- * entries' memory is made, zeroed (lanes whose vertex does not store the
- * slot stay zero). */
+/* After pass 0: the counts in cs become absolute starts. */
 static hl_result column_starts(col_build *b)
 {
     hl_cl_light *l = b->l;
@@ -224,62 +229,106 @@ static hl_result column_starts(col_build *b)
         return hl_fail(l->ctx, HL_ERR_UNSUPPORTED, "the transport needs %llu column entries; one device holds at most 2^32",
                        (unsigned long long)run);
     l->col_entries = run - 1;
+    b->run = run;
+    return HL_OK;
+}
+
+/* A cut of the vertices into ranges (cut_ranges, mult ranges a core on a
+ * CPU device) and pass 0 over it: ranges, tstride, the starts in cs. */
+static hl_result column_count(col_build *b, const uint32_t *curve, uint32_t mult)
+{
+    hl_cl_light *l = b->l;
+    free(l->range_start);
+    free(l->order);
+    free(b->cs);
+    l->order = l->range_start = b->cs = NULL;
+    l->nranges = cut_ranges(l, curve, mult, &l->range_start);
+    if (!l->nranges) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+    b->vpad = l->nverts ? l->range_start[l->nranges] : HL_TILE;
+    b->ncs = (size_t)l->nranges * (b->nc + 1);
+    b->ts = 1;
+    for (size_t rg = 0; rg < l->nranges; rg++) {
+        size_t n = (l->range_start[rg + 1] - l->range_start[rg]) / HL_TILE;
+        if (n > b->ts) b->ts = n;
+    }
+    l->tstride = (uint32_t)b->ts;
+    b->nrel = (size_t)l->nranges * b->nc * b->ts;
+    b->cs = calloc(b->ncs, 4);
+    if (!b->cs) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+    for (size_t rg = 0; rg < l->nranges; rg++) column_pass(b, 0, rg);
+    return column_starts(b);
+}
+
+/* The memory pass 1 fills, zeroed (lanes whose vertex does not store a
+ * slot stay zero): the entries and tile numbers straight where the device
+ * reads them on a CPU device (hl_cl_adopt_buf), so never held twice. */
+static hl_result column_memory(col_build *b)
+{
+    hl_context *ctx = b->l->ctx;
+    const size_t V = b->l->nverts;
+    b->fill = malloc(b->ncs * 4);
+    b->back = malloc(b->vpad * 4);
+    b->ex = malloc((V ? V : 1) * sizeof *b->ex);
+    if (!b->fill || !b->back || !b->ex) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
     memcpy(b->fill, b->cs, b->ncs * 4);
-    b->col = hl_alloc_big(l->ctx, (size_t)run * COL_WORDS * 4, "transport columns");
+    b->rel = hl_alloc_big(ctx, b->nrel * 2, "the transport columns' tile numbers");
+    if (!b->rel) return HL_ERR_OUT_OF_MEMORY;
+    memset(b->rel, 0, b->nrel * 2);
+    b->col = hl_alloc_big(ctx, (size_t)b->run * COL_WORDS * 4, "transport columns");
     if (!b->col) return HL_ERR_OUT_OF_MEMORY;
-    memset(b->col, 0, (size_t)run * COL_WORDS * 4);
+    memset(b->col, 0, (size_t)b->run * COL_WORDS * 4);
     return HL_OK;
 }
 
 /* The columns, their starts, the tile numbers, the ranges and the scales
- * onto the device. */
-static hl_result column_upload(col_build *b)
+ * onto the device: whole, or (nparts > 1) the columns kept on the host for
+ * part-sized buffers (cl_parts.c). */
+static hl_result column_upload(col_build *b, const hl_col_sizes *z)
 {
     hl_cl_light *l = b->l;
     hl_context *ctx = l->ctx;
-    hl_result r = hl_cl_big_buf(ctx, &l->col, (l->col_entries + 1) * COL_WORDS * 4, b->col, &l->host[0],
-                                "transport columns");
-    if (r == HL_OK) r = hl_cl_big_buf(ctx, &l->cols, b->ncs * 4, b->cs, &l->host[1], "column starts");
-    if (r == HL_OK) r = hl_cl_big_buf(ctx, &l->rel, b->nrel * 2, b->rel, &l->host[3], "the columns' tile numbers");
-    if (r == HL_OK)
-        r = hl_cl_make_buf(ctx, &l->rstart, CL_MEM_READ_ONLY, ((size_t)l->nranges + 1) * 4, l->range_start, "ranges");
+    hl_result r = HL_OK;
+    void *col = b->col, *rel = b->rel;
+    b->col = NULL;
+    b->rel = NULL;
+    if (l->nparts > 1) {
+        r = hl_cl_light_make_parts(l, z, col, rel);
+    } else {
+        l->host[0] = col;
+        l->host[3] = rel;
+        r = hl_cl_adopt_buf(ctx, &l->col, (size_t)b->run * COL_WORDS * 4, &l->host[0], "transport columns");
+        if (r == HL_OK) r = hl_cl_big_buf(ctx, &l->cols, b->ncs * 4, b->cs, &l->host[1], "column starts");
+        /* on failure host[] is freed with the relighter */
+        if (r == HL_OK) r = hl_cl_adopt_buf(ctx, &l->rel, b->nrel * 2, &l->host[3], "the columns' tile numbers");
+        if (r == HL_OK)
+            r = hl_cl_make_buf(ctx, &l->rstart, CL_MEM_READ_ONLY, ((size_t)l->nranges + 1) * 4, l->range_start, "ranges");
+    }
     if (r == HL_OK) r = hl_cl_big_buf(ctx, &l->back, b->vpad * 4, b->back, &l->host[2], "the sums' scales");
     return r;
 }
 
 hl_result hl_cl_light_build_columns(hl_cl_light *l, const hl_transport *t)
 {
-    hl_context *ctx = l->ctx;
-    const size_t nc = l->g->ncoef, V = l->nverts;
-    TRY(vertex_order(l, t));
-    l->nranges = cut_ranges(l, &l->range_start);
-    if (!l->nranges) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+    const size_t nc = l->g->ncoef;
+    uint32_t *curve = NULL;
+    TRY(vertex_order(l, t, &curve));
     col_build b = {.l = l, .t = t, .nc = nc, .nb = l->g->nblocks, .ts = 1};
-    b.vpad = V ? l->range_start[l->nranges] : HL_TILE;
-    b.ncs = (size_t)l->nranges * (nc + 1);
-    for (size_t rg = 0; rg < l->nranges; rg++) {
-        size_t n = (l->range_start[rg + 1] - l->range_start[rg]) / HL_TILE;
-        if (n > b.ts) b.ts = n;
-    }
-    l->tstride = (uint32_t)b.ts;
-    b.nrel = (size_t)l->nranges * nc * b.ts;
-    b.cs = calloc(b.ncs, 4);
-    b.fill = malloc(b.ncs * 4);
     b.last = malloc(nc * 4);
-    b.rel = hl_alloc_big(ctx, b.nrel * 2, "the transport columns' tile numbers");
-    b.back = malloc(b.vpad * 4);
-    b.ex = malloc((V ? V : 1) * sizeof *b.ex);
-    hl_result r = HL_OK;
-    if (!b.rel) r = HL_ERR_OUT_OF_MEMORY;
-    else if (!b.cs || !b.fill || !b.last || !b.back || !b.ex)
-        r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
-    else memset(b.rel, 0, b.nrel * 2);
+    hl_result r = b.last ? HL_OK : hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+    /* count; where one range is too big for the device's memory, cut finer
+       and count again (cl_parts.c) */
+    hl_col_sizes z = {0};
+    for (uint32_t mult = 1, finer = 0; r == HL_OK; mult = finer) {
+        r = column_count(&b, curve, mult);
+        z = (hl_col_sizes){b.cs, b.run, nc, b.ts, b.vpad};
+        if (r == HL_OK) r = hl_cl_light_plan_parts(l, &z, mult, &finer);
+        if (!finer) break;
+    }
+    free(curve);
+    if (r == HL_OK) r = column_memory(&b);
     if (r == HL_OK) column_scales(&b);
-    /* pass 0 counts the tile entries of each (range, slot); pass 1 fills */
-    for (size_t rg = 0; r == HL_OK && rg < l->nranges; rg++) column_pass(&b, 0, rg);
-    if (r == HL_OK) r = column_starts(&b);
     for (size_t rg = 0; r == HL_OK && rg < l->nranges; rg++) column_pass(&b, 1, rg);
-    if (r == HL_OK) r = column_upload(&b);
+    if (r == HL_OK) r = column_upload(&b, &z);
     l->col_start = b.cs;
     free(b.fill);
     free(b.last);

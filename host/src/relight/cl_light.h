@@ -1,7 +1,8 @@
 /* cl_light.h - the relight's device state (struct hl_cl_light), private to
  * the files that build and run it: cl_columns.c (the transport turned into
  * columns of tiles), cl_relight.c (the lighting launches) and
- * cl_light_probe.c (what bench measures of them).
+ * cl_light_probe.c (what bench measures of them), cl_parts.c (the dot
+ * products in parts where the device holds too few of the columns).
  *
  * Depends on: cl_internal.h (OpenCL, the counted buffers), lighting.h
  * (hl_light_geom), geom.h.
@@ -30,6 +31,15 @@ struct hl_cl_light {
     uint64_t col_entries;                           /* tile entries in all columns */
     uint32_t *col_start;                            /* host copy, for counting bytes */
     uint32_t *order;                                /* vertex at each position */
+    /* relight in parts (cl_parts.c): where the device memory limit holds
+       too few of the columns at once, nparts > 1 groups of consecutive
+       ranges whose columns wait in host memory (host_col, host_rel, and
+       part_cs: col_start rebased to each part's buffer) and go into one
+       set of part-sized buffers (col, cols, rel, rstart) before each
+       part's launch. nparts is 1 when the device holds them all. */
+    uint32_t nparts, *part_range;                   /* part p: ranges [part_range[p], part_range[p + 1]) */
+    uint32_t *part_cs;
+    void *host_col, *host_rel;
     /* lighting captured from surroundings (hl_cl_light_set_capture): the
        capture writes Lp in env2para's place, env2para (when capture_env)
        writing the fallback lighting into Lenv first */
@@ -43,6 +53,28 @@ struct hl_cl_light {
  * columns (cl_columns.c): l->order, range_start, nranges, tstride,
  * col_entries, col_start and the buffers col, cols, rel, rstart, back. */
 hl_result hl_cl_light_build_columns(hl_cl_light *l, const hl_transport *t);
+
+/* The sizes of a cut of the columns, for planning the parts. */
+typedef struct hl_col_sizes {
+    const uint32_t *cs; /* each (range, slot)'s first entry, absolute */
+    uint64_t run;       /* entries including entry 0 */
+    size_t nc, ts, vpad;
+} hl_col_sizes;
+
+/* Plans the parts for the counted columns (cl_parts.c): sets nparts and
+ * part_range and returns HL_OK; or, where one range is too big for the
+ * device memory limit and a finer cut could fit, returns HL_OK with
+ * *finer set to the range multiple to cut again with (CPU devices); or
+ * fails naming the limit and what the smallest part needs. */
+hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t mult, uint32_t *finer);
+
+/* Makes the part-sized buffers and part_cs from the built columns; takes
+ * host_col and host_rel (cl_parts.c). */
+hl_result hl_cl_light_make_parts(hl_cl_light *l, const hl_col_sizes *z, void *col, void *rel);
+
+/* Enqueues part p's uploads into the part buffers (cl_parts.c); its ranges
+ * count into *nr. */
+hl_result hl_cl_light_enq_part(hl_cl_light *l, uint32_t p, cl_uint *nr);
 
 /* Enqueues the dot products into the device's colour buffer, without
  * waiting (cl_relight.c). */

@@ -22,6 +22,10 @@ void hl_cl_light_destroy(hl_cl_light *l)
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(l->cl, all[i]);
     for (int i = 0; i < 4; i++) hl_free_big(l->host[i]);
     free(l->col_start);
+    free(l->part_range);
+    free(l->part_cs);
+    hl_free_big(l->host_col);
+    hl_free_big(l->host_rel);
     free(l->range_start);
     free(l->order);
     free(l);
@@ -144,15 +148,21 @@ static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
     return light_launch(l, K_SELECT, 1);
 }
 
+/* One launch over all the ranges, or one a part (cl_parts.c), each after
+ * its part's uploads. */
 static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
 {
     cl_kernel k = l->cl->k[K_RELIGHT];
     cl_uint nc = l->g->ncoef, nv = l->nverts, nr = l->nranges, ts = l->tstride;
-    LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rel); LARG(k, 3, ts); LARG(k, 4, l->rstart);
-    LARG(k, 5, l->back); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->klist); LARG(k, 9, l->albedo);
-    LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
-    LARG(k, 15, l->keep_negative);
-    return light_launch(l, K_RELIGHT, l->nranges);
+    for (uint32_t p = 0; p < (l->nparts > 1 ? l->nparts : 1u); p++) {
+        if (l->nparts > 1) TRY(hl_cl_light_enq_part(l, p, &nr));
+        LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rel); LARG(k, 3, ts); LARG(k, 4, l->rstart);
+        LARG(k, 5, l->back); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->klist); LARG(k, 9, l->albedo);
+        LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
+        LARG(k, 15, l->keep_negative);
+        TRY(light_launch(l, K_RELIGHT, nr));
+    }
+    return HL_OK;
 }
 
 void hl_cl_light_keep_negative(hl_cl_light *l, int keep) { l->keep_negative = keep ? 1u : 0u; }

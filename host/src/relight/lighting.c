@@ -87,6 +87,43 @@ static void object_centre(const hl_mesh *m, float c[3])
     for (int a = 0; a < 3; a++) c[a] = n ? 0.5f * (lo[a] + hi[a]) : 0.0f;
 }
 
+/* One pass over the rows, at creation, for what the relighter needs of
+ * them besides the columns: max_row_norm (max over vertices of |T_v|, for
+ * the error bound) and the transport selection weights (mean |T_i|, as
+ * hl_selection_weights makes them, in the same order, so the same bits).
+ * Reading the entries once here rather than at the first lighting change
+ * halves the passes a relight makes over them. */
+static hl_result row_measures(hl_relighter *r, const hl_transport *t)
+{
+    const uint32_t V = t->info.vertex_count, nb = t->info.block_count, nc = r->g->ncoef;
+    double *acc = hl_calloc(r->ctx, nc, sizeof(double), "transport weights");
+    float *w = hl_malloc(r->ctx, (size_t)nc * 4, "selection weights");
+    if (!acc || !w) {
+        free(acc);
+        free(w);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    double most = 0.0;
+    for (uint32_t v = 0; v < V; v++) {
+        double ss = 0.0;
+        const hl_row_quant q = t->row_quant[v];
+        uint64_t e = t->row_offset[v];
+        for (uint32_t b = 0; b < nb; b++)
+            for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++) {
+                const uint32_t slot = b * HL_BLOCK + t->entries[2 * e];
+                double x = hl_dequant(t->info.quant, t->entries[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
+                ss += x * x;
+                acc[slot] += fabs(x);
+            }
+        if (ss > most) most = ss;
+    }
+    r->max_row_norm = sqrt(most);
+    for (uint32_t i = 0; i < nc; i++) w[i] = (float)(acc[i] / (V ? V : 1));
+    free(acc);
+    r->weights[HL_SELECT_TRANSPORT] = w;
+    return HL_OK;
+}
+
 hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out)
 {
     *out = NULL;
@@ -116,23 +153,10 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
             memcpy(r->albedo4 + 4 * (size_t)v, t->mesh->albedo + 3 * (size_t)v, 12);
             r->albedo4[4 * (size_t)v + 3] = 0.0f;
         }
-        /* |T_v| for the error bound */
-        for (uint32_t v = 0; v < V; v++) {
-            double ss = 0.0;
-            const hl_row_quant q = t->row_quant[v];
-            uint64_t e = t->row_offset[v];
-            for (uint32_t b = 0; b < t->info.block_count; b++)
-                for (uint32_t k = 0; k < t->block_counts[(size_t)v * t->info.block_count + b]; k++, e++) {
-                    const uint32_t slot = b * HL_BLOCK + t->entries[2 * e];
-                    double x = hl_dequant(t->info.quant, t->entries[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
-                    ss += x * x;
-                }
-            if (ss > r->max_row_norm) r->max_row_norm = ss;
-        }
-        r->max_row_norm = sqrt(r->max_row_norm);
+        res = row_measures(r, t);
         object_centre(t->mesh, r->cscene.center);
         r->uploaded_weights = HL_SELECT_AREA;
-        if (ctx->backend == HL_BACKEND_OPENCL) res = hl_cl_light_create(ctx, r->g, r->lg, t, r->albedo4, &r->cl);
+        if (res == HL_OK && ctx->backend == HL_BACKEND_OPENCL) res = hl_cl_light_create(ctx, r->g, r->lg, t, r->albedo4, &r->cl);
     }
     if (res != HL_OK) {
         hl_relighter_destroy(r);

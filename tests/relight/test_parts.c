@@ -1,0 +1,157 @@
+/* test_parts.c - the dot products in parts (host/src/relight/cl_parts.c),
+ * suite "parts".
+ *
+ * parts.quarter  a relighter whose device memory limit leaves its columns
+ *                about a quarter of what they need runs in parts and
+ *                gives the colours of an unlimited one, bit for bit
+ *                (tolerance 0), read back or left on the device, over
+ *                several lighting changes (the part buffers reused).
+ * parts.refused  a limit that leaves the columns nothing is refused with
+ *                a message naming the limit, not a crash.
+ *
+ * Depends on: haarlight_core, an OpenCL device (PoCL),
+ * tests/common/light_util.h.
+ */
+#include <stdint.h>
+
+#include "cl_backend.h"
+#include "geom.h"
+#include "hl_test.h"
+#include "lighting.h"
+#include "twins.h"
+#include "light_util.h"
+
+static hl_context *ctx_limited(uint64_t bytes)
+{
+    hl_context_desc d = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .device_memory = bytes,
+                         .quiet = 1};
+    hl_context *c = NULL;
+    char err[4096];
+    if (hl_context_create(&d, &c, err, sizeof err) != HL_OK) fprintf(stderr, "context: %s\n", err);
+    return c;
+}
+
+/* The device memory an unlimited relighter of t holds (*used) and of that
+ * its columns (*cols); 0 when it could not be made. */
+static int measure(const hl_transport *t, uint64_t *used, uint64_t *cols)
+{
+    hl_context *ctx = ctx_of(HL_BACKEND_OPENCL);
+    hl_relighter *r = NULL;
+    int ok = ctx && hl_relighter_create(ctx, t, &r) == HL_OK;
+    HL_CHECK(ok, "unlimited relighter: %s", ctx ? hl_context_last_error(ctx) : "no context");
+    if (ok) {
+        *used = hl_cl_memory_used(ctx);
+        *cols = hl_cl_light_column_bytes(hl_relighter_device(r));
+        HL_CHECK(hl_cl_light_parts(hl_relighter_device(r)) == 1, "unlimited: one part, got %u",
+                 hl_cl_light_parts(hl_relighter_device(r)));
+    }
+    hl_relighter_destroy(r);
+    hl_context_destroy(ctx);
+    return ok;
+}
+
+static void case_quarter(void)
+{
+    const char *path = make_transport("parts_q.hlt", "");
+    hl_context *ref_ctx = ctx_of(HL_BACKEND_OPENCL);
+    hl_transport *t = NULL;
+    HL_CHECK(path && ref_ctx && hl_transport_load(ref_ctx, path, &t) == HL_OK, "transport");
+    uint64_t used = 0, cols = 0;
+    if (!t || !measure(t, &used, &cols)) return;
+    /* everything else as before; the columns a quarter of their bytes */
+    const uint64_t limit = used - cols + cols / 4;
+    printf("unlimited: %.2f MiB of device memory, columns %.2f MiB; limit %.2f MiB\n", (double)used / 1048576.0,
+           (double)cols / 1048576.0, (double)limit / 1048576.0);
+    hl_context *lim = ctx_limited(limit);
+    hl_relighter *a = NULL, *b = NULL;
+    HL_CHECK(hl_relighter_create(ref_ctx, t, &a) == HL_OK, "%s", hl_context_last_error(ref_ctx));
+    HL_CHECK(lim && hl_relighter_create(lim, t, &b) == HL_OK, "limited relighter: %s",
+             lim ? hl_context_last_error(lim) : "no context");
+    if (!a || !b) goto done;
+    const uint32_t parts = hl_cl_light_parts(hl_relighter_device(b));
+    printf("limited: %u parts, %.2f MiB of device memory in use\n", parts, (double)hl_cl_memory_used(lim) / 1048576.0);
+    HL_CHECK(parts >= 4, "a quarter of the column memory must take at least 4 parts, got %u", parts);
+    HL_CHECK(hl_cl_memory_used(lim) <= limit, "the limit is kept");
+    const uint32_t V = t->info.vertex_count;
+    hl_env *env = make_env(ref_ctx, 256, 70, 30, 2e3f), *env2 = make_env(lim, 256, 70, 30, 2e3f);
+    HL_CHECK(hl_relighter_set_env(a, env) == HL_OK && hl_relighter_set_env(b, env2) == HL_OK, "set env");
+    float *ca = malloc((size_t)V * 12), *cb = malloc((size_t)V * 12), *b4 = malloc((size_t)V * 16);
+    void *buf = NULL;
+    HL_CHECK(hl_cl_buffer(ref_ctx, (size_t)V * 16, &buf) == HL_OK, "colour buffer");
+    uint64_t diff = 0;
+    double worst = 0.0;
+    hl_relight_stats sa, sb;
+    for (int k = 0; k < 4; k++) {
+        /* few and all terms: both walks of the kernel */
+        hl_relight_desc d = {.terms = k == 3 ? HL_TERMS_ALL : 40u + 90u * (uint32_t)k, .rotate_deg = 17.0f * (float)k};
+        HL_CHECK(hl_relighter_run(a, &d, ca, &sa) == HL_OK, "%s", hl_context_last_error(ref_ctx));
+        HL_CHECK(hl_relighter_run(b, &d, cb, &sb) == HL_OK, "%s", hl_context_last_error(lim));
+        HL_CHECK(sa.terms_kept == sb.terms_kept, "same selection");
+        for (size_t i = 0; i < (size_t)V * 3; i++) {
+            diff += memcmp(&ca[i], &cb[i], 4) != 0;
+            worst = fmax(worst, fabs((double)ca[i] - cb[i]));
+        }
+    }
+    /* colours left on the device: a buffer of the limited context */
+    void *bufb = NULL;
+    hl_relight_desc d = {.terms = 150, .rotate_deg = 5.0f};
+    HL_CHECK(hl_relighter_run(a, &d, ca, &sa) == HL_OK, "run");
+    HL_CHECK(hl_cl_buffer(lim, (size_t)V * 16, &bufb) == HL_OK, "%s", hl_context_last_error(lim));
+    HL_CHECK(bufb && hl_relighter_run_into(b, &d, bufb, 0, &sb) == HL_OK, "%s", hl_context_last_error(lim));
+    HL_CHECK(bufb && hl_cl_buffer_read(lim, bufb, (size_t)V * 16, b4) == HL_OK, "read");
+    for (size_t v = 0; v < V; v++)
+        for (int c = 0; c < 3; c++) {
+            diff += memcmp(&b4[4 * v + c], &ca[3 * v + c], 4) != 0;
+            worst = fmax(worst, fabs((double)b4[4 * v + c] - ca[3 * v + c]));
+        }
+    printf("parts: %u vertices x 3 colours x 5 lighting changes, %llu words differ, worst |difference| %g "
+           "(tolerance 0: bit-identical)\n", V, (unsigned long long)diff, worst);
+    HL_CHECK(diff == 0, "%llu words differ between the relight in parts and the whole one", (unsigned long long)diff);
+    if (bufb) hl_cl_buffer_release(lim, bufb);
+    hl_cl_buffer_release(ref_ctx, buf);
+    free(ca);
+    free(cb);
+    free(b4);
+    hl_env_destroy(env);
+    hl_env_destroy(env2);
+done:
+    hl_relighter_destroy(a);
+    hl_relighter_destroy(b);
+    hl_transport_destroy(t);
+    hl_context_destroy(lim);
+    hl_context_destroy(ref_ctx);
+}
+
+static void case_refused(void)
+{
+    const char *path = make_transport("parts_r.hlt", "");
+    hl_context *c0 = ctx_of(HL_BACKEND_OPENCL);
+    hl_transport *t = NULL;
+    HL_CHECK(path && c0 && hl_transport_load(c0, path, &t) == HL_OK, "transport");
+    uint64_t used = 0, cols = 0;
+    if (!t || !measure(t, &used, &cols)) return;
+    /* everything but the columns: nothing left for them */
+    hl_context *lim = ctx_limited(used - cols);
+    hl_relighter *r = NULL;
+    hl_result res = lim ? hl_relighter_create(lim, t, &r) : HL_ERR_OPENCL;
+    const char *msg = lim ? hl_context_last_error(lim) : "";
+    printf("refused: %s\n", msg);
+    HL_CHECK(res == HL_ERR_OUT_OF_MEMORY && !r, "a limit with no room for the columns must be refused (got %d)",
+             (int)res);
+    HL_CHECK(strstr(msg, "device memory limit") && strstr(msg, "--device-memory") && strstr(msg, "transport columns"),
+             "the message names the limit, its option and the columns: %s", msg);
+    hl_relighter_destroy(r);
+    hl_transport_destroy(t);
+    hl_context_destroy(lim);
+    hl_context_destroy(c0);
+}
+
+int main(int argc, char **argv)
+{
+    static const hl_test_case cases[] = {
+        {"quarter", case_quarter},
+        {"refused", case_refused},
+        {NULL, NULL},
+    };
+    return hl_test_main(argc, argv, cases);
+}
