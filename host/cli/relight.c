@@ -10,6 +10,7 @@
 #include <strings.h>
 
 #include "cli.h"
+#include "haarlight_tools.h"
 
 static const char *const usage_relight =
     "usage: haarlight relight SCENE.hlt (--env ENV.exr | --sky) -o OUT [options]\n"
@@ -94,11 +95,18 @@ int cmd_relight(int argc, char **argv)
     hl_surroundings *surr = NULL;
     float *rgb = NULL;
     hl_relight_stats st;
+    const double t_load = hl_tools_now();
     hl_result r = hl_transport_load(ctx, scene, &t);
+    const double t_built = hl_tools_now();
+    if (r == HL_OK && !cd.quiet)
+        fprintf(stderr, "loaded %s: %u vertices in %.2f s\n", scene, t->info.vertex_count, t_built - t_load);
     if (r == HL_OK && use_env)
         r = env_path ? cli_env_load(ctx, env_path, o.layout, &env, cd.quiet) : hl_env_create_sky(ctx, &o.sky, &env);
     if (r == HL_OK) r = cli_surroundings_load(ctx, &o, &surr, cd.quiet);
+    const double t_rl = hl_tools_now();
     if (r == HL_OK) r = hl_relighter_create(ctx, t, &rl);
+    if (r == HL_OK && !cd.quiet)
+        fprintf(stderr, "relighter ready in %.2f s (the transport laid out for the device)\n", hl_tools_now() - t_rl);
     if (r == HL_OK && env) r = hl_relighter_set_env(rl, env);
     if (r == HL_OK && surr) r = hl_relighter_set_surroundings(rl, surr);
     if (r == HL_OK) {

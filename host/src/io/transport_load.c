@@ -72,6 +72,37 @@ static hl_result read_range(tf_reader *rd, void *dst, uint64_t bytes, uint64_t o
     return HL_OK;
 }
 
+/* The entries are read in pieces of this many bytes, the checksum taken
+ * piece by piece while they are in cache (one pass over memory, not two),
+ * and a file this big or bigger shows a progress line. */
+#define TF_LOAD_PIECE ((size_t)64 << 20)
+#define TF_LOAD_PROGRESS ((uint64_t)256 << 20)
+
+/* The entries section into dst, its CRC into *crc, with a progress line
+ * on a terminal for a big file (not with the context's quiet flag). */
+static hl_result read_entries(tf_reader *rd, uint8_t *dst, uint64_t bytes, uint64_t off, uint32_t *crc)
+{
+    const int show = !rd->ctx->quiet && bytes >= TF_LOAD_PROGRESS && isatty(2);
+    const double t0 = hl_now();
+    uint32_t c = 0;
+    for (uint64_t done = 0; done < bytes;) {
+        const size_t n = bytes - done < TF_LOAD_PIECE ? (size_t)(bytes - done) : TF_LOAD_PIECE;
+        hl_result r = read_range(rd, dst + done, n, off + done, "entries section");
+        if (r != HL_OK) return r;
+        c = crc_update(c, dst + done, n);
+        done += n;
+        if (show) {
+            const double el = hl_now() - t0;
+            const double mb = (double)done * 1e-6;
+            fprintf(stderr, "\rloading %s: %.0f of %.0f MB (%.0f MB/s)   ", rd->path, mb, (double)bytes * 1e-6,
+                    el > 0 ? mb / el : 0.0);
+            if (done == bytes) fputc('\n', stderr);
+        }
+    }
+    *crc = c;
+    return HL_OK;
+}
+
 static hl_result check_crc(tf_reader *rd, int sec, uint32_t stored, uint32_t computed)
 {
     if (stored == computed) return HL_OK;
@@ -289,10 +320,9 @@ hl_result hl_transport_load(hl_context *ctx, const char *path, hl_transport **ou
         if (!t->row_quant || !t->block_counts || !t->row_offset || !t->entries) r = HL_ERR_OUT_OF_MEMORY;
     }
     if (r == HL_OK) r = read_rows(rd, &h, t);
-    if (r == HL_OK) r = read_range(rd, t->entries, h.sec[SEC_ENTRIES].size, h.sec[SEC_ENTRIES].offset, "entries section");
-    if (r == HL_OK)
-        r = check_crc(rd, SEC_ENTRIES, h.sec[SEC_ENTRIES].crc,
-                      crc_update(0, t->entries, (size_t)h.sec[SEC_ENTRIES].size));
+    uint32_t ecrc = 0;
+    if (r == HL_OK) r = read_entries(rd, t->entries, h.sec[SEC_ENTRIES].size, h.sec[SEC_ENTRIES].offset, &ecrc);
+    if (r == HL_OK) r = check_crc(rd, SEC_ENTRIES, h.sec[SEC_ENTRIES].crc, ecrc);
     if (r == HL_OK) r = validate_rows(rd, t);
     close(rd->fd);
     free(rd);
