@@ -230,6 +230,20 @@ typedef struct hl_merge_stats {
 hl_result hl_transport_merge(hl_context *ctx, const char *out_path, const char *const *shard_paths, uint32_t count,
                              hl_merge_stats *stats);
 
+/* ---- relighter memory ---- */
+
+/* hl_relighter_create for callers that keep the transport for its mesh
+ * only (`haarlight relight`): t must have been loaded from path by
+ * hl_transport_load. On the OpenCL backend the relighter reads t's entries
+ * once (the error bound, the selection weights), then frees them
+ * (t->entries becomes NULL: hl_transport_query_row and the like must not
+ * be called on t afterwards, on failure too) and builds its columns from
+ * rows read from path again, so the entries and the columns are never in
+ * memory together. Refuses a path whose header does not describe t or
+ * whose entries' checksum is not that of t's. On the reference backend
+ * (which relights from the entries) it is hl_relighter_create. */
+hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const char *path, hl_relighter **out);
+
 #ifdef __cplusplus
 }
 #endif

@@ -8,6 +8,11 @@
  *                several lighting changes (the part buffers reused).
  * parts.refused  a limit that leaves the columns nothing is refused with
  *                a message naming the limit, not a crash.
+ * parts.from_file  hl_relighter_create_from_file: the entries freed, the
+ *                columns built from rows read from the file again, whole
+ *                and in parts, give the same colours bit for bit; a file
+ *                other than the transport's is refused, naming it, and
+ *                the transport keeps its entries.
  *
  * Depends on: haarlight_core, an OpenCL device (PoCL),
  * tests/common/light_util.h.
@@ -15,6 +20,7 @@
 #include <stdint.h>
 
 #include "cl_backend.h"
+#include "haarlight_tools.h"
 #include "geom.h"
 #include "hl_test.h"
 #include "lighting.h"
@@ -146,11 +152,76 @@ static void case_refused(void)
     hl_context_destroy(c0);
 }
 
+/* Colours of relighter r under env at two settings into out (2 V 3 floats). */
+static int colours(hl_context *ctx, hl_relighter *r, float *out, uint32_t V)
+{
+    hl_env *env = make_env(ctx, 256, 40, 20, 5e3f);
+    int ok = env && hl_relighter_set_env(r, env) == HL_OK;
+    for (int k = 0; ok && k < 2; k++) {
+        hl_relight_desc d = {.terms = k ? HL_TERMS_ALL : 120u, .rotate_deg = 29.0f * (float)k};
+        ok = hl_relighter_run(r, &d, out + (size_t)k * V * 3, NULL) == HL_OK;
+    }
+    HL_CHECK(ok, "relight: %s", hl_context_last_error(ctx));
+    hl_env_destroy(env);
+    return ok;
+}
+
+static void case_from_file(void)
+{
+    const char *p = make_transport("parts_f.hlt", "");
+    char path[1024];
+    snprintf(path, sizeof path, "%s", p ? p : "");
+    const char *other = make_transport("parts_g.hlt", "--quant linear8");
+    hl_context *ctx = ctx_of(HL_BACKEND_OPENCL);
+    hl_transport *t = NULL, *t2 = NULL, *t3 = NULL, *t4 = NULL;
+    HL_CHECK(p && other && ctx && hl_transport_load(ctx, path, &t) == HL_OK && hl_transport_load(ctx, path, &t2) == HL_OK &&
+                 hl_transport_load(ctx, path, &t3) == HL_OK && hl_transport_load(ctx, path, &t4) == HL_OK,
+             "transports");
+    uint64_t used = 0, cols = 0;
+    if (!t || !t2 || !t3 || !t4 || !measure(t, &used, &cols)) return;
+    const uint32_t V = t->info.vertex_count;
+    float *ca = malloc((size_t)V * 24), *cb = malloc((size_t)V * 24), *cc = malloc((size_t)V * 24);
+    hl_context *lim = ctx_limited(used - cols + cols / 4);
+    hl_relighter *a = NULL, *b = NULL, *c = NULL, *d = NULL;
+    HL_CHECK(hl_relighter_create(ctx, t, &a) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(hl_relighter_create_from_file(ctx, t2, path, &b) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(lim && hl_relighter_create_from_file(lim, t3, path, &c) == HL_OK, "limited: %s",
+             lim ? hl_context_last_error(lim) : "no context");
+    HL_CHECK(t->entries && !t2->entries && !t3->entries, "only the relighters from the file drop the entries");
+    HL_CHECK(!c || hl_cl_light_parts(hl_relighter_device(c)) >= 4, "the limited one runs in parts");
+    uint64_t diff = 0;
+    if (a && b && c && colours(ctx, a, ca, V) && colours(ctx, b, cb, V) && colours(lim, c, cc, V))
+        for (size_t i = 0; i < (size_t)V * 6; i++) diff += (memcmp(&ca[i], &cb[i], 4) != 0) + (memcmp(&ca[i], &cc[i], 4) != 0);
+    printf("from the file: %u vertices x 3 colours x 2 settings, whole and in parts: %llu words differ "
+           "(tolerance 0: bit-identical)\n", V, (unsigned long long)diff);
+    HL_CHECK(diff == 0, "%llu words differ from the relighter that kept its entries", (unsigned long long)diff);
+    /* another transport's file: refused before anything is freed */
+    hl_result res = hl_relighter_create_from_file(ctx, t4, other, &d);
+    const char *msg = hl_context_last_error(ctx);
+    printf("other file: %s\n", msg);
+    HL_CHECK(res == HL_ERR_FORMAT && !d && strstr(msg, other), "a file other than the transport's is refused, naming it");
+    HL_CHECK(t4->entries != NULL, "a refused transport keeps its entries");
+    free(ca);
+    free(cb);
+    free(cc);
+    hl_relighter_destroy(a);
+    hl_relighter_destroy(b);
+    hl_relighter_destroy(c);
+    hl_relighter_destroy(d);
+    hl_transport_destroy(t);
+    hl_transport_destroy(t2);
+    hl_transport_destroy(t3);
+    hl_transport_destroy(t4);
+    hl_context_destroy(lim);
+    hl_context_destroy(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"quarter", case_quarter},
         {"refused", case_refused},
+        {"from_file", case_from_file},
         {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);

@@ -81,6 +81,19 @@ typedef struct hl_cl_light hl_cl_light;
  * (4 floats per vertex) once; tables from g and lg. */
 hl_result hl_cl_light_create(hl_context *ctx, const struct hl_geom *g, const struct hl_light_geom *lg,
                              const hl_transport *t, const float *albedo4, hl_cl_light **out);
+/* Where a transport that no longer holds its entries (t->entries NULL)
+ * has them: the file it was loaded from, open at fd, its entries section
+ * at offset. */
+typedef struct hl_row_source {
+    const char *path;
+    int fd;
+    uint64_t offset;
+} hl_row_source;
+/* hl_cl_light_create reading the rows through src where t->entries is
+ * NULL (src may be NULL otherwise). */
+hl_result hl_cl_light_create_from(hl_context *ctx, const struct hl_geom *g, const struct hl_light_geom *lg,
+                                  const hl_transport *t, const hl_row_source *src, const float *albedo4,
+                                  hl_cl_light **out);
 void hl_cl_light_destroy(hl_cl_light *l);
 hl_result hl_cl_light_set_cells(hl_cl_light *l, const float *cells4);
 hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight);

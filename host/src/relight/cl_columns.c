@@ -5,14 +5,18 @@
  * relighter.
  *
  * Depends on: cl_light.h (the device state, OpenCL), half.h (the terms as
- * the dot products hold them), the transport (hl_dequant, hl_dither_key).
+ * the dot products hold them), the transport (hl_dequant, hl_dither_key;
+ * transport_layout.h's hl_tf_pread_all where the rows are read from the
+ * file again).
  */
+#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cl_light.h"
 #include "half.h"
+#include "transport_layout.h"
 
 typedef struct { uint64_t key; uint32_t v; } order_key;
 
@@ -151,6 +155,8 @@ static uint32_t cut_ranges(hl_cl_light *l, const uint32_t *curve, uint32_t mult,
 typedef struct col_build {
     hl_cl_light *l;
     const hl_transport *t;
+    const hl_row_source *src; /* the file, where t holds no entries */
+    uint8_t *row;           /* one row read from it */
     size_t nc, nb, ts;      /* slots, blocks per row, most tiles in a range */
     size_t ncs, nrel, vpad; /* lengths of cs, of rel; positions with padding */
     uint64_t run;           /* entries, entry 0 included */
@@ -176,28 +182,49 @@ static void column_scales(col_build *b)
     }
 }
 
+/* Row u's entries (2 bytes each): the transport's own, or, where it no
+ * longer holds them (hl_relighter_create_from_file), read from its file
+ * into b->row. A short read means the file changed since it was loaded. */
+static hl_result row_entries(col_build *b, size_t u, const uint8_t **out)
+{
+    const hl_transport *t = b->t;
+    if (t->entries) {
+        *out = t->entries + 2 * t->row_offset[u];
+        return HL_OK;
+    }
+    const uint64_t n = t->row_offset[u + 1] - t->row_offset[u];
+    int k = hl_tf_pread_all(b->src->fd, b->row, (size_t)(2 * n), b->src->offset + 2 * t->row_offset[u]);
+    if (k)
+        return hl_fail(b->l->ctx, HL_ERR_IO, "%s: cannot read vertex %zu's row again (%s)", b->src->path, u,
+                       k < 0 ? strerror(errno) : "the file is shorter than when it was loaded");
+    *out = b->row;
+    return HL_OK;
+}
+
 /* One pass over the rows of range rg. Pass 0 counts, for each slot, the
  * tiles that store it (into cs, one place on); pass 1 gives each tile
  * that first stores a slot the next entry of the slot's column (its
  * number into rel, its head word into col), and writes every term as a
  * half into its vertex's lane. */
-static void column_pass(col_build *b, int pass, size_t rg)
+static hl_result column_pass(col_build *b, int pass, size_t rg)
 {
     const hl_cl_light *l = b->l;
     const hl_transport *t = b->t;
     const size_t nc = b->nc, nb = b->nb, ts = b->ts, V = l->nverts;
     uint32_t *c = (pass == 0 ? b->cs : b->fill) + rg * (nc + 1);
     const uint32_t *c0 = b->cs + rg * (nc + 1);
-    uint16_t *rr = b->rel + rg * nc * ts;
+    uint16_t *rr = pass == 0 ? NULL : b->rel + rg * nc * ts;
     memset(b->last, 0xff, nc * 4);
     const size_t v0 = l->range_start[rg];
     for (size_t v = v0; v < V && v < l->range_start[rg + 1]; v++) {
         uint32_t tile = (uint32_t)((v - v0) / HL_TILE), lane = (uint32_t)(v % HL_TILE);
         const size_t u = l->order[v]; /* the vertex at position v */
-        uint64_t e = t->row_offset[u];
+        const uint8_t *ent = NULL;
+        TRY(row_entries(b, u, &ent));
+        size_t j = 0;
         for (size_t bl = 0; bl < nb; bl++)
-            for (uint32_t k = 0; k < t->block_counts[u * nb + bl]; k++, e++) {
-                size_t s = bl * HL_BLOCK + t->entries[2 * e];
+            for (uint32_t k = 0; k < t->block_counts[u * nb + bl]; k++, j++) {
+                size_t s = bl * HL_BLOCK + ent[2 * j];
                 int fresh = b->last[s] != tile;
                 b->last[s] = tile;
                 if (pass == 0) {
@@ -209,11 +236,11 @@ static void column_pass(col_build *b, int pass, size_t rg)
                     b->col[(size_t)(c[s] - 1) * COL_WORDS] = tile;
                 }
                 const hl_row_quant q = t->row_quant[u];
-                float term = hl_dequant(l->scheme, t->entries[2 * e + 1], q.a, q.b,
-                                        hl_dither_key((uint32_t)u, (uint32_t)s));
+                float term = hl_dequant(l->scheme, ent[2 * j + 1], q.a, q.b, hl_dither_key((uint32_t)u, (uint32_t)s));
                 ((uint16_t *)(b->col + (size_t)(c[s] - 1) * COL_WORDS + 1))[lane] = hl_half_held(term, b->ex[v]);
             }
     }
+    return HL_OK;
 }
 
 /* After pass 0: the counts in cs become absolute starts. */
@@ -255,7 +282,7 @@ static hl_result column_count(col_build *b, const uint32_t *curve, uint32_t mult
     b->nrel = (size_t)l->nranges * b->nc * b->ts;
     b->cs = calloc(b->ncs, 4);
     if (!b->cs) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
-    for (size_t rg = 0; rg < l->nranges; rg++) column_pass(b, 0, rg);
+    for (size_t rg = 0; rg < l->nranges; rg++) TRY(column_pass(b, 0, rg));
     return column_starts(b);
 }
 
@@ -307,14 +334,18 @@ static hl_result column_upload(col_build *b, const hl_col_sizes *z)
     return r;
 }
 
-hl_result hl_cl_light_build_columns(hl_cl_light *l, const hl_transport *t)
+hl_result hl_cl_light_build_columns(hl_cl_light *l, const hl_transport *t, const hl_row_source *src)
 {
     const size_t nc = l->g->ncoef;
+    if (!t->entries && !src)
+        return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "the transport holds no entries and no file to read them from");
     uint32_t *curve = NULL;
     TRY(vertex_order(l, t, &curve));
-    col_build b = {.l = l, .t = t, .nc = nc, .nb = l->g->nblocks, .ts = 1};
+    col_build b = {.l = l, .t = t, .src = src, .nc = nc, .nb = l->g->nblocks, .ts = 1};
     b.last = malloc(nc * 4);
-    hl_result r = b.last ? HL_OK : hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
+    b.row = t->entries ? NULL : malloc(2 * nc); /* a row stores each slot at most once */
+    hl_result r = b.last && (t->entries || b.row) ? HL_OK
+                                                   : hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
     /* count; where one range is too big for the device's memory, cut finer
        and count again (cl_parts.c) */
     hl_col_sizes z = {0};
@@ -327,11 +358,12 @@ hl_result hl_cl_light_build_columns(hl_cl_light *l, const hl_transport *t)
     free(curve);
     if (r == HL_OK) r = column_memory(&b);
     if (r == HL_OK) column_scales(&b);
-    for (size_t rg = 0; r == HL_OK && rg < l->nranges; rg++) column_pass(&b, 1, rg);
+    for (size_t rg = 0; r == HL_OK && rg < l->nranges; rg++) r = column_pass(&b, 1, rg);
     if (r == HL_OK) r = column_upload(&b, &z);
     l->col_start = b.cs;
     free(b.fill);
     free(b.last);
+    free(b.row);
     free(b.back);
     free(b.ex);
     hl_free_big(b.col);

@@ -51,8 +51,9 @@ struct hl_cl_light {
 
 /* Orders the vertices, cuts them into ranges and uploads t's rows as
  * columns (cl_columns.c): l->order, range_start, nranges, tstride,
- * col_entries, col_start and the buffers col, cols, rel, rstart, back. */
-hl_result hl_cl_light_build_columns(hl_cl_light *l, const hl_transport *t);
+ * col_entries, col_start and the buffers col, cols, rel, rstart, back.
+ * Where t holds no entries, src says where in its file to read them. */
+hl_result hl_cl_light_build_columns(hl_cl_light *l, const hl_transport *t, const hl_row_source *src);
 
 /* The sizes of a cut of the columns, for planning the parts. */
 typedef struct hl_col_sizes {

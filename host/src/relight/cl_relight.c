@@ -34,6 +34,12 @@ void hl_cl_light_destroy(hl_cl_light *l)
 hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
                              const float *albedo4, hl_cl_light **out)
 {
+    return hl_cl_light_create_from(ctx, g, lg, t, NULL, albedo4, out);
+}
+
+hl_result hl_cl_light_create_from(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
+                                  const hl_row_source *src, const float *albedo4, hl_cl_light **out)
+{
     *out = NULL;
     if (!ctx->cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the context has no OpenCL device");
     hl_cl_light *l = calloc(1, sizeof *l);
@@ -69,7 +75,7 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
     B(res, CL_MEM_READ_WRITE, sizeof(hl_select_result), NULL, "selection result");
     B(keys, CL_MEM_READ_WRITE, nc * 4, NULL, "selection keys");
     B(klist, CL_MEM_READ_WRITE, (nc + 1) * 4, NULL, "kept slots");
-    if (r == HL_OK) r = hl_cl_light_build_columns(l, t);
+    if (r == HL_OK) r = hl_cl_light_build_columns(l, t, src);
     /* albedo in the device's vertex order */
     float *alb = r == HL_OK ? malloc((V ? V : 1) * 16) : NULL;
     if (r == HL_OK && !alb) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the albedo");

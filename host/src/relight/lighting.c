@@ -6,15 +6,23 @@
  * tables it reads come from light_tables.c; a repeated change with the
  * same settings reuses the last colours.
  * Depends on: lighting.h, cl_backend.h (the device stages), twins.h,
- * the transport (hl_dequant), core.
+ * the transport (hl_dequant; transport_layout.h to read a file's header
+ * again for hl_relighter_create_from_file), core.
  */
+#define _POSIX_C_SOURCE 200809L /* O_CLOEXEC */
+#include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "capture.h"
 #include "cl_backend.h"
+#include "haarlight_tools.h"
 #include "lighting.h"
+#include "transport_layout.h"
 #include "twins.h"
 
 struct hl_relighter {
@@ -124,7 +132,10 @@ static hl_result row_measures(hl_relighter *r, const hl_transport *t)
     return HL_OK;
 }
 
-hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out)
+/* hl_relighter_create; with drop and src, drop's entries (t's) are freed
+ * once read for row_measures, and the columns read them from src. */
+static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport *drop, const hl_row_source *src,
+                            hl_relighter **out)
 {
     *out = NULL;
     if (!t || !t->mesh) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_relighter_create: no transport");
@@ -156,7 +167,14 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
         res = row_measures(r, t);
         object_centre(t->mesh, r->cscene.center);
         r->uploaded_weights = HL_SELECT_AREA;
-        if (res == HL_OK && ctx->backend == HL_BACKEND_OPENCL) res = hl_cl_light_create(ctx, r->g, r->lg, t, r->albedo4, &r->cl);
+        /* from here on the OpenCL relighter reads no entries but the
+           columns' (from src once dropped) */
+        if (res == HL_OK && drop && src && ctx->backend == HL_BACKEND_OPENCL) {
+            hl_free_big(drop->entries);
+            drop->entries = NULL;
+        }
+        if (res == HL_OK && ctx->backend == HL_BACKEND_OPENCL)
+            res = hl_cl_light_create_from(ctx, r->g, r->lg, t, src, r->albedo4, &r->cl);
     }
     if (res != HL_OK) {
         hl_relighter_destroy(r);
@@ -164,6 +182,55 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
     }
     *out = r;
     return HL_OK;
+}
+
+hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out)
+{
+    return create_src(ctx, t, NULL, NULL, out);
+}
+
+/* Opens path for reading t's rows again: its header must be intact and
+ * describe t, and its entries' checksum (in the header, which its own
+ * checksum covers) must be that of t's entries, so the rows read back are
+ * those loaded (short of a file rewritten meanwhile, which can garble the
+ * colours but not the memory: every index read is bounded). */
+static hl_result open_rows(hl_context *ctx, const hl_transport *t, const char *path, hl_row_source *src)
+{
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return hl_fail(ctx, HL_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    uint8_t bytes[TF_HEADER_SIZE];
+    tf_header h;
+    struct stat st;
+    const hl_transport_info *i = &t->info;
+    int bad = hl_tf_pread_all(fd, bytes, sizeof bytes, 0) != 0 || fstat(fd, &st) != 0 ||
+              memcmp(bytes, TF_MAGIC, 8) != 0 || get_u32(bytes + H_HEADER_CRC) != crc_update(0, bytes, H_HEADER_CRC);
+    if (!bad) {
+        hl_tf_header_decode(bytes, &h);
+        bad = h.file_size != (uint64_t)st.st_size || h.info.N != i->N || h.info.quant != i->quant ||
+              h.info.vertex_count != i->vertex_count || h.info.block_count != i->block_count ||
+              h.info.coefficients_kept != i->coefficients_kept || h.sec[SEC_ENTRIES].size != 2 * i->coefficients_kept ||
+              h.sec[SEC_ENTRIES].crc != crc_update(0, t->entries, (size_t)(2 * i->coefficients_kept));
+    }
+    if (bad) {
+        close(fd);
+        return hl_fail(ctx, HL_ERR_FORMAT, "%s: not the transport file this transport was loaded from, or changed since",
+                       path);
+    }
+    *src = (hl_row_source){path, fd, h.sec[SEC_ENTRIES].offset};
+    return HL_OK;
+}
+
+hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const char *path, hl_relighter **out)
+{
+    *out = NULL;
+    if (!t || !t->mesh || !path) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_relighter_create_from_file: no transport or path");
+    if (ctx->backend != HL_BACKEND_OPENCL || !t->entries) return hl_relighter_create(ctx, t, out);
+    hl_row_source src;
+    hl_result res = open_rows(ctx, t, path, &src);
+    if (res != HL_OK) return res;
+    res = create_src(ctx, t, t, &src, out);
+    close(src.fd);
+    return res;
 }
 
 hl_result hl_relighter_set_surroundings(hl_relighter *r, hl_surroundings *s)
