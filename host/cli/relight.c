@@ -104,7 +104,7 @@ int cmd_relight(int argc, char **argv)
         r = env_path ? cli_env_load(ctx, env_path, o.layout, &env, cd.quiet) : hl_env_create_sky(ctx, &o.sky, &env);
     if (r == HL_OK) r = cli_surroundings_load(ctx, &o, &surr, cd.quiet);
     const double t_rl = hl_tools_now();
-    if (r == HL_OK) r = hl_relighter_create(ctx, t, &rl);
+    if (r == HL_OK) r = hl_relighter_create_from_file(ctx, t, scene, &rl); /* the entries go once read */
     if (r == HL_OK && !cd.quiet)
         fprintf(stderr, "relighter ready in %.2f s (the transport laid out for the device)\n", hl_tools_now() - t_rl);
     if (r == HL_OK && env) r = hl_relighter_set_env(rl, env);
