@@ -133,6 +133,7 @@ start() {
 
 stop() {
   [ -d "$dir" ] || return 0
+  [ -f "$dir/slurm.conf" ] || [ -d "$dir/run" ] || { echo "cluster: no cluster in $dir; nothing stopped"; return 0; }
   if [ -s "$dir/run/slurmctld.pid" ] && [ -f "$dir/slurm.conf" ]; then
     SLURM_CONF="$dir/slurm.conf" scancel --quiet --partition=hltest 2>/dev/null
   fi

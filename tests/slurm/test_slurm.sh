@@ -8,6 +8,10 @@
 #          job depending on it must equal one ordinary run byte for byte.
 #          Skips (77), saying why, without root, without Slurm or MUNGE,
 #          or where haarlight has no precompute --shard or merge.
+#   requeue the same with two shards, shard 0 requeued by Slurm part-way
+#          (scontrol requeue): its task runs again, resumes its shard's
+#          .partial from a vertex past 0, and the merge still equals one
+#          run. Skips as array does.
 #   usage  the script's refusals, which need no cluster: each exits 2 with
 #          a message naming the problem, before anything is submitted.
 # Env: HL_BIN (the binary), HL_REPO_DATA (data/), HL_SRC (the source tree).
@@ -25,8 +29,16 @@ MESH="$data/bunny_lowres.obj"
 # small maps keep each shard to a second or so; the point is the split and
 # the join, which these exercise as any size would
 OPTS=(-C 16 -N 16 -q)
-# the whole submit-and-wait: it takes about ten seconds here (sbatch --wait
-# polls); three minutes means something is stuck, not slow
+# the requeue case: two shards (both run at once), each long enough (about
+# 3 s here: the ground, 9 rays a texel, one thread as --cpus-per-task=1
+# makes the script pass --threads 1) that Slurm can requeue shard 0
+# part-way; small chunks (about 35 ms each), so that part is kept. Not
+# quiet: the task's log must say where it resumed. The single run to
+# compare with uses every core (threads do not change the bytes).
+RQ_SHARDS=2
+RQ_OPTS=(--ground -C 16 -N 16 --supersample 3 --chunk 64)
+# the whole submit-and-wait: it takes a few seconds here (polled every
+# second); three minutes means something is stuck, not slow
 JOB_TIMEOUT_S=180
 
 skip() { echo "SKIP: $*"; exit 77; }
@@ -59,6 +71,7 @@ case_usage() {
   refuses "unknown mode" "precompute-array.sh submit" -- "${hl[@]}" frobnicate
   refuses "N of 0" "N must be a whole number" -- "${hl[@]}" submit 0 "$MESH" "$tmp/o.hlt"
   refuses "N not a number" "not '4x'" -- "${hl[@]}" submit 4x "$MESH" "$tmp/o.hlt"
+  refuses "--poll of 0" "--poll 0: expected whole seconds" -- "${hl[@]}" submit --wait --poll 0 4 "$MESH" "$tmp/o.hlt"
   refuses "-o given" "option -o is set by this script" -- "${hl[@]}" submit 4 "$MESH" "$tmp/o.hlt" -o x.hlt
   refuses "--shard given" "option --shard is set by this script" -- "${hl[@]}" submit 4 "$MESH" "$tmp/o.hlt" --shard 1/2
   refuses "missing mesh" "cannot read the mesh $tmp/none.obj" -- "${hl[@]}" submit 4 "$tmp/none.obj" "$tmp/o.hlt"
@@ -76,51 +89,66 @@ case_usage() {
   return 0
 }
 
-case_array() {
+# start_cluster: the skips, then a private cluster in $tmp/cluster, its
+# SLURM_CONF exported for the client commands
+start_cluster() {
   local c
-  for c in munged slurmctld slurmd sbatch scontrol sinfo scancel; do
+  for c in munged slurmctld slurmd sbatch scontrol squeue sinfo scancel; do
     command -v "$c" >/dev/null 2>&1 || skip "$c not found (install slurm-wlm and munge: ./setup.sh test does)"
   done
   [ "$(id -u)" -eq 0 ] || skip "slurmd must run as root to start jobs; this runs as $(id -un)"
   "$bin" precompute --help 2>&1 | grep -q -- '--shard' || skip "haarlight precompute has no --shard yet"
   "$bin" merge --help >/dev/null 2>&1 || skip "haarlight has no merge yet"
   [ -r "$MESH" ] || { echo "FAIL: cannot read $MESH"; exit 1; }
-
   mkdir -p "$tmp/cluster" "$tmp/out"
   # munged's socket must be reachable by every user through all its folders
   chmod 711 "$tmp"
   "$here/cluster.sh" start "$tmp/cluster" || { echo "FAIL: the cluster did not start"; exit 1; }
   # shellcheck disable=SC1091
   . "$tmp/cluster/env"
-  local start_ms took_ms rc i
-  start_ms=$(( $(date +%s%N) / 1000000 ))
-  # the jobs carry the cluster's mark, so that its stop ends any left
-  # behind (in the background, so that a signal to this script is handled
-  # at once)
+}
+
+# submit N OPTION...: the users' script submits N shards (with the sbatch
+# options in the array sbatch_opts, as -s OPTION pairs) and the merge of
+# $tmp/out/sharded.hlt and waits, in the background (a signal to this
+# script is then handled at once; $child is its pid). The jobs carry the
+# cluster's mark, so that its stop ends any left behind.
+submit() {
+  local n="$1"; shift
+  submit_ms=$(( $(date +%s%N) / 1000000 ))
   env "$(cat "$tmp/cluster/mark")" HAARLIGHT="$bin" timeout "$JOB_TIMEOUT_S" \
-    "$script" submit --wait "$SHARDS" "$MESH" "$tmp/out/sharded.hlt" "${OPTS[@]}" &
+    "$script" submit "${sbatch_opts[@]}" --wait --poll 1 "$n" "$MESH" "$tmp/out/sharded.hlt" "$@" &
   child=$!
+}
+
+# finish N: waits for submit's command, shows the jobs' logs, fails unless
+# all succeeded and every shard ran as its own array task
+finish() {
+  local n="$1" rc took_ms c i
   wait "$child"
   rc=$?
   child=""
-  took_ms=$(( $(date +%s%N) / 1000000 - start_ms ))
+  took_ms=$(( $(date +%s%N) / 1000000 - submit_ms ))
   for c in "$tmp/out/sharded.hlt.shards"/*.out; do
-    [ -f "$c" ] && { echo "--- $(basename "$c")"; cat "$c"; }
+    [ -f "$c" ] && { echo "--- $(basename "$c")"; tr '\r' '\n' <"$c" | grep -v '^ *$'; }
   done
   [ "$rc" -eq 124 ] && { echo "FAIL: the jobs did not end within ${JOB_TIMEOUT_S} s"; squeue; exit 1; }
   [ "$rc" -eq 0 ] || { echo "FAIL: the array job or the merge failed (exit $rc)"; exit 1; }
-  echo "slurm: $SHARDS shards and their merge took $((took_ms / 1000)).$(printf %03d $((took_ms % 1000))) s from submission"
-
-  # every shard went through Slurm as its own array task
-  for ((i = 0; i < SHARDS; i++)); do
-    grep -q "shard $i/$SHARDS" "$tmp/out/sharded.hlt.shards/task-$i.out" 2>/dev/null \
+  echo "slurm: $n shards and their merge took $((took_ms / 1000)).$(printf %03d $((took_ms % 1000))) s from submission"
+  for ((i = 0; i < n; i++)); do
+    grep -q "shard $i/$n" "$tmp/out/sharded.hlt.shards/task-$i.out" 2>/dev/null \
       || fail "no log of array task $i"
   done
+}
 
-  "$bin" precompute "$MESH" -o "$tmp/out/single.hlt" "${OPTS[@]}" \
+# same_as_one_run N OPTION...: the merged file must be the bytes of one
+# ordinary run with the same options
+same_as_one_run() {
+  local n="$1"; shift
+  "$bin" precompute "$MESH" -o "$tmp/out/single.hlt" -q "$@" \
     || { echo "FAIL: the single run failed"; exit 1; }
-  echo "compared: $SHARDS shards merged ($(stat -c %s "$tmp/out/sharded.hlt") bytes) with one run" \
-       "($(stat -c %s "$tmp/out/single.hlt") bytes) of $(basename "$MESH") ${OPTS[*]}"
+  echo "compared: $n shards merged ($(stat -c %s "$tmp/out/sharded.hlt") bytes) with one run" \
+       "($(stat -c %s "$tmp/out/single.hlt") bytes) of $(basename "$MESH") $*"
   if cmp "$tmp/out/sharded.hlt" "$tmp/out/single.hlt"; then
     echo "identical: sha256 $(sha256sum <"$tmp/out/single.hlt" | cut -c1-16)..."
   else
@@ -128,10 +156,56 @@ case_array() {
   fi
 }
 
+sbatch_opts=()
+case_array() {
+  start_cluster
+  submit "$SHARDS" "${OPTS[@]}"
+  finish "$SHARDS"
+  same_as_one_run "$SHARDS" "${OPTS[@]}"
+}
+
+# grows FILE: waits until FILE exists and has grown twice after that (its
+# header, then at least one chunk of rows), up to JOB_TIMEOUT_S
+grows() {
+  local sizes=() now i=0
+  while [ "$i" -lt $(( JOB_TIMEOUT_S * 10 )) ]; do
+    now="$(stat -c %s "$1" 2>/dev/null || echo 0)"
+    if [ "$now" -gt 0 ] && { [ "${#sizes[@]}" -eq 0 ] || [ "$now" -gt "${sizes[-1]}" ]; }; then
+      sizes+=("$now")
+      [ "${#sizes[@]}" -ge 3 ] && { echo "${sizes[*]}"; return 0; }
+    fi
+    sleep 0.1
+    i=$((i + 1))
+  done
+  return 1
+}
+
+case_requeue() {
+  start_cluster
+  sbatch_opts=(-s --cpus-per-task=1)
+  submit "$RQ_SHARDS" "${RQ_OPTS[@]}"
+  local partial="$tmp/out/sharded.hlt.shards/shard-0-of-$RQ_SHARDS.hls.partial" sizes array
+  sizes="$(grows "$partial")" || { echo "FAIL: $partial never grew"; exit 1; }
+  array="$(squeue -h -n hl-precompute -o %F | head -n 1)"
+  echo "requeue: array task ${array}_0 while its .partial grows (sizes seen: $sizes bytes)"
+  scontrol requeue "${array}_0" || { echo "FAIL: scontrol requeue ${array}_0 refused"; exit 1; }
+  finish "$RQ_SHARDS"
+  local log="$tmp/out/sharded.hlt.shards/task-0.out" at
+  grep -q "restart 1" "$log" || fail "task 0 did not run a second time"
+  grep -q "interrupted" "$log" || fail "task 0's first run was not interrupted"
+  at="$(grep -o 'resuming .* at vertex [0-9]*' "$log" | grep -o '[0-9]*$')"
+  echo "requeued task 0 resumed at vertex ${at:-none}"
+  if [ -z "$at" ] || [ "$at" -eq 0 ]; then
+    fail "the requeued task did not resume its shard from a kept vertex"
+  fi
+  same_as_one_run "$RQ_SHARDS" "${RQ_OPTS[@]}"
+}
+
 case "${1:-}" in
   usage) case_usage ;;
   array) case_array ;;
-  *) echo "usage: $0 usage|array" >&2; exit 2 ;;
+  requeue) case_requeue ;;
+  *) echo "usage: $0 usage|array|requeue" >&2; exit 2 ;;
 esac
 [ "$fails" -eq 0 ] || { echo "$fails failed"; exit 1; }
 echo "PASS"

@@ -7,8 +7,8 @@
 #
 # One command submits both jobs:
 #
-#   precompute-array.sh submit [-s SBATCH_OPTION]... [-m SBATCH_OPTION]... [--wait]
-#                       N MESH OUT.hlt [PRECOMPUTE_OPTION...]
+#   precompute-array.sh submit [-s SBATCH_OPTION]... [-m SBATCH_OPTION]...
+#                       [--wait [--poll S]] N MESH OUT.hlt [PRECOMPUTE_OPTION...]
 #
 #   e.g.  HAARLIGHT=~/haarlight/build/haarlight precompute-array.sh submit \
 #           -s --partition=cpu -s --time=4:00:00 -s --cpus-per-task=16 \
@@ -26,6 +26,8 @@
 #                     ones (sbatch takes the last of a repeated option)
 #   --wait            return once the merge job has ended; exit 0 only if it
 #                     completed, else list the tasks that did not
+#   --poll S          with --wait, ask the controller for the merge job's
+#                     state every S seconds (default 10)
 #
 # haarlight is $HAARLIGHT, else `haarlight` on PATH, resolved to a full
 # path when submitting; MESH and OUT.hlt become full paths too. The
@@ -66,6 +68,10 @@ find_haarlight() {
   [ -x "$h" ] || die "HAARLIGHT=$h is not an executable file" 2
   echo "$h"
 }
+
+# --wait's default poll: one light request every 10 s costs the controller
+# nothing and is a small delay against shards that take minutes
+DEFAULT_POLL_S=10
 
 is_count() { [[ "$1" =~ ^[1-9][0-9]*$ ]]; }
 
@@ -114,17 +120,29 @@ merge() {
   exec "$hl" merge -o "$out" "${shards[@]}"
 }
 
-# job_state ID: the job's state as scontrol knows it (empty once the
-# controller has forgotten it, MinJobAge after its end)
-job_state() {
-  scontrol show job -o "$1" 2>/dev/null | grep -o 'JobState=[A-Z_]*' | head -n 1 | cut -d= -f2
+# wait_job ID POLL_S: waits until the job has ended and prints its final
+# state, or nothing if the controller has forgotten the job (MinJobAge
+# after its end). Polls rather than `sbatch --wait`, which exits 0 even
+# for a cancelled job and sleeps 2, 8, then 32 s between its looks.
+wait_job() {
+  local text state
+  while :; do
+    if text="$(scontrol show job -o "$1" 2>&1)"; then
+      state="$(grep -o 'JobState=[A-Z_]*' <<<"$text" | head -n 1 | cut -d= -f2)"
+      case "$state" in
+        COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|PREEMPTED|BOOT_FAIL|DEADLINE|OUT_OF_MEMORY)
+          echo "$state"; return 0 ;;
+      esac
+    elif grep -q 'Invalid job id' <<<"$text"; then
+      return 0
+    fi # else the controller did not answer (a restart): ask again
+    sleep "$2"
+  done
 }
 
-# report_merge ARRAY MERGE OUT DIR: after sbatch --wait (which exits 0 even
-# when the merge was cancelled), tell how it ended
+# report_merge ARRAY MERGE OUT DIR STATE: how the merge job ended
 report_merge() {
-  local array="$1" merge_id="$2" out="$3" dir="$4" state
-  state="$(job_state "$merge_id")"
+  local array="$1" merge_id="$2" out="$3" dir="$4" state="$5"
   if [ "$state" = COMPLETED ] || { [ -z "$state" ] && [ -f "$out" ]; }; then
     echo "precompute-array: wrote $out"
     return 0
@@ -142,12 +160,15 @@ report_merge() {
 }
 
 submit() {
-  local common=() merge_only=() wait=0
+  local common=() merge_only=() wait=0 poll="$DEFAULT_POLL_S"
   while [ $# -gt 0 ]; do
     case "$1" in
       -s) [ $# -ge 2 ] || usage; common+=("$2"); shift 2 ;;
       -m) [ $# -ge 2 ] || usage; merge_only+=("$2"); shift 2 ;;
       --wait) wait=1; shift ;;
+      --poll) [ $# -ge 2 ] || usage
+              [[ "$2" =~ ^[1-9][0-9]{0,3}$ ]] || die "--poll $2: expected whole seconds, 1 to 9999" 2
+              poll="$2"; shift 2 ;;
       -h|--help) usage 0 ;;
       *) break ;;
     esac
@@ -166,29 +187,24 @@ submit() {
   local dir="$out.shards" self; self="$(realpath "$0")"
   mkdir -p "$dir" || die "cannot make $dir"
 
-  local array merge_id wait_opt=()
+  local array merge_id
   array="$(sbatch --parsable --job-name=hl-precompute --array="0-$((n - 1))" --requeue \
              --open-mode=append --output="$dir/task-%a.out" --export=ALL,HAARLIGHT="$hl" \
              "${common[@]}" "$self" task "$n" "$mesh" "$dir" "$@")" \
     || die "sbatch refused the array job"
   array="${array%%;*}" # --parsable prints ID[;CLUSTER]
   echo "precompute-array: array job $array: $n shards of $mesh into $dir"
-  if [ "$wait" -eq 1 ]; then
-    wait_opt=(--wait)
-    echo "precompute-array: submitting the merge job and waiting for it to end"
-  fi
   merge_id="$(sbatch --parsable --job-name=hl-merge --dependency="afterok:$array" --kill-on-invalid-dep=yes \
                 --output="$dir/merge.out" --export=ALL,HAARLIGHT="$hl" \
-                "${common[@]}" "${merge_only[@]}" "${wait_opt[@]}" "$self" merge "$n" "$out" "$dir")"
+                "${common[@]}" "${merge_only[@]}" "$self" merge "$n" "$out" "$dir")"
   local rc=$?
   merge_id="${merge_id%%;*}"
-  [ -n "$merge_id" ] || die "sbatch refused the merge job (exit $rc); cancel the array with: scancel $array"
-  if [ "$wait" -eq 0 ]; then
-    echo "precompute-array: merge job $merge_id writes $out once the array has succeeded"
-    return 0
-  fi
-  echo "precompute-array: merge job $merge_id has ended"
-  report_merge "$array" "$merge_id" "$out" "$dir"
+  [ "$rc" -eq 0 ] && [ -n "$merge_id" ] \
+    || die "sbatch refused the merge job (exit $rc); cancel the array with: scancel $array"
+  echo "precompute-array: merge job $merge_id writes $out once the array has succeeded"
+  [ "$wait" -eq 1 ] || return 0
+  local state; state="$(wait_job "$merge_id" "$poll")"
+  report_merge "$array" "$merge_id" "$out" "$dir" "$state"
 }
 
 [ $# -ge 1 ] || usage
