@@ -106,7 +106,7 @@ start() {
   export SLURM_CONF="$dir/slurm.conf"
   export "$MARK=$dir"
 
-  # a private MUNGE key (1024 random bytes, as mungekey makes) and daemon
+  # a private MUNGE key (1024 random bytes, the most munged takes) and daemon
   # on its own socket (slurm.conf's AuthInfo): the system's munged, if
   # any, is neither needed nor touched
   head -c 1024 /dev/urandom >"$dir/munge/munge.key" && chmod 400 "$dir/munge/munge.key" \

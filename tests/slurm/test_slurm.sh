@@ -45,7 +45,9 @@ skip() { echo "SKIP: $*"; exit 77; }
 fails=0
 fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
 
-tmp="$(mktemp -d "${TMPDIR:-/tmp}/hl-slurm.XXXXXX")" || { echo "FAIL: no temporary folder"; exit 1; }
+# in /tmp, not $TMPDIR: munged wants every folder above its socket
+# searchable by all, which /tmp is and a private TMPDIR may not be
+tmp="$(mktemp -d /tmp/hl-slurm.XXXXXX)" || { echo "FAIL: no temporary folder in /tmp"; exit 1; }
 child=""
 cleanup() {
   [ -n "$child" ] && kill -TERM "$child" 2>/dev/null
