@@ -7,7 +7,9 @@
 #          the tests), four shards as an array job and their merge as a
 #          job depending on it must equal one ordinary run byte for byte.
 #          Skips (77), saying why, without root, without Slurm or MUNGE,
-#          or where haarlight has no precompute --shard or merge.
+#          or where haarlight has no precompute --shard or merge. First,
+#          on the same cluster, shards that fail: the merge job is
+#          cancelled and submit --wait exits 1 naming the failed tasks.
 #   requeue the same with two shards, shard 0 requeued by Slurm part-way
 #          (scontrol requeue): its task runs again, resumes its shard's
 #          .partial from a vertex past 0, and the merge still equals one
@@ -158,9 +160,32 @@ same_as_one_run() {
   fi
 }
 
+# a failed shard: the merge job is cancelled, submit --wait exits 1 naming
+# the failed tasks, and nothing is written (a mesh with no faces is
+# readable, so submit takes it, and refused by every task)
+failed_shards() {
+  local rc
+  printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\n' >"$tmp/out/nofaces.obj"
+  env "$(cat "$tmp/cluster/mark")" HAARLIGHT="$bin" timeout "$JOB_TIMEOUT_S" \
+    "$script" submit --wait --poll 1 2 "$tmp/out/nofaces.obj" "$tmp/out/failed.hlt" -q \
+    >"$tmp/failed.txt" 2>&1 &
+  child=$!
+  wait "$child"
+  rc=$?
+  child=""
+  echo "failed shards: exit $rc:"
+  cat "$tmp/failed.txt"
+  [ "$rc" -eq 1 ] || fail "submit --wait with failed shards: exit $rc, expected 1"
+  grep -q "merge job .* ended CANCELLED" "$tmp/failed.txt" || fail "the merge job was not reported cancelled"
+  [ "$(grep -c 'JobState=FAILED' "$tmp/failed.txt")" -eq 2 ] || fail "the two failed tasks were not listed"
+  [ -e "$tmp/out/failed.hlt" ] && fail "a merge of failed shards wrote $tmp/out/failed.hlt"
+  return 0
+}
+
 sbatch_opts=()
 case_array() {
   start_cluster
+  failed_shards
   submit "$SHARDS" "${OPTS[@]}"
   finish "$SHARDS"
   same_as_one_run "$SHARDS" "${OPTS[@]}"
