@@ -1,7 +1,8 @@
 /* main.c - the `haarlight` command line.
  *
  * Subcommands: precompute, info, devices, bench-precompute; relight, check
- * and bench (relight.c, check.c, bench.c); merge (merge.c); view (viewer/,
+ * and bench (relight.c, check.c, bench.c); merge (merge.c); bench-basis
+ * (bench_basis.c); view (viewer/,
  * when built). Usage errors
  * exit 2, failures exit 1 with a message naming the file and the problem.
  */
@@ -37,6 +38,7 @@ static const char *const usage_main =
     "  check SCENE.hlt                OpenCL stages against the plain-C reference\n"
     "  bench SCENE.hlt --env ENV.exr  error against run time for M, selection and quantisation\n"
     "  bench-dynamic SCENE.hlt        error against time of PRT, the dynamic method and traced rays\n"
+    "  bench-basis SCENE.hlt -o DIR   lighting error of paraboloid Haar against spherical harmonics\n"
     "  bench-precompute MESH          time the precompute against Embree's raw rate\n"
     "\n"
     "`haarlight COMMAND --help` lists a command's options; `haarlight --version`\n"
@@ -136,8 +138,9 @@ typedef struct pre_opts {
     uint32_t shard_index, shard_count; /* --shard I/N; count 0 when not given */
 } pre_opts;
 
-/* Defined in merge.c (cli.h is the helpers' header). */
+/* Defined in merge.c and bench_basis.c (cli.h is the helpers' header). */
 int cmd_merge(int argc, char **argv);
+int cmd_bench_basis(int argc, char **argv);
 
 /* "I/N" with 0 <= I < N: 1, or 0 when malformed. */
 static int parse_shard(const char *v, uint32_t *index, uint32_t *count)
@@ -518,6 +521,7 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "check")) return cmd_check(argc - 2, argv + 2);
     if (!strcmp(cmd, "bench")) return cmd_bench(argc - 2, argv + 2);
     if (!strcmp(cmd, "bench-dynamic")) return cmd_bench_dynamic(argc - 2, argv + 2);
+    if (!strcmp(cmd, "bench-basis")) return cmd_bench_basis(argc - 2, argv + 2);
     if (!strcmp(cmd, "bench-precompute")) return cmd_bench_precompute(argc - 2, argv + 2);
     fprintf(stderr, "haarlight: unknown command %s\n\n%s", cmd, usage_main);
     return 2;

@@ -244,6 +244,51 @@ hl_result hl_transport_merge(hl_context *ctx, const char *out_path, const char *
  * (which relights from the entries) it is hl_relighter_create. */
 hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const char *path, hl_relighter **out);
 
+/* ---------------------------------------------------------------- bench-basis */
+
+/* The exact rows and lighting of hl_bench_ref_colours, as they are:
+ * untruncated, unquantised transport of the n vertices idx (the same rays
+ * and cube-to-paraboloid step), n rows of 2 N^2 floats each: texel values
+ * T_j = V_j max(0, n . w_j) dw_j / pi in texel order (map N^2 + row N +
+ * col; texel may be NULL) and their Haar coefficients in slot order (haar
+ * may be NULL); and env's lighting at rotation 0, R, G, B planes of 2 N^2:
+ * texel means of the radiance (Lp, may be NULL) and their Haar
+ * coefficients (Lw, may be NULL). */
+hl_result hl_bench_ref_rows(hl_bench_ref *b, const uint32_t *idx, uint32_t n, float *texel, float *haar);
+hl_result hl_bench_ref_lighting(hl_bench_ref *b, const hl_env *env, float *Lp, float *Lw);
+
+/* The bases `bench-basis` compares, each with the lighting cut to M terms
+ * and the transport untruncated (the 2003 paper's comparison):
+ *   HAAR:         the paraboloid Haar wavelets, the M lighting terms of
+ *                 largest |luminance| (nonlinear);
+ *   SH:           real spherical harmonics, the first M in band order
+ *                 (k = l^2 + l + m: linear, as Sloan et al. use them);
+ *   SH_NONLINEAR: spherical harmonics, the M of largest |luminance|. */
+typedef enum hl_basis { HL_BASIS_HAAR, HL_BASIS_SH, HL_BASIS_SH_NONLINEAR, HL_BASIS_COUNT } hl_basis;
+/* "haar", "sh", "sh-nonlinear". */
+const char *hl_basis_name(hl_basis basis);
+
+/* The exact rows of n vertices (idx) of t in texels and in Haar
+ * coefficients, and their projection onto the spherical harmonics of
+ * sh_order (1 to 32: sh_order^2 functions) by the texels' exact
+ * integrals (the transport as the piecewise-constant function T_j /
+ * Omega_j); made on a reference context's threads. */
+typedef struct hl_basis_bench hl_basis_bench;
+hl_result hl_basis_bench_create(hl_context *ctx, const hl_transport *t, const uint32_t *idx, uint32_t n,
+                                uint32_t sh_order, hl_basis_bench **out);
+void hl_basis_bench_destroy(hl_basis_bench *b);
+/* The terms a basis has: 2 N^2 or sh_order^2. */
+uint32_t hl_basis_bench_count(const hl_basis_bench *b, hl_basis basis);
+/* Takes env (at rotation 0) as the lighting, in every basis; *exact then
+ * points at the n vertices' exact colours (3 doubles each, albedo
+ * included; as hl_bench_ref_colours's), valid until the next call. */
+hl_result hl_basis_bench_set_env(hl_basis_bench *b, const hl_env *env, const double **exact);
+/* The colours (3 doubles a vertex, albedo included, not clamped) with the
+ * lighting cut to M terms of basis (1 to hl_basis_bench_count). HAAR with
+ * every term sums the same products in the same order as the exact
+ * colours, so it gives them bit for bit. */
+hl_result hl_basis_bench_colours(hl_basis_bench *b, hl_basis basis, uint32_t M, double *rgb);
+
 #ifdef __cplusplus
 }
 #endif

@@ -4,3 +4,11 @@
 # constant map, turns about +Y, bad arguments.
 hl_test_exe(test_sh ${CMAKE_CURRENT_LIST_DIR}/test_sh.c)
 hl_test_cases(test_sh sh values addition orthonormal footprint convergence constant rotation bad)
+# `haarlight bench-basis` end to end, tiny, and its bad options
+# (test_bench_basis.sh).
+foreach(c basis bad_options)
+  add_test(NAME hl.bench_basis.${c} COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/test_bench_basis.sh ${c})
+  set_tests_properties(hl.bench_basis.${c} PROPERTIES
+    ENVIRONMENT "HL_BIN=$<TARGET_FILE:haarlight>;HL_TMP=${CMAKE_CURRENT_BINARY_DIR}/tmp;HL_REPO_DATA=${CMAKE_SOURCE_DIR}/data"
+    TIMEOUT 600)
+endforeach()

@@ -8,12 +8,15 @@
  *               its own triangles skipped (no ray offset); independent of N
  *               and C and of the precompute's offset;
  * and the exact colours of every ground vertex (for the banding measure).
+ * The exact rows and lighting are also given as they are, in texels and
+ * in Haar coefficients (`bench-basis` projects them onto other bases).
  *
  * Depends on the ray caster (rays.h), the twins (twins.h) and the lighting
  * tables (lighting.h).
  */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "haarlight_tools.h"
 #include "lighting.h"
@@ -71,9 +74,10 @@ static float vis_scale(const hl_bench_ref *b)
     return (float)(1.0 / (HL_PI * S * S));
 }
 
-/* Untruncated lighting of env at rotation 0: R, G, B planes of Haar
- * coefficients in slot order. */
-static hl_result full_lighting(hl_bench_ref *b, const hl_env *env, float *Lw)
+/* Untruncated lighting of env at rotation 0: R, G, B planes of texel
+ * means (Lp, may be NULL) and of their Haar coefficients in slot order
+ * (Lw, may be NULL). */
+hl_result hl_bench_ref_lighting(hl_bench_ref *b, const hl_env *env, float *Lp_out, float *Lw)
 {
     const hl_geom *g = b->g;
     float *cells = NULL, *Lp = malloc((size_t)g->ncoef * 12);
@@ -81,7 +85,9 @@ static hl_result full_lighting(hl_bench_ref *b, const hl_env *env, float *Lw)
     hl_result r = hl_env_to_cells(b->ctx, env, b->lg->wc, b->lg->hc, &cells);
     if (r == HL_OK) {
         hl_ref_env2para(cells, b->lg->wc, b->lg->tap_start, b->lg->taps, 0, 0.0f, g->ncoef, Lp);
-        for (int c = 0; c < 3; c++) hl_ref_haar(g, Lp + (size_t)c * g->ncoef, Lw + (size_t)c * g->ncoef);
+        if (Lp_out) memcpy(Lp_out, Lp, (size_t)g->ncoef * 12);
+        /* hl_ref_haar works in place in Lp, so after the copy */
+        for (int c = 0; c < 3 && Lw; c++) hl_ref_haar(g, Lp + (size_t)c * g->ncoef, Lw + (size_t)c * g->ncoef);
     }
     hl_free_big(cells);
     free(Lp);
@@ -136,8 +142,10 @@ static hl_result continuous(hl_bench_ref *b, const uint32_t *idx2, uint32_t K2, 
     return r;
 }
 
-/* The untruncated transport rows of the n vertices idx (n x ncoef). */
-static hl_result raw_rows(hl_bench_ref *b, const uint32_t *idx, uint32_t n, float *raw)
+/* The untruncated transport rows of the n vertices idx (n x ncoef each):
+ * texel values (texel, may be NULL) and their Haar coefficients in slot
+ * order (raw, may be NULL). */
+hl_result hl_bench_ref_rows(hl_bench_ref *b, const uint32_t *idx, uint32_t n, float *texel, float *raw)
 {
     const hl_geom *g = b->g;
     const hl_mesh *m = b->t->mesh;
@@ -148,7 +156,8 @@ static hl_result raw_rows(hl_bench_ref *b, const uint32_t *idx, uint32_t n, floa
     for (uint32_t k = 0; k < n && r == HL_OK; k++) {
         r = hl_rt_visibility(b->rt, g, m, idx[k], 1, b->t->info.supersample, ray_offset(b), vis, NULL);
         hl_ref_cube2para(g, vis, vis_scale(b), m->normals + 3 * (size_t)idx[k], T);
-        hl_ref_haar(g, T, raw + (size_t)k * nc);
+        if (texel) memcpy(texel + (size_t)k * nc, T, (size_t)nc * 4);
+        if (raw) hl_ref_haar(g, T, raw + (size_t)k * nc); /* in place in T: after the copy */
     }
     free(vis);
     free(T);
@@ -176,14 +185,14 @@ hl_result hl_bench_ref_colours(hl_bench_ref *b, const uint32_t *idx, uint32_t n,
     const uint32_t nc = b->g->ncoef;
     float *raw = malloc((size_t)n * nc * 4);
     hl_result r = raw ? HL_OK : hl_fail(b->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the exact transport");
-    if (r == HL_OK) r = raw_rows(b, idx, n, raw);
+    if (r == HL_OK) r = hl_bench_ref_rows(b, idx, n, NULL, raw);
     free(b->Lw_all);
     b->nenvs = 0;
     b->Lw_all = malloc((size_t)(nenvs > 0 ? nenvs : 1) * nc * 12);
     if (r == HL_OK && !b->Lw_all) r = hl_fail(b->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the lighting");
     for (int e = 0; e < nenvs && r == HL_OK; e++) {
         float *Lw = b->Lw_all + (size_t)e * nc * 3;
-        r = full_lighting(b, envs[e], Lw);
+        r = hl_bench_ref_lighting(b, envs[e], NULL, Lw);
         if (r == HL_OK) exact_dots(b, raw, idx, n, Lw, exact[e]);
         if (r == HL_OK && n_cont) r = continuous(b, idx2, n_cont, envs[e], cont[e]);
         if (r == HL_OK) b->nenvs = e + 1;
