@@ -33,8 +33,10 @@ static const char *const usage =
     "Compares bases for the lighting on the exact transport of sampled vertices\n"
     "(untruncated, unquantised, recomputed from the rays as `bench`'s exact\n"
     "reference): the paraboloid Haar wavelets keeping the M lighting terms of\n"
-    "largest |luminance| (haar), and real spherical harmonics keeping the first M\n"
-    "in band order (sh, linear) or the M of largest |luminance| (sh-nonlinear),\n"
+    "largest |luminance| (haar), of largest |luminance| x support solid angle\n"
+    "(haar-area) or x mean |T_i| over all vertices (haar-transport, the relighter's\n"
+    "default), and real spherical harmonics keeping the first M in band order (sh,\n"
+    "linear) or the M of largest |luminance| (sh-nonlinear),\n"
     "the transport projected exactly from its texels. Writes DIR/basis.md and\n"
     "DIR/basis.csv: per map, basis and M, the relative L2 and max errors of the\n"
     "colours against the exact ones; and per map the L2 of both bases at M = 200.\n"
@@ -184,9 +186,11 @@ static void md_heading(FILE *md, const bb_opts *o, const hl_transport_info *in, 
                 "`%s`: %u vertices, N = %u, C = %u. Exact colours on %u vertices spread over the mesh:\n"
                 "untruncated, unquantised transport recomputed from the rays, dotted with the untruncated\n"
                 "lighting in float64. Each basis cuts the LIGHTING to M terms and keeps the transport whole:\n"
-                "haar keeps the M paraboloid Haar terms of largest |luminance| (nonlinear), sh the first M\n"
-                "real spherical harmonics in band order (linear; orders %u: %u terms), sh-nonlinear the M\n"
-                "harmonics of largest |luminance|. Both maps are projected exactly from their texels (the\n"
+                "haar keeps the M paraboloid Haar terms of largest |luminance| (nonlinear), haar-area those of\n"
+                "largest |luminance| x the solid angle of the wavelet's support, haar-transport x the mean\n"
+                "|T_i| over all the transport's vertices (the relighter's default selection); sh keeps the\n"
+                "first M real spherical harmonics in band order (linear; order %u: %u terms), sh-nonlinear\n"
+                "the M harmonics of largest |luminance|. Both maps are projected exactly from their texels (the\n"
                 "texels' integrals of each harmonic). L2 is relative to the exact colours' L2 norm and max to\n"
                 "the brightest, on the colours clamped at zero as every output is; \"unclamped\" is the L2\n"
                 "before the clamp.\n\n",
@@ -256,14 +260,20 @@ static hl_result run(hl_context *ctx, const bb_opts *o, hl_transport *t, bb_file
         r = measure_env(bb, envs[e], names[e], o, K, fs, rgb, head[e]);
     }
     if (r == HL_OK) {
-        fprintf(fs->f[0], "\n## At %u terms\n\n| map | haar L2 | sh L2 | sh-nonlinear L2 |\n|---|---:|---:|---:|\n",
-                BB_HEADLINE_M);
+        fprintf(fs->f[0], "\n## At %u terms\n\n| map |", BB_HEADLINE_M);
+        for (int b = 0; b < HL_BASIS_COUNT; b++) fprintf(fs->f[0], " %s L2 |", hl_basis_name((hl_basis)b));
+        fprintf(fs->f[0], "\n|---|");
+        for (int b = 0; b < HL_BASIS_COUNT; b++) fprintf(fs->f[0], "---:|");
+        fprintf(fs->f[0], "\n");
         for (int e = 0; e < o->nenvs; e++) {
-            fprintf(fs->f[0], "| %s | %.2f%% | %.2f%% | %.2f%% |\n", names[e], 100 * head[e][HL_BASIS_HAAR],
-                    100 * head[e][HL_BASIS_SH], 100 * head[e][HL_BASIS_SH_NONLINEAR]);
-            printf("%s: at %u terms, wavelet L2 %.2f%% against spherical harmonics %.2f%% (nonlinear %.2f%%)\n",
-                   names[e], BB_HEADLINE_M, 100 * head[e][HL_BASIS_HAAR], 100 * head[e][HL_BASIS_SH],
-                   100 * head[e][HL_BASIS_SH_NONLINEAR]);
+            const double *h = head[e];
+            fprintf(fs->f[0], "| %s |", names[e]);
+            for (int b = 0; b < HL_BASIS_COUNT; b++) fprintf(fs->f[0], " %.2f%% |", 100 * h[b]);
+            fprintf(fs->f[0], "\n");
+            printf("%s: at %u terms, wavelet L2 %.2f%% (area-weighted %.2f%%, transport-weighted %.2f%%) against "
+                   "spherical harmonics %.2f%% (nonlinear %.2f%%)\n",
+                   names[e], BB_HEADLINE_M, 100 * h[HL_BASIS_HAAR], 100 * h[HL_BASIS_HAAR_AREA],
+                   100 * h[HL_BASIS_HAAR_TRANSPORT], 100 * h[HL_BASIS_SH], 100 * h[HL_BASIS_SH_NONLINEAR]);
         }
         if (o->order * o->order < BB_HEADLINE_M)
             fprintf(fs->f[0], "\n(nan: the harmonics of order %u have fewer than %u terms.)\n", o->order, BB_HEADLINE_M);

@@ -256,16 +256,31 @@ hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const 
  * coefficients (Lw, may be NULL). */
 hl_result hl_bench_ref_rows(hl_bench_ref *b, const uint32_t *idx, uint32_t n, float *texel, float *haar);
 hl_result hl_bench_ref_lighting(hl_bench_ref *b, const hl_env *env, float *Lp, float *Lw);
+/* The relighter's selection weights of a scheme (HL_SELECT_AREA,
+ * _UNWEIGHTED or _TRANSPORT: mean |T_i| over the transport's stored rows),
+ * 2 N^2 floats in slot order. */
+hl_result hl_bench_ref_weights(hl_bench_ref *b, uint32_t scheme, float *w);
 
 /* The bases `bench-basis` compares, each with the lighting cut to M terms
  * and the transport untruncated (the 2003 paper's comparison):
- *   HAAR:         the paraboloid Haar wavelets, the M lighting terms of
- *                 largest |luminance| (nonlinear);
- *   SH:           real spherical harmonics, the first M in band order
- *                 (k = l^2 + l + m: linear, as Sloan et al. use them);
- *   SH_NONLINEAR: spherical harmonics, the M of largest |luminance|. */
-typedef enum hl_basis { HL_BASIS_HAAR, HL_BASIS_SH, HL_BASIS_SH_NONLINEAR, HL_BASIS_COUNT } hl_basis;
-/* "haar", "sh", "sh-nonlinear". */
+ *   HAAR:           the paraboloid Haar wavelets, the M lighting terms of
+ *                   largest |luminance| (nonlinear, unweighted);
+ *   HAAR_AREA:      the same, largest |luminance| x the solid angle of the
+ *                   wavelet's support (the relighter's --select area);
+ *   HAAR_TRANSPORT: largest |luminance| x mean |T_i| over the vertices
+ *                   (the relighter's default, --select transport);
+ *   SH:             real spherical harmonics, the first M in band order
+ *                   (k = l^2 + l + m: linear, as Sloan et al. use them);
+ *   SH_NONLINEAR:   spherical harmonics, the M of largest |luminance|. */
+typedef enum hl_basis {
+    HL_BASIS_HAAR,
+    HL_BASIS_HAAR_AREA,
+    HL_BASIS_HAAR_TRANSPORT,
+    HL_BASIS_SH,
+    HL_BASIS_SH_NONLINEAR,
+    HL_BASIS_COUNT
+} hl_basis;
+/* "haar", "haar-area", "haar-transport", "sh", "sh-nonlinear". */
 const char *hl_basis_name(hl_basis basis);
 
 /* The exact rows of n vertices (idx) of t in texels and in Haar

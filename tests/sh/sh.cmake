@@ -3,7 +3,7 @@
 # sphere and over the texel footprints, convergence in the quadrature,
 # constant map, turns about +Y, bad arguments.
 hl_test_exe(test_sh ${CMAKE_CURRENT_LIST_DIR}/test_sh.c)
-hl_test_cases(test_sh sh values addition orthonormal footprint convergence constant rotation bad)
+hl_test_cases(test_sh sh values addition orthonormal footprint convergence constant rotation bad tool)
 # `haarlight bench-basis` end to end, tiny, and its bad options
 # (test_bench_basis.sh).
 foreach(c basis bad_options)

@@ -2,9 +2,14 @@
  * (host/src/sh): known values, the addition theorem, orthonormality on the
  * sphere and over the paraboloid texels' footprints, the convergence of
  * the texel integrals in the quadrature's points, the projection of a
- * constant map, turns about +Y, and bad arguments.
+ * constant map, turns about +Y, and bad arguments; and bench-basis's
+ * comparison (haarlight_tools.h) under a constant map.
  */
+#define _POSIX_C_SOURCE 200809L
+#include <unistd.h>
+
 #include "hl_test.h"
+#include "haarlight_tools.h"
 #include "sh.h"
 #include "geom.h"
 
@@ -320,6 +325,68 @@ static void t_rotation(void)
     hl_free_big(Yb);
 }
 
+/* bench-basis's tool on the bunny (N = C = 16) under a constant map: one
+ * harmonic holds all the lighting, so SH at 1 and at 400 terms give the
+ * exact colours (to the float rows' precision), and Haar with every term
+ * gives them bit for bit (the same sums). */
+static void t_tool(void)
+{
+    char mesh_path[1024], path[1024];
+    snprintf(mesh_path, sizeof mesh_path, "%s/bunny_lowres.obj", hl_test_env("HL_REPO_DATA", "data"));
+    snprintf(path, sizeof path, "%s/sh_tool_%ld.hlt", hl_test_env("HL_TMP", "/tmp"), (long)getpid());
+    hl_context_desc cd = {.backend = HL_BACKEND_REFERENCE, .quiet = 1};
+    char err[512];
+    hl_context *ctx = NULL;
+    hl_mesh *mesh = NULL;
+    hl_transport *t = NULL;
+    hl_env *env = NULL;
+    hl_basis_bench *bb = NULL;
+    hl_mesh_load_desc ld = {{0.8f, 0.6f, 0.4f}, 'y', 0};
+    hl_precompute_desc d = {0};
+    d.N = 16, d.C = 16;
+    hl_result r = hl_context_create(&cd, &ctx, err, sizeof err);
+    if (r == HL_OK) r = hl_mesh_load(ctx, mesh_path, &ld, &mesh, NULL);
+    if (r == HL_OK) r = hl_precompute(ctx, mesh, &d, path, NULL);
+    if (r == HL_OK) r = hl_transport_load(ctx, path, &t);
+    remove(path);
+    float *rgb = calloc(64 * 32 * 3, sizeof(float));
+    for (int i = 0; i < 64 * 32 * 3; i++) rgb[i] = i % 3 == 0 ? 0.7f : i % 3 == 1 ? 1.3f : 0.2f;
+    if (r == HL_OK) r = hl_env_create(ctx, 64, 32, rgb, &env, NULL);
+    uint32_t idx[64];
+    for (uint32_t k = 0; k < 64 && t; k++) idx[k] = (uint32_t)((uint64_t)k * t->info.vertex_count / 64);
+    if (r == HL_OK) r = hl_basis_bench_create(ctx, t, idx, 64, 20, &bb);
+    const double *exact = NULL;
+    if (r == HL_OK) r = hl_basis_bench_set_env(bb, env, &exact);
+    HL_CHECK(r == HL_OK, "set-up: %s", ctx ? hl_context_last_error(ctx) : err);
+    if (r == HL_OK) {
+        double c[64 * 3], big = 0.0, e1 = 0.0, e400 = 0.0;
+        int same = 1;
+        hl_basis_bench_colours(bb, HL_BASIS_SH, 1, c);
+        for (int i = 0; i < 64 * 3; i++) big = fmax(big, fabs(exact[i])), e1 = fmax(e1, fabs(c[i] - exact[i]));
+        hl_basis_bench_colours(bb, HL_BASIS_SH, 400, c);
+        for (int i = 0; i < 64 * 3; i++) e400 = fmax(e400, fabs(c[i] - exact[i]));
+        for (hl_basis b = HL_BASIS_HAAR; b <= HL_BASIS_HAAR_TRANSPORT; b++) {
+            hl_basis_bench_colours(bb, b, hl_basis_bench_count(bb, b), c);
+            for (int i = 0; i < 64 * 3; i++) same &= c[i] == exact[i];
+        }
+        HL_CHECK(big > 0.1, "the exact colours are dark (%g)", big);
+        /* the float rows and taps carry about 1e-7 relative each (1.6e-7 seen) */
+        hl_check_error("constant map: SH with 1 term against the exact colours (relative)", e1 / big, 1e-6);
+        hl_check_error("constant map: SH with 400 terms against the exact colours (relative)", e400 / big, 1e-6);
+        HL_CHECK(same, "Haar with every term is not the exact colours bit for bit");
+        printf("Haar with all %u terms, each selection: the exact colours bit for bit: %s\n",
+               hl_basis_bench_count(bb, HL_BASIS_HAAR), same ? "yes" : "no");
+        HL_CHECK(hl_basis_bench_colours(bb, HL_BASIS_SH, 401, c) == HL_ERR_INVALID_ARGUMENT, "401 SH terms accepted");
+        HL_CHECK(hl_basis_bench_colours(bb, HL_BASIS_HAAR, 0, c) == HL_ERR_INVALID_ARGUMENT, "0 terms accepted");
+    }
+    free(rgb);
+    hl_basis_bench_destroy(bb);
+    hl_env_destroy(env);
+    hl_transport_destroy(t);
+    hl_mesh_destroy(mesh);
+    hl_context_destroy(ctx);
+}
+
 static void t_bad(void)
 {
     hl_sh_tables tab;
@@ -338,6 +405,7 @@ int main(int argc, char **argv)
                                          {"orthonormal", t_orthonormal}, {"footprint", t_footprint},
                                          {"convergence", t_convergence}, {"constant", t_constant},
                                          {"rotation", t_rotation},       {"bad", t_bad},
+                                         {"tool", t_tool},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

@@ -32,6 +32,7 @@ struct hl_basis_bench {
     double *tsh;      /* n x nsh: the rows in spherical harmonics */
     double *Ybar;     /* ncoef x nsh: texel integrals */
     float *Lw;        /* 3 x ncoef: the lighting's Haar coefficients */
+    float *w_area, *w_transport; /* ncoef: the relighter's selection weights */
     double *lsh;      /* 3 x nsh: its harmonic coefficients */
     double *exact;    /* n x 3 */
     uint8_t *keep;    /* max(ncoef, nsh): the terms kept */
@@ -42,6 +43,8 @@ const char *hl_basis_name(hl_basis basis)
 {
     switch (basis) {
     case HL_BASIS_HAAR: return "haar";
+    case HL_BASIS_HAAR_AREA: return "haar-area";
+    case HL_BASIS_HAAR_TRANSPORT: return "haar-transport";
     case HL_BASIS_SH: return "sh";
     case HL_BASIS_SH_NONLINEAR: return "sh-nonlinear";
     default: return "?";
@@ -57,6 +60,8 @@ void hl_basis_bench_destroy(hl_basis_bench *b)
     hl_free_big(b->tsh);
     hl_free_big(b->Ybar);
     free(b->Lw);
+    free(b->w_area);
+    free(b->w_transport);
     free(b->lsh);
     free(b->exact);
     free(b->keep);
@@ -106,17 +111,21 @@ hl_result hl_basis_bench_create(hl_context *ctx, const hl_transport *t, const ui
     b->haar = hl_alloc_big(ctx, (size_t)n * nc * 4, "the exact rows");
     b->tsh = hl_alloc_big(ctx, (size_t)n * b->nsh * sizeof(double), "the rows in spherical harmonics");
     b->Lw = malloc((size_t)nc * 12);
+    b->w_area = malloc((size_t)nc * 4);
+    b->w_transport = malloc((size_t)nc * 4);
     b->lsh = malloc((size_t)b->nsh * 3 * sizeof(double));
     b->exact = malloc((size_t)n * 3 * sizeof(double));
     b->keep = malloc(most);
     hl_result r = HL_OK;
-    if (!texel || !b->idx || !b->haar || !b->tsh || !b->Lw || !b->lsh || !b->exact || !b->keep)
+    if (!texel || !b->idx || !b->haar || !b->tsh || !b->Lw || !b->w_area || !b->w_transport || !b->lsh || !b->exact || !b->keep)
         r = hl_tools_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the basis comparison of %u vertices", n);
     if (r == HL_OK) {
         memcpy(b->idx, idx, (size_t)n * 4);
         r = hl_bench_ref_create(ctx, t, &b->br);
     }
     if (r == HL_OK) r = hl_bench_ref_rows(b->br, idx, n, texel, b->haar);
+    if (r == HL_OK) r = hl_bench_ref_weights(b->br, HL_SELECT_AREA, b->w_area);
+    if (r == HL_OK) r = hl_bench_ref_weights(b->br, HL_SELECT_TRANSPORT, b->w_transport);
     if (r == HL_OK) r = hl_sh_texel_integrals(ctx, t->info.N, sh_order, HL_SH_QUAD, &b->Ybar);
     if (r == HL_OK) project_rows(b, texel);
     hl_free_big(texel);
@@ -130,7 +139,7 @@ hl_result hl_basis_bench_create(hl_context *ctx, const hl_transport *t, const ui
 
 uint32_t hl_basis_bench_count(const hl_basis_bench *b, hl_basis basis)
 {
-    return basis == HL_BASIS_HAAR ? b->ncoef : b->nsh;
+    return basis <= HL_BASIS_HAAR_TRANSPORT ? b->ncoef : b->nsh;
 }
 
 hl_result hl_basis_bench_set_env(hl_basis_bench *b, const hl_env *env, const double **exact)
@@ -171,9 +180,10 @@ static int by_priority(const void *pa, const void *pb)
 }
 
 /* keep[i] = 1 for the M of the count terms whose lighting (3 planes,
- * `stride` apart, floats lf or doubles ld) has the largest |luminance|. */
+ * `stride` apart, floats lf or doubles ld) has the largest |luminance|
+ * times weight[i] (weight NULL: 1). */
 static hl_result keep_largest(hl_basis_bench *b, const float *lf, const double *ld, size_t stride, uint32_t count,
-                              uint32_t M)
+                              const float *weight, uint32_t M)
 {
     term_key *key = malloc((size_t)count * sizeof *key);
     if (!key) return hl_tools_fail(b->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
@@ -181,7 +191,7 @@ static hl_result keep_largest(hl_basis_bench *b, const float *lf, const double *
         double v[3];
         for (int c = 0; c < 3; c++) v[c] = lf ? (double)lf[c * stride + i] : ld[c * stride + i];
         /* Rec. 709 luminance, as the relighter's selection ranks terms */
-        key[i].key = fabs(0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]);
+        key[i].key = fabs(0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]) * (weight ? (double)weight[i] : 1.0);
         key[i].i = i;
     }
     qsort(key, count, sizeof *key, by_priority);
@@ -200,15 +210,17 @@ hl_result hl_basis_bench_colours(hl_basis_bench *b, hl_basis basis, uint32_t M, 
     const uint32_t nc = b->ncoef, ns = b->nsh;
     const float *albedo = b->t->mesh->albedo;
     hl_result r = HL_OK;
-    if (basis == HL_BASIS_HAAR) r = keep_largest(b, b->Lw, NULL, nc, nc, M);
-    else if (basis == HL_BASIS_SH_NONLINEAR) r = keep_largest(b, NULL, b->lsh, ns, ns, M);
+    if (basis == HL_BASIS_HAAR) r = keep_largest(b, b->Lw, NULL, nc, nc, NULL, M);
+    else if (basis == HL_BASIS_HAAR_AREA) r = keep_largest(b, b->Lw, NULL, nc, nc, b->w_area, M);
+    else if (basis == HL_BASIS_HAAR_TRANSPORT) r = keep_largest(b, b->Lw, NULL, nc, nc, b->w_transport, M);
+    else if (basis == HL_BASIS_SH_NONLINEAR) r = keep_largest(b, NULL, b->lsh, ns, ns, NULL, M);
     else
         for (uint32_t q = 0; q < ns; q++) b->keep[q] = q < M;
     if (r != HL_OK) return r;
     for (uint32_t k = 0; k < b->n; k++)
         for (int c = 0; c < 3; c++) {
             double s = 0.0;
-            if (basis == HL_BASIS_HAAR) {
+            if (basis <= HL_BASIS_HAAR_TRANSPORT) {
                 const float *row = b->haar + (size_t)k * nc, *l = b->Lw + (size_t)c * nc;
                 for (uint32_t i = 0; i < nc; i++)
                     if (b->keep[i]) s += (double)row[i] * l[i];

@@ -94,6 +94,11 @@ hl_result hl_bench_ref_lighting(hl_bench_ref *b, const hl_env *env, float *Lp_ou
     return r;
 }
 
+hl_result hl_bench_ref_weights(hl_bench_ref *b, uint32_t scheme, float *w)
+{
+    return hl_selection_weights(b->ctx, b->t, b->lg, scheme, w);
+}
+
 /* The continuous reference: sum over map pixels of L V max(0, n.w) dw / pi
  * for each of the K2 vertices, one occlusion ray per pixel from the vertex
  * itself (hl_rt_occluded_from_vertex). */
