@@ -4,7 +4,8 @@
 #
 #   ./setup.sh demo    the built-in default scene (bunny on a ground plane):
 #                      precompute, then relight under the procedural sun and
-#                      sky and under data/city.exr, writing build/demo-*.png
+#                      sky, under data/city.exr and under a lamp carried
+#                      around it, writing build/demo-*.png
 #   ./setup.sh test    run the test suite (ctest, on PoCL's CPU device), then
 #                      the same under ASan + UBSan (build-asan/), then a short
 #                      libFuzzer pass (build-fuzz/); also installs
@@ -62,7 +63,14 @@ case "$what" in
           --eye 0,16,30 --target 0,2,0 --size 400x300 -o "build/demo-dynamic-$i.png"
       i=$((i + 1))
     done
-    echo "demo: wrote build/demo-sky.png, build/demo-city.png, build/demo-sky.ply and build/demo-dynamic-{0,1,2}.png"
+    # lighting captured from the surroundings: a lamp carried around the
+    # bunny (the file's animation at 0 s and 2 s), the shadow opposite it
+    for t in 0 2; do
+      ./build/haarlight relight build/demo.hlt --surroundings data/surroundings/lamp_orbit.gltf --time "$t" \
+          --exposure 0 --size 400x300 -o "build/demo-lamp-$t.png"
+    done
+    echo "demo: wrote build/demo-sky.png, build/demo-city.png, build/demo-sky.ply, build/demo-dynamic-{0,1,2}.png" \
+         "and build/demo-lamp-{0,2}.png"
     ;;
   test)
     # 1. the suite (valgrind memcheck of a small scene included)
