@@ -244,6 +244,19 @@ hl_result hl_transport_merge(hl_context *ctx, const char *out_path, const char *
  * (which relights from the entries) it is hl_relighter_create. */
 hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const char *path, hl_relighter **out);
 
+/* What a relighter holds on its device: all its buffers (device_bytes;
+ * the capture of surroundings' own not included), of which the transport
+ * columns (column_bytes, counted whole: with parts > 1 they wait in host
+ * memory and the device holds one part at a time), and the parts its dot
+ * products run in (1: all the columns at once; 0 on the reference
+ * backend, which holds nothing on a device). See docs/MEMORY.md. */
+typedef struct hl_relighter_memory {
+    uint64_t device_bytes;
+    uint64_t column_bytes;
+    uint32_t parts;
+} hl_relighter_memory;
+hl_result hl_relighter_memory_use(const hl_relighter *r, hl_relighter_memory *m);
+
 /* ---------------------------------------------------------------- bench-basis */
 
 /* The exact rows and lighting of hl_bench_ref_colours, as they are:

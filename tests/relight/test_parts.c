@@ -5,7 +5,9 @@
  *                about a quarter of what they need runs in parts and
  *                gives the colours of an unlimited one, bit for bit
  *                (tolerance 0), read back or left on the device, over
- *                several lighting changes (the part buffers reused).
+ *                several lighting changes (the part buffers reused);
+ *                hl_relighter_memory_use reports the parts and the
+ *                device bytes (those the context counts, when unlimited).
  * parts.refused  a limit that leaves the columns nothing is refused with
  *                a message naming the limit, not a crash.
  * parts.from_file  hl_relighter_create_from_file: the entries freed, the
@@ -48,8 +50,13 @@ static int measure(const hl_transport *t, uint64_t *used, uint64_t *cols)
     if (ok) {
         *used = hl_cl_memory_used(ctx);
         *cols = hl_cl_light_column_bytes(hl_relighter_device(r));
-        HL_CHECK(hl_cl_light_parts(hl_relighter_device(r)) == 1, "unlimited: one part, got %u",
-                 hl_cl_light_parts(hl_relighter_device(r)));
+        hl_relighter_memory m;
+        HL_CHECK(hl_relighter_memory_use(r, &m) == HL_OK, "memory use");
+        /* the context holds the relighter's buffers alone */
+        HL_CHECK(m.parts == 1 && m.column_bytes == *cols && m.device_bytes == *used,
+                 "unlimited: 1 part (got %u), columns %llu (%llu), device %llu (the context holds %llu)", m.parts,
+                 (unsigned long long)m.column_bytes, (unsigned long long)*cols, (unsigned long long)m.device_bytes,
+                 (unsigned long long)*used);
     }
     hl_relighter_destroy(r);
     hl_context_destroy(ctx);
@@ -78,6 +85,11 @@ static void case_quarter(void)
     printf("limited: %u parts, %.2f MiB of device memory in use\n", parts, (double)hl_cl_memory_used(lim) / 1048576.0);
     HL_CHECK(parts >= 4, "a quarter of the column memory must take at least 4 parts, got %u", parts);
     HL_CHECK(hl_cl_memory_used(lim) <= limit, "the limit is kept");
+    hl_relighter_memory m;
+    HL_CHECK(hl_relighter_memory_use(b, &m) == HL_OK && m.parts == parts && m.device_bytes <= limit &&
+                 m.device_bytes < used - cols / 2,
+             "limited: %u parts, device %llu bytes of a %llu limit", m.parts, (unsigned long long)m.device_bytes,
+             (unsigned long long)limit);
     const uint32_t V = t->info.vertex_count;
     hl_env *env = make_env(ref_ctx, 256, 70, 30, 2e3f), *env2 = make_env(lim, 256, 70, 30, 2e3f);
     HL_CHECK(hl_relighter_set_env(a, env) == HL_OK && hl_relighter_set_env(b, env2) == HL_OK, "set env");

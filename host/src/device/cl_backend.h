@@ -166,6 +166,8 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes);
 uint32_t hl_cl_light_parts(const hl_cl_light *l);
 uint64_t hl_cl_light_column_bytes(const hl_cl_light *l);
 uint64_t hl_cl_memory_used(const hl_context *ctx);
+/* The bytes of all the relighter's device buffers (cl_light_probe.c). */
+uint64_t hl_cl_light_device_bytes(const hl_cl_light *l);
 /* The device's read bandwidth: median of reps passes over `bytes`. */
 hl_result hl_cl_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, double *bytes_per_s);
 

@@ -1,6 +1,7 @@
 /* cl_light_probe.c - what `haarlight bench` measures of the relight's dot
  * products: their work-items, the column entries each walks for a
- * selection, the bytes they read, and the kernel's own time.
+ * selection, the bytes they read, and the kernel's own time; and the
+ * device memory a relighter holds.
  *
  * Depends on: cl_light.h (the column layout, OpenCL), hl_shared.h (which
  * walk a range takes), core's clock.
@@ -11,6 +12,19 @@
 #include "cl_light.h"
 
 uint32_t hl_cl_light_ranges(const hl_cl_light *l) { return l->nranges; }
+
+uint64_t hl_cl_light_device_bytes(const hl_cl_light *l)
+{
+    const cl_mem all[] = {l->cells, l->turned, l->start, l->runs, l->slots, l->weight, l->Lp, l->Lw, l->Lsel, l->used,
+                          l->bits, l->res, l->keys, l->col, l->cols, l->rel, l->rstart, l->back, l->albedo, l->B,
+                          l->acc, l->ord, l->klist, l->Lenv};
+    uint64_t sum = 0;
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) {
+        size_t bytes = 0;
+        if (all[i] && clGetMemObjectInfo(all[i], CL_MEM_SIZE, sizeof bytes, &bytes, NULL) == CL_SUCCESS) sum += bytes;
+    }
+    return sum;
+}
 
 double hl_cl_light_kept_entries(const hl_cl_light *l, const uint32_t *bits, double *per_range)
 {

@@ -475,5 +475,17 @@ hl_result hl_relighter_run_into(hl_relighter *r, const hl_relight_desc *desc, vo
     return run(r, desc, NULL, cl_out, gl, stats);
 }
 
+hl_result hl_relighter_memory_use(const hl_relighter *r, hl_relighter_memory *m)
+{
+    if (!m) return HL_ERR_INVALID_ARGUMENT;
+    memset(m, 0, sizeof *m);
+    if (!r) return HL_ERR_INVALID_ARGUMENT;
+    if (!r->cl) return HL_OK;
+    m->device_bytes = hl_cl_light_device_bytes(r->cl);
+    m->column_bytes = hl_cl_light_column_bytes(r->cl);
+    m->parts = hl_cl_light_parts(r->cl);
+    return HL_OK;
+}
+
 struct hl_cl_light *hl_relighter_device(hl_relighter *r) { return r ? r->cl : NULL; }
 const hl_light_geom *hl_relighter_tables(const hl_relighter *r) { return r ? r->lg : NULL; }
