@@ -151,4 +151,24 @@ static inline const char *hl_test_tmp_path(const char *name)
     return b;
 }
 
+/* The whole file (malloc'ed, one spare byte), its size in *n; NULL when it
+ * cannot be read (*n then 0). */
+static inline uint8_t *hl_test_read_file(const char *path, size_t *n)
+{
+    *n = 0;
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    fseek(f, 0, SEEK_END);
+    long len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    uint8_t *p = len >= 0 ? malloc((size_t)len + 1) : NULL;
+    if (p && fread(p, 1, (size_t)len, f) != (size_t)len) {
+        free(p);
+        p = NULL;
+    }
+    fclose(f);
+    if (p) *n = (size_t)len;
+    return p;
+}
+
 #endif

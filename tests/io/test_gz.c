@@ -47,23 +47,6 @@ static const char *teapot_path(void)
     return p;
 }
 
-static uint8_t *read_all(const char *path, size_t *n)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    long len = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    uint8_t *p = malloc((size_t)len + 1);
-    if (p && fread(p, 1, (size_t)len, f) != (size_t)len) {
-        free(p);
-        p = NULL;
-    }
-    fclose(f);
-    *n = (size_t)len;
-    return p;
-}
-
 static int write_all(const char *path, const void *data, size_t n, const char *mode)
 {
     FILE *f = fopen(path, mode);
@@ -111,7 +94,7 @@ static void case_same(void)
 {
     hl_context *ctx = hl_test_ref_context(1);
     size_t n = 0;
-    uint8_t *obj = read_all(teapot_path(), &n);
+    uint8_t *obj = hl_test_read_file(teapot_path(), &n);
     HL_CHECK(obj != NULL, "cannot read %s", teapot_path());
     const char *one = tmp_name("one.obj.gz"), *two = tmp_name("two.OBJ.GZ");
     HL_CHECK(obj && gzip_to(one, obj, n, "wb"), "cannot write %s", one);
@@ -146,10 +129,10 @@ static void case_truncated(void)
 {
     hl_context *ctx = hl_test_ref_context(1);
     size_t n = 0, gzn = 0;
-    uint8_t *obj = read_all(teapot_path(), &n);
+    uint8_t *obj = hl_test_read_file(teapot_path(), &n);
     const char *full = tmp_name("full.obj.gz"), *cut = tmp_name("cut.obj.gz");
     HL_CHECK(obj && gzip_to(full, obj, n, "wb"), "cannot write %s", full);
-    uint8_t *gz = read_all(full, &gzn);
+    uint8_t *gz = hl_test_read_file(full, &gzn);
     HL_CHECK(gz && gzn > 100, "cannot read back %s", full);
     /* inside the header, inside the body, and without the 8-byte trailer */
     const size_t keep[] = {5, gzn / 2, gzn - 8, gzn - 1};
@@ -176,7 +159,7 @@ static void case_garbage(void)
     HL_CHECK(write_all(g, junk, sizeof junk, "wb"), "cannot write %s", g);
     expect_refused(ctx, "random bytes", g, HL_ERR_FORMAT, "not gzip");
     size_t n = 0;
-    uint8_t *obj = read_all(teapot_path(), &n);
+    uint8_t *obj = hl_test_read_file(teapot_path(), &n);
     HL_CHECK(obj && write_all(g, obj, n, "wb"), "cannot write %s", g);
     expect_refused(ctx, "a plain OBJ named .obj.gz", g, HL_ERR_FORMAT, "not gzip");
     HL_CHECK(write_all(g, "", 0, "wb"), "cannot write %s", g);
@@ -190,10 +173,10 @@ static void case_corrupt(void)
 {
     hl_context *ctx = hl_test_ref_context(1);
     size_t n = 0, gzn = 0;
-    uint8_t *obj = read_all(teapot_path(), &n);
+    uint8_t *obj = hl_test_read_file(teapot_path(), &n);
     const char *full = tmp_name("c.obj.gz"), *bad = tmp_name("bad.obj.gz");
     HL_CHECK(obj && gzip_to(full, obj, n, "wb"), "cannot write %s", full);
-    uint8_t *gz = read_all(full, &gzn);
+    uint8_t *gz = hl_test_read_file(full, &gzn);
     /* the body, and the trailer's CRC-32 */
     const size_t at[] = {gzn / 3, gzn - 6};
     for (size_t k = 0; gz && k < 2; k++) {
@@ -215,7 +198,7 @@ static void case_cap(void)
 {
     hl_context *ctx = hl_test_ref_context(1);
     size_t n = 0;
-    uint8_t *obj = read_all(teapot_path(), &n);
+    uint8_t *obj = hl_test_read_file(teapot_path(), &n);
     const char *p = tmp_name("cap.obj.gz");
     HL_CHECK(obj && gzip_to(p, obj, n, "wb"), "cannot write %s", p);
     uint8_t *data = NULL;
@@ -239,7 +222,7 @@ static void case_names(void)
 {
     hl_context *ctx = hl_test_ref_context(1);
     size_t n = 0;
-    uint8_t *obj = read_all(teapot_path(), &n);
+    uint8_t *obj = hl_test_read_file(teapot_path(), &n);
     const char *noext = tmp_name("mesh.gz"), *unknown = tmp_name("mesh.notaformat.gz"), *missing = tmp_name("none.obj.gz");
     HL_CHECK(obj && gzip_to(noext, obj, n, "wb") && gzip_to(unknown, obj, n, "wb"), "cannot write the files");
     remove(missing);

@@ -70,24 +70,6 @@ static const char *fixture(const char *name)
     return b;
 }
 
-static uint8_t *read_all(const char *path, size_t *n)
-{
-    *n = 0;
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    long len = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    uint8_t *p = malloc((size_t)len + 1);
-    if (p && fread(p, 1, (size_t)len, f) != (size_t)len) {
-        free(p);
-        p = NULL;
-    }
-    fclose(f);
-    *n = (size_t)len;
-    return p;
-}
-
 static int write_all(const char *path, const void *data, size_t n)
 {
     FILE *f = fopen(path, "wb");
@@ -100,7 +82,7 @@ static int write_all(const char *path, const void *data, size_t n)
 static int same_bytes(const char *a, const char *b)
 {
     size_t na, nb;
-    uint8_t *x = read_all(a, &na), *y = read_all(b, &nb);
+    uint8_t *x = hl_test_read_file(a, &na), *y = hl_test_read_file(b, &nb);
     size_t diff = 0, first = (size_t)-1;
     for (size_t i = 0; x && y && i < na && i < nb; i++)
         if (x[i] != y[i]) {
@@ -239,7 +221,7 @@ static void refused(hl_context *ctx, const char *what, const char *out, const ch
 static void damaged_copy(const char *src, const char *dst, size_t at, uint8_t x, size_t cut)
 {
     size_t n;
-    uint8_t *p = read_all(src, &n);
+    uint8_t *p = hl_test_read_file(src, &n);
     if (p && at < n) p[at] ^= x;
     HL_CHECK(p && write_all(dst, p, cut ? cut : n), "cannot write %s", dst);
     free(p);
@@ -249,7 +231,7 @@ static void refusals_damaged(hl_context *ctx, const char *out, const char **s, c
 {
     const char *bad = tmp_name("bad.shard"), *list[4] = {s[0], s[1], bad, s[3]};
     size_t n;
-    uint8_t *p = read_all(s[2], &n);
+    uint8_t *p = hl_test_read_file(s[2], &n);
     tf_header h;
     if (p) hl_tf_header_decode(p, &h);
     free(p);
@@ -269,7 +251,7 @@ static void refusals_damaged(hl_context *ctx, const char *out, const char **s, c
     damaged_copy(s[0], bad0, TF_HEADER_SIZE + 5, 0x01, 0); /* the first shard's mesh, which merge copies */
     refused(ctx, "mesh byte flipped", out, list0, 4, HL_ERR_FORMAT, bad0, "mesh section");
     size_t k;
-    uint8_t *q = read_all(s[0], &k); /* a shard's bytes under the magic of an unfinished file */
+    uint8_t *q = hl_test_read_file(s[0], &k); /* a shard's bytes under the magic of an unfinished file */
     if (q) memcpy(q, TF_PARTIAL_MAGIC, 8);
     HL_CHECK(q && write_all(bad0, q, k), "write %s", bad0);
     free(q);
@@ -331,9 +313,9 @@ static void case_refusals(void)
     refusals_other(ctx, out, s, m);
     /* the output among the shards: refused, and the shard left as it was */
     size_t before, after;
-    uint8_t *a = read_all(s[1], &before);
+    uint8_t *a = hl_test_read_file(s[1], &before);
     hl_result r = hl_transport_merge(ctx, s[1], s, 4, NULL);
-    uint8_t *b = read_all(s[1], &after);
+    uint8_t *b = hl_test_read_file(s[1], &after);
     printf("output is a shard: result %d: %s\n", (int)r, hl_context_last_error(ctx));
     HL_CHECK(r == HL_ERR_INVALID_ARGUMENT && strstr(hl_context_last_error(ctx), "one of the shards"),
              "the output among the shards must be refused");
@@ -419,7 +401,7 @@ static void interrupt_and_resume(hl_context *ctx, const hl_mesh *m, uint32_t ind
     HL_CHECK(r == HL_ERR_INTERRUPTED, "the cancelled run must stop with HL_ERR_INTERRUPTED (got %d)", (int)r);
     HL_CHECK(!exists(res) && exists(partial), "an interrupted run must leave only its .partial");
     size_t n;
-    uint8_t *p = read_all(partial, &n);
+    uint8_t *p = hl_test_read_file(partial, &n);
     uint32_t kept = p && n >= TF_HEADER_SIZE ? get_u32(p + H_APPENDED) : 0;
     free(p);
     uint32_t f = 0, e = m->vertex_count;
@@ -480,7 +462,7 @@ static int run(const char *err, const char *fmt, ...)
 static int file_has(const char *path, const char *needle)
 {
     size_t n;
-    uint8_t *p = read_all(path, &n);
+    uint8_t *p = hl_test_read_file(path, &n);
     int has = p && (p[n] = 0, strstr((const char *)p, needle) != NULL);
     free(p);
     return has;
