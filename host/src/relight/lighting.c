@@ -95,22 +95,14 @@ static void object_centre(const hl_mesh *m, float c[3])
     for (int a = 0; a < 3; a++) c[a] = n ? 0.5f * (lo[a] + hi[a]) : 0.0f;
 }
 
-/* One pass over the rows, at creation, for what the relighter needs of
- * them besides the columns: max_row_norm (max over vertices of |T_v|, for
- * the error bound) and the transport selection weights (mean |T_i|, as
- * hl_selection_weights makes them, in the same order, so the same bits).
- * Reading the entries once here rather than at the first lighting change
- * halves the passes a relight makes over them. */
-static hl_result row_measures(hl_relighter *r, const hl_transport *t)
+/* The transport selection weights (mean |T_i| over the vertices) into w
+ * (nc floats) and, when row_norm is given, the largest |T_v|: one pass
+ * over the entries, summed in one order whoever asks. */
+static hl_result transport_weights(hl_context *ctx, const hl_transport *t, uint32_t nc, float *w, double *row_norm)
 {
-    const uint32_t V = t->info.vertex_count, nb = t->info.block_count, nc = r->g->ncoef;
-    double *acc = hl_calloc(r->ctx, nc, sizeof(double), "transport weights");
-    float *w = hl_malloc(r->ctx, (size_t)nc * 4, "selection weights");
-    if (!acc || !w) {
-        free(acc);
-        free(w);
-        return HL_ERR_OUT_OF_MEMORY;
-    }
+    const uint32_t V = t->info.vertex_count, nb = t->info.block_count;
+    double *acc = hl_calloc(ctx, nc, sizeof(double), "transport weights");
+    if (!acc) return HL_ERR_OUT_OF_MEMORY;
     double most = 0.0;
     for (uint32_t v = 0; v < V; v++) {
         double ss = 0.0;
@@ -125,9 +117,24 @@ static hl_result row_measures(hl_relighter *r, const hl_transport *t)
             }
         if (ss > most) most = ss;
     }
-    r->max_row_norm = sqrt(most);
+    if (row_norm) *row_norm = sqrt(most);
     for (uint32_t i = 0; i < nc; i++) w[i] = (float)(acc[i] / (V ? V : 1));
     free(acc);
+    return HL_OK;
+}
+
+/* What the relighter needs of the rows besides the columns, read once at
+ * creation rather than at the first lighting change: max_row_norm (for
+ * the error bound) and the transport selection weights. */
+static hl_result row_measures(hl_relighter *r, const hl_transport *t)
+{
+    float *w = hl_malloc(r->ctx, (size_t)r->g->ncoef * 4, "selection weights");
+    if (!w) return HL_ERR_OUT_OF_MEMORY;
+    hl_result res = transport_weights(r->ctx, t, r->g->ncoef, w, &r->max_row_norm);
+    if (res != HL_OK) {
+        free(w);
+        return res;
+    }
     r->weights[HL_SELECT_TRANSPORT] = w;
     return HL_OK;
 }
@@ -298,7 +305,7 @@ hl_result hl_relighter_set_env(hl_relighter *r, const hl_env *env)
 hl_result hl_selection_weights(hl_context *ctx, const hl_transport *t, const hl_light_geom *lg, uint32_t scheme,
                                float *w)
 {
-    const uint32_t nc = lg->ncoef, nb = lg->nblocks, V = t->info.vertex_count;
+    const uint32_t nc = lg->ncoef;
     if (scheme == HL_SELECT_AREA) {
         memcpy(w, lg->area, (size_t)nc * 4);
         return HL_OK;
@@ -308,22 +315,7 @@ hl_result hl_selection_weights(hl_context *ctx, const hl_transport *t, const hl_
         return HL_OK;
     }
     if (scheme != HL_SELECT_TRANSPORT) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "unknown selection scheme %u", scheme);
-    /* mean |T_i| over the vertices */
-    double *acc = hl_calloc(ctx, nc, sizeof(double), "transport weights");
-    if (!acc) return HL_ERR_OUT_OF_MEMORY;
-    for (uint32_t v = 0; v < V; v++) {
-        uint64_t e = t->row_offset[v];
-        const hl_row_quant q = t->row_quant[v];
-        for (uint32_t b = 0; b < nb; b++)
-            for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++)
-            {
-                const uint32_t slot = b * HL_BLOCK + t->entries[2 * e];
-                acc[slot] += fabs(hl_dequant(t->info.quant, t->entries[2 * e + 1], q.a, q.b, hl_dither_key(v, slot)));
-            }
-    }
-    for (uint32_t i = 0; i < nc; i++) w[i] = (float)(acc[i] / (V ? V : 1));
-    free(acc);
-    return HL_OK;
+    return transport_weights(ctx, t, nc, w, NULL);
 }
 
 /* The weights of a scheme (1 to HL_SELECT_TRANSPORT), made once. */
