@@ -49,7 +49,7 @@ static const char *const usage_precompute =
     "\n"
     "Reads MESH (OBJ, PLY, glTF, ... through assimp; MESH.gz, as mesh.obj.gz, is read\n"
     "as it is), casts visibility rays with Embree, and writes per-vertex sparse\n"
-    "quantised Haar transport.\n"
+    "quantised Haar (or, with --basis sh, spherical-harmonic) transport.\n"
     "\n"
     "mesh:\n"
     "  --ground             add a finely tessellated ground plane under the object\n"
@@ -69,6 +69,13 @@ static const char *const usage_precompute =
     "                       (the default rule, EPS = 1e-5)\n"
     "  --terms K            keep the K largest; with --energy, cap the count at K\n"
     "  --terms all          keep every non-zero coefficient\n"
+    "basis:\n"
+    "  --basis haar|sh      the rows' basis: haar, the paraboloid Haar wavelets (default),\n"
+    "                       or sh, real spherical harmonics of the cell-integrated rows,\n"
+    "                       coefficient k = l^2 + l + m in slot k; relight, bench and view\n"
+    "                       then project the lighting onto the same harmonics\n"
+    "  --sh-order L         with --basis sh: bands 0..L-1, L^2 coefficients, 1..32 with\n"
+    "                       L^2 <= 2 N^2 (default 20: 400 coefficients)\n"
     "quantisation:\n"
     "  --quant sqrt8|log8|linear8  8-bit scheme (default sqrt8: sign + 7 bits uniform in\n"
     "                       the square root of |v| over the row's largest; log8: sign +\n"
@@ -134,7 +141,7 @@ typedef struct pre_opts {
     hl_mesh_load_desc ld;
     hl_precompute_desc pd;
     hl_context_desc cd;
-    int terms_set, energy_set, terms_all;
+    int terms_set, energy_set, terms_all, sh_order_set;
     uint32_t shard_index, shard_count; /* --shard I/N; count 0 when not given */
 } pre_opts;
 
@@ -232,6 +239,16 @@ static int pre_transport_opt(int argc, char **argv, int *ip, const char *usage, 
         else if (!strcmp(v, "log8")) o->pd.quant = HL_QUANT_LOG8;
         else if (!strcmp(v, "linear8")) o->pd.quant = HL_QUANT_LINEAR8;
         else return usage_error(usage, "--quant %s: expected sqrt8, log8 or linear8", v);
+    } else if (!strcmp(a, "--basis")) {
+        NEED_ARG();
+        if (!strcmp(v, "haar")) o->pd.basis = HL_TRANSPORT_BASIS_HAAR;
+        else if (!strcmp(v, "sh")) o->pd.basis = HL_TRANSPORT_BASIS_SH;
+        else return usage_error(usage, "--basis %s: expected haar or sh", v);
+    } else if (!strcmp(a, "--sh-order")) {
+        NEED_ARG();
+        if (!parse_u32(v, &o->pd.sh_order) || o->pd.sh_order < 1 || o->pd.sh_order > 32)
+            return usage_error(usage, "--sh-order %s: expected 1 to 32", v);
+        o->sh_order_set = 1;
     } else return 0;
     *ip = i;
     return 1;
@@ -288,6 +305,16 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
     }
     if (!o->mesh) return usage_error(usage, "%s", "no MESH given");
     if (o->terms_all && o->energy_set) return usage_error(usage, "%s", "--terms all and --energy contradict each other");
+    if (o->sh_order_set && o->pd.basis != HL_TRANSPORT_BASIS_SH)
+        return usage_error(usage, "%s", "--sh-order needs --basis sh");
+    if (o->pd.basis == HL_TRANSPORT_BASIS_SH) {
+        uint32_t L = o->pd.sh_order ? o->pd.sh_order : HL_DEFAULT_SH_ORDER, N = o->pd.N ? o->pd.N : 64;
+        if (L * L > 2 * N * N) {
+            char why[96];
+            snprintf(why, sizeof why, "%u (%u coefficients) with -N %u (%u slots)", L, L * L, N, 2 * N * N);
+            return usage_error(usage, "--sh-order %s: L^2 must be at most 2 N^2", why);
+        }
+    }
     if (o->terms_all) o->pd.rule = HL_TRUNC_ALL;
     else if (o->terms_set && !o->energy_set) o->pd.rule = HL_TRUNC_TOPK;
     else o->pd.rule = HL_TRUNC_ENERGY;

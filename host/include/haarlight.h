@@ -267,6 +267,8 @@ typedef struct hl_precompute_desc {
     float ray_offset;
     uint32_t chunk;
     int resume;
+    uint32_t basis;    /* HL_TRANSPORT_BASIS_*: 0 the paraboloid Haar */
+    uint32_t sh_order; /* spherical harmonics: order L (bands 0..L-1); 0: 20 */
 } hl_precompute_desc;
 
 /* Counters and timings of one precompute. */
@@ -278,6 +280,14 @@ typedef struct hl_precompute_stats {
     double seconds_kernels;   /* wall time waiting for the kernel stages */
     double seconds_total;
 } hl_precompute_stats;
+
+/* The basis of a transport's rows (hl_transport_info.basis). Haar: the
+ * paraboloid wavelets in the 2 N^2 slots. SH: real spherical harmonics up
+ * to order L (k = l^2 + l + m in slot k, slots from L^2 on empty), the
+ * relighter projecting the lighting alike (host/FORMAT.md). */
+#define HL_TRANSPORT_BASIS_HAAR 0u
+#define HL_TRANSPORT_BASIS_SH 1u
+#define HL_DEFAULT_SH_ORDER 20u
 
 /* The transport file format version this build writes and reads. */
 #define HL_TRANSPORT_VERSION 2u
@@ -298,6 +308,8 @@ typedef struct hl_transport_info {
     uint64_t coefficients_kept;   /* total non-zeros stored */
     uint64_t rays_cast;
     uint64_t rays_culled;
+    uint32_t basis;               /* HL_TRANSPORT_BASIS_* */
+    uint32_t sh_order;            /* spherical harmonics: L, slots 0..L^2-1; else 0 */
 } hl_transport_info;
 
 /* A transport file in memory. Vertex v's entries are

@@ -4,7 +4,12 @@
  * Cases: corrupt (every single-byte flip refused unless it lands in
  * padding; forged headers and contents with valid checksums refused),
  * badappend (invalid rows and parameters refused without changing the
- * writer). The header offsets are those of host/FORMAT.md, so this test
+ * writer), basis (the basis words at 176 and 180: an unknown basis, an
+ * order out of range or too big for N, an order given to a Haar file, an
+ * entry at or past L^2, a reserved byte beside them, all refused naming
+ * the file and the field; the writer refuses such an entry too, and a
+ * spherical-harmonic file within its L^2 slots reads back entry for
+ * entry). The header offsets are those of host/FORMAT.md, so this test
  * also pins the documented layout; checksums are forged with the test's
  * own bitwise CRC-32.
  * Depends on: haarlight_core (reference backend only),
@@ -311,11 +316,117 @@ static void case_badappend(void)
     hl_context_destroy(ctx);
 }
 
+/* Header offsets of the basis words (host/FORMAT.md). */
+enum { F_BASIS = 176, F_SH_ORDER = 180 };
+
+static void case_basis(void)
+{
+    hl_context *ctx = make_ctx();
+    char path[512], bad[512];
+    tmp_path(path, sizeof path, "file_basis_src.hlt");
+    tmp_path(bad, sizeof bad, "file_basis.hlt");
+    synth s;
+    small_file(ctx, path, &s); /* N = 8: 128 slots, L at most 11 */
+    uint8_t *data = NULL;
+    size_t size = 0;
+    HL_CHECK(read_file(path, &data, &size) == 0, "read");
+    HL_CHECK(rd32(data + F_BASIS) == 0 && rd32(data + F_SH_ORDER) == 0, "a Haar file has zero basis words");
+    hl_transport *t = NULL;
+    HL_CHECK(hl_transport_load(ctx, path, &t) == HL_OK, "load: %s", hl_context_last_error(ctx));
+    uint32_t top = 0; /* the highest slot any entry uses */
+    for (uint32_t v = 0; t && v < t->info.vertex_count; v++) {
+        uint64_t e = t->row_offset[v];
+        for (uint32_t b = 0; b < t->info.block_count; b++)
+            for (uint32_t j = 0; j < t->block_counts[(size_t)v * t->info.block_count + b]; j++, e++)
+                if (b * HL_BLOCK + t->entries[2 * e] > top) top = b * HL_BLOCK + t->entries[2 * e];
+    }
+    HL_CHECK(t && t->info.basis == HL_TRANSPORT_BASIS_HAAR && t->info.sh_order == 0, "Haar file read as Haar");
+    hl_transport_destroy(t);
+    printf("highest slot used: %u\n", top);
+    uint8_t *f = malloc(size);
+    static const struct { uint32_t basis, order; const char *what, *needle; } forged[] = {
+        {2, 0, "unknown basis", "basis = 2"},
+        {0xFFFFFFFFu, 0, "unknown basis (all ones)", "basis = 4294967295"},
+        {0, 5, "an order in a Haar file", "sh_order = 5 in a Haar file"},
+        {1, 0, "order 0", "sh_order = 0"},
+        {1, 33, "order 33", "sh_order = 33"},
+        {1, 12, "order 12 (144 coefficients) with N = 8 (128 slots)", "sh_order = 12"},
+    };
+    for (size_t k = 0; k < sizeof forged / sizeof forged[0]; k++) {
+        memcpy(f, data, size);
+        wr32(f + F_BASIS, forged[k].basis);
+        wr32(f + F_SH_ORDER, forged[k].order);
+        fix_header_crc(f);
+        expect_refused(ctx, bad, f, size, forged[k].what, forged[k].needle);
+        expect_refused(ctx, bad, f, size, forged[k].what, "file_basis.hlt");
+    }
+    memcpy(f, data, size);
+    f[184] = 1; /* still reserved */
+    fix_header_crc(f);
+    expect_refused(ctx, bad, f, size, "reserved byte 184", "reserved header bytes");
+    /* orders 1 to 11 over this file, whose entries reach slot 127:
+       refused, naming the first slot at or past L^2 */
+    int refused = 0;
+    for (uint32_t L = 1; L <= 11; L++) {
+        memcpy(f, data, size);
+        wr32(f + F_BASIS, 1);
+        wr32(f + F_SH_ORDER, L);
+        fix_header_crc(f);
+        if (L * L <= top) {
+            expect_refused(ctx, bad, f, size, "an entry past L^2", "is not below the basis's");
+            refused++;
+        }
+    }
+    HL_CHECK(refused == 11, "%d of 11 orders refused with slot %u used", refused, top);
+    /* the writer refuses the same rows under order 3; kept to slots 0..8
+       they are written, and read back as order 3, entry for entry */
+    s.info.basis = HL_TRANSPORT_BASIS_SH;
+    s.info.sh_order = 3;
+    static const uint32_t one[] = {1};
+    HL_CHECK(synth_write(ctx, bad, &s, one, 1) == HL_ERR_INVALID_ARGUMENT &&
+                 strstr(hl_context_last_error(ctx), "is not below the basis's 9 coefficients"),
+             "writer took an entry past L^2: %s", hl_context_last_error(ctx));
+    printf("writer: %s\n", hl_context_last_error(ctx));
+    const uint32_t B = s.info.block_count;
+    s.total = 0;
+    for (uint32_t v = 0; v < s.info.vertex_count; v++) {
+        uint8_t *e = s.entries + v * s.stride;
+        uint32_t n = 0, k = 0;
+        for (uint32_t b = 0; b < B; b++) {
+            uint32_t c = 0;
+            for (uint32_t j = 0; j < s.counts[(size_t)v * B + b]; j++, k++)
+                if (b * HL_BLOCK + e[2 * k] < 9) {
+                    e[2 * n] = e[2 * k];
+                    e[2 * n + 1] = e[2 * k + 1];
+                    n++;
+                    c++;
+                }
+            s.counts[(size_t)v * B + b] = (uint16_t)c;
+        }
+        s.nnz[v] = n;
+        s.total += n;
+    }
+    HL_CHECK(synth_write(ctx, bad, &s, one, 1) == HL_OK, "order 3, slots 0..8: %s", hl_context_last_error(ctx));
+    t = NULL;
+    HL_CHECK(hl_transport_load(ctx, bad, &t) == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_SH &&
+                 t->info.sh_order == 3, "order 3 file: %s", hl_context_last_error(ctx));
+    if (t) synth_compare(t, &s, "spherical-harmonic file");
+    printf("order 3 file with %llu entries read back\n", (unsigned long long)s.total);
+    hl_transport_destroy(t);
+    free(f);
+    free(data);
+    remove(bad);
+    remove(path);
+    synth_free(&s);
+    hl_context_destroy(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"corrupt", case_corrupt},
         {"badappend", case_badappend},
+        {"basis", case_basis},
         {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);

@@ -65,6 +65,11 @@ hl_result hl_cl_pipe_wait(hl_cl_pipe *p, int slot);
 hl_result hl_cl_pipe_cube2para(hl_cl_pipe *p, uint32_t rows, const uint8_t *vis,
                                float scale, const float *normals4, float *T);
 hl_result hl_cl_pipe_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef);
+/* Spherical harmonics in Haar's place (submit and hl_cl_pipe_sh_project):
+ * Y as hl_sh_matrix makes it (ncoef x stride floats, count = order^2),
+ * uploaded once. */
+hl_result hl_cl_pipe_set_sh(hl_cl_pipe *p, const float *Y, uint32_t stride, uint32_t count);
+hl_result hl_cl_pipe_sh_project(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef);
 hl_result hl_cl_pipe_truncate(hl_cl_pipe *p, uint32_t rows, const float *coef,
                               hl_trunc_params tp, hl_trunc_result *tr);
 /* Row v is vertex first + v (sqrt8's dither). */
@@ -136,6 +141,11 @@ void hl_cl_mem_release(void *mem);
 /* Single stages, blocking (tests and `haarlight check`). */
 hl_result hl_cl_light_stage_env2para(hl_cl_light *l, uint32_t s0, float f, float *Lp);
 hl_result hl_cl_light_stage_haar(hl_cl_light *l, const float *Lp, float *Lw);
+/* A spherical-harmonic transport: the lighting is projected by Y
+ * (hl_sh_matrix, not per solid angle; ncoef x stride floats, count =
+ * order^2) in Haar's place; hl_cl_light_stage_sh runs that stage alone. */
+hl_result hl_cl_light_set_sh(hl_cl_light *l, const float *Y, uint32_t stride, uint32_t count);
+hl_result hl_cl_light_stage_sh(hl_cl_light *l, const float *Lp, float *Lw);
 hl_result hl_cl_light_stage_select(hl_cl_light *l, const float *Lw, hl_select_params sp, float *Lsel4,
                                    uint8_t *used, uint32_t *bits, hl_select_result *res);
 hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint32_t *bits, float *B4);

@@ -157,7 +157,7 @@ static int info_params_differ(const hl_transport_info *a, const hl_transport_inf
            a->K != b->K || HL_AS_U32(a->eps) != HL_AS_U32(b->eps) || a->quant != b->quant ||
            HL_AS_U32(a->ray_offset) != HL_AS_U32(b->ray_offset) || a->vertex_count != b->vertex_count ||
            a->object_vertex_count != b->object_vertex_count || a->triangle_count != b->triangle_count ||
-           a->block_count != b->block_count;
+           a->block_count != b->block_count || a->basis != b->basis || a->sh_order != b->sh_order;
 }
 
 /* The mesh's agreement with info, and its contents. */
@@ -550,8 +550,10 @@ hl_result hl_tfile_writer_append(hl_tfile_writer *w, uint32_t vertex_count, cons
         if (i + 1 < vertex_count && 2 * (size_t)nnz[i] > entry_stride_bytes)
             return hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: vertex %u: %u entries overrun the stride of %zu bytes",
                            w->path, v, nnz[i], entry_stride_bytes);
-        if (nnz[i] && hl_tf_row_problem(info->N, block_counts + (size_t)i * B, entries + i * entry_stride_bytes,
-                                        &sum, msg, sizeof msg))
+        if (nnz[i] && (hl_tf_row_problem(info->N, block_counts + (size_t)i * B, entries + i * entry_stride_bytes,
+                                         &sum, msg, sizeof msg) ||
+                       hl_tf_row_slots_problem(info->N, tf_slot_limit(info), block_counts + (size_t)i * B,
+                                               entries + i * entry_stride_bytes, msg, sizeof msg)))
             return hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: vertex %u: %s", w->path, v, msg);
     }
 

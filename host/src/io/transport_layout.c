@@ -32,6 +32,9 @@ void hl_tf_header_encode(const tf_header *h, const char *magic, uint32_t appende
         put_u32(out + H_SHARD_FIRST, h->shard.first);
         put_u32(out + H_SHARD_END, h->shard.end);
     }
+    /* zero for Haar, so a Haar file keeps the bytes of files from before */
+    put_u32(out + H_BASIS, i->basis);
+    put_u32(out + H_SH_ORDER, i->sh_order);
     put_u32(out + H_VERSION, TF_VERSION);
     put_u32(out + H_HEADER_SIZE, TF_HEADER_SIZE);
     put_u32(out + H_N, i->N);
@@ -89,8 +92,10 @@ void hl_tf_header_decode(const uint8_t *in, tf_header *h)
     h->shard.count = get_u32(in + H_SHARD_COUNT);
     h->shard.first = get_u32(in + H_SHARD_FIRST);
     h->shard.end = get_u32(in + H_SHARD_END);
+    i->basis = get_u32(in + H_BASIS);
+    i->sh_order = get_u32(in + H_SH_ORDER);
     for (unsigned k = H_RESERVED; k < H_HEADER_CRC; k++)
-        if (in[k]) h->reserved_nonzero = 1;
+        if (in[k] && !tf_basis_byte(k)) h->reserved_nonzero = 1;
 }
 
 /* ---------------------------------------------------------------- checks */
@@ -117,6 +122,15 @@ int hl_tf_info_problem(const hl_transport_info *i, char *msg, size_t n)
                1;
     if (i->block_count != blocks_for(i->N))
         return snprintf(msg, n, "block_count = %u, but N = %u needs %u", i->block_count, i->N, blocks_for(i->N)), 1;
+    if (i->basis != HL_TRANSPORT_BASIS_HAAR && i->basis != HL_TRANSPORT_BASIS_SH)
+        return snprintf(msg, n, "basis = %u is not a known basis (0 Haar, 1 spherical harmonics)", i->basis), 1;
+    if (i->basis == HL_TRANSPORT_BASIS_HAAR && i->sh_order != 0)
+        return snprintf(msg, n, "sh_order = %u in a Haar file (must be 0)", i->sh_order), 1;
+    if (i->basis == HL_TRANSPORT_BASIS_SH && (i->sh_order < 1 || i->sh_order > 32))
+        return snprintf(msg, n, "sh_order = %u is outside 1..32", i->sh_order), 1;
+    if (i->basis == HL_TRANSPORT_BASIS_SH && i->sh_order * i->sh_order > slot_total(i->N))
+        return snprintf(msg, n, "sh_order = %u: its %u coefficients exceed the %u slots of N = %u", i->sh_order,
+                        i->sh_order * i->sh_order, slot_total(i->N), i->N), 1;
     return 0;
 }
 
@@ -155,7 +169,7 @@ int hl_tf_shard_header_problem(const tf_header *h, const uint8_t bytes[TF_HEADER
         return snprintf(msg, n, "shard %u of %u holds vertices [%u, %u), but %u vertices split into %u give it [%u, %u)",
                         s->index, s->count, s->first, s->end, i->vertex_count, s->count, first, end), 1;
     for (unsigned k = H_RESERVED; k < H_HEADER_CRC; k++)
-        if (bytes[k] && (k < H_SHARD_INDEX || k >= H_SHARD_END + 4))
+        if (bytes[k] && (k < H_SHARD_INDEX || k >= H_SHARD_END + 4) && !tf_basis_byte(k))
             return snprintf(msg, n, "reserved header byte %u is not zero", k), 1;
     uint64_t rows = (uint64_t)(end - first), max_coef = rows * slot_total(i->N);
     if (i->coefficients_kept > max_coef)
@@ -235,6 +249,21 @@ int hl_tf_row_problem(uint32_t N, const uint16_t *counts, const uint8_t *entries
         sum += counts[b];
     }
     *nnz = sum;
+    return 0;
+}
+
+int hl_tf_row_slots_problem(uint32_t N, uint32_t limit, const uint16_t *counts, const uint8_t *entries, char *msg,
+                            size_t n)
+{
+    if (limit >= slot_total(N)) return 0;
+    uint64_t e = 0;
+    for (uint32_t b = 0; b < blocks_for(N); b++)
+        for (uint32_t j = 0; j < counts[b]; j++, e++) {
+            uint32_t slot = b * HL_BLOCK + entries[2 * e];
+            if (slot >= limit)
+                return snprintf(msg, n, "block %u entry %u: slot %u is not below the basis's %u coefficients", b, j,
+                                slot, limit), 1;
+        }
     return 0;
 }
 

@@ -62,6 +62,8 @@ enum {
     H_SHARD_COUNT = 164,
     H_SHARD_FIRST = 168, /* the shard's vertices [first, end) */
     H_SHARD_END = 172,
+    H_BASIS = 176,    /* HL_TRANSPORT_BASIS_*: 0 (Haar) in files from before */
+    H_SH_ORDER = 180, /* spherical harmonics: L; else 0 */
     H_HEADER_CRC = 188
 };
 
@@ -87,7 +89,7 @@ typedef struct tf_header {
     uint64_t file_size;
     tf_section sec[SEC_COUNT];
     tf_shard shard;
-    int reserved_nonzero; /* any of bytes H_RESERVED..H_HEADER_CRC - 1 */
+    int reserved_nonzero; /* any of bytes H_RESERVED..H_HEADER_CRC - 1 but the basis words */
 } tf_header;
 
 /* ---------------------------------------------------------------- bytes */
@@ -133,6 +135,16 @@ static inline uint32_t crc_update(uint32_t crc, const void *data, size_t n)
 
 static inline uint32_t slot_total(uint32_t N) { return 2u * N * N; }
 static inline uint32_t blocks_for(uint32_t N) { return (slot_total(N) + HL_BLOCK - 1) / HL_BLOCK; }
+
+/* Whether header byte k is one of the basis words (not reserved). */
+static inline int tf_basis_byte(unsigned k) { return k >= H_BASIS && k < H_SH_ORDER + 4; }
+
+/* The slots a row of the basis may fill: L^2 for spherical harmonics,
+ * else all 2 N^2. */
+static inline uint32_t tf_slot_limit(const hl_transport_info *i)
+{
+    return i->basis == HL_TRANSPORT_BASIS_SH ? i->sh_order * i->sh_order : slot_total(i->N);
+}
 
 /* Slots of block b: HL_BLOCK except a short last block (N = 8). */
 static inline uint32_t slots_in_block(uint32_t N, uint32_t b)
@@ -188,9 +200,12 @@ int hl_tf_shard_header_problem(const tf_header *h, const uint8_t bytes[TF_HEADER
 /* A row's quantisation parameters under scheme quant. */
 int hl_tf_row_quant_problem(uint32_t quant, hl_row_quant rq, char *msg, size_t n);
 /* Checks one vertex's block counts and entries. entries may be NULL to
- * check only the counts (the sum is returned in *nnz either way). */
+ * check only the counts (the sum is returned in *nnz either way). With
+ * entries, every slot must be below limit (tf_slot_limit). */
 int hl_tf_row_problem(uint32_t N, const uint16_t *counts, const uint8_t *entries, uint64_t *nnz, char *msg,
                       size_t n);
+int hl_tf_row_slots_problem(uint32_t N, uint32_t limit, const uint16_t *counts, const uint8_t *entries, char *msg,
+                            size_t n);
 
 /* ---------------------------------------------------------------- file I/O */
 

@@ -260,7 +260,8 @@ static hl_result validate_rows(tf_reader *rd, hl_transport *t)
         if (nnz > i->coefficients_kept - off)
             return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: block counts run past coefficients_kept = %" PRIu64,
                            rd->path, v, i->coefficients_kept);
-        if (hl_tf_row_problem(i->N, counts, t->entries + 2 * off, &nnz, msg, sizeof msg))
+        if (hl_tf_row_problem(i->N, counts, t->entries + 2 * off, &nnz, msg, sizeof msg) ||
+            hl_tf_row_slots_problem(i->N, tf_slot_limit(i), counts, t->entries + 2 * off, msg, sizeof msg))
             return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, v, msg);
         off += nnz;
     }

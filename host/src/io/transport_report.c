@@ -58,6 +58,11 @@ void hl_transport_describe(const hl_transport *t, const char *path, FILE *f)
     }
     fprintf(f, "format version     %u\n", i->version);
     fprintf(f, "paraboloid N       %u (2 x %u^2 = %u coefficient slots)\n", i->N, i->N, slot_total(i->N));
+    if (i->basis == HL_TRANSPORT_BASIS_SH)
+        fprintf(f, "basis              spherical harmonics, order %u (%u coefficients in slots 0..%u)\n", i->sh_order,
+                i->sh_order * i->sh_order, i->sh_order * i->sh_order - 1);
+    else
+        fprintf(f, "basis              paraboloid Haar wavelets\n");
     fprintf(f, "cubemap C          %u, supersample %u x %u\n", i->C, i->supersample, i->supersample);
     fprintf(f, "truncation         %s", rule_name(i->rule));
     if (i->rule == HL_TRUNC_TOPK || i->rule == HL_TRUNC_ENERGY) {

@@ -40,6 +40,12 @@ uint32_t hl_ref_quantize(const hl_geom *g, const float *coef,
                          hl_trunc_result tr, uint32_t scheme, uint32_t vertex,
                          hl_row_quant *rq, uint16_t *block_counts, uint8_t *entries);
 
+/* Row in (ncoef texels) projected onto spherical harmonics: out[k] =
+ * sum_j in[j] Y[j stride + k] for k < nsh, summed over j in order; out's
+ * other slots (nsh .. ncoef - 1) are zeroed. Y: hl_sh_matrix's. */
+void hl_ref_sh_project_rows(const float *in, uint32_t ncoef, const float *Y, uint32_t stride, uint32_t nsh,
+                            float *out);
+
 /* Lighting texel j = sum over its taps of weight * the tap's cell blended
  * with its neighbour: c[k + s0] + f (c[k + s0 + 1] - c[k + s0]) (indices
  * modulo wc). cells: 4 floats per cell, wc per row. L: R, G, B

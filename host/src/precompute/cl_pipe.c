@@ -1,6 +1,9 @@
 /* cl_pipe.c - the precompute's device stages (hl_cl_pipe_*): the buffers
  * for a chunk of rows, and the launches of cube2para, Haar, truncation and
- * quantisation on them, with the uploads and read-backs around them.
+ * quantisation on them, with the uploads and read-backs around them. With
+ * a spherical-harmonic matrix set (hl_cl_pipe_set_sh), the projection onto
+ * the harmonics takes the place of Haar: the rows' first order^2 slots,
+ * the others zero.
  *
  * Two input slots let the host cast the rays of the next chunk while the
  * device works on this one (precompute.c). Depends on: cl_internal.h
@@ -19,6 +22,8 @@ struct hl_cl_pipe {
     cl_mem start, ent, slots;          /* geometry tables */
     cl_mem vis[2], nrm[2];             /* inputs, one per slot */
     cl_mem T, coef, tr, rq, bc, entries, nnz;
+    cl_mem shY;                        /* the harmonic projection; NULL: Haar */
+    uint32_t sh_stride, sh_count;
     cl_event done[2];
 };
 
@@ -60,7 +65,7 @@ void hl_cl_pipe_destroy(hl_cl_pipe *p)
     if (!p) return;
     if (p->cl && p->cl->queue) clFinish(p->cl->queue);
     cl_mem *all[] = {&p->start, &p->ent, &p->slots, &p->vis[0], &p->vis[1], &p->nrm[0], &p->nrm[1],
-                     &p->T, &p->coef, &p->tr, &p->rq, &p->bc, &p->entries, &p->nnz};
+                     &p->T, &p->coef, &p->tr, &p->rq, &p->bc, &p->entries, &p->nnz, &p->shY};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(p->cl, all[i]);
     for (int s = 0; s < 2; s++)
         if (p->done[s]) clReleaseEvent(p->done[s]);
@@ -93,6 +98,33 @@ static hl_result enqueue_haar(hl_cl_pipe *p, uint32_t rows)
     cl_uint N = p->g->N, n = rows;
     ARG(k, 0, p->T); ARG(k, 1, p->coef); ARG(k, 2, p->slots); ARG(k, 3, N); ARG(k, 4, n);
     return launch(p, K_HAAR, rows);
+}
+
+hl_result hl_cl_pipe_set_sh(hl_cl_pipe *p, const float *Y, uint32_t stride, uint32_t count)
+{
+    if (!Y || stride % 4 || count > stride || count > p->g->ncoef)
+        return hl_fail(p->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_pipe_set_sh: %u coefficients, stride %u", count, stride);
+    hl_cl_release_buf(p->cl, &p->shY);
+    TRY(hl_cl_make_buf(p->ctx, &p->shY, CL_MEM_READ_ONLY, (size_t)p->g->ncoef * stride * 4, Y,
+                       "the spherical-harmonic projection"));
+    p->sh_stride = stride;
+    p->sh_count = count;
+    return HL_OK;
+}
+
+/* The rows' harmonic coefficients into coef: zeroes first, as the kernel
+ * writes only the first sh_count slots of each row. */
+static hl_result enqueue_sh(hl_cl_pipe *p, uint32_t rows)
+{
+    const float zero = 0.0f;
+    const size_t nc = p->g->ncoef;
+    CL_TRY(p->ctx, clEnqueueFillBuffer(p->cl->queue, p->coef, &zero, sizeof zero, 0, (size_t)rows * nc * 4, 0, NULL, NULL),
+           "clEnqueueFillBuffer");
+    cl_kernel k = p->cl->k[K_SH_PROJECT];
+    cl_uint ncoef = p->g->ncoef, st = p->sh_stride, ns = p->sh_count, n = rows;
+    ARG(k, 0, p->T); ARG(k, 1, ncoef); ARG(k, 2, p->shY); ARG(k, 3, st); ARG(k, 4, ns); ARG(k, 5, p->coef);
+    ARG(k, 6, n);
+    return launch(p, K_SH_PROJECT, rows * (st / 4));
 }
 
 static hl_result enqueue_truncate(hl_cl_pipe *p, uint32_t rows, hl_trunc_params tp)
@@ -134,7 +166,7 @@ hl_result hl_cl_pipe_submit(hl_cl_pipe *p, int slot, uint32_t rows, float vis_sc
     WRITE(p->vis[slot], R * g->ncube, io->vis, CL_FALSE);
     WRITE(p->nrm[slot], R * 16, io->normals4, CL_FALSE);
     TRY(enqueue_cube2para(p, slot, rows, vis_scale));
-    TRY(enqueue_haar(p, rows));
+    TRY(p->shY ? enqueue_sh(p, rows) : enqueue_haar(p, rows));
     TRY(enqueue_truncate(p, rows, tp));
     TRY(enqueue_quantize(p, rows, scheme, io->first));
     READ(p->tr, R * sizeof(hl_trunc_result), io->tr, CL_FALSE, NULL);
@@ -172,6 +204,16 @@ hl_result hl_cl_pipe_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *c
     TRY(check_rows(p, rows));
     WRITE(p->T, (size_t)rows * p->g->ncoef * 4, T, CL_TRUE);
     TRY(enqueue_haar(p, rows));
+    READ(p->coef, (size_t)rows * p->g->ncoef * 4, coef, CL_TRUE, NULL);
+    return HL_OK;
+}
+
+hl_result hl_cl_pipe_sh_project(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef)
+{
+    TRY(check_rows(p, rows));
+    if (!p->shY) return hl_fail(p->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_pipe_sh_project: no projection set");
+    WRITE(p->T, (size_t)rows * p->g->ncoef * 4, T, CL_TRUE);
+    TRY(enqueue_sh(p, rows));
     READ(p->coef, (size_t)rows * p->g->ncoef * 4, coef, CL_TRUE, NULL);
     return HL_OK;
 }

@@ -8,6 +8,9 @@
  * vertices only and writes a shard file, which merge.c joins with the
  * others; every row depends on its vertex alone (its rays, and the dither
  * key of its global index), so the joined rows are those of one run.
+ * With --basis sh the rows are projected onto spherical harmonics
+ * (hl_sh_matrix) where Haar would run; truncation, quantisation and the
+ * blocks are the same.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -21,6 +24,7 @@
 #include "haarlight_tools.h"
 #include "precompute.h"
 #include "rays.h"
+#include "sh.h"
 #include "twins.h"
 #include "transport_file.h"
 
@@ -49,6 +53,17 @@ hl_result hl_precompute_resolve(hl_context *ctx, hl_precompute_desc *d)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "ray offset %g: must be 0 (robust, the default) or in (0, 0.1) of the bounding-box diagonal",
                        (double)d->ray_offset);
+    if (d->basis != HL_TRANSPORT_BASIS_HAAR && d->basis != HL_TRANSPORT_BASIS_SH)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "basis %u: must be 0 (Haar) or 1 (spherical harmonics)", d->basis);
+    if (d->basis == HL_TRANSPORT_BASIS_HAAR && d->sh_order)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "spherical-harmonic order %u given for the Haar basis (--sh-order needs --basis sh)", d->sh_order);
+    if (d->basis == HL_TRANSPORT_BASIS_SH && !d->sh_order) d->sh_order = HL_DEFAULT_SH_ORDER;
+    if (d->basis == HL_TRANSPORT_BASIS_SH &&
+        (d->sh_order > HL_SH_MAX_ORDER || d->sh_order * d->sh_order > 2 * d->N * d->N))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "spherical-harmonic order %u: must be 1 to %u with order^2 at most the 2 N^2 = %u slots of N = %u",
+                       d->sh_order, HL_SH_MAX_ORDER, 2 * d->N * d->N, d->N);
     if (d->chunk > (1u << 20))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "chunk = %u: at most %u vertices", d->chunk, 1u << 20);
     return HL_OK;
@@ -93,6 +108,8 @@ void hl_chunk_buf_free(hl_chunk_buf *b)
 
 typedef struct ref_job {
     const hl_geom *g;
+    const float *shY; /* the harmonic projection (hl_sh_matrix); NULL: Haar */
+    uint32_t sh_stride, sh_count;
     uint32_t rows;
     float scale;
     hl_trunc_params tp;
@@ -120,7 +137,8 @@ static void *ref_worker(void *arg)
         if (v >= j->rows) break;
         const hl_chunk_buf *io = j->io;
         hl_ref_cube2para(g, io->vis + (size_t)v * g->ncube, j->scale, io->normals4 + 4 * (size_t)v, T);
-        hl_ref_haar(g, T, coef);
+        if (j->shY) hl_ref_sh_project_rows(T, g->ncoef, j->shY, j->sh_stride, j->sh_count, coef);
+        else hl_ref_haar(g, T, coef);
         io->tr[v] = hl_ref_truncate(g, coef, j->tp, keys);
         io->nnz[v] = hl_ref_quantize(g, coef, io->tr[v], j->scheme, io->first + v, &io->rq[v],
                                      io->bc + (size_t)v * g->nblocks, io->entries + (size_t)v * g->ncoef * 2);
@@ -134,7 +152,14 @@ static void *ref_worker(void *arg)
 hl_result hl_ref_rows(hl_context *ctx, const hl_geom *g, uint32_t rows, float vis_scale, hl_trunc_params tp,
                       uint32_t scheme, const hl_chunk_buf *io)
 {
-    ref_job j = {.g = g, .rows = rows, .scale = vis_scale, .tp = tp, .scheme = scheme, .io = io};
+    return hl_ref_rows_sh(ctx, g, NULL, 0, rows, vis_scale, tp, scheme, io);
+}
+
+hl_result hl_ref_rows_sh(hl_context *ctx, const hl_geom *g, const float *shY, uint32_t sh_order, uint32_t rows,
+                         float vis_scale, hl_trunc_params tp, uint32_t scheme, const hl_chunk_buf *io)
+{
+    ref_job j = {.g = g, .shY = shY, .sh_stride = hl_sh_stride(sh_order), .sh_count = hl_sh_count(sh_order),
+                 .rows = rows, .scale = vis_scale, .tp = tp, .scheme = scheme, .io = io};
     atomic_init(&j.next, 0u);
     atomic_init(&j.oom, 0);
     hl_run_threads(ctx->threads, ref_worker, &j);
@@ -177,6 +202,7 @@ typedef struct pc_run {
     hl_geom *g;
     hl_rt *rt;
     hl_cl_pipe *pipe;
+    float *shY;        /* spherical harmonics: the projection (hl_sh_matrix) */
     hl_tfile_writer *w;
     hl_chunk_buf buf[2];
     uint32_t V, R;
@@ -208,6 +234,8 @@ static void fill_info(pc_run *u)
     info->object_vertex_count = u->mesh->object_vertex_count;
     info->triangle_count = u->mesh->triangle_count;
     info->block_count = u->g->nblocks;
+    info->basis = d->basis;
+    info->sh_order = d->basis == HL_TRANSPORT_BASIS_SH ? d->sh_order : 0;
 }
 
 /* With --resume, the writer of out_path.partial and where it stopped (no
@@ -243,7 +271,10 @@ static hl_result run_open(pc_run *u)
     if (r == HL_OK) r = hl_rt_create(ctx, u->mesh, &u->rt);
     if (r == HL_OK) r = hl_chunk_buf_alloc(ctx, u->g, u->R, &u->buf[0]);
     if (r == HL_OK) r = hl_chunk_buf_alloc(ctx, u->g, u->R, &u->buf[1]);
+    if (r == HL_OK && u->d.basis == HL_TRANSPORT_BASIS_SH) r = hl_sh_matrix(ctx, u->d.N, u->d.sh_order, 1, &u->shY);
     if (r == HL_OK && ctx->backend == HL_BACKEND_OPENCL) r = hl_cl_pipe_create(ctx, u->g, u->R, &u->pipe);
+    if (r == HL_OK && u->pipe && u->shY)
+        r = hl_cl_pipe_set_sh(u->pipe, u->shY, hl_sh_stride(u->d.sh_order), hl_sh_count(u->d.sh_order));
     if (r == HL_OK) {
         fill_info(u);
         if (u->d.resume) r = resume_writer(u);
@@ -293,7 +324,7 @@ static hl_result run_chunk(pc_run *u, int s, uint32_t first, uint32_t count)
     b->first = first;
     if (u->pipe) return hl_cl_pipe_submit(u->pipe, s, count, u->vis_scale, u->tp, u->d.quant, b);
     double t0 = hl_now();
-    hl_result r = hl_ref_rows(u->ctx, u->g, count, u->vis_scale, u->tp, u->d.quant, b);
+    hl_result r = hl_ref_rows_sh(u->ctx, u->g, u->shY, u->d.sh_order, count, u->vis_scale, u->tp, u->d.quant, b);
     u->st.seconds_kernels += hl_now() - t0;
     if (r == HL_OK) r = hl_tfile_writer_append(u->w, count, b->rq, b->bc, b->entries, (size_t)u->g->ncoef * 2, b->nnz);
     for (uint32_t i = 0; i < count; i++) u->st.coefficients_kept += b->nnz[i];
@@ -342,6 +373,7 @@ static hl_result run_close(pc_run *u, hl_result r, hl_precompute_stats *stats)
     if (u->w && r == HL_ERR_INTERRUPTED) hl_tfile_writer_keep(u->w);
     else if (u->w) hl_tfile_writer_abort(u->w);
     hl_cl_pipe_destroy(u->pipe);
+    hl_free_big(u->shY);
     hl_chunk_buf_free(&u->buf[0]);
     hl_chunk_buf_free(&u->buf[1]);
     hl_rt_destroy(u->rt);

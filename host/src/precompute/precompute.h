@@ -23,6 +23,12 @@ hl_trunc_params hl_precompute_trunc_params(const hl_precompute_desc *d);
 hl_result hl_ref_rows(hl_context *ctx, const hl_geom *g, uint32_t rows, float vis_scale,
                       hl_trunc_params tp, uint32_t scheme, const hl_chunk_buf *io);
 
+/* hl_ref_rows with the rows projected onto spherical harmonics of the
+ * order (Y: hl_sh_matrix's, per solid angle) in Haar's place; Y NULL:
+ * Haar. */
+hl_result hl_ref_rows_sh(hl_context *ctx, const hl_geom *g, const float *Y, uint32_t sh_order, uint32_t rows,
+                         float vis_scale, hl_trunc_params tp, uint32_t scheme, const hl_chunk_buf *io);
+
 /* Allocates / frees host chunk buffers for max_rows rows. */
 hl_result hl_chunk_buf_alloc(hl_context *ctx, const hl_geom *g, uint32_t max_rows, hl_chunk_buf *b);
 void hl_chunk_buf_free(hl_chunk_buf *b);

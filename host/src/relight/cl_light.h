@@ -23,6 +23,8 @@ struct hl_cl_light {
     cl_uint keep_negative; /* the dot products' clamp at zero is off */
     cl_mem cells, turned, start, runs, slots, weight; /* tables and inputs */
     cl_mem Lp, Lw, Lsel, used, bits, res, keys;    /* lighting stages */
+    cl_mem shY;                                     /* spherical harmonics in Haar's place (NULL: Haar) */
+    uint32_t sh_stride, sh_count;
     cl_mem col, cols, rel, rstart, back, albedo, B, acc; /* transport, by column */
     cl_mem ord, klist;                              /* vertex at each position; kept slots */
     void *host[4];                                  /* CPU devices: their memory */

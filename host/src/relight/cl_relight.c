@@ -1,7 +1,9 @@
 /* cl_relight.c - the relight's device stages (hl_cl_light_*): the buffers
  * of a relighter, and a lighting change's launches (env2para, Haar of R, G
  * and B, selection, the dot products) in one submission, whole or stage
- * by stage, into a host array or a device (or OpenGL) buffer.
+ * by stage, into a host array or a device (or OpenGL) buffer. For a
+ * spherical-harmonic transport (hl_cl_light_set_sh) the projection onto
+ * the harmonics takes Haar's place, into the first order^2 slots.
  *
  * Depends on: cl_light.h (the device state, OpenCL), cl_columns.c for
  * the transport's layout, lighting.h (the environment's tables).
@@ -18,7 +20,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
                      &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rel, &l->rstart, &l->back, &l->albedo, &l->B,
-                     &l->acc, &l->ord, &l->klist, &l->Lenv};
+                     &l->acc, &l->ord, &l->klist, &l->Lenv, &l->shY};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(l->cl, all[i]);
     for (int i = 0; i < 4; i++) hl_free_big(l->host[i]);
     free(l->col_start);
@@ -144,6 +146,32 @@ static hl_result enq_haar3(hl_cl_light *l)
     return light_launch(l, K_HAAR, 3);
 }
 
+hl_result hl_cl_light_set_sh(hl_cl_light *l, const float *Y, uint32_t stride, uint32_t count)
+{
+    if (!Y || stride % 4 || count > stride || count > l->g->ncoef)
+        return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_light_set_sh: %u coefficients, stride %u", count, stride);
+    hl_cl_release_buf(l->cl, &l->shY);
+    TRY(hl_cl_make_buf(l->ctx, &l->shY, CL_MEM_READ_ONLY, (size_t)l->g->ncoef * stride * 4, Y,
+                       "the spherical-harmonic projection"));
+    l->sh_stride = stride;
+    l->sh_count = count;
+    return HL_OK;
+}
+
+/* R, G and B projected onto the harmonics: slots from sh_count on zero,
+ * so selection and the dot products see the usual 2 N^2 slots. */
+static hl_result enq_sh3(hl_cl_light *l)
+{
+    const float zero = 0.0f;
+    CL_TRY(l->ctx, clEnqueueFillBuffer(l->cl->queue, l->Lw, &zero, sizeof zero, 0, (size_t)3 * l->g->ncoef * 4, 0, NULL,
+                                       NULL), "clEnqueueFillBuffer");
+    cl_kernel k = l->cl->k[K_SH_PROJECT];
+    cl_uint nc = l->g->ncoef, st = l->sh_stride, ns = l->sh_count, rows = 3;
+    LARG(k, 0, l->Lp); LARG(k, 1, nc); LARG(k, 2, l->shY); LARG(k, 3, st); LARG(k, 4, ns); LARG(k, 5, l->Lw);
+    LARG(k, 6, rows);
+    return light_launch(l, K_SH_PROJECT, (size_t)3 * (st / 4));
+}
+
 static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
 {
     cl_kernel k = l->cl->k[K_SELECT];
@@ -197,11 +225,11 @@ static hl_result enq_paraboloid(hl_cl_light *l, uint32_t s0, float f)
 }
 
 /* The lighting stages up to the kept terms: the paraboloid lighting,
- * Haar, selection. */
+ * Haar (or the harmonics), selection. */
 static hl_result enq_lighting(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp)
 {
     TRY(enq_paraboloid(l, s0, f));
-    TRY(enq_haar3(l));
+    TRY(l->shY ? enq_sh3(l) : enq_haar3(l));
     return enq_select(l, sp);
 }
 
@@ -250,6 +278,15 @@ hl_result hl_cl_light_stage_haar(hl_cl_light *l, const float *Lp, float *Lw)
 {
     LWRITE(l->Lp, (size_t)3 * l->g->ncoef * 4, Lp);
     TRY(enq_haar3(l));
+    LREAD(l->Lw, (size_t)3 * l->g->ncoef * 4, Lw, CL_TRUE);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_stage_sh(hl_cl_light *l, const float *Lp, float *Lw)
+{
+    if (!l->shY) return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_light_stage_sh: no projection set");
+    LWRITE(l->Lp, (size_t)3 * l->g->ncoef * 4, Lp);
+    TRY(enq_sh3(l));
     LREAD(l->Lw, (size_t)3 * l->g->ncoef * 4, Lw, CL_TRUE);
     return HL_OK;
 }

@@ -4,7 +4,9 @@
  * A lighting change runs env2para, Haar, selection and the dot products:
  * on the device (cl_relight.c) or through the plain-C twins (twins/). The
  * tables it reads come from light_tables.c; a repeated change with the
- * same settings reuses the last colours.
+ * same settings reuses the last colours. A spherical-harmonic transport
+ * (hl_transport_info.basis) gets its lighting projected onto the same
+ * harmonics in Haar's place (hl_sh_matrix), into the same slots.
  * Depends on: lighting.h, cl_backend.h (the device stages), twins.h,
  * the transport (hl_dequant; transport_layout.h to read a file's header
  * again for hl_relighter_create_from_file), core.
@@ -22,6 +24,7 @@
 #include "cl_backend.h"
 #include "haarlight_tools.h"
 #include "lighting.h"
+#include "sh.h"
 #include "transport_layout.h"
 #include "twins.h"
 
@@ -38,6 +41,7 @@ struct hl_relighter {
     uint32_t uploaded_weights;
     double max_row_norm;    /* max over vertices of |T_v| */
     float *B4;
+    float *shY;             /* spherical harmonics: the lighting's projection; NULL: Haar */
     float *Lp, *Lw, *Lsel;  /* reference scratch */
     uint8_t *used;
     uint32_t *bits;
@@ -68,6 +72,7 @@ void hl_relighter_destroy(hl_relighter *r)
     free(r->albedo4);
     for (int i = 0; i <= (int)HL_SELECT_TRANSPORT; i++) free(r->weights[i]);
     free(r->B4);
+    hl_free_big(r->shY);
     free(r->Lp);
     free(r->Lw);
     free(r->Lsel);
@@ -180,8 +185,12 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
             hl_free_big(drop->entries);
             drop->entries = NULL;
         }
+        if (res == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_SH)
+            res = hl_sh_matrix(ctx, t->info.N, t->info.sh_order, 0, &r->shY);
         if (res == HL_OK && ctx->backend == HL_BACKEND_OPENCL)
             res = hl_cl_light_create_from(ctx, r->g, r->lg, t, src, r->albedo4, &r->cl);
+        if (res == HL_OK && r->cl && r->shY)
+            res = hl_cl_light_set_sh(r->cl, r->shY, hl_sh_stride(t->info.sh_order), hl_sh_count(t->info.sh_order));
     }
     if (res != HL_OK) {
         hl_relighter_destroy(r);
@@ -215,6 +224,7 @@ static hl_result open_rows(hl_context *ctx, const hl_transport *t, const char *p
         hl_tf_header_decode(bytes, &h);
         bad = h.file_size != (uint64_t)st.st_size || h.info.N != i->N || h.info.quant != i->quant ||
               h.info.vertex_count != i->vertex_count || h.info.block_count != i->block_count ||
+              h.info.basis != i->basis || h.info.sh_order != i->sh_order ||
               h.info.coefficients_kept != i->coefficients_kept || h.sec[SEC_ENTRIES].size != 2 * i->coefficients_kept ||
               h.sec[SEC_ENTRIES].crc != crc_update(0, t->entries, (size_t)(2 * i->coefficients_kept));
     }
@@ -350,7 +360,12 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
     } else {
         hl_ref_env2para(r->cells, r->lg->wc, r->lg->tap_start, r->lg->taps, s0, f, g->ncoef, r->Lp);
     }
-    for (int c = 0; c < 3; c++) hl_ref_haar(g, r->Lp + (size_t)c * g->ncoef, r->Lw + (size_t)c * g->ncoef);
+    const uint32_t order = t->info.sh_order;
+    for (int c = 0; c < 3; c++) {
+        float *Lp = r->Lp + (size_t)c * g->ncoef, *Lw = r->Lw + (size_t)c * g->ncoef;
+        if (r->shY) hl_ref_sh_project_rows(Lp, g->ncoef, r->shY, hl_sh_stride(order), hl_sh_count(order), Lw);
+        else hl_ref_haar(g, Lp, Lw);
+    }
     *sr = hl_ref_select(r->Lw, g->ncoef, weight, sp, r->Lsel, r->used, r->bits, g->nblocks, r->keys);
     for (uint32_t v = 0; v < t->info.vertex_count; v++) {
         hl_ref_relight(t->entries + 2 * t->row_offset[v], t->block_counts + (size_t)v * g->nblocks, t->row_quant[v],

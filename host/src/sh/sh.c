@@ -226,6 +226,33 @@ void hl_sh_project(const double *Ybar, uint32_t ntex, uint32_t count, const floa
     }
 }
 
+hl_result hl_sh_matrix(hl_context *ctx, uint32_t N, uint32_t order, int per_solid_angle, float **out)
+{
+    *out = NULL;
+    double *Ybar = NULL;
+    hl_result r = hl_sh_texel_integrals(ctx, N, order, HL_SH_QUAD, &Ybar);
+    if (r != HL_OK) return r;
+    const uint32_t ns = hl_sh_count(order), stride = hl_sh_stride(order), ntex = 2 * N * N;
+    float *Y = hl_alloc_big(ctx, (size_t)ntex * stride * sizeof(float), "the spherical-harmonic projection");
+    if (!Y) {
+        hl_free_big(Ybar);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    const double s4pi = sqrt(4.0 * HL_PI);
+    for (uint32_t j = 0; j < ntex; j++) {
+        const double *y = Ybar + (size_t)j * ns, om = s4pi * y[0];
+        float *o = Y + (size_t)j * stride;
+        memset(o, 0, (size_t)stride * sizeof(float));
+        /* a texel outside the disc has no footprint: its row stays zero */
+        if (per_solid_angle && !(om > 0.0)) continue;
+        const double scale = per_solid_angle ? 1.0 / om : 1.0;
+        for (uint32_t k = 0; k < ns; k++) o[k] = (float)(y[k] * scale);
+    }
+    hl_free_big(Ybar);
+    *out = Y;
+    return HL_OK;
+}
+
 void hl_sh_rotate_y(uint32_t order, double angle, double *c)
 {
     for (uint32_t l = 1; l < order; l++)

@@ -88,4 +88,18 @@ void hl_sh_project(const double *Ybar, uint32_t ntex, uint32_t count, const floa
  * project's --rotate turns the other way, right-handed). */
 void hl_sh_rotate_y(uint32_t order, double angle, double *c);
 
+/* The row stride of hl_sh_matrix: order^2 rounded up to a multiple of 4
+ * (the device reads four coefficients at a time). */
+static inline uint32_t hl_sh_stride(uint32_t order) { return (hl_sh_count(order) + 3u) & ~3u; }
+
+/* The matrix of the relight pipeline's projection (kernels/maps/
+ * sh_project.cl): Y[j * stride + k], j < 2 N^2, k < order^2 (the padding
+ * columns zero), in float, from the integrals of hl_sh_texel_integrals
+ * with HL_SH_QUAD points, rounded once. per_solid_angle 0: Ybar_jk (a
+ * lighting map of texel means projects to l_k = sum_j L_j Ybar_jk); 1:
+ * Ybar_jk / Omega_j, Omega_j = sqrt(4 pi) Ybar_j0 the same quadrature's
+ * solid angle, 0 outside the disc (a transport row T_j stands for the
+ * function T_j / Omega_j). *out: hl_free_big. */
+hl_result hl_sh_matrix(hl_context *ctx, uint32_t N, uint32_t order, int per_solid_angle, float **out);
+
 #endif
