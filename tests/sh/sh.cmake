@@ -12,3 +12,10 @@ foreach(c basis bad_options)
     ENVIRONMENT "HL_BIN=$<TARGET_FILE:haarlight>;HL_TMP=${CMAKE_CURRENT_BINARY_DIR}/tmp;HL_REPO_DATA=${CMAKE_SOURCE_DIR}/data"
     TIMEOUT 600)
 endforeach()
+# Spherical harmonics through the real pipeline (precompute --basis sh, the
+# relighter's lighting projected alike): the projection kernel against its
+# twin and the double projection, a constant map, OpenCL against the
+# reference, relight against bench-basis's SH colours, bad options
+# (test_sh_pipeline.c).
+hl_test_exe(test_sh_pipeline ${CMAKE_CURRENT_LIST_DIR}/test_sh_pipeline.c)
+hl_test_cases(test_sh_pipeline sh_pipeline kernel constant cl_ref bench bad)
