@@ -224,14 +224,12 @@ void bench_out_summary(bench_out *o, const bench_run *run)
 
 /* ---------------------------------------------------------------- finishing */
 
-/* Runs gnuplot on DIR/bench.gp in DIR (no shell, so any folder name
- * works), its output to stderr, and renames the SVG into place when it
- * succeeds. Returns the exit status for the command: 0 also when gnuplot
- * is not installed (the tables stand without the plot), 1 when it fails. */
-static int plot(const char *dir, int *plotted)
+/* cli.h; gnuplot's output goes to stderr. */
+int bench_plot(const char *dir, const char *stem, int *plotted)
 {
-    char tmp[64], set[96];
-    snprintf(tmp, sizeof tmp, "bench.svg.tmp.%ld", (long)getpid());
+    char tmp[300], set[340], gp[300];
+    snprintf(tmp, sizeof tmp, "%s.svg.tmp.%ld", stem, (long)getpid());
+    snprintf(gp, sizeof gp, "%s.gp", stem);
     snprintf(set, sizeof set, "set output '%s'", tmp);
     *plotted = 0;
     fflush(stdout);
@@ -240,7 +238,7 @@ static int plot(const char *dir, int *plotted)
     if (pid == 0) {
         if (chdir(dir) != 0) _exit(126);
         dup2(2, 1);
-        execlp("gnuplot", "gnuplot", "-e", set, "bench.gp", (char *)NULL);
+        execlp("gnuplot", "gnuplot", "-e", set, gp, (char *)NULL);
         _exit(127);
     }
     int status = 0;
@@ -250,14 +248,14 @@ static int plot(const char *dir, int *plotted)
     }
     char from[1200], to[1200];
     snprintf(from, sizeof from, "%s/%s", dir, tmp);
-    snprintf(to, sizeof to, "%s/bench.svg", dir);
+    snprintf(to, sizeof to, "%s/%s.svg", dir, stem);
     if (WIFEXITED(status) && WEXITSTATUS(status) == 127) {
         fprintf(stderr, "bench: gnuplot is not installed (apt-get install gnuplot-nox): %s not drawn\n", to);
         unlink(from);
         return 0;
     }
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-        fprintf(stderr, "haarlight: bench: gnuplot failed on %s/bench.gp: %s not drawn\n", dir, to);
+        fprintf(stderr, "haarlight: bench: gnuplot failed on %s/%s: %s not drawn\n", dir, gp, to);
         unlink(from);
         return 1;
     }
@@ -284,7 +282,7 @@ int bench_out_finish(bench_out *o, hl_result r, hl_context *cl, hl_context *ref)
         for (int k = 0; k < BENCH_OUTS; k++) unlink(o->tmp[k]);
         return cli_fail(hl_context_last_error(cl)[0] ? cl : ref, r);
     }
-    int plotted = 0, rc = plot(o->dir, &plotted);
+    int plotted = 0, rc = bench_plot(o->dir, "bench", &plotted);
     const char *d = o->dir;
     if (plotted) printf("bench: wrote %s/bench.md, %s/bench.csv and %s/bench.svg\n", d, d, d);
     else printf("bench: wrote %s/bench.md and %s/bench.csv (no plot)\n", d, d);

@@ -229,6 +229,12 @@ void bench_out_summary(bench_out *o, const bench_run *run);
 /* Closes the files and renames them into place (when r is HL_OK, else
  * removes them), then draws the plot; returns the command's exit code. */
 int bench_out_finish(bench_out *o, hl_result r, hl_context *cl, hl_context *ref);
+/* Runs gnuplot on DIR/STEM.gp in DIR (no shell, so any folder name
+ * works), its output to stderr, and renames DIR/STEM.svg into place when
+ * it succeeds. Returns the exit status for the command: 0 also when
+ * gnuplot is not installed (the tables stand without the plot), 1 when it
+ * fails. `bench`, `bench-dynamic` and `bench-basis` draw with it. */
+int bench_plot(const char *dir, const char *stem, int *plotted);
 
 /* ---------------------------------------------------------------- bench-dynamic
  * `haarlight bench-dynamic`: bench_dynamic.c measures, bench_out.c

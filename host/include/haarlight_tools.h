@@ -275,7 +275,7 @@ hl_result hl_bench_ref_lighting(hl_bench_ref *b, const hl_env *env, float *Lp, f
 hl_result hl_bench_ref_weights(hl_bench_ref *b, uint32_t scheme, float *w);
 
 /* The bases `bench-basis` compares, each with the lighting cut to M terms
- * and the transport untruncated (the 2003 paper's comparison):
+ * (the 2003 paper's comparison):
  *   HAAR:           the paraboloid Haar wavelets, the M lighting terms of
  *                   largest |luminance| (nonlinear, unweighted);
  *   HAAR_AREA:      the same, largest |luminance| x the solid angle of the
@@ -284,38 +284,86 @@ hl_result hl_bench_ref_weights(hl_bench_ref *b, uint32_t scheme, float *w);
  *                   (the relighter's default, --select transport);
  *   SH:             real spherical harmonics, the first M in band order
  *                   (k = l^2 + l + m: linear, as Sloan et al. use them);
- *   SH_NONLINEAR:   spherical harmonics, the M of largest |luminance|. */
+ *   SH_NONLINEAR:   spherical harmonics, the M of largest |luminance|;
+ *   CUBE, CUBE_AREA, CUBE_TRANSPORT: Haar wavelets over the six faces of a
+ *                   cube (the paper's layout, cube/cube.h), selected as
+ *                   HAAR, HAAR_AREA and HAAR_TRANSPORT (the transport
+ *                   weights: mean |T_i| over the sampled vertices' exact
+ *                   rows, as no file holds cube rows). */
 typedef enum hl_basis {
     HL_BASIS_HAAR,
     HL_BASIS_HAAR_AREA,
     HL_BASIS_HAAR_TRANSPORT,
     HL_BASIS_SH,
     HL_BASIS_SH_NONLINEAR,
+    HL_BASIS_CUBE,
+    HL_BASIS_CUBE_AREA,
+    HL_BASIS_CUBE_TRANSPORT,
     HL_BASIS_COUNT
 } hl_basis;
-/* "haar", "haar-area", "haar-transport", "sh", "sh-nonlinear". */
+/* "haar", "haar-area", "haar-transport", "sh", "sh-nonlinear",
+ * "cube-haar", "cube-haar-area", "cube-haar-transport". */
 const char *hl_basis_name(hl_basis basis);
 
 /* The exact rows of n vertices (idx) of t in texels and in Haar
- * coefficients, and their projection onto the spherical harmonics of
- * sh_order (1 to 32: sh_order^2 functions) by the texels' exact
- * integrals (the transport as the piecewise-constant function T_j /
- * Omega_j); made on a reference context's threads. */
+ * coefficients, on the paraboloid and on the cube faces of side cube_side
+ * (0: hl_basis_bench_default_cube_side), and their projection onto the
+ * spherical harmonics of sh_order (1 to 32: sh_order^2 functions) by the
+ * texels' exact integrals (the transport as the piecewise-constant
+ * function T_j / Omega_j); made on a reference context's threads. */
 typedef struct hl_basis_bench hl_basis_bench;
+hl_result hl_basis_bench_create_ex(hl_context *ctx, const hl_transport *t, const uint32_t *idx, uint32_t n,
+                                   uint32_t sh_order, uint32_t cube_side, hl_basis_bench **out);
+/* hl_basis_bench_create_ex with the default cube side. */
 hl_result hl_basis_bench_create(hl_context *ctx, const hl_transport *t, const uint32_t *idx, uint32_t n,
                                 uint32_t sh_order, hl_basis_bench **out);
+/* The default cube side for paraboloids of side N on a visibility cube of
+ * side C: N / 2 (6 (N/2)^2 = 0.75 of the paraboloids' 2 N^2 texels, the
+ * power of two nearest N / sqrt 3, which would match them), halved until
+ * it divides C; 0 when no power of two from 2 does (then the cube bases
+ * have no terms). */
+uint32_t hl_basis_bench_default_cube_side(uint32_t N, uint32_t C);
+/* The cube side in use. */
+uint32_t hl_basis_bench_cube_side(const hl_basis_bench *b);
 void hl_basis_bench_destroy(hl_basis_bench *b);
-/* The terms a basis has: 2 N^2 or sh_order^2. */
+/* The terms a basis has: 2 N^2, 6 cube_side^2 or sh_order^2. */
 uint32_t hl_basis_bench_count(const hl_basis_bench *b, hl_basis basis);
 /* Takes env (at rotation 0) as the lighting, in every basis; *exact then
  * points at the n vertices' exact colours (3 doubles each, albedo
  * included; as hl_bench_ref_colours's), valid until the next call. */
 hl_result hl_basis_bench_set_env(hl_basis_bench *b, const hl_env *env, const double **exact);
+/* The exact colours of a basis's own discretization (after set_env): the
+ * cube's rows dotted with its whole lighting for the cube bases (they
+ * differ from the paraboloid's where a texel holds both light and a
+ * shadow's edge: the two grids cut the sphere differently), else the
+ * paraboloid's (the harmonics project its texels). NULL before set_env,
+ * and for the cube bases when they have no terms. */
+const double *hl_basis_bench_exact(const hl_basis_bench *b, hl_basis basis);
 /* The colours (3 doubles a vertex, albedo included, not clamped) with the
- * lighting cut to M terms of basis (1 to hl_basis_bench_count). HAAR with
- * every term sums the same products in the same order as the exact
- * colours, so it gives them bit for bit. */
+ * lighting cut to M terms of basis (1 to hl_basis_bench_count) and the
+ * transport whole. HAAR with every term sums the same products in the
+ * same order as the exact colours, so it gives them bit for bit. */
 hl_result hl_basis_bench_colours(hl_basis_bench *b, hl_basis basis, uint32_t M, double *rgb);
+
+/* Equal bytes. A row of K stored entries costs, as the transport file
+ * stores it (host/FORMAT.md), 8 bytes of record, 2 bytes per 256-slot
+ * block of the basis's terms and 2 bytes per entry:
+ * 8 + 2 ceil(count / 256) + 2 K. hl_basis_bench_entries gives the K that
+ * fits `bytes` (0 to count). */
+uint32_t hl_basis_bench_entries(const hl_basis_bench *b, hl_basis basis, uint32_t bytes);
+/* hl_basis_bench_colours with each row first cut to the entries that fit
+ * `bytes` per vertex: the Haar bases keep each row's K coefficients of
+ * largest magnitude, the harmonics the first K in band order. */
+hl_result hl_basis_bench_colours_bytes(hl_basis_bench *b, hl_basis basis, uint32_t M, uint32_t bytes, double *rgb);
+
+/* The time of one lighting change, in seconds: the lighting transform
+ * (the texel means of the current map to the basis's coefficients: the
+ * paraboloid or cube Haar transform, or the projection on the harmonics),
+ * the selection of M terms, and the M-term dot products of the n sampled
+ * vertices' whole rows times vertex_count / n. Each part the least of
+ * `reps` runs on one thread. */
+typedef struct hl_basis_time { double transform, select, dots; } hl_basis_time;
+hl_result hl_basis_bench_time(hl_basis_bench *b, hl_basis basis, uint32_t M, uint32_t reps, hl_basis_time *out);
 
 #ifdef __cplusplus
 }
