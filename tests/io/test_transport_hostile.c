@@ -45,17 +45,40 @@ static void expect_refused(hl_context *ctx, const char *path, const uint8_t *dat
     hl_transport_destroy(t);
 }
 
+/* small_file written to HL_TMP/NAME_src.hlt (path), its bytes (size in
+ * *size), and bad, HL_TMP/NAME.hlt, for the forgeries. */
+static uint8_t *small_bytes(hl_context *ctx, const char *name, char *path, char *bad, size_t n, synth *s, size_t *size)
+{
+    char file[128];
+    snprintf(file, sizeof file, "%s_src.hlt", name);
+    tmp_path(path, n, file);
+    snprintf(file, sizeof file, "%s.hlt", name);
+    tmp_path(bad, n, file);
+    small_file(ctx, path, s);
+    uint8_t *data = NULL;
+    *size = 0;
+    HL_CHECK(read_file(path, &data, size) == 0, "read");
+    return data;
+}
+
+/* Frees what small_bytes and a case made and removes both files. */
+static void small_done(hl_context *ctx, synth *s, uint8_t *data, uint8_t *f, const char *path, const char *bad)
+{
+    free(f);
+    free(data);
+    remove(bad);
+    remove(path);
+    synth_free(s);
+    hl_context_destroy(ctx);
+}
+
 static void case_corrupt(void)
 {
     hl_context *ctx = make_ctx();
     char path[512], bad[512];
-    tmp_path(path, sizeof path, "file_corrupt_src.hlt");
-    tmp_path(bad, sizeof bad, "file_corrupt.hlt");
     synth s;
-    small_file(ctx, path, &s);
-    uint8_t *data = NULL;
     size_t size = 0;
-    HL_CHECK(read_file(path, &data, &size) == 0, "read");
+    uint8_t *data = small_bytes(ctx, "file_corrupt", path, bad, sizeof path, &s, &size);
     uint8_t *f = malloc(size);
 
     uint64_t mesh_end = rd64(data + F_MESH_OFFSET) + rd64(data + F_MESH_SIZE);
@@ -197,12 +220,7 @@ static void case_corrupt(void)
         fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
         expect_refused(ctx, bad, f, size, "index beyond slots", needle);
     }
-    free(f);
-    free(data);
-    remove(bad);
-    remove(path);
-    synth_free(&s);
-    hl_context_destroy(ctx);
+    small_done(ctx, &s, data, f, path, bad);
 }
 
 static void expect_append_refused(hl_tfile_writer *w, hl_context *ctx, const char *what, const hl_row_quant *rq,
@@ -323,13 +341,9 @@ static void case_basis(void)
 {
     hl_context *ctx = make_ctx();
     char path[512], bad[512];
-    tmp_path(path, sizeof path, "file_basis_src.hlt");
-    tmp_path(bad, sizeof bad, "file_basis.hlt");
     synth s;
-    small_file(ctx, path, &s); /* N = 8: 128 slots, L at most 11 */
-    uint8_t *data = NULL;
     size_t size = 0;
-    HL_CHECK(read_file(path, &data, &size) == 0, "read");
+    uint8_t *data = small_bytes(ctx, "file_basis", path, bad, sizeof path, &s, &size); /* N = 8: 128 slots */
     HL_CHECK(rd32(data + F_BASIS) == 0 && rd32(data + F_SH_ORDER) == 0, "a Haar file has zero basis words");
     hl_transport *t = NULL;
     HL_CHECK(hl_transport_load(ctx, path, &t) == HL_OK, "load: %s", hl_context_last_error(ctx));
@@ -413,12 +427,7 @@ static void case_basis(void)
     if (t) synth_compare(t, &s, "spherical-harmonic file");
     printf("order 3 file with %llu entries read back\n", (unsigned long long)s.total);
     hl_transport_destroy(t);
-    free(f);
-    free(data);
-    remove(bad);
-    remove(path);
-    synth_free(&s);
-    hl_context_destroy(ctx);
+    small_done(ctx, &s, data, f, path, bad);
 }
 
 int main(int argc, char **argv)

@@ -73,6 +73,17 @@ hl_result hl_cl_build_program(hl_context *ctx, struct hl_cl *cl);
 
 #define TRY(x) do { hl_result r_ = (x); if (r_ != HL_OK) return r_; } while (0)
 
+/* The projection matrix of hl_sh_project_rows (hl_sh_matrix's: ncoef x
+ * stride floats, count = order^2 <= stride, stride a multiple of 4) in a
+ * new buffer *m, replacing any there (precompute/cl_pipe.c). */
+hl_result hl_cl_sh_upload(hl_context *ctx, struct hl_cl *cl, uint32_t ncoef, const float *Y, uint32_t stride,
+                          uint32_t count, cl_mem *m);
+/* hl_sh_project_rows on rows of in (ncoef floats each) into out, its
+ * slots from count on zeroed first (precompute/cl_pipe.c; the relight's
+ * lighting uses it too). */
+hl_result hl_cl_sh_project_enqueue(hl_context *ctx, struct hl_cl *cl, cl_mem in, cl_uint ncoef, cl_mem Y, cl_uint stride,
+                                   cl_uint count, cl_mem out, cl_uint rows);
+
 /* Buffers (cl_buffers.c). Allocates a buffer of ctx's device counted
  * against the context's device memory limit; init, when given, is copied
  * (or used, with CL_MEM_USE_HOST_PTR). */

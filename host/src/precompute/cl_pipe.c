@@ -100,31 +100,48 @@ static hl_result enqueue_haar(hl_cl_pipe *p, uint32_t rows)
     return launch(p, K_HAAR, rows);
 }
 
+hl_result hl_cl_sh_upload(hl_context *ctx, struct hl_cl *cl, uint32_t ncoef, const float *Y, uint32_t stride,
+                          uint32_t count, cl_mem *m)
+{
+    if (!Y || stride % 4 || count > stride || count > ncoef)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "spherical-harmonic projection: %u coefficients, stride %u, %u slots",
+                       count, stride, ncoef);
+    hl_cl_release_buf(cl, m);
+    return hl_cl_make_buf(ctx, m, CL_MEM_READ_ONLY, (size_t)ncoef * stride * 4, Y, "the spherical-harmonic projection");
+}
+
 hl_result hl_cl_pipe_set_sh(hl_cl_pipe *p, const float *Y, uint32_t stride, uint32_t count)
 {
-    if (!Y || stride % 4 || count > stride || count > p->g->ncoef)
-        return hl_fail(p->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_pipe_set_sh: %u coefficients, stride %u", count, stride);
-    hl_cl_release_buf(p->cl, &p->shY);
-    TRY(hl_cl_make_buf(p->ctx, &p->shY, CL_MEM_READ_ONLY, (size_t)p->g->ncoef * stride * 4, Y,
-                       "the spherical-harmonic projection"));
+    TRY(hl_cl_sh_upload(p->ctx, p->cl, p->g->ncoef, Y, stride, count, &p->shY));
     p->sh_stride = stride;
     p->sh_count = count;
     return HL_OK;
 }
 
-/* The rows' harmonic coefficients into coef: zeroes first, as the kernel
- * writes only the first sh_count slots of each row. */
+hl_result hl_cl_sh_project_enqueue(hl_context *ctx, struct hl_cl *cl, cl_mem in, cl_uint ncoef, cl_mem Y, cl_uint stride,
+                                   cl_uint count, cl_mem out, cl_uint rows)
+{
+    /* the kernel writes only the first count slots of each row */
+    const float zero = 0.0f;
+    CL_TRY(ctx, clEnqueueFillBuffer(cl->queue, out, &zero, sizeof zero, 0, (size_t)rows * ncoef * 4, 0, NULL, NULL),
+           "clEnqueueFillBuffer");
+    cl_kernel k = cl->k[K_SH_PROJECT];
+    CL_TRY(ctx, clSetKernelArg(k, 0, sizeof in, &in), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 1, sizeof ncoef, &ncoef), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 2, sizeof Y, &Y), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 3, sizeof stride, &stride), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 4, sizeof count, &count), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 5, sizeof out, &out), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 6, sizeof rows, &rows), "clSetKernelArg");
+    size_t local = cl->wg, items = (size_t)rows * (stride / 4), global = (items + local - 1) / local * local;
+    CL_TRY(ctx, clEnqueueNDRangeKernel(cl->queue, k, 1, NULL, &global, &local, 0, NULL, NULL),
+           hl_cl_kernel_names[K_SH_PROJECT]);
+    return HL_OK;
+}
+
 static hl_result enqueue_sh(hl_cl_pipe *p, uint32_t rows)
 {
-    const float zero = 0.0f;
-    const size_t nc = p->g->ncoef;
-    CL_TRY(p->ctx, clEnqueueFillBuffer(p->cl->queue, p->coef, &zero, sizeof zero, 0, (size_t)rows * nc * 4, 0, NULL, NULL),
-           "clEnqueueFillBuffer");
-    cl_kernel k = p->cl->k[K_SH_PROJECT];
-    cl_uint ncoef = p->g->ncoef, st = p->sh_stride, ns = p->sh_count, n = rows;
-    ARG(k, 0, p->T); ARG(k, 1, ncoef); ARG(k, 2, p->shY); ARG(k, 3, st); ARG(k, 4, ns); ARG(k, 5, p->coef);
-    ARG(k, 6, n);
-    return launch(p, K_SH_PROJECT, rows * (st / 4));
+    return hl_cl_sh_project_enqueue(p->ctx, p->cl, p->T, p->g->ncoef, p->shY, p->sh_stride, p->sh_count, p->coef, rows);
 }
 
 static hl_result enqueue_truncate(hl_cl_pipe *p, uint32_t rows, hl_trunc_params tp)

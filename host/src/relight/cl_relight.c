@@ -148,11 +148,7 @@ static hl_result enq_haar3(hl_cl_light *l)
 
 hl_result hl_cl_light_set_sh(hl_cl_light *l, const float *Y, uint32_t stride, uint32_t count)
 {
-    if (!Y || stride % 4 || count > stride || count > l->g->ncoef)
-        return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_light_set_sh: %u coefficients, stride %u", count, stride);
-    hl_cl_release_buf(l->cl, &l->shY);
-    TRY(hl_cl_make_buf(l->ctx, &l->shY, CL_MEM_READ_ONLY, (size_t)l->g->ncoef * stride * 4, Y,
-                       "the spherical-harmonic projection"));
+    TRY(hl_cl_sh_upload(l->ctx, l->cl, l->g->ncoef, Y, stride, count, &l->shY));
     l->sh_stride = stride;
     l->sh_count = count;
     return HL_OK;
@@ -162,14 +158,7 @@ hl_result hl_cl_light_set_sh(hl_cl_light *l, const float *Y, uint32_t stride, ui
  * so selection and the dot products see the usual 2 N^2 slots. */
 static hl_result enq_sh3(hl_cl_light *l)
 {
-    const float zero = 0.0f;
-    CL_TRY(l->ctx, clEnqueueFillBuffer(l->cl->queue, l->Lw, &zero, sizeof zero, 0, (size_t)3 * l->g->ncoef * 4, 0, NULL,
-                                       NULL), "clEnqueueFillBuffer");
-    cl_kernel k = l->cl->k[K_SH_PROJECT];
-    cl_uint nc = l->g->ncoef, st = l->sh_stride, ns = l->sh_count, rows = 3;
-    LARG(k, 0, l->Lp); LARG(k, 1, nc); LARG(k, 2, l->shY); LARG(k, 3, st); LARG(k, 4, ns); LARG(k, 5, l->Lw);
-    LARG(k, 6, rows);
-    return light_launch(l, K_SH_PROJECT, (size_t)3 * (st / 4));
+    return hl_cl_sh_project_enqueue(l->ctx, l->cl, l->Lp, l->g->ncoef, l->shY, l->sh_stride, l->sh_count, l->Lw, 3);
 }
 
 static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
