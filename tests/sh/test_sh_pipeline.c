@@ -16,7 +16,9 @@
  *             truncation may drop.
  *   cl_ref    the file made on the OpenCL device equals the reference
  *             backend's byte for byte; relight under data/city.exr on
- *             both backends, M = 200 and all, colours against each other.
+ *             both backends, M = 200 and all, colours against each other;
+ *             area-weighted selection equals the unweighted one (every
+ *             harmonic's support is the sphere).
  *   bench     relight with every term against bench-basis's SH colours
  *             (the exact rows projected in double) at 256 vertices, per
  *             vertex within the quantisation and truncation bound.
@@ -162,15 +164,22 @@ static hl_transport *load(hl_context *ctx, const char *path)
     return t;
 }
 
-/* Colours (3 floats a vertex) of t under env with M terms (0: all). */
-static void relight(hl_context *ctx, const hl_transport *t, const hl_env *env, uint32_t M, float *rgb)
+/* Colours (3 floats a vertex) of t under env with M terms (0: all) and a
+ * selection scheme (0: the default). */
+static void relight_sel(hl_context *ctx, const hl_transport *t, const hl_env *env, uint32_t M, uint32_t select,
+                        float *rgb)
 {
     hl_relighter *r = NULL;
     HL_CHECK(hl_relighter_create(ctx, t, &r) == HL_OK, "relighter: %s", hl_context_last_error(ctx));
     HL_CHECK(hl_relighter_set_env(r, env) == HL_OK, "set env: %s", hl_context_last_error(ctx));
-    hl_relight_desc rd = {.terms = M ? M : 2 * t->info.N * t->info.N};
+    hl_relight_desc rd = {.terms = M ? M : 2 * t->info.N * t->info.N, .select = select};
     HL_CHECK(hl_relighter_run(r, &rd, rgb, NULL) == HL_OK, "run: %s", hl_context_last_error(ctx));
     hl_relighter_destroy(r);
+}
+
+static void relight(hl_context *ctx, const hl_transport *t, const hl_env *env, uint32_t M, float *rgb)
+{
+    relight_sel(ctx, t, env, M, 0, rgb);
 }
 
 /* The exact rows of the n vertices idx projected in double as bench-basis
@@ -307,6 +316,16 @@ static void t_cl_ref(void)
         /* the same float sums in another order on the device */
         hl_check_error(what, big > 0 ? worst / big : worst, 1e-5);
     }
+    /* every harmonic's support is the sphere: area-weighted selection
+       ranks as the unweighted one (on both backends: the device's weights
+       are uploaded, not the Haar supports it starts with) */
+    relight_sel(ref, t, env, 50, HL_SELECT_UNWEIGHTED, x);
+    for (int backend = 0; backend < 2; backend++) {
+        relight_sel(backend ? cl : ref, t, env, 50, HL_SELECT_AREA, y);
+        HL_CHECK(memcmp(x, y, (size_t)V * 12) == 0, "%s: M = 50 by area differs from unweighted",
+                 backend ? "OpenCL" : "reference");
+    }
+    printf("M = 50: area-weighted selection equals the unweighted one on both backends\n");
     free(x);
     free(y);
     hl_env_destroy(env);

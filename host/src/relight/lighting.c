@@ -178,7 +178,9 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
         }
         res = row_measures(r, t);
         object_centre(t->mesh, r->cscene.center);
-        r->uploaded_weights = HL_SELECT_AREA;
+        /* the device starts with lg->area, the Haar supports' (an SH
+           transport's area weights differ: uploaded when first used) */
+        r->uploaded_weights = t->info.basis == HL_TRANSPORT_BASIS_SH ? 0u : HL_SELECT_AREA;
         /* from here on the OpenCL relighter reads no entries but the
            columns' (from src once dropped) */
         if (res == HL_OK && drop && src && ctx->backend == HL_BACKEND_OPENCL) {
@@ -316,6 +318,12 @@ hl_result hl_selection_weights(hl_context *ctx, const hl_transport *t, const hl_
                                float *w)
 {
     const uint32_t nc = lg->ncoef;
+    if (scheme == HL_SELECT_AREA && t->info.basis == HL_TRANSPORT_BASIS_SH) {
+        /* every harmonic's support is the whole sphere; the slots past
+           L^2 hold no lighting */
+        for (uint32_t i = 0; i < nc; i++) w[i] = i < t->info.sh_order * t->info.sh_order ? (float)(4.0 * HL_PI) : 0.0f;
+        return HL_OK;
+    }
     if (scheme == HL_SELECT_AREA) {
         memcpy(w, lg->area, (size_t)nc * 4);
         return HL_OK;
