@@ -17,6 +17,8 @@
  *   cl_ref    the file made on the OpenCL device equals the reference
  *             backend's byte for byte; relight under data/city.exr on
  *             both backends, M = 200 and all, colours against each other;
+ *             the relighter's SH lighting stage on the device against
+ *             the twin;
  *             area-weighted selection equals the unweighted one (every
  *             harmonic's support is the sphere).
  *   bench     relight with every term against bench-basis's SH colours
@@ -42,6 +44,7 @@
 #include "geom.h"
 #include "haarlight_tools.h"
 #include "hl_test.h"
+#include "lighting.h"
 #include "sh.h"
 #include "twins.h"
 
@@ -315,6 +318,32 @@ static void t_cl_ref(void)
                  Ms[m] ? "200" : "all");
         /* the same float sums in another order on the device */
         hl_check_error(what, big > 0 ? worst / big : worst, 1e-5);
+    }
+    /* the relighter's own lighting stage on the device, against the twin
+       with the lighting matrix */
+    {
+        const uint32_t nc = 2 * t->info.N * t->info.N, ns = SCENE_ORDER * SCENE_ORDER;
+        hl_relighter *r = NULL;
+        float *Lp = malloc((size_t)nc * 12), *Lw = malloc((size_t)nc * 12), *tw = malloc((size_t)nc * 4), *Y = NULL;
+        HL_CHECK(hl_relighter_create(cl, t, &r) == HL_OK, "relighter: %s", hl_context_last_error(cl));
+        HL_CHECK(hl_sh_matrix(ref, t->info.N, SCENE_ORDER, 0, &Y) == HL_OK, "matrix");
+        for (uint32_t i = 0; i < 3 * nc; i++) Lp[i] = (float)(hl_rng_unit() * 4.0);
+        HL_CHECK(hl_cl_light_stage_sh(hl_relighter_device(r), Lp, Lw) == HL_OK, "stage: %s", hl_context_last_error(cl));
+        double worst = 0.0;
+        for (int ch = 0; ch < 3; ch++) {
+            hl_ref_sh_project_rows(Lp + (size_t)ch * nc, nc, Y, hl_sh_stride(SCENE_ORDER), ns, tw);
+            double big = 0.0;
+            for (uint32_t k = 0; k < nc; k++) big = fmax(big, fabs(tw[k]));
+            for (uint32_t k = 0; k < nc; k++)
+                worst = fmax(worst, fabs((double)Lw[(size_t)ch * nc + k] - tw[k]) / big);
+        }
+        hl_check_error("the relighter's SH lighting stage (OpenCL) against the twin, relative to the largest", worst,
+                       1e-6);
+        hl_free_big(Y);
+        free(Lp);
+        free(Lw);
+        free(tw);
+        hl_relighter_destroy(r);
     }
     /* every harmonic's support is the sphere: area-weighted selection
        ranks as the unweighted one (on both backends: the device's weights
