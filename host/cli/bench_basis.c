@@ -89,6 +89,15 @@ static const char *const usage =
     "                       512 that divides the transport's C (default N/2, halved\n"
     "                       until it divides C: 6 (N/2)^2 terms against the\n"
     "                       paraboloids' 2 N^2)\n"
+    "  --cube-rows shared|own  how the cube rows come from the visibility texels:\n"
+    "                       shared (default) groups the paraboloid rows' own pieces\n"
+    "                       by cube texel (under a constant map both give the same\n"
+    "                       colours to float precision, but a cube texel's pieces\n"
+    "                       only approximate its footprint); own integrates each\n"
+    "                       visibility texel's clamped cosine over its footprint\n"
+    "  --continuous K2      also compare both grids' exact colours (every term) with\n"
+    "                       `bench`'s continuous reference, a ray per map pixel, on K2\n"
+    "                       of the vertices (default 0: not)\n"
     "  --reps R             runs of each timing, 1 to 100 (default 5)\n"
     "  -o, --output DIR     where the files go (made if missing)\n"
     "  --threads T          host threads for the exact rows (default: all cores)\n"
@@ -96,9 +105,11 @@ static const char *const usage =
 
 typedef struct bb_opts {
     const char *file, *outdir;
+    int argc;
+    char **argv;     /* the options as given, for basis.md */
     const char *env_paths[BB_MAX_ENVS];
     int nenvs, sky, quiet;
-    uint32_t K, order, cube, reps, terms[BB_MAX_TERMS], nterms, bytes[BB_MAX_BYTES], nbytes;
+    uint32_t K, K2, order, cube, cube_rows, reps, terms[BB_MAX_TERMS], nterms, bytes[BB_MAX_BYTES], nbytes;
     hl_env_layout layout;
     int threads;
 } bb_opts;
@@ -126,7 +137,7 @@ static int parse(int argc, char **argv, bb_opts *o)
 {
     /* the default counts: whole bands of order 5, 10 and 20 (25, 100, 400),
        and the paper's 200 with 50 between */
-    *o = (bb_opts){.K = BB_DEFAULT_VERTICES, .order = BB_DEFAULT_ORDER, .reps = BB_DEFAULT_REPS, .nterms = 5,
+    *o = (bb_opts){.argc = argc, .argv = argv, .K = BB_DEFAULT_VERTICES, .order = BB_DEFAULT_ORDER, .reps = BB_DEFAULT_REPS, .nterms = 5,
                    .terms = {25, 50, 100, 200, 400}, .nbytes = BB_DEFAULT_NBUDGETS, .bytes = BB_DEFAULT_BUDGETS,
                    .layout = HL_LAYOUT_AUTO};
     for (int i = 0; i < argc; i++) {
@@ -148,6 +159,8 @@ static int parse(int argc, char **argv, bb_opts *o)
         else if (!strcmp(a, "--bytes")) { NEED(); if (!parse_list(v, o->bytes, &o->nbytes, 1, 1000000, 0)) return usage_error(usage, "--bytes %s: expected at most 16 budgets of 1 to 1000000 bytes, separated by commas", v); }
         else if (!strcmp(a, "--sh-order")) { NEED(); if (!parse_u32(v, &o->order) || o->order < 1 || o->order > 32) return usage_error(usage, "--sh-order %s: expected 1 to 32", v); }
         else if (!strcmp(a, "--cube-side")) { NEED(); if (!parse_u32(v, &o->cube) || o->cube < 2 || o->cube > 512 || (o->cube & (o->cube - 1))) return usage_error(usage, "--cube-side %s: expected a power of two from 2 to 512", v); }
+        else if (!strcmp(a, "--cube-rows")) { NEED(); if (!strcmp(v, "shared")) o->cube_rows = HL_CUBE_ROWS_SHARED; else if (!strcmp(v, "own")) o->cube_rows = HL_CUBE_ROWS_OWN; else return usage_error(usage, "--cube-rows %s: expected shared or own", v); }
+        else if (!strcmp(a, "--continuous")) { NEED(); if (!parse_u32(v, &o->K2) || o->K2 > 65536) return usage_error(usage, "--continuous %s: expected 0 to 65536", v); }
         else if (!strcmp(a, "--reps")) { NEED(); if (!parse_u32(v, &o->reps) || o->reps < 1 || o->reps > 100) return usage_error(usage, "--reps %s: expected 1 to 100", v); }
         else if (!strcmp(a, "-o") || !strcmp(a, "--output")) { NEED(); o->outdir = v; }
         else if (!strcmp(a, "--threads")) { NEED(); uint32_t t; if (!parse_u32(v, &t) || t < 1 || t > 64) return usage_error(usage, "--threads %s: expected 1 to 64", v); o->threads = (int)t; }
@@ -237,6 +250,8 @@ typedef struct bb_results {
     double l2b[BB_MAX_ENVS][HL_BASIS_COUNT][BB_MAX_BYTES];  /* at BB_HEADLINE_M, rows cut to bytes,
                                                                against the basis's own exact colours */
     double floor[BB_MAX_ENVS];  /* the cube's exact colours against the paraboloid's (L2) */
+    double cont[BB_MAX_ENVS][2]; /* the paraboloid's and the cube's exact colours against the
+                                    continuous reference (L2; --continuous) */
     uint32_t entries[HL_BASIS_COUNT][BB_MAX_BYTES];
     double head[BB_MAX_ENVS][HL_BASIS_COUNT];                /* whole rows at BB_HEADLINE_M */
 } bb_results;
@@ -266,6 +281,28 @@ static void md_heading(FILE *md, const bb_opts *o, const hl_transport_info *in, 
                 "to all %u), one thread, the least of %u runs.\n\n",
             bench_base_name(o->file), in->vertex_count, in->N, in->C, K, 2 * in->N * in->N, Cq, 6 * Cq * Cq,
             o->order, o->order * o->order, in->vertex_count, o->reps);
+    fprintf(md, "Made by `haarlight bench-basis");
+    for (int i = 0; i < o->argc; i++) fprintf(md, " %s", o->argv[i]);
+    fprintf(md, "` (cube rows: %s).\n\n", o->cube_rows == HL_CUBE_ROWS_OWN ? "own footprints" : "shared pieces");
+}
+
+/* The paraboloid's and the cube's exact colours of the n2 vertices k K /
+ * n2 against the continuous reference: L2 into out[0], out[1]. */
+static hl_result continuous(hl_basis_bench *bb, const hl_env *env, uint32_t K, uint32_t n2, double out[2])
+{
+    double *cont = malloc((size_t)n2 * 3 * sizeof(double)), *sub = malloc((size_t)n2 * 3 * sizeof(double));
+    hl_result r = cont && sub ? hl_basis_bench_continuous(bb, env, n2, cont) : HL_ERR_OUT_OF_MEMORY;
+    for (int f = 0; f < 2 && r == HL_OK; f++) {
+        const double *ex = hl_basis_bench_exact(bb, f ? HL_BASIS_CUBE : HL_BASIS_HAAR);
+        double er[3] = {NAN, NAN, NAN};
+        for (uint32_t k = 0; k < n2 && ex; k++)
+            for (int c = 0; c < 3; c++) sub[3 * k + c] = ex[3 * ((uint64_t)k * K / n2) + c];
+        if (ex) errors(sub, cont, n2, er);
+        out[f] = er[0];
+    }
+    free(cont);
+    free(sub);
+    return r;
 }
 
 /* One map: every basis at every M it has, whole and cut to each budget,
@@ -275,12 +312,13 @@ static hl_result measure_env(hl_basis_bench *bb, const hl_env *env, const char *
 {
     const double *exact = NULL;
     hl_result r = hl_basis_bench_set_env(bb, env, &exact);
-    res->floor[e] = NAN;
+    res->floor[e] = res->cont[e][0] = res->cont[e][1] = NAN;
     if (r == HL_OK && hl_basis_bench_exact(bb, HL_BASIS_CUBE)) {
         double er[3];
         errors(hl_basis_bench_exact(bb, HL_BASIS_CUBE), exact, K, er);
         res->floor[e] = er[0];
     }
+    if (r == HL_OK && o->K2) r = continuous(bb, env, K, o->K2 < K ? o->K2 : K, res->cont[e]);
     for (int b = 0; b < HL_BASIS_COUNT && r == HL_OK; b++) {
         const hl_basis basis = (hl_basis)b;
         const uint32_t count = hl_basis_bench_count(bb, basis);
@@ -374,6 +412,13 @@ static void write_summary(bb_files *fs, const bb_opts *o, char names[][256], con
     }
     if (o->order * o->order < BB_HEADLINE_M)
         fprintf(md, "\n(nan: the harmonics of order %u have fewer than %u terms.)\n", o->order, BB_HEADLINE_M);
+    if (o->K2) {
+        fprintf(md, "\n## The grids against the continuous reference\n\nL2 of each grid's exact colours (every term) against "
+                    "`bench`'s continuous reference (a ray per map pixel from the vertex itself, no grid) on %u of the "
+                    "vertices.\n\n| map | paraboloid | cube |\n|---|---:|---:|\n", o->K2 < o->K ? o->K2 : o->K);
+        for (int e = 0; e < ne; e++)
+            fprintf(md, "| %s | %.2f%% | %.2f%% |\n", names[e], 100 * res->cont[e][0], 100 * res->cont[e][1]);
+    }
 
     fprintf(md, "\n## Equal bytes, at %u terms\n\nL2 with each row cut to the budget (bytes per vertex), against each "
                 "basis's own exact colours (the cube's for the cube bases, so that its floor above is not counted); in "
@@ -475,7 +520,7 @@ static hl_result run(hl_context *ctx, const bb_opts *o, hl_transport *t, bb_file
         r = o->env_paths[e] ? cli_env_load(ctx, o->env_paths[e], o->layout, &envs[e], o->quiet)
                             : hl_env_create_sky(ctx, &sky, &envs[e]);
     }
-    if (r == HL_OK) r = hl_basis_bench_create_ex(ctx, t, idx, K, o->order, o->cube, &bb);
+    if (r == HL_OK) r = hl_basis_bench_create_ex(ctx, t, idx, K, o->order, o->cube, (hl_cube_rows_mode)o->cube_rows, &bb);
     if (r == HL_OK && !o->quiet)
         fprintf(stderr, "bench-basis: exact transport of %u vertices; paraboloids N = %u, cube faces of side %u, "
                         "spherical harmonics of order %u\n", K, t->info.N, hl_basis_bench_cube_side(bb), o->order);

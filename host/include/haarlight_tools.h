@@ -312,9 +312,21 @@ const char *hl_basis_name(hl_basis basis);
  * texels' exact integrals (the transport as the piecewise-constant
  * function T_j / Omega_j); made on a reference context's threads. */
 typedef struct hl_basis_bench hl_basis_bench;
+/* How the cube rows are made from the visibility texels:
+ *   SHARED: the paraboloid rows' own pieces (the footprint table's
+ *           max(0, n . m) per part of a paraboloid texel in a cube texel),
+ *           grouped by cube texel: the same products, so under a constant
+ *           map both give the same colours to float precision; but a cube
+ *           texel's pieces are the sub-samples whose centres fell in it, so
+ *           its footprint is only that close (11% rms of its moment at
+ *           C = 64);
+ *   OWN:    each visibility texel's clamped cosine integrated over its own
+ *           footprint (cube/cube.h, hl_cube_rows_exact). */
+typedef enum hl_cube_rows_mode { HL_CUBE_ROWS_SHARED, HL_CUBE_ROWS_OWN } hl_cube_rows_mode;
 hl_result hl_basis_bench_create_ex(hl_context *ctx, const hl_transport *t, const uint32_t *idx, uint32_t n,
-                                   uint32_t sh_order, uint32_t cube_side, hl_basis_bench **out);
-/* hl_basis_bench_create_ex with the default cube side. */
+                                   uint32_t sh_order, uint32_t cube_side, hl_cube_rows_mode cube_rows,
+                                   hl_basis_bench **out);
+/* hl_basis_bench_create_ex with the default cube side and SHARED rows. */
 hl_result hl_basis_bench_create(hl_context *ctx, const hl_transport *t, const uint32_t *idx, uint32_t n,
                                 uint32_t sh_order, hl_basis_bench **out);
 /* The default cube side for paraboloids of side N on a visibility cube of
@@ -339,6 +351,11 @@ hl_result hl_basis_bench_set_env(hl_basis_bench *b, const hl_env *env, const dou
  * paraboloid's (the harmonics project its texels). NULL before set_env,
  * and for the cube bases when they have no terms. */
 const double *hl_basis_bench_exact(const hl_basis_bench *b, hl_basis basis);
+/* bench_refs.c's continuous reference (env integrated directly, a ray per
+ * map pixel from the vertex itself: no grid at all) of the n2 sampled
+ * vertices k n / n2, k < n2, into cont (3 doubles each); env must be the
+ * one set last. */
+hl_result hl_basis_bench_continuous(hl_basis_bench *b, const hl_env *env, uint32_t n2, double *cont);
 /* The colours (3 doubles a vertex, albedo included, not clamped) with the
  * lighting cut to M terms of basis (1 to hl_basis_bench_count) and the
  * transport whole. HAAR with every term sums the same products in the

@@ -14,9 +14,10 @@ foreach(c basis cube_side bad_options)
 endforeach()
 # Haar wavelets over the six cube faces (host/src/cube) and bench-basis's
 # cube bases: the transform's inverse and Parseval, the environment taps,
-# a constant map, half-space lights, bad cube sides (test_cube.c).
+# the own-footprint rows, a constant map, half-space lights, bad cube sides
+# (test_cube.c).
 hl_test_exe(test_cube ${CMAKE_CURRENT_LIST_DIR}/test_cube.c)
-hl_test_cases(test_cube cube transform taps constant halfspace bad)
+hl_test_cases(test_cube cube transform taps rows constant halfspace bad)
 # Spherical harmonics through the real pipeline (precompute --basis sh, the
 # relighter's lighting projected alike): the projection kernel against its
 # twin and the double projection, a constant map, OpenCL against the

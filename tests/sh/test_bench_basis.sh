@@ -16,9 +16,12 @@
 #                summary line of each map printed, the summary tables in
 #                basis.md.
 #   cube_side    --cube-side 4 gives 96 cube terms, and its cube Haar at all
-#                terms its own exact colours again.
+#                terms its own exact colours again; so does --cube-rows own,
+#                and --continuous 8 adds both grids' errors against the
+#                continuous reference to basis.md.
 #   bad_options  --sh-order 0 and 33, --terms 0, --vertices 0, --bytes 0
-#                and x, --reps 0, --cube-side 3 and 1024, --cube-side 32 on
+#                and x, --reps 0, --cube-rows exact, --continuous -1,
+#                --cube-side 3 and 1024, --cube-side 32 on
 #                C = 16, no -o and an unknown option exit 2 naming the
 #                option; a missing transport or map exits 1 naming the
 #                file, and leaves no basis files.
@@ -101,6 +104,15 @@ cube_side)
   echo "--cube-side 4: $n cube terms, at all of them against its own exact colours $own (tolerance 1e-6)"
   [ "$n" = 96 ] || fail "--cube-side 4 gives $n cube terms, expected 96"
   awk -v a="$own" 'BEGIN { exit !(a != "" && a <= 1e-6) }' || fail "cube side 4 with every term: $own"
+  # the rows on the cube texels' own footprints, and both grids against
+  # the continuous reference on 8 vertices
+  "$bin" bench-basis "$tmp/s.hlt" --sky --vertices 16 --terms all --bytes 1000 --reps 1 --cube-rows own --continuous 8 -q \
+    -o "$tmp/own" >"$tmp/stdout.txt" 2>"$tmp/stderr.txt" || { cat "$tmp/stderr.txt"; fail "bench-basis --cube-rows own exited $?"; }
+  own=$(awk -F, '$2 == "cube-haar" && $4 == "whole" { print $9 }' "$tmp/own/basis.csv")
+  grid=$(grep "^| sky | [0-9.]*% | [0-9.]*% |$" "$tmp/own/basis.md")
+  echo "--cube-rows own: cube Haar at every term against its own exact colours $own; against the continuous reference: $grid"
+  awk -v a="$own" 'BEGIN { exit !(a != "" && a <= 1e-6) }' || fail "--cube-rows own with every term: $own"
+  [ -n "$grid" ] || fail "no line of the grids against the continuous reference"
   ;;
 bad_options)
   scene
@@ -112,6 +124,8 @@ bad_options)
   expect_exit 2 "--bytes 0" "$tmp/s.hlt" --sky --bytes 0 -o "$tmp/b"
   expect_exit 2 "--bytes 100,x" "$tmp/s.hlt" --sky --bytes 100,x -o "$tmp/b"
   expect_exit 2 "--reps 0" "$tmp/s.hlt" --sky --reps 0 -o "$tmp/b"
+  expect_exit 2 "--cube-rows exact: expected shared or own" "$tmp/s.hlt" --sky --cube-rows exact -o "$tmp/b"
+  expect_exit 2 "--continuous -1" "$tmp/s.hlt" --sky --continuous -1 -o "$tmp/b"
   expect_exit 2 "--cube-side 3: expected a power of two" "$tmp/s.hlt" --sky --cube-side 3 -o "$tmp/b"
   expect_exit 2 "--cube-side 1024" "$tmp/s.hlt" --sky --cube-side 1024 -o "$tmp/b"
   expect_exit 2 "--cube-side 32: does not divide" "$tmp/s.hlt" --sky --cube-side 32 -o "$tmp/b"

@@ -6,6 +6,9 @@
  *   taps       each face texel's taps add up to its exact solid angle (the
  *              quadrature in azimuth), and all of them to 4 pi; a constant
  *              map gives every texel its value
+ *   rows       the own-footprint cube rows' quadrature: each visibility
+ *              texel's solid angle, an unshadowed vertex's row summing to
+ *              1, the same row grouped on two face sides
  *   constant   bench-basis under a constant map: the cube Haar at every
  *              term, under each selection, and at the 6 face scaling terms
  *              alone gives the exact (paraboloid) colours; SH rows cut to
@@ -118,6 +121,62 @@ static void t_taps(void)
         hl_check_error(what, ce, 2.0 * most * 0x1p-24);
         free(cells), free(L);
         hl_cube_tables_destroy(ct);
+    }
+    hl_context_destroy(ctx);
+}
+
+/* The own-footprint rows' quadrature (4 x 4 points a visibility texel, as
+ * bench-basis uses it): each texel's points add up to its closed-form
+ * solid angle; an unshadowed vertex's row adds up to 1 (the clamped
+ * cosine over the hemisphere, over pi), the texels the horizon cuts
+ * integrated by points on each side; and the same products grouped two
+ * ways (Cq = C and Cq = C / 4) add up alike. */
+static void t_rows(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    static const uint32_t sides[] = {16, 64};
+    for (int k = 0; k < 2; k++) {
+        const uint32_t C = sides[k];
+        hl_cube_quad *cq = NULL;
+        hl_result r = hl_cube_quad_create(ctx, C, 4, &cq);
+        HL_CHECK(r == HL_OK, "quadrature C = %u: %s", C, hl_context_last_error(ctx));
+        if (r != HL_OK) continue;
+        double worst = 0.0;
+        const double h = 2.0 / C;
+        for (uint32_t c = 0; c < 6 * C * C; c++) {
+            const uint32_t row = (c / C) % C, col = c % C;
+            double om = 0.0;
+            for (uint32_t p = 0; p < 16; p++) {
+                const float *m = cq->m + ((size_t)c * 16 + p) * 3;
+                om += sqrt((double)m[0] * m[0] + (double)m[1] * m[1] + (double)m[2] * m[2]);
+            }
+            const double ex = hl_cube_rect_omega(-1.0 + col * h, -1.0 + (col + 1) * h, -1.0 + row * h, -1.0 + (row + 1) * h);
+            worst = fmax(worst, fabs(om - ex) / ex);
+        }
+        char what[160];
+        snprintf(what, sizeof what, "C = %u: each texel's 4 x 4 points against its closed-form solid angle (relative)", C);
+        hl_check_error(what, worst, 1e-6);
+        uint8_t *vis = malloc((size_t)6 * C * C);
+        float *T = malloc((size_t)6 * C * C * 4), *T4 = malloc((size_t)6 * C * C * 4);
+        memset(vis, 1, (size_t)6 * C * C);
+        static const float normals[4][3] = {{0, 1, 0}, {1, 0, 0}, {0.6f, 0.0f, 0.8f}, {0.48f, 0.6f, 0.64f}};
+        double wsum = 0.0, wgroup = 0.0;
+        for (int q = 0; q < 4; q++) {
+            double s = 0.0, s4 = 0.0;
+            hl_cube_rows_exact(cq, C, vis, (float)(1.0 / HL_PI), normals[q], T);
+            hl_cube_rows_exact(cq, C / 4, vis, (float)(1.0 / HL_PI), normals[q], T4);
+            for (uint32_t i = 0; i < 6 * C * C; i++) s += T[i];
+            for (uint32_t i = 0; i < 6 * (C / 4) * (C / 4); i++) s4 += T4[i];
+            wsum = fmax(wsum, fabs(s - 1.0)), wgroup = fmax(wgroup, fabs(s4 - s));
+        }
+        /* the horizon's texels hold a kink, integrated to about the
+           texel's area squared, h^4 in all; the float sums add 1e-6 */
+        snprintf(what, sizeof what, "C = %u: an unshadowed vertex's row sum against 1 (4 normals)", C);
+        hl_check_error(what, wsum, h * h * h * h + 1e-6);
+        snprintf(what, sizeof what, "C = %u: the row grouped on faces of side C / 4 against side C", C);
+        hl_check_error(what, wgroup, 1e-6);
+        free(vis), free(T), free(T4);
+        hl_cube_quad_destroy(cq);
     }
     hl_context_destroy(ctx);
 }
@@ -277,7 +336,7 @@ static void t_bad(void)
     hl_result r = fixture_open(&f, 16);
     HL_CHECK(r == HL_OK, "set-up");
     if (r == HL_OK) {
-        r = hl_basis_bench_create_ex(f.ctx, f.t, idx, 4, 4, 32, &bb);
+        r = hl_basis_bench_create_ex(f.ctx, f.t, idx, 4, 4, 32, HL_CUBE_ROWS_SHARED, &bb);
         HL_CHECK(r == HL_ERR_INVALID_ARGUMENT && !bb, "cube side 32 on C = 16 accepted");
         printf("bench-basis, cube side 32 on C = 16: %s\n", hl_context_last_error(f.ctx));
         HL_CHECK(hl_basis_bench_default_cube_side(64, 64) == 32, "default cube side for N = C = 64");
@@ -307,7 +366,7 @@ static void t_bad(void)
 
 int main(int argc, char **argv)
 {
-    static const hl_test_case cases[] = {{"transform", t_transform}, {"taps", t_taps},
+    static const hl_test_case cases[] = {{"transform", t_transform}, {"taps", t_taps}, {"rows", t_rows},
                                          {"constant", t_constant},   {"halfspace", t_halfspace},
                                          {"bad", t_bad},
                                          {NULL, NULL}};

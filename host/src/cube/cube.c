@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "cube.h"
+#include "sh.h"
 #include "twins.h"
 
 /* Rays per cell when sharing a cell among the texels it overlaps: as the
@@ -84,6 +85,66 @@ void hl_cube_rows(const hl_geom *g, uint32_t Cq, const uint8_t *vis, float scale
             if (w > 0.0f) acc += (float)v * w;
         }
         T[(size_t)f * Cq * Cq + (row / r) * Cq + col / r] += acc;
+    }
+    for (uint32_t q = 0; q < 6 * Cq * Cq; q++) T[q] *= scale;
+}
+
+hl_result hl_cube_quad_create(hl_context *ctx, uint32_t C, uint32_t Q, hl_cube_quad **out)
+{
+    *out = NULL;
+    if (C < 1 || C > 512 || Q < 1 || Q > HL_SH_MAX_QUAD)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "cube quadrature: side %u, %u points (1 to %u)", C, Q, HL_SH_MAX_QUAD);
+    hl_cube_quad *cq = hl_calloc(ctx, 1, sizeof *cq, "the cube quadrature");
+    if (!cq) return HL_ERR_OUT_OF_MEMORY;
+    cq->C = C, cq->Q = Q;
+    cq->m = hl_alloc_big(ctx, (size_t)6 * C * C * Q * Q * 3 * sizeof(float), "the cube quadrature");
+    if (!cq->m) {
+        free(cq);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    double x[HL_SH_MAX_QUAD], w[HL_SH_MAX_QUAD];
+    hl_sh_gauss(Q, x, w);
+    const double h = 2.0 / C;
+    float *o = cq->m;
+    for (uint32_t c = 0; c < 6 * C * C; c++) {
+        const uint32_t f = c / (C * C), row = (c / C) % C, col = c % C;
+        for (uint32_t a = 0; a < Q; a++)
+            for (uint32_t b = 0; b < Q; b++) {
+                const double u = -1.0 + h * (col + 0.5 + 0.5 * x[b]), v = -1.0 + h * (row + 0.5 + 0.5 * x[a]);
+                const double r2 = 1.0 + u * u + v * v, dw = 0.25 * h * h * w[a] * w[b] / (r2 * sqrt(r2));
+                float d[3];
+                hl_cube_face_dir((int)f, (float)u, (float)v, d);
+                const double len = sqrt((double)d[0] * d[0] + (double)d[1] * d[1] + (double)d[2] * d[2]);
+                for (int k = 0; k < 3; k++) *o++ = (float)(d[k] / len * dw);
+            }
+    }
+    *out = cq;
+    return HL_OK;
+}
+
+void hl_cube_quad_destroy(hl_cube_quad *q)
+{
+    if (!q) return;
+    hl_free_big(q->m);
+    free(q);
+}
+
+void hl_cube_rows_exact(const hl_cube_quad *cq, uint32_t Cq, const uint8_t *vis, float scale, const float n[3],
+                        float *T)
+{
+    const uint32_t C = cq->C, r = C / Cq, P = cq->Q * cq->Q;
+    memset(T, 0, (size_t)6 * Cq * Cq * sizeof *T);
+    for (uint32_t c = 0; c < 6 * C * C; c++) {
+        const uint32_t v = vis[c];
+        if (!v) continue;
+        const uint32_t f = c / (C * C), row = (c / C) % C, col = c % C;
+        const float *m = cq->m + (size_t)c * P * 3;
+        float acc = 0.0f;
+        for (uint32_t p = 0; p < P; p++) {
+            const float w = n[0] * m[3 * p] + n[1] * m[3 * p + 1] + n[2] * m[3 * p + 2];
+            if (w > 0.0f) acc += w;
+        }
+        T[(size_t)f * Cq * Cq + (row / r) * Cq + col / r] += (float)v * acc;
     }
     for (uint32_t q = 0; q < 6 * Cq * Cq; q++) T[q] *= scale;
 }

@@ -14,7 +14,8 @@
  * tables.
  *
  * Depends on maps/ (geom.h: the visibility cube and its footprint table;
- * twins.h: the environment taps' sum) and core.
+ * twins.h: the environment taps' sum), sh/ (sh.h: Gauss-Legendre nodes)
+ * and core.
  */
 #ifndef HL_CUBE_H
 #define HL_CUBE_H
@@ -61,6 +62,26 @@ void hl_cube_haar_inverse(uint32_t Cq, float *coef, float *T);
  * so the rows of both add up to the same total. g->C must be a multiple
  * of Cq. */
 void hl_cube_rows(const hl_geom *g, uint32_t Cq, const uint8_t *vis, float scale, const float n[3], float *T);
+
+/* The visibility cube's texels (side C) by Q x Q Gauss-Legendre points
+ * each, in face coordinates with the solid-angle factor (1 + u^2 +
+ * v^2)^(-3/2): per point its direction times its solid angle (3 floats). */
+typedef struct hl_cube_quad {
+    uint32_t C, Q;
+    float *m;   /* 6 C^2 Q^2 x 3 */
+} hl_cube_quad;
+hl_result hl_cube_quad_create(hl_context *ctx, uint32_t C, uint32_t Q, hl_cube_quad **out);
+void hl_cube_quad_destroy(hl_cube_quad *q);
+
+/* One vertex's transport on the face texels, each visibility texel's
+ * clamped cosine integrated over its own footprint: T[q] = scale * the sum
+ * over the visibility texels c inside q of vis[c] times the sum over c's
+ * points of max(0, n . w dw). Unlike hl_cube_rows, whose texels take the
+ * footprint table's pieces (grouped by the centres of 8 x 8 sub-samples
+ * of each paraboloid texel, so a cube texel's pieces miss its own moment
+ * by 11% rms at C = 64), every texel here gets its own footprint. */
+void hl_cube_rows_exact(const hl_cube_quad *cq, uint32_t Cq, const uint8_t *vis, float scale, const float n[3],
+                        float *T);
 
 /* Each texel's mean radiance: R, G, B planes of ntex floats from cells (4
  * floats per cell, wc x hc), by the taps. */
