@@ -15,9 +15,12 @@
  * halves, decoded from the file's codes on load and scaled by 2^-e per
  * vertex (host/src/core/half.h; zero in lanes whose vertex does not store the
  * slot). Column (w, s) holds entries col_start[w (ncoef + 1) + s] to the
- * next start. Entry 0 is all zero. For each range, slot and tile, rel (16
- * bits) says which entry of the column holds that tile: 1 for the first,
- * 0 for none, which reads entry 0. kept: a count, then the kept slots in
+ * next start. Entry 0 is all zero. For each range and slot, rel says
+ * which tiles the column holds, 32 tiles a word: a bit a tile (x), and
+ * the column's entries before the word (y). So the column holds tile t
+ * as entry y + (the set bits below t's) + 1, and a tile not held reads
+ * entry 0 (2 bits a slot and tile where 16-bit entry numbers took 16).
+ * kept: a count, then the kept slots in
  * ascending order (written by hl_select).
  *
  * A work-item walks its range one of two ways (hl_tile_walk_pays in
@@ -76,7 +79,7 @@ static void walk_columns(global const uint *col, global const uint *cs, global c
  * HL_GROUP, each group's terms added tile by tile into sums held in
  * registers; between groups the sums wait in `acc` (planes of tn tiles,
  * which stay in the cache). */
-static void walk_tiles(global const uint *col, global const uint *cs, global const ushort *rw, uint tstride,
+static void walk_tiles(global const uint *col, global const uint *cs, global const uint2 *rw, uint tstride,
                        global const float4 *light, global const uint *kept, uint m, global float *acc, uint t0,
                        uint tn)
 {
@@ -84,23 +87,37 @@ static void walk_tiles(global const uint *col, global const uint *cs, global con
     for (uint j0 = 0; j0 < m; j0 += HL_GROUP) {
         /* the group's slots; past the last kept one, the last again with
            no light, adding exact zeros */
-        global const ushort *row[HL_GROUP];
+        global const uint2 *row[HL_GROUP];
         global const uint *before[HL_GROUP];
         float4 li[HL_GROUP];
         for (uint g = 0; g < HL_GROUP; g++) {
             uint s = kept[1 + min(j0 + g, m - 1)];
-            row[g] = rw + (size_t)s * tstride + t0;
+            row[g] = rw + (size_t)s * tstride;
             before[g] = col + ((size_t)cs[s] - 1) * ENTRY + 1; /* entry r's halves at before + r ENTRY */
             li[g] = j0 + g < m ? light[s] : (float4)(0.0f);
         }
+        /* per slot: the tile bits of the word at hand, and where the next
+           tile it holds has its terms */
+        uint bits[HL_GROUP];
+        global const uint *next[HL_GROUP];
         for (uint t = 0; t < tn; t++) {
+            const uint tt = t0 + t, bit = tt & 31u;
+            if (t == 0 || bit == 0) {
+#pragma unroll
+                for (uint g = 0; g < HL_GROUP; g++) {
+                    uint2 rk = row[g][tt >> 5];
+                    bits[g] = rk.x;
+                    next[g] = before[g] + (size_t)(rk.y + popcount(rk.x & ((1u << bit) - 1u)) + 1u) * ENTRY;
+                }
+            }
             FV r, gr, b;
             if (j0 == 0) r = gr = b = (FV)(0.0f);
             else { r = sr[t]; gr = sg[t]; b = sb[t]; }
 #pragma unroll
             for (uint g = 0; g < HL_GROUP; g++) {
-                uint q = row[g][t];
-                global const uint *e = q ? before[g] + (size_t)q * ENTRY : col + 1;
+                uint hit = (bits[g] >> bit) & 1u;
+                global const uint *e = hit ? next[g] : col + 1;
+                next[g] += hit ? ENTRY : 0u;
                 FV d = LOAD_TERMS(0, (global const half *)e);
                 r = fma(d, (FV)(li[g].x), r);
                 gr = fma(d, (FV)(li[g].y), gr);
@@ -135,7 +152,7 @@ static void put_colours(global const float *sums, uint n, uint p0, uint p1, glob
     }
 }
 
-kernel void hl_relight(global const uint *col, global const uint *col_start, global const ushort *rel, uint tstride,
+kernel void hl_relight(global const uint *col, global const uint *col_start, global const uint2 *rel, uint tstride,
                        global const uint *range_start, global const float *back, uint ncoef,
                        global const float4 *light, global const uint *kept, global const float4 *albedo,
                        global float *acc, global float4 *out, uint nverts, uint nranges, global const uint *order,
@@ -154,7 +171,7 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
         put_colours(ar, range, v0, v1, back, albedo, order, keep_negative, out);
         return;
     }
-    global const ushort *rw = rel + (size_t)w * ncoef * tstride;
+    global const uint2 *rw = rel + (size_t)w * ncoef * tstride;
     for (uint t0 = 0; t0 < nt; t0 += HL_SUM_TILES) {
         const uint tn = min((uint)HL_SUM_TILES, nt - t0), n = tn * HL_TILE, p0 = v0 + t0 * HL_TILE;
         walk_tiles(col, cs, rw, tstride, light, kept, m, ar, t0, tn);

@@ -171,7 +171,7 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes);
 /* Relight in parts (host/src/relight/cl_parts.c): the parts the dot
  * products run in (1: all the columns on the device at once); the device
  * bytes the columns of the relighter's cut take all at once (entries,
- * starts, tile numbers, ranges); and the device memory a context's
+ * starts, tile bits, ranges); and the device memory a context's
  * buffers hold now (counted against its limit). */
 uint32_t hl_cl_light_parts(const hl_cl_light *l);
 uint64_t hl_cl_light_column_bytes(const hl_cl_light *l);

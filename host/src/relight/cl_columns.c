@@ -81,13 +81,11 @@ static hl_result vertex_order(hl_cl_light *l, const hl_transport *t, uint32_t **
 }
 
 /* Range boundaries, in whole tiles (HL_TILE positions), into *starts;
- * returns the count, or 0 when out of memory. A range holds at most 65535
- * tiles (a column's entries are numbered 1 to 65535 in 16 bits).
+ * returns the count, or 0 when out of memory.
  *
  * On a GPU: 4 tiles (64 vertices) per work-item, in curve order.
  *
- * On a CPU device: one range per core (more where a range would pass
- * 65535 tiles), and the tiles are dealt to the ranges in turn (tile c of
+ * On a CPU device: one range per core, and the tiles are dealt to the ranges in turn (tile c of
  * the curve to range c mod R), so l->order is rearranged here. Dealt
  * tiles give every range the same mix of the mesh (object and ground,
  * lit and shadowed sides), so each holds about the same share of the
@@ -100,7 +98,7 @@ static hl_result vertex_order(hl_cl_light *l, const hl_transport *t, uint32_t **
  * that groups of them fit the device; l->order is made from curve. */
 static uint32_t cut_ranges(hl_cl_light *l, const uint32_t *curve, uint32_t mult, uint32_t **starts)
 {
-    const size_t V = l->nverts, tiles = (V + HL_TILE - 1) / HL_TILE, max_tiles = 65535;
+    const size_t V = l->nverts, tiles = (V + HL_TILE - 1) / HL_TILE;
     if (l->cl->wg != 1) {
         const size_t per = 64 / HL_TILE, n = tiles ? (tiles + per - 1) / per : 1;
         uint32_t *rs = malloc((n + 1) * 4);
@@ -116,7 +114,6 @@ static uint32_t cut_ranges(hl_cl_light *l, const uint32_t *curve, uint32_t mult,
         return (uint32_t)n;
     }
     size_t R = (l->cl->units > 1 ? l->cl->units : 1) * (size_t)mult;
-    if (R < (tiles + max_tiles - 1) / max_tiles) R = (tiles + max_tiles - 1) / max_tiles; /* dealt: at most 65535 each */
     if (tiles && R > tiles) R = tiles;
     uint32_t *rs = malloc((R + 1) * 4), *o = malloc((V ? V : 1) * 4);
     if (!rs || !o) {
@@ -144,8 +141,8 @@ static uint32_t cut_ranges(hl_cl_light *l, const uint32_t *curve, uint32_t mult,
  * range and slot, the tiles that store the slot, in tile order, each as one
  * entry: a head word (the tile in the range) and the HL_TILE terms as
  * halves (half.h; zero in lanes whose vertex does not store the slot),
- * after an all-zero entry 0; and for each range, slot and tile the
- * entry's number in its column (1 for the first, 0 for none), in 16 bits.
+ * after an all-zero entry 0; and for each range and slot the tiles its
+ * column holds, 32 a word: a bit a tile, and the entries before the word.
  * Also each position's 2^e, which scales its sums back (1 in the
  * padding). */
 
@@ -157,12 +154,12 @@ typedef struct col_build {
     hl_cl_light *l;
     const hl_transport *t;
     const hl_row_source *src; /* the file, where t holds no entries */
-    size_t nc, nb, ts;      /* slots, blocks per row, most tiles in a range */
+    size_t nc, nb, ts;      /* slots, blocks per row, words of 32 tiles in the largest range */
     size_t ncs, nrel, vpad; /* lengths of cs, of rel; positions with padding */
     uint64_t run;           /* entries, entry 0 included */
     uint32_t *cs;           /* each (range, slot)'s first entry (first, its count) */
     uint32_t *fill;         /* pass 1: each (range, slot)'s entries so far */
-    uint16_t *rel;          /* each (range, slot, tile)'s entry number */
+    uint32_t *rel;          /* each (range, slot, word of 32 tiles): tile bits, entries before */
     uint32_t *col;          /* the entries (made between the passes) */
     float *back;            /* each position's 2^e */
     int *ex;                /* each vertex position's e */
@@ -214,9 +211,10 @@ typedef struct pass_job {
  * last tile seen to store each slot; row: one row read from the file).
  * Pass 0 counts, for each slot, the tiles that store it (into cs, one
  * place on); pass 1 gives each tile that first stores a slot the next
- * entry of the slot's column (its number into rel, its head word into
- * col), and writes every term as a half into its vertex's lane. Ranges
- * share nothing they write. */
+ * entry of the slot's column (its bit into rel, its head word into col),
+ * writes every term as a half into its vertex's lane, and then counts
+ * each column's entries before each word of rel. Ranges share nothing
+ * they write. */
 static int column_pass(pass_job *j, size_t rg, uint32_t *last, uint8_t *row)
 {
     col_build *b = j->b;
@@ -225,8 +223,7 @@ static int column_pass(pass_job *j, size_t rg, uint32_t *last, uint8_t *row)
     const hl_transport *t = b->t;
     const size_t nc = b->nc, nb = b->nb, ts = b->ts, V = l->nverts;
     uint32_t *c = (pass == 0 ? b->cs : b->fill) + rg * (nc + 1);
-    const uint32_t *c0 = b->cs + rg * (nc + 1);
-    uint16_t *rr = pass == 0 ? NULL : b->rel + rg * nc * ts;
+    uint32_t *rr = pass == 0 ? NULL : b->rel + 2 * rg * nc * ts;
     memset(last, 0xff, nc * 4);
     const size_t v0 = l->range_start[rg];
     for (size_t v = v0; v < V && v < l->range_start[rg + 1]; v++) {
@@ -254,8 +251,8 @@ static int column_pass(pass_job *j, size_t rg, uint32_t *last, uint8_t *row)
                     continue;
                 }
                 if (fresh) {
-                    rr[s * ts + tile] = (uint16_t)(++c[s] - c0[s]); /* at most 65535: cut_ranges */
-                    b->col[(size_t)(c[s] - 1) * COL_WORDS] = tile;
+                    rr[2 * (s * ts + tile / 32)] |= 1u << (tile % 32);
+                    b->col[(size_t)(c[s]++) * COL_WORDS] = tile;
                 }
                 const hl_row_quant q = t->row_quant[u];
                 float term = hl_dequant(l->scheme, ent[2 * i + 1], q.a, q.b, hl_dither_key((uint32_t)u, (uint32_t)s));
@@ -263,6 +260,13 @@ static int column_pass(pass_job *j, size_t rg, uint32_t *last, uint8_t *row)
                    exact powers of two, so the same rounding, 4x faster */
                 ((uint16_t *)(b->col + (size_t)(c[s] - 1) * COL_WORDS + 1))[lane] = hl_half_bits(term * b->inv[v]);
             }
+    }
+    for (size_t s = 0; pass == 1 && s < nc; s++) {
+        uint32_t before = 0, *w = rr + 2 * s * ts;
+        for (size_t i = 0; i < ts; i++) {
+            w[2 * i + 1] = before;
+            before += (uint32_t)__builtin_popcount(w[2 * i]);
+        }
     }
     return 0;
 }
@@ -334,7 +338,7 @@ static hl_result column_count(col_build *b, const uint32_t *curve, uint32_t mult
     b->ncs = (size_t)l->nranges * (b->nc + 1);
     b->ts = 1;
     for (size_t rg = 0; rg < l->nranges; rg++) {
-        size_t n = (l->range_start[rg + 1] - l->range_start[rg]) / HL_TILE;
+        size_t n = ((l->range_start[rg + 1] - l->range_start[rg]) / HL_TILE + 31) / 32;
         if (n > b->ts) b->ts = n;
     }
     l->tstride = (uint32_t)b->ts;
@@ -346,7 +350,7 @@ static hl_result column_count(col_build *b, const uint32_t *curve, uint32_t mult
 }
 
 /* The memory pass 1 fills, zeroed (lanes whose vertex does not store a
- * slot stay zero): the entries and tile numbers straight where the device
+ * slot stay zero): the entries and tile bits straight where the device
  * reads them on a CPU device (hl_cl_adopt_buf), so never held twice. */
 static hl_result column_memory(col_build *b)
 {
@@ -358,16 +362,16 @@ static hl_result column_memory(col_build *b)
     b->inv = malloc((V ? V : 1) * sizeof *b->inv);
     if (!b->fill || !b->back || !b->ex || !b->inv) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the transport columns");
     memcpy(b->fill, b->cs, b->ncs * 4);
-    b->rel = hl_alloc_big(ctx, b->nrel * 2, "the transport columns' tile numbers");
+    b->rel = hl_alloc_big(ctx, b->nrel * 8, "the transport columns' tile bits");
     if (!b->rel) return HL_ERR_OUT_OF_MEMORY;
-    memset(b->rel, 0, b->nrel * 2);
+    memset(b->rel, 0, b->nrel * 8);
     b->col = hl_alloc_big(ctx, (size_t)b->run * COL_WORDS * 4, "transport columns");
     if (!b->col) return HL_ERR_OUT_OF_MEMORY;
     memset(b->col, 0, (size_t)b->run * COL_WORDS * 4);
     return HL_OK;
 }
 
-/* The columns, their starts, the tile numbers, the ranges and the scales
+/* The columns, their starts, the tile bits, the ranges and the scales
  * onto the device: whole, or (nparts > 1) the columns kept on the host for
  * part-sized buffers (cl_parts.c). */
 static hl_result column_upload(col_build *b, const hl_col_sizes *z)
@@ -386,7 +390,7 @@ static hl_result column_upload(col_build *b, const hl_col_sizes *z)
         r = hl_cl_adopt_buf(ctx, &l->col, (size_t)b->run * COL_WORDS * 4, &l->host[0], "transport columns");
         if (r == HL_OK) r = hl_cl_big_buf(ctx, &l->cols, b->ncs * 4, b->cs, &l->host[1], "column starts");
         /* on failure host[] is freed with the relighter */
-        if (r == HL_OK) r = hl_cl_adopt_buf(ctx, &l->rel, b->nrel * 2, &l->host[3], "the columns' tile numbers");
+        if (r == HL_OK) r = hl_cl_adopt_buf(ctx, &l->rel, b->nrel * 8, &l->host[3], "the columns' tile bits");
         if (r == HL_OK)
             r = hl_cl_make_buf(ctx, &l->rstart, CL_MEM_READ_ONLY, ((size_t)l->nranges + 1) * 4, l->range_start, "ranges");
     }

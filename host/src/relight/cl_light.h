@@ -29,7 +29,7 @@ struct hl_cl_light {
     cl_mem ord, klist;                              /* vertex at each position; kept slots */
     void *host[4];                                  /* CPU devices: their memory */
     uint32_t nranges, *range_start;                 /* vertices of each work-item */
-    uint32_t tstride;                               /* most tiles in a range */
+    uint32_t tstride;                               /* words of 32 tiles in the largest range */
     uint64_t col_entries;                           /* tile entries in all columns */
     uint32_t *col_start;                            /* host copy, for counting bytes */
     uint32_t *order;                                /* vertex at each position */

@@ -33,10 +33,11 @@
 #define HL_PARTS_RANGES_PER_PART 2u
 
 /* Bytes of the part buffers for a part of e entries (entry 0 not counted)
- * and n ranges: entries, starts, tile numbers, range starts. */
+ * and n ranges: entries, starts, tile bits (8 bytes a slot and 32 tiles),
+ * range starts. */
 static uint64_t part_bytes(const hl_col_sizes *z, uint64_t e, uint64_t n)
 {
-    return (e + 1) * ENTRY_BYTES + n * (z->nc + 1) * 4 + n * z->nc * z->ts * 2 + (n + 1) * 4;
+    return (e + 1) * ENTRY_BYTES + n * (z->nc + 1) * 4 + n * z->nc * z->ts * 8 + (n + 1) * 4;
 }
 
 /* Entries of range rg: from its slot 0's start to its last slot's end. */
@@ -161,8 +162,8 @@ hl_result hl_cl_light_make_parts(hl_cl_light *l, const hl_col_sizes *z, void *co
     if (r == HL_OK)
         r = hl_cl_make_buf(ctx, &l->cols, CL_MEM_READ_ONLY, (size_t)maxn * (nc + 1) * 4, NULL, "column starts (one part)");
     if (r == HL_OK)
-        r = hl_cl_make_buf(ctx, &l->rel, CL_MEM_READ_ONLY, (size_t)maxn * nc * z->ts * 2, NULL,
-                           "the columns' tile numbers (one part)");
+        r = hl_cl_make_buf(ctx, &l->rel, CL_MEM_READ_ONLY, (size_t)maxn * nc * z->ts * 8, NULL,
+                           "the columns' tile bits (one part)");
     if (r == HL_OK)
         r = hl_cl_make_buf(ctx, &l->rstart, CL_MEM_READ_ONLY, (size_t)(maxn + 1) * 4, NULL, "ranges (one part)");
     if (r != HL_OK) return r;
@@ -188,9 +189,9 @@ hl_result hl_cl_light_enq_part(hl_cl_light *l, uint32_t p, cl_uint *nr)
     CL_TRY(l->ctx, clEnqueueWriteBuffer(q, l->cols, CL_FALSE, 0, (size_t)n * (nc + 1) * 4,
                                         l->part_cs + (size_t)r0 * (nc + 1), 0, NULL, NULL),
            "upload of a part's column starts");
-    CL_TRY(l->ctx, clEnqueueWriteBuffer(q, l->rel, CL_FALSE, 0, (size_t)n * nc * ts * 2,
-                                        (const char *)l->host_rel + (size_t)r0 * nc * ts * 2, 0, NULL, NULL),
-           "upload of a part's tile numbers");
+    CL_TRY(l->ctx, clEnqueueWriteBuffer(q, l->rel, CL_FALSE, 0, (size_t)n * nc * ts * 8,
+                                        (const char *)l->host_rel + (size_t)r0 * nc * ts * 8, 0, NULL, NULL),
+           "upload of a part's tile bits");
     CL_TRY(l->ctx, clEnqueueWriteBuffer(q, l->rstart, CL_FALSE, 0, ((size_t)n + 1) * 4, l->range_start + r0, 0, NULL,
                                         NULL),
            "upload of a part's ranges");
