@@ -281,6 +281,7 @@ static void md_heading(FILE *md, const bb_opts *o, const hl_transport_info *in, 
                 "to all %u), one thread, the least of %u runs.\n\n",
             bench_base_name(o->file), in->vertex_count, in->N, in->C, K, 2 * in->N * in->N, Cq, 6 * Cq * Cq,
             o->order, o->order * o->order, in->vertex_count, o->reps);
+    if (!Cq) fprintf(md, "(No power of two from 2 divides C = %u: the cube bases are left out.)\n\n", in->C);
     fprintf(md, "Made by `haarlight bench-basis");
     for (int i = 0; i < o->argc; i++) fprintf(md, " %s", o->argv[i]);
     fprintf(md, "` (cube rows: %s).\n\n", o->cube_rows == HL_CUBE_ROWS_OWN ? "own footprints" : "shared pieces");
@@ -389,7 +390,8 @@ static double geo_mean(const double *v, int n, size_t stride)
 
 /* The summary tables of basis.md, the lines on stdout and the plot's
  * script. */
-static void write_summary(bb_files *fs, const bb_opts *o, char names[][256], const bb_results *res, const double *ms_tot)
+static void write_summary(bb_files *fs, const bb_opts *o, uint32_t K, char names[][256], const bb_results *res,
+                          const double *ms_tot)
 {
     FILE *md = fs->f[BB_MD], *gp = fs->f[BB_GP];
     const int ne = o->nenvs;
@@ -451,7 +453,12 @@ static void write_summary(bb_files *fs, const bb_opts *o, char names[][256], con
         }
 
     /* the plot: the geometric mean over the maps against terms, time and
-       bytes, a line per basis */
+       bytes, a line per basis; the file's name in the title without the
+       quotes that would end gnuplot's string */
+    char title[256];
+    snprintf(title, sizeof title, "%s", bench_base_name(o->file));
+    for (char *c = title; *c; c++)
+        if (*c == '\'' || *c == '\\') *c = '_';
     fprintf(gp, "# in this folder: gnuplot -e \"set output 'basis.svg'\" basis.gp\n");
     for (int b = 0; b < HL_BASIS_COUNT; b++) {
         fprintf(gp, "$t%d << EOD\n", b);
@@ -474,15 +481,26 @@ static void write_summary(bb_files *fs, const bb_opts *o, char names[][256], con
                 "set logscale xy\nset grid\nset key bottom left font ',9'\n"
                 "set ylabel 'relative L2, geometric mean over %d maps'\n"
                 "set multiplot layout 1,3 title 'Lighting bases on %s, %u vertices'\n",
-            ne, bench_base_name(o->file), o->K);
+            ne, title, K);
     static const char *const panel[3][3] = {{"t", "terms M (whole rows)", "error against terms"},
                                             {"s", "ms per lighting change, plain C (median over maps)", "error against time"},
                                             {"b", "bytes per vertex", "equal bytes, M = 200, against own exact"}};
     for (int p = 0; p < 3; p++) {
-        fprintf(gp, "set title '%s'\nset xlabel '%s'\nplot ", panel[p][2], panel[p][1]);
-        for (int b = 0; b < HL_BASIS_COUNT; b++)
-            fprintf(gp, "%s$%s%d using 1:2 with linespoints pt %d ps 0.6 title '%s'", b ? ", \\\n     " : "", panel[p][0], b,
-                    b + 4, hl_basis_name((hl_basis)b));
+        /* only the series with points (a basis may have no terms, or none
+           of the counts asked), and a blank panel when none has any:
+           gnuplot refuses a plot with no valid point */
+        int any = 0;
+        fprintf(gp, "set title '%s'\nset xlabel '%s'\n", panel[p][2], panel[p][1]);
+        for (int b = 0; b < HL_BASIS_COUNT; b++) {
+            int has = 0;
+            for (uint32_t i = 0; p < 2 && i < o->nterms; i++) has |= res->M[b][i] != 0;
+            for (uint32_t j = 0; p == 2 && j < o->nbytes; j++) has |= !isnan(res->l2b[0][b][j]);
+            if (!has) continue;
+            fprintf(gp, "%s$%s%d using 1:2 with linespoints pt %d ps 0.6 title '%s'", any ? ", \\\n     " : "plot ",
+                    panel[p][0], b, b + 4, hl_basis_name((hl_basis)b));
+            any = 1;
+        }
+        if (!any) fprintf(gp, "set label 1 'no data' at graph 0.5, graph 0.5 center\nplot [1:10] [1e-7:1] 2 notitle\nunset label 1");
         fprintf(gp, "\n");
     }
     fprintf(gp, "unset multiplot\n");
@@ -538,7 +556,7 @@ static hl_result run(hl_context *ctx, const bb_opts *o, hl_transport *t, bb_file
                     res->ms[e][b][i][0] + res->ms[e][b][i][1] + res->ms[e][b][i][2];
     }
     if (r == HL_OK) {
-        write_summary(fs, o, names, res, ms_tot);
+        write_summary(fs, o, K, names, res, ms_tot);
         write_full(fs->f[BB_MD], o, names, res, ms_tot);
     }
     hl_basis_bench_destroy(bb);

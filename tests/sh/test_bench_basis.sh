@@ -18,7 +18,9 @@
 #   cube_side    --cube-side 4 gives 96 cube terms, and its cube Haar at all
 #                terms its own exact colours again; so does --cube-rows own,
 #                and --continuous 8 adds both grids' errors against the
-#                continuous reference to basis.md.
+#                continuous reference to basis.md; on a C = 9 transport (no
+#                power of two divides it) the cube bases are left out and
+#                the rest, the plot included, is written.
 #   bad_options  --sh-order 0 and 33, --terms 0, --vertices 0, --bytes 0
 #                and x, --reps 0, --cube-rows exact, --continuous -1,
 #                --cube-side 3 and 1024, --cube-side 32 on
@@ -113,6 +115,14 @@ cube_side)
   echo "--cube-rows own: cube Haar at every term against its own exact colours $own; against the continuous reference: $grid"
   awk -v a="$own" 'BEGIN { exit !(a != "" && a <= 1e-6) }' || fail "--cube-rows own with every term: $own"
   [ -n "$grid" ] || fail "no line of the grids against the continuous reference"
+  # C = 9: no cube side divides it; the other bases and the plot go on
+  "$bin" precompute "$data/bunny_lowres.obj" --ground -C 9 -N 16 -q -o "$tmp/c9.hlt" || fail "precompute -C 9"
+  "$bin" bench-basis "$tmp/c9.hlt" --sky --vertices 16 --reps 1 -q -o "$tmp/c9" >"$tmp/stdout.txt" 2>"$tmp/stderr.txt" ||
+    { cat "$tmp/stderr.txt"; fail "bench-basis on C = 9 exited $?"; }
+  grep -q ",cube-haar" "$tmp/c9/basis.csv" && fail "C = 9: cube rows written"
+  grep -q ",haar-transport," "$tmp/c9/basis.csv" || fail "C = 9: no paraboloid rows"
+  if command -v gnuplot >/dev/null; then [ -s "$tmp/c9/basis.svg" ] || fail "C = 9: no basis.svg"; fi
+  echo "C = 9: the cube bases left out, the others and the plot written"
   ;;
 bad_options)
   scene
