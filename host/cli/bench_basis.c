@@ -71,8 +71,10 @@ static const char *const usage =
     "sampled vertices, scaled to the transport's vertex count (one thread; the least\n"
     "of the runs). Writes DIR/basis.md, DIR/basis.csv, DIR/basis.gp and, with\n"
     "gnuplot, DIR/basis.svg: per map, basis, M and budget the relative L2 and max\n"
-    "errors of the colours (clamped at zero, as every output) against the exact\n"
-    "ones; per map the L2 of every basis at M = 200, also on stdout.\n"
+    "errors of the colours (clamped at zero, as every output) against the\n"
+    "paraboloid's exact ones, and the L2 against the basis's own grid's (l2_own:\n"
+    "the cube's for the cube bases; the gap between the two grids is reported as\n"
+    "the cube floor); per map the L2 of every basis at M = 200, also on stdout.\n"
     "\n"
     "  --env ENV.exr        an environment, OpenEXR or .hdr (repeat, at most 16 maps)\n"
     "  --sky                add the procedural sky (the default when no --env)\n"
@@ -100,7 +102,8 @@ static const char *const usage =
     "                       of the vertices (default 0: not)\n"
     "  --reps R             runs of each timing, 1 to 100 (default 5)\n"
     "  -o, --output DIR     where the files go (made if missing)\n"
-    "  --threads T          host threads for the exact rows (default: all cores)\n"
+    "  --threads T          host threads for the rays and the references (default:\n"
+    "                       all cores; the timings run on one)\n"
     "  -q, --quiet          no progress lines (the lines at M = 200 still go to stdout)\n";
 
 typedef struct bb_opts {
