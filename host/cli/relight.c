@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 
 #include "cli.h"
 #include "haarlight_tools.h"
@@ -107,6 +108,17 @@ int cmd_relight(int argc, char **argv)
     if (r == HL_OK) r = hl_relighter_create_from_file(ctx, t, scene, &rl); /* the entries go once read */
     if (r == HL_OK && !cd.quiet)
         fprintf(stderr, "relighter ready in %.2f s (the transport laid out for the device)\n", hl_tools_now() - t_rl);
+    if (r == HL_OK && !cd.quiet) {
+        /* what the device holds against the file (docs/MEMORY.md) */
+        hl_relighter_memory m;
+        struct stat sb;
+        if (hl_relighter_memory_use(rl, &m) == HL_OK && m.device_bytes && stat(scene, &sb) == 0 && sb.st_size > 0)
+            fprintf(stderr,
+                    "the device holds %.1f MB for it: %.0f bytes a vertex, %.2f times the file; the columns %.1f MB%s\n",
+                    (double)m.device_bytes / 1e6, (double)m.device_bytes / t->info.vertex_count,
+                    (double)m.device_bytes / (double)sb.st_size, (double)m.column_bytes / 1e6,
+                    m.parts > 1 ? ", uploaded in parts from host memory" : "");
+    }
     if (r == HL_OK && env) r = hl_relighter_set_env(rl, env);
     if (r == HL_OK && surr) r = hl_relighter_set_surroundings(rl, surr);
     if (r == HL_OK) {
