@@ -141,6 +141,10 @@ int cmd_relight(int argc, char **argv)
         fprintf(stderr, "negative light: %u of %u vertices summed below zero and were clamped to 0 (the most negative "
                 "channel was %.3g%% of the brightest)\n", st.negative_vertices, t->info.vertex_count,
                 100.0 * st.most_negative);
+    /* the colours are out: the device's columns go before the picture's
+       render (Embree, the image) is made, so the two never add up */
+    hl_relighter_destroy(rl);
+    rl = NULL;
     if (r == HL_OK && !o.exposure_set) {
         exposure = hl_exposure_auto(t->mesh, rgb);
         if (!cd.quiet && (ply8 || is_glb || !strcasecmp(ext, ".png"))) fprintf(stderr, "exposure: %+.2f EV (automatic)\n", (double)exposure);

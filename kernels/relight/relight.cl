@@ -11,17 +11,17 @@
  *
  * For each range and slot the column lists the tiles in which at least one
  * vertex stores that slot, in tile order, each as one entry of ENTRY
- * words: a head (the tile in the range) and the tile's HL_TILE terms as
- * halves, decoded from the file's codes on load and scaled by 2^-e per
- * vertex (host/src/core/half.h; zero in lanes whose vertex does not store the
- * slot). Column (w, s) holds entries col_start[w (ncoef + 1) + s] to the
- * next start. Entry 0 is all zero. For each range and slot, rel says
- * which tiles the column holds, 32 tiles a word: a bit a tile (x), and
- * the column's entries before the word (y). So the column holds tile t
- * as entry y + (the set bits below t's) + 1, and a tile not held reads
- * entry 0 (2 bits a slot and tile where 16-bit entry numbers took 16).
- * kept: a count, then the kept slots in
- * ascending order (written by hl_select).
+ * words: the tile's HL_TILE terms as halves, decoded from the file's codes
+ * on load and scaled by 2^-e per vertex (host/src/core/half.h; zero in
+ * lanes whose vertex does not store the slot). Column (w, s) holds entries
+ * col_start[w (ncoef + 1) + s] to the next start. Entry 0 is all zero.
+ * For each range and slot, rel says which tiles the column holds, 32 tiles
+ * a word: a bit a tile (x), and the column's entries before the word (y).
+ * So the column holds tile t as entry y + (the set bits below t's) + 1; a
+ * tile not held reads entry 0. (Two bits a slot and tile, where a 16-bit
+ * entry number a slot and tile and a 4-byte head an entry took more.)
+ * kept: a count, then the kept slots in ascending order (written by
+ * hl_select).
  *
  * A work-item walks its range one of two ways (hl_tile_walk_pays in
  * hl_shared.h): by column (walk_columns) or by tile (walk_tiles). Either
@@ -42,7 +42,7 @@
 #define HL_CAT(a, b) HL_CAT_(a, b)
 #define FV HL_CAT(float, HL_TILE)            /* float16 */
 #define LOAD_TERMS HL_CAT(vload_half, HL_TILE)
-#define ENTRY (1u + HL_TILE / 2u)             /* words per column entry */
+#define ENTRY (HL_TILE / 2u)                  /* words per column entry */
 
 #if HL_TILE != 8 && HL_TILE != 16
 #error "HL_TILE must be 8 or 16"
@@ -54,9 +54,10 @@
 #define HL_SUM_TILES 512
 
 /* The column walk: each kept slot's entries in turn, each added into the
- * range's running sums in memory (planes of `range` floats). */
-static void walk_columns(global const uint *col, global const uint *cs, global const float4 *light,
-                         global const uint *kept, uint m, global float *acc, uint range)
+ * range's running sums in memory (planes of `range` floats); the tile of
+ * each entry is the next set bit of the slot's tile bits. */
+static void walk_columns(global const uint *col, global const uint *cs, global const uint2 *rw, uint tstride,
+                         global const float4 *light, global const uint *kept, uint m, global float *acc, uint range)
 {
     global FV *vr = (global FV *)acc, *vg = (global FV *)(acc + range), *vb = (global FV *)(acc + 2 * range);
     for (uint i = 0; i < range / HL_TILE; i++) vr[i] = vg[i] = vb[i] = (FV)(0.0f);
@@ -65,13 +66,15 @@ static void walk_columns(global const uint *col, global const uint *cs, global c
         float4 l = light[slot];
         FV lr = (FV)(l.x), lg = (FV)(l.y), lb = (FV)(l.z);
         global const uint *e = col + (size_t)cs[slot] * ENTRY, *end = col + (size_t)cs[slot + 1] * ENTRY;
-        for (; e < end; e += ENTRY) {
-            uint tq = e[0];
-            FV d = LOAD_TERMS(0, (global const half *)(e + 1));
-            vr[tq] = fma(d, lr, vr[tq]);
-            vg[tq] = fma(d, lg, vg[tq]);
-            vb[tq] = fma(d, lb, vb[tq]);
-        }
+        global const uint2 *bits = rw + (size_t)slot * tstride;
+        for (uint word = 0; e < end; word++)
+            for (uint x = bits[word].x; x; x &= x - 1u, e += ENTRY) {
+                uint tq = 32u * word + (31u - clz(x & (0u - x))); /* the lowest set bit's tile */
+                FV d = LOAD_TERMS(0, (global const half *)e);
+                vr[tq] = fma(d, lr, vr[tq]);
+                vg[tq] = fma(d, lg, vg[tq]);
+                vb[tq] = fma(d, lb, vb[tq]);
+            }
     }
 }
 
@@ -93,7 +96,7 @@ static void walk_tiles(global const uint *col, global const uint *cs, global con
         for (uint g = 0; g < HL_GROUP; g++) {
             uint s = kept[1 + min(j0 + g, m - 1)];
             row[g] = rw + (size_t)s * tstride;
-            before[g] = col + ((size_t)cs[s] - 1) * ENTRY + 1; /* entry r's halves at before + r ENTRY */
+            before[g] = col + ((size_t)cs[s] - 1) * ENTRY; /* entry r at before + r ENTRY */
             li[g] = j0 + g < m ? light[s] : (float4)(0.0f);
         }
         /* per slot: the tile bits of the word at hand, and where the next
@@ -116,7 +119,7 @@ static void walk_tiles(global const uint *col, global const uint *cs, global con
 #pragma unroll
             for (uint g = 0; g < HL_GROUP; g++) {
                 uint hit = (bits[g] >> bit) & 1u;
-                global const uint *e = hit ? next[g] : col + 1;
+                global const uint *e = hit ? next[g] : col;
                 next[g] += hit ? ENTRY : 0u;
                 FV d = LOAD_TERMS(0, (global const half *)e);
                 r = fma(d, (FV)(li[g].x), r);
@@ -166,12 +169,12 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
     global float *ar = acc + (size_t)3 * v0;
     ulong entries = 0;
     for (uint j = 0; j < m; j++) entries += cs[kept[1 + j] + 1] - cs[kept[1 + j]];
+    global const uint2 *rw = rel + (size_t)w * ncoef * tstride;
     if (!hl_tile_walk_pays(entries, m, nt)) {
-        walk_columns(col, cs, light, kept, m, ar, range);
+        walk_columns(col, cs, rw, tstride, light, kept, m, ar, range);
         put_colours(ar, range, v0, v1, back, albedo, order, keep_negative, out);
         return;
     }
-    global const uint2 *rw = rel + (size_t)w * ncoef * tstride;
     for (uint t0 = 0; t0 < nt; t0 += HL_SUM_TILES) {
         const uint tn = min((uint)HL_SUM_TILES, nt - t0), n = tn * HL_TILE, p0 = v0 + t0 * HL_TILE;
         walk_tiles(col, cs, rw, tstride, light, kept, m, ar, t0, tn);

@@ -139,15 +139,15 @@ static uint32_t cut_ranges(hl_cl_light *l, const uint32_t *curve, uint32_t mult,
 /* The rows turned into columns (see kernels/relight/relight.cl): vertices in tiles
  * of HL_TILE, tiles in ranges (one work-item each, cut_ranges); for each
  * range and slot, the tiles that store the slot, in tile order, each as one
- * entry: a head word (the tile in the range) and the HL_TILE terms as
- * halves (half.h; zero in lanes whose vertex does not store the slot),
+ * entry: the HL_TILE terms as halves (half.h; zero in lanes whose vertex
+ * does not store the slot),
  * after an all-zero entry 0; and for each range and slot the tiles its
  * column holds, 32 a word: a bit a tile, and the entries before the word.
  * Also each position's 2^e, which scales its sums back (1 in the
  * padding). */
 
-/* words per column entry: the head word, then HL_TILE halves */
-#define COL_WORDS ((size_t)1 + HL_TILE / 2)
+/* words per column entry: HL_TILE halves */
+#define COL_WORDS ((size_t)HL_TILE / 2)
 
 /* The work of hl_cl_light_build_columns, shared by its phases. */
 typedef struct col_build {
@@ -211,7 +211,7 @@ typedef struct pass_job {
  * last tile seen to store each slot; row: one row read from the file).
  * Pass 0 counts, for each slot, the tiles that store it (into cs, one
  * place on); pass 1 gives each tile that first stores a slot the next
- * entry of the slot's column (its bit into rel, its head word into col),
+ * entry of the slot's column (its bit into rel),
  * writes every term as a half into its vertex's lane, and then counts
  * each column's entries before each word of rel. Ranges share nothing
  * they write. */
@@ -252,13 +252,13 @@ static int column_pass(pass_job *j, size_t rg, uint32_t *last, uint8_t *row)
                 }
                 if (fresh) {
                     rr[2 * (s * ts + tile / 32)] |= 1u << (tile % 32);
-                    b->col[(size_t)(c[s]++) * COL_WORDS] = tile;
+                    c[s]++;
                 }
                 const hl_row_quant q = t->row_quant[u];
                 float term = hl_dequant(l->scheme, ent[2 * i + 1], q.a, q.b, hl_dither_key((uint32_t)u, (uint32_t)s));
                 /* hl_half_held(term, e), its ldexpf as a multiply by 2^-e:
                    exact powers of two, so the same rounding, 4x faster */
-                ((uint16_t *)(b->col + (size_t)(c[s] - 1) * COL_WORDS + 1))[lane] = hl_half_bits(term * b->inv[v]);
+                ((uint16_t *)(b->col + (size_t)(c[s] - 1) * COL_WORDS))[lane] = hl_half_bits(term * b->inv[v]);
             }
     }
     for (size_t s = 0; pass == 1 && s < nc; s++) {

@@ -69,18 +69,17 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
     /* per kept slot its place in the list and, per range, its column's
        start and end; per vertex slot its scale; per vertex its albedo,
        place and colour. Then per range, by its walk (hl_tile_walk_pays):
-       the column walk reads each kept entry's head word and halves, and
-       its sums (zeroed, then read once they leave the cache); the tile
-       walk reads the halves and, per kept slot and 32 tiles, a word of
-       tile bits and a count, while its sums and entry 0 stay in the cache. */
+       both read each kept entry's halves and, per kept slot and 32 tiles,
+       a word of tile bits and a count (the column walk up to its last
+       entry: counted whole); the column walk reads its sums too (zeroed,
+       then read once they leave the cache), while the tile walk's sums
+       and entry 0 stay in the cache. */
     double b = kept * (4.0 + (double)l->nranges * 8.0) + (double)l->range_start[l->nranges] * 4.0 +
                (double)l->nverts * 36.0;
     for (size_t rg = 0; rg < l->nranges; rg++) {
         const uint32_t n = l->range_start[rg + 1] - l->range_start[rg], nt = n / HL_TILE;
-        if (hl_cl_light_tile_walk(l, (uint32_t)rg, per[rg], (uint32_t)kept))
-            b += per[rg] * 2.0 * HL_TILE + kept * ((nt + 31) / 32) * 8.0;
-        else
-            b += per[rg] * (4.0 + 2.0 * HL_TILE) + n * 24.0;
+        b += per[rg] * 2.0 * HL_TILE + kept * ((nt + 31) / 32) * 8.0;
+        if (!hl_cl_light_tile_walk(l, (uint32_t)rg, per[rg], (uint32_t)kept)) b += n * 24.0;
     }
     free(per);
     *bytes = b;

@@ -18,8 +18,8 @@
 
 #include "cl_light.h"
 
-/* bytes of one column entry: the head word and HL_TILE halves */
-#define ENTRY_BYTES ((uint64_t)4 * (1 + HL_TILE / 2))
+/* bytes of one column entry: HL_TILE halves */
+#define ENTRY_BYTES ((uint64_t)2 * HL_TILE)
 
 /* Device memory left free, per lighting slot, for what a relighter makes
  * later (the capture of surroundings: 68 bytes a slot of cone table and
@@ -168,7 +168,7 @@ hl_result hl_cl_light_make_parts(hl_cl_light *l, const hl_col_sizes *z, void *co
         r = hl_cl_make_buf(ctx, &l->rstart, CL_MEM_READ_ONLY, (size_t)(maxn + 1) * 4, NULL, "ranges (one part)");
     if (r != HL_OK) return r;
     /* entry 0, all zero, stays: each part's entries go after it */
-    const uint32_t zero[1 + HL_TILE / 2] = {0};
+    const uint32_t zero[HL_TILE / 2] = {0};
     CL_TRY(ctx, clEnqueueWriteBuffer(l->cl->queue, l->col, CL_TRUE, 0, sizeof zero, zero, 0, NULL, NULL), "upload");
     return HL_OK;
 }
