@@ -19,6 +19,7 @@
 #include "cli.h"
 #include "haarlight.h"
 #include "haarlight_tools.h"
+#include "haarlight_tools.h"
 #ifdef HL_HAVE_VIEWER
 #include "viewer.h"
 #endif
@@ -49,7 +50,8 @@ static const char *const usage_precompute =
     "\n"
     "Reads MESH (OBJ, PLY, glTF, ... through assimp; MESH.gz, as mesh.obj.gz, is read\n"
     "as it is), casts visibility rays with Embree, and writes per-vertex sparse\n"
-    "quantised Haar (or, with --basis sh, spherical-harmonic) transport.\n"
+    "quantised Haar (or, with --basis sh, spherical-harmonic; with --basis cube-haar,\n"
+    "cube-face Haar) transport.\n"
     "\n"
     "mesh:\n"
     "  --ground             add a finely tessellated ground plane under the object\n"
@@ -70,12 +72,18 @@ static const char *const usage_precompute =
     "  --terms K            keep the K largest; with --energy, cap the count at K\n"
     "  --terms all          keep every non-zero coefficient\n"
     "basis:\n"
-    "  --basis haar|sh      the rows' basis: haar, the paraboloid Haar wavelets (default),\n"
-    "                       or sh, real spherical harmonics of the cell-integrated rows,\n"
-    "                       coefficient k = l^2 + l + m in slot k; relight, bench and view\n"
-    "                       then project the lighting onto the same harmonics\n"
+    "  --basis haar|sh|cube-haar  the rows' basis: haar, the paraboloid Haar wavelets\n"
+    "                       (default); sh, real spherical harmonics of the cell-integrated\n"
+    "                       rows, coefficient k = l^2 + l + m in slot k; cube-haar, Haar\n"
+    "                       wavelets over the six faces of a cube (the 2003 paper's layout),\n"
+    "                       face f's coefficients in slots f C'^2 .. (f + 1) C'^2 - 1.\n"
+    "                       relight, bench and view then take the lighting into the same\n"
+    "                       basis (a cube-haar file cannot be relit under --surroundings)\n"
     "  --sh-order L         with --basis sh: bands 0..L-1, L^2 coefficients, 1..32 with\n"
     "                       L^2 <= 2 N^2 (default 20: 400 coefficients)\n"
+    "  --cube-side C'       with --basis cube-haar: the faces' side, a power of two that\n"
+    "                       divides -C, with 6 C'^2 <= 2 N^2 (default the largest such:\n"
+    "                       32 at N = C = 64)\n"
     "quantisation:\n"
     "  --quant sqrt8|log8|linear8  8-bit scheme (default sqrt8: sign + 7 bits uniform in\n"
     "                       the square root of |v| over the row's largest; log8: sign +\n"
@@ -141,7 +149,7 @@ typedef struct pre_opts {
     hl_mesh_load_desc ld;
     hl_precompute_desc pd;
     hl_context_desc cd;
-    int terms_set, energy_set, terms_all, sh_order_set;
+    int terms_set, energy_set, terms_all, sh_order_set, cube_side_set;
     uint32_t shard_index, shard_count; /* --shard I/N; count 0 when not given */
 } pre_opts;
 
@@ -243,7 +251,15 @@ static int pre_transport_opt(int argc, char **argv, int *ip, const char *usage, 
         NEED_ARG();
         if (!strcmp(v, "haar")) o->pd.basis = HL_TRANSPORT_BASIS_HAAR;
         else if (!strcmp(v, "sh")) o->pd.basis = HL_TRANSPORT_BASIS_SH;
-        else return usage_error(usage, "--basis %s: expected haar or sh", v);
+        else if (!strcmp(v, "cube-haar")) o->pd.basis = HL_TRANSPORT_BASIS_CUBE;
+        else return usage_error(usage, "--basis %s: expected haar, sh or cube-haar", v);
+    } else if (!strcmp(a, "--cube-side")) {
+        NEED_ARG();
+        uint32_t q = 0;
+        if (!parse_u32(v, &q) || q < 2 || q > 512 || (q & (q - 1)))
+            return usage_error(usage, "--cube-side %s: expected a power of two from 2 to 512", v);
+        o->pd.cube_side = q;
+        o->cube_side_set = 1;
     } else if (!strcmp(a, "--sh-order")) {
         NEED_ARG();
         if (!parse_u32(v, &o->pd.sh_order) || o->pd.sh_order < 1 || o->pd.sh_order > 32)
@@ -307,6 +323,25 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
     if (o->terms_all && o->energy_set) return usage_error(usage, "%s", "--terms all and --energy contradict each other");
     if (o->sh_order_set && o->pd.basis != HL_TRANSPORT_BASIS_SH)
         return usage_error(usage, "%s", "--sh-order needs --basis sh");
+    if (o->cube_side_set && o->pd.basis != HL_TRANSPORT_BASIS_CUBE)
+        return usage_error(usage, "%s", "--cube-side needs --basis cube-haar");
+    if (o->pd.basis == HL_TRANSPORT_BASIS_CUBE && !o->cube_side_set) {
+        const uint32_t N = o->pd.N ? o->pd.N : 64, C = o->pd.C ? o->pd.C : 64;
+        if (!hl_basis_bench_default_cube_side(N, C)) {
+            char why[96];
+            snprintf(why, sizeof why, "no cube side from 2 to N / 2 = %u divides -C %u", N / 2, C);
+            return usage_error(usage, "--basis cube-haar: %s", why);
+        }
+    }
+    if (o->pd.basis == HL_TRANSPORT_BASIS_CUBE && o->cube_side_set) {
+        const uint32_t q = o->pd.cube_side, N = o->pd.N ? o->pd.N : 64, C = o->pd.C ? o->pd.C : 64;
+        if (6 * q * q > 2 * N * N || C % q) {
+            char why[96];
+            snprintf(why, sizeof why, "%u (%u coefficients) with -N %u (%u slots) and -C %u", q, 6 * q * q, N,
+                     2 * N * N, C);
+            return usage_error(usage, "--cube-side %s: 6 C'^2 must be at most 2 N^2 and C' must divide C", why);
+        }
+    }
     if (o->pd.basis == HL_TRANSPORT_BASIS_SH) {
         uint32_t L = o->pd.sh_order ? o->pd.sh_order : HL_DEFAULT_SH_ORDER, N = o->pd.N ? o->pd.N : 64;
         if (L * L > 2 * N * N) {

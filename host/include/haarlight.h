@@ -269,6 +269,8 @@ typedef struct hl_precompute_desc {
     int resume;
     uint32_t basis;    /* HL_TRANSPORT_BASIS_*: 0 the paraboloid Haar */
     uint32_t sh_order; /* spherical harmonics: order L (bands 0..L-1); 0: 20 */
+    uint32_t cube_side; /* cube-face Haar: the faces' side C' (a power of two,
+                           6 C'^2 <= 2 N^2, dividing C); 0: the largest such */
 } hl_precompute_desc;
 
 /* Counters and timings of one precompute. */
@@ -287,6 +289,10 @@ typedef struct hl_precompute_stats {
  * relighter projecting the lighting alike (host/FORMAT.md). */
 #define HL_TRANSPORT_BASIS_HAAR 0u
 #define HL_TRANSPORT_BASIS_SH 1u
+/* Cube-face Haar (the 2003 paper's layout): each of the six faces of side
+ * C' in the orthonormal non-standard Haar, coefficient face C'^2 + Mallat
+ * position in slot k, slots from 6 C'^2 on empty; sh_order holds C'. */
+#define HL_TRANSPORT_BASIS_CUBE 2u
 #define HL_DEFAULT_SH_ORDER 20u
 
 /* The transport file format version this build writes and reads. */
@@ -309,7 +315,8 @@ typedef struct hl_transport_info {
     uint64_t rays_cast;
     uint64_t rays_culled;
     uint32_t basis;               /* HL_TRANSPORT_BASIS_* */
-    uint32_t sh_order;            /* spherical harmonics: L, slots 0..L^2-1; else 0 */
+    uint32_t sh_order;            /* spherical harmonics: L, slots 0..L^2-1; cube-face
+                                     Haar: the faces' side C', slots 0..6 C'^2-1; else 0 */
 } hl_transport_info;
 
 /* A transport file in memory. Vertex v's entries are

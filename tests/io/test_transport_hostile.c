@@ -359,7 +359,7 @@ static void case_basis(void)
     printf("highest slot used: %u\n", top);
     uint8_t *f = malloc(size);
     static const struct { uint32_t basis, order; const char *what, *needle; } forged[] = {
-        {2, 0, "unknown basis", "basis = 2"},
+        {3, 0, "unknown basis", "basis = 3"},
         {0xFFFFFFFFu, 0, "unknown basis (all ones)", "basis = 4294967295"},
         {0, 5, "an order in a Haar file", "sh_order = 5 in a Haar file"},
         {1, 0, "order 0", "sh_order = 0"},
@@ -430,12 +430,79 @@ static void case_basis(void)
     small_done(ctx, &s, data, f, path, bad);
 }
 
+/* Cube-face Haar (basis 2, the cube side in the second word) on the
+ * small file (N = 8: 128 slots, C = 32): sides that are no power of two
+ * from 2, or whose 6 C'^2 coefficients pass the slots, refused; sides 2
+ * and 4 refused for entries at or past 6 C'^2; the writer refuses them
+ * too, and rows kept to slots 0..23 are written and read back as side 2. */
+static void case_cube_basis(void)
+{
+    hl_context *ctx = make_ctx();
+    char path[512], bad[512];
+    synth s;
+    size_t size = 0;
+    uint8_t *data = small_bytes(ctx, "file_cube", path, bad, sizeof path, &s, &size);
+    uint8_t *f = malloc(size);
+    static const struct { uint32_t side; const char *what, *needle; } forged[] = {
+        {0, "cube side 0", "sh_order = 0 (the cube side) is not a power of two"},
+        {1, "cube side 1", "sh_order = 1 (the cube side) is not a power of two"},
+        {3, "cube side 3", "sh_order = 3 (the cube side) is not a power of two"},
+        {1024, "cube side 1024", "sh_order = 1024 (the cube side) is not a power of two"},
+        {8, "cube side 8 (384 coefficients) with N = 8 (128 slots)", "its 384 coefficients exceed the 128 slots"},
+        {2, "an entry past 6 C'^2 = 24", "is not below the basis's 24 coefficients"},
+        {4, "an entry past 6 C'^2 = 96", "is not below the basis's 96 coefficients"},
+    };
+    for (size_t k = 0; k < sizeof forged / sizeof forged[0]; k++) {
+        memcpy(f, data, size);
+        wr32(f + F_BASIS, HL_TRANSPORT_BASIS_CUBE);
+        wr32(f + F_SH_ORDER, forged[k].side);
+        fix_header_crc(f);
+        expect_refused(ctx, bad, f, size, forged[k].what, forged[k].needle);
+        expect_refused(ctx, bad, f, size, forged[k].what, "file_cube.hlt");
+    }
+    s.info.basis = HL_TRANSPORT_BASIS_CUBE;
+    s.info.sh_order = 2;
+    static const uint32_t one[] = {1};
+    HL_CHECK(synth_write(ctx, bad, &s, one, 1) == HL_ERR_INVALID_ARGUMENT &&
+                 strstr(hl_context_last_error(ctx), "is not below the basis's 24 coefficients"),
+             "writer took an entry past 6 C'^2: %s", hl_context_last_error(ctx));
+    printf("writer: %s\n", hl_context_last_error(ctx));
+    const uint32_t B = s.info.block_count;
+    s.total = 0;
+    for (uint32_t v = 0; v < s.info.vertex_count; v++) {
+        uint8_t *e = s.entries + v * s.stride;
+        uint32_t n = 0, k = 0;
+        for (uint32_t b = 0; b < B; b++) {
+            uint32_t c = 0;
+            for (uint32_t j = 0; j < s.counts[(size_t)v * B + b]; j++, k++)
+                if (b * HL_BLOCK + e[2 * k] < 24) {
+                    e[2 * n] = e[2 * k];
+                    e[2 * n + 1] = e[2 * k + 1];
+                    n++;
+                    c++;
+                }
+            s.counts[(size_t)v * B + b] = (uint16_t)c;
+        }
+        s.nnz[v] = n;
+        s.total += n;
+    }
+    HL_CHECK(synth_write(ctx, bad, &s, one, 1) == HL_OK, "side 2, slots 0..23: %s", hl_context_last_error(ctx));
+    hl_transport *t = NULL;
+    HL_CHECK(hl_transport_load(ctx, bad, &t) == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_CUBE &&
+                 t->info.sh_order == 2, "cube side 2 file: %s", hl_context_last_error(ctx));
+    if (t) synth_compare(t, &s, "cube-face Haar file");
+    printf("cube side 2 file with %llu entries read back\n", (unsigned long long)s.total);
+    hl_transport_destroy(t);
+    small_done(ctx, &s, data, f, path, bad);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"corrupt", case_corrupt},
         {"badappend", case_badappend},
         {"basis", case_basis},
+        {"cube_basis", case_cube_basis},
         {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);

@@ -483,7 +483,7 @@ static void t_bad(void)
     hl_mesh *mesh = NULL;
     HL_CHECK(hl_mesh_load(ctx, data_path("bunny_lowres.obj"), &ld, &mesh, NULL) == HL_OK, "mesh");
     static const hl_precompute_desc bad[] = {
-        {.N = 16, .C = 8, .basis = 2},
+        {.N = 16, .C = 8, .basis = 3},
         {.N = 16, .C = 8, .basis = HL_TRANSPORT_BASIS_SH, .sh_order = 33},
         {.N = 16, .C = 8, .basis = HL_TRANSPORT_BASIS_SH, .sh_order = 23},
         {.N = 8, .C = 8, .basis = HL_TRANSPORT_BASIS_SH}, /* the default 20 on 128 slots */

@@ -70,6 +70,14 @@ hl_result hl_cl_pipe_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *c
  * uploaded once. */
 hl_result hl_cl_pipe_set_sh(hl_cl_pipe *p, const float *Y, uint32_t stride, uint32_t count);
 hl_result hl_cl_pipe_sh_project(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef);
+/* Cube-face Haar of side Cq in the place of cube2para and Haar (submit):
+ * the rows on the faces (hl_cl_pipe_cube_rows: T's first 6 Cq^2 floats of
+ * each ncoef) and their Haar (hl_cl_pipe_cube_haar: slots 0 .. 6 Cq^2 - 1,
+ * the others zero); twins hl_cube_rows and hl_cube_haar (cube/cube.h). */
+hl_result hl_cl_pipe_set_cube(hl_cl_pipe *p, uint32_t Cq);
+hl_result hl_cl_pipe_cube_rows(hl_cl_pipe *p, uint32_t rows, const uint8_t *vis, float scale,
+                               const float *normals4, float *T);
+hl_result hl_cl_pipe_cube_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef);
 hl_result hl_cl_pipe_truncate(hl_cl_pipe *p, uint32_t rows, const float *coef,
                               hl_trunc_params tp, hl_trunc_result *tr);
 /* Row v is vertex first + v (sqrt8's dither). */
@@ -146,6 +154,14 @@ hl_result hl_cl_light_stage_haar(hl_cl_light *l, const float *Lp, float *Lw);
  * order^2) in Haar's place; hl_cl_light_stage_sh runs that stage alone. */
 hl_result hl_cl_light_set_sh(hl_cl_light *l, const float *Y, uint32_t stride, uint32_t count);
 hl_result hl_cl_light_stage_sh(hl_cl_light *l, const float *Lp, float *Lw);
+/* A cube-face Haar transport of side Cq: the lighting is each face
+ * texel's mean radiance (env2para's kernels on the cube's taps, tap_start
+ * 6 Cq^2 + 1 rows of ntaps hl_env_tap, cube/cube.h's hl_cube_tables) and
+ * then the faces' Haar into slots 0 .. 6 Cq^2 - 1, zeros elsewhere;
+ * hl_cl_light_stage_cube runs the lighting stages up to Lw alone. */
+hl_result hl_cl_light_set_cube(hl_cl_light *l, uint32_t Cq, const uint32_t *tap_start, const hl_env_tap *taps,
+                               uint32_t ntaps);
+hl_result hl_cl_light_stage_cube(hl_cl_light *l, uint32_t s0, float f, float *Lw);
 hl_result hl_cl_light_stage_select(hl_cl_light *l, const float *Lw, hl_select_params sp, float *Lsel4,
                                    uint8_t *used, uint32_t *bits, hl_select_result *res);
 hl_result hl_cl_light_stage_relight(hl_cl_light *l, const float *Lsel4, const uint32_t *bits, float *B4);

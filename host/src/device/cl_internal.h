@@ -25,7 +25,7 @@ cl_int hl_cl_gl_release(struct hl_cl *cl, cl_mem m);
 
 /* The program's kernels, in the order of hl_cl_kernel_names. */
 enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_TURN, K_ENV2PARA, K_SELECT, K_RELIGHT, K_BANDWIDTH,
-       K_SH_PROJECT, K_COUNT };
+       K_SH_PROJECT, K_CUBE_ROWS, K_CUBE_HAAR, K_COUNT };
 extern const char *const hl_cl_kernel_names[K_COUNT];
 
 /* rows per work-item of hl_cube2para (HL_C2P_ROWS in kernels/maps/cube2para.cl) */
@@ -83,6 +83,12 @@ hl_result hl_cl_sh_upload(hl_context *ctx, struct hl_cl *cl, uint32_t ncoef, con
  * lighting uses it too). */
 hl_result hl_cl_sh_project_enqueue(hl_context *ctx, struct hl_cl *cl, cl_mem in, cl_uint ncoef, cl_mem Y, cl_uint stride,
                                    cl_uint count, cl_mem out, cl_uint rows);
+
+/* hl_cube_face_haar on rows of in (in_stride floats each, destroyed) into
+ * out (out_stride floats each, the slots from 6 Cq^2 on zeroed)
+ * (precompute/cl_pipe.c; the relight's cube lighting uses it too). */
+hl_result hl_cl_cube_haar_enqueue(hl_context *ctx, struct hl_cl *cl, cl_mem in, cl_uint in_stride, cl_mem out,
+                                  cl_uint out_stride, cl_uint Cq, cl_uint rows);
 
 /* Buffers (cl_buffers.c). Allocates a buffer of ctx's device counted
  * against the context's device memory limit; init, when given, is copied

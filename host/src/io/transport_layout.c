@@ -122,8 +122,20 @@ int hl_tf_info_problem(const hl_transport_info *i, char *msg, size_t n)
                1;
     if (i->block_count != blocks_for(i->N))
         return snprintf(msg, n, "block_count = %u, but N = %u needs %u", i->block_count, i->N, blocks_for(i->N)), 1;
-    if (i->basis != HL_TRANSPORT_BASIS_HAAR && i->basis != HL_TRANSPORT_BASIS_SH)
-        return snprintf(msg, n, "basis = %u is not a known basis (0 Haar, 1 spherical harmonics)", i->basis), 1;
+    if (i->basis != HL_TRANSPORT_BASIS_HAAR && i->basis != HL_TRANSPORT_BASIS_SH && i->basis != HL_TRANSPORT_BASIS_CUBE)
+        return snprintf(msg, n, "basis = %u is not a known basis (0 Haar, 1 spherical harmonics, 2 cube-face Haar)",
+                        i->basis), 1;
+    /* the cube side: a power of two the faces' Haar can halve down to 1,
+       whose 6 C'^2 coefficients fit the slots, cutting the visibility cube
+       into whole texels */
+    const uint32_t cs = i->sh_order;
+    if (i->basis == HL_TRANSPORT_BASIS_CUBE && (cs < 2 || cs > 512 || (cs & (cs - 1))))
+        return snprintf(msg, n, "sh_order = %u (the cube side) is not a power of two in 2..512", cs), 1;
+    if (i->basis == HL_TRANSPORT_BASIS_CUBE && 6 * cs * cs > slot_total(i->N))
+        return snprintf(msg, n, "sh_order = %u (the cube side): its %u coefficients exceed the %u slots of N = %u", cs,
+                        6 * cs * cs, slot_total(i->N), i->N), 1;
+    if (i->basis == HL_TRANSPORT_BASIS_CUBE && i->C % cs)
+        return snprintf(msg, n, "sh_order = %u (the cube side) does not divide C = %u", cs, i->C), 1;
     if (i->basis == HL_TRANSPORT_BASIS_HAAR && i->sh_order != 0)
         return snprintf(msg, n, "sh_order = %u in a Haar file (must be 0)", i->sh_order), 1;
     if (i->basis == HL_TRANSPORT_BASIS_SH && (i->sh_order < 1 || i->sh_order > 32))

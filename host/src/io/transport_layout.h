@@ -63,7 +63,7 @@ enum {
     H_SHARD_FIRST = 168, /* the shard's vertices [first, end) */
     H_SHARD_END = 172,
     H_BASIS = 176,    /* HL_TRANSPORT_BASIS_*: 0 (Haar) in files from before */
-    H_SH_ORDER = 180, /* spherical harmonics: L; else 0 */
+    H_SH_ORDER = 180, /* spherical harmonics: L; cube-face Haar: C'; else 0 */
     H_HEADER_CRC = 188
 };
 
@@ -140,9 +140,10 @@ static inline uint32_t blocks_for(uint32_t N) { return (slot_total(N) + HL_BLOCK
 static inline int tf_basis_byte(unsigned k) { return k >= H_BASIS && k < H_SH_ORDER + 4; }
 
 /* The slots a row of the basis may fill: L^2 for spherical harmonics,
- * else all 2 N^2. */
+ * 6 C'^2 for cube-face Haar, else all 2 N^2. */
 static inline uint32_t tf_slot_limit(const hl_transport_info *i)
 {
+    if (i->basis == HL_TRANSPORT_BASIS_CUBE) return 6 * i->sh_order * i->sh_order;
     return i->basis == HL_TRANSPORT_BASIS_SH ? i->sh_order * i->sh_order : slot_total(i->N);
 }
 

@@ -61,6 +61,9 @@ void hl_transport_describe(const hl_transport *t, const char *path, FILE *f)
     if (i->basis == HL_TRANSPORT_BASIS_SH)
         fprintf(f, "basis              spherical harmonics, order %u (%u coefficients in slots 0..%u)\n", i->sh_order,
                 i->sh_order * i->sh_order, i->sh_order * i->sh_order - 1);
+    else if (i->basis == HL_TRANSPORT_BASIS_CUBE)
+        fprintf(f, "basis              cube-face Haar wavelets, faces of side %u (%u coefficients in slots 0..%u)\n",
+                i->sh_order, 6 * i->sh_order * i->sh_order, 6 * i->sh_order * i->sh_order - 1);
     else
         fprintf(f, "basis              paraboloid Haar wavelets\n");
     fprintf(f, "cubemap C          %u, supersample %u x %u\n", i->C, i->supersample, i->supersample);

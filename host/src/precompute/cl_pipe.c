@@ -3,7 +3,10 @@
  * quantisation on them, with the uploads and read-backs around them. With
  * a spherical-harmonic matrix set (hl_cl_pipe_set_sh), the projection onto
  * the harmonics takes the place of Haar: the rows' first order^2 slots,
- * the others zero.
+ * the others zero. With a cube side set (hl_cl_pipe_set_cube), the rows
+ * are made on the cube's faces instead (hl_cube_face_rows, in T's first
+ * 6 Cq^2 floats) and go through the faces' Haar into the first 6 Cq^2
+ * slots.
  *
  * Two input slots let the host cast the rays of the next chunk while the
  * device works on this one (precompute.c). Depends on: cl_internal.h
@@ -24,6 +27,7 @@ struct hl_cl_pipe {
     cl_mem T, coef, tr, rq, bc, entries, nnz;
     cl_mem shY;                        /* the harmonic projection; NULL: Haar */
     uint32_t sh_stride, sh_count;
+    uint32_t cube;                     /* cube-face Haar: the faces' side; 0: none */
     cl_event done[2];
 };
 
@@ -144,6 +148,47 @@ static hl_result enqueue_sh(hl_cl_pipe *p, uint32_t rows)
     return hl_cl_sh_project_enqueue(p->ctx, p->cl, p->T, p->g->ncoef, p->shY, p->sh_stride, p->sh_count, p->coef, rows);
 }
 
+hl_result hl_cl_pipe_set_cube(hl_cl_pipe *p, uint32_t Cq)
+{
+    if (Cq < 2 || (Cq & (Cq - 1)) || p->g->C % Cq || 6 * Cq * Cq > p->g->ncoef)
+        return hl_fail(p->ctx, HL_ERR_INVALID_ARGUMENT,
+                       "hl_cl_pipe_set_cube: cube side %u (a power of two dividing C = %u, 6 C'^2 at most %u)", Cq,
+                       p->g->C, p->g->ncoef);
+    p->cube = Cq;
+    return HL_OK;
+}
+
+static hl_result enqueue_cube_rows(hl_cl_pipe *p, int slot, uint32_t rows, float scale)
+{
+    cl_kernel k = p->cl->k[K_CUBE_ROWS];
+    cl_uint C = p->g->C, Cq = p->cube, ncoef = p->g->ncoef, n = rows;
+    ARG(k, 0, p->vis[slot]); ARG(k, 1, C); ARG(k, 2, Cq); ARG(k, 3, scale); ARG(k, 4, p->nrm[slot]);
+    ARG(k, 5, p->start); ARG(k, 6, p->ent); ARG(k, 7, ncoef); ARG(k, 8, p->T); ARG(k, 9, n);
+    return launch(p, K_CUBE_ROWS, rows);
+}
+
+hl_result hl_cl_cube_haar_enqueue(hl_context *ctx, struct hl_cl *cl, cl_mem in, cl_uint in_stride, cl_mem out,
+                                  cl_uint out_stride, cl_uint Cq, cl_uint rows)
+{
+    cl_kernel k = cl->k[K_CUBE_HAAR];
+    CL_TRY(ctx, clSetKernelArg(k, 0, sizeof in, &in), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 1, sizeof in_stride, &in_stride), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 2, sizeof out, &out), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 3, sizeof out_stride, &out_stride), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 4, sizeof Cq, &Cq), "clSetKernelArg");
+    CL_TRY(ctx, clSetKernelArg(k, 5, sizeof rows, &rows), "clSetKernelArg");
+    /* one work-item per face of each row */
+    size_t local = cl->wg, items = (size_t)rows * 6, global = (items + local - 1) / local * local;
+    CL_TRY(ctx, clEnqueueNDRangeKernel(cl->queue, k, 1, NULL, &global, &local, 0, NULL, NULL),
+           hl_cl_kernel_names[K_CUBE_HAAR]);
+    return HL_OK;
+}
+
+static hl_result enqueue_cube_haar(hl_cl_pipe *p, uint32_t rows)
+{
+    return hl_cl_cube_haar_enqueue(p->ctx, p->cl, p->T, p->g->ncoef, p->coef, p->g->ncoef, p->cube, rows);
+}
+
 static hl_result enqueue_truncate(hl_cl_pipe *p, uint32_t rows, hl_trunc_params tp)
 {
     cl_kernel k = p->cl->k[K_TRUNCATE];
@@ -182,8 +227,13 @@ hl_result hl_cl_pipe_submit(hl_cl_pipe *p, int slot, uint32_t rows, float vis_sc
     size_t R = rows;
     WRITE(p->vis[slot], R * g->ncube, io->vis, CL_FALSE);
     WRITE(p->nrm[slot], R * 16, io->normals4, CL_FALSE);
-    TRY(enqueue_cube2para(p, slot, rows, vis_scale));
-    TRY(p->shY ? enqueue_sh(p, rows) : enqueue_haar(p, rows));
+    if (p->cube) {
+        TRY(enqueue_cube_rows(p, slot, rows, vis_scale));
+        TRY(enqueue_cube_haar(p, rows));
+    } else {
+        TRY(enqueue_cube2para(p, slot, rows, vis_scale));
+        TRY(p->shY ? enqueue_sh(p, rows) : enqueue_haar(p, rows));
+    }
     TRY(enqueue_truncate(p, rows, tp));
     TRY(enqueue_quantize(p, rows, scheme, io->first));
     READ(p->tr, R * sizeof(hl_trunc_result), io->tr, CL_FALSE, NULL);
@@ -221,6 +271,28 @@ hl_result hl_cl_pipe_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *c
     TRY(check_rows(p, rows));
     WRITE(p->T, (size_t)rows * p->g->ncoef * 4, T, CL_TRUE);
     TRY(enqueue_haar(p, rows));
+    READ(p->coef, (size_t)rows * p->g->ncoef * 4, coef, CL_TRUE, NULL);
+    return HL_OK;
+}
+
+hl_result hl_cl_pipe_cube_rows(hl_cl_pipe *p, uint32_t rows, const uint8_t *vis, float scale,
+                               const float *normals4, float *T)
+{
+    TRY(check_rows(p, rows));
+    if (!p->cube) return hl_fail(p->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_pipe_cube_rows: no cube side set");
+    WRITE(p->vis[0], (size_t)rows * p->g->ncube, vis, CL_TRUE);
+    WRITE(p->nrm[0], (size_t)rows * 16, normals4, CL_TRUE);
+    TRY(enqueue_cube_rows(p, 0, rows, scale));
+    READ(p->T, (size_t)rows * p->g->ncoef * 4, T, CL_TRUE, NULL);
+    return HL_OK;
+}
+
+hl_result hl_cl_pipe_cube_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef)
+{
+    TRY(check_rows(p, rows));
+    if (!p->cube) return hl_fail(p->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_pipe_cube_haar: no cube side set");
+    WRITE(p->T, (size_t)rows * p->g->ncoef * 4, T, CL_TRUE);
+    TRY(enqueue_cube_haar(p, rows));
     READ(p->coef, (size_t)rows * p->g->ncoef * 4, coef, CL_TRUE, NULL);
     return HL_OK;
 }

@@ -129,7 +129,7 @@ static int shards_differ(const tf_header *a, const tf_header *b, char *msg, size
         {"the quantisation (--quant)", x->quant, y->quant, AS_INT},
         {"the ray offset (--ray-offset)", HL_AS_U32(x->ray_offset), HL_AS_U32(y->ray_offset), AS_FLOAT},
         {"the basis (--basis)", x->basis, y->basis, AS_INT},
-        {"the spherical-harmonic order (--sh-order)", x->sh_order, y->sh_order, AS_INT},
+        {"the spherical-harmonic order or cube side (--sh-order, --cube-side)", x->sh_order, y->sh_order, AS_INT},
         {"the shard count (--shard I/N)", a->shard.count, b->shard.count, AS_INT},
     };
     for (size_t i = 0; i < sizeof f / sizeof f[0]; i++) {

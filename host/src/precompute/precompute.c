@@ -9,8 +9,10 @@
  * others; every row depends on its vertex alone (its rays, and the dither
  * key of its global index), so the joined rows are those of one run.
  * With --basis sh the rows are projected onto spherical harmonics
- * (hl_sh_matrix) where Haar would run; truncation, quantisation and the
- * blocks are the same.
+ * (hl_sh_matrix) where Haar would run; with --basis cube-haar they are made
+ * on the cube's faces (hl_cube_rows) and go through the faces' Haar
+ * (hl_cube_haar) instead of cube2para and Haar. Truncation, quantisation
+ * and the blocks are the same.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -21,6 +23,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "cube.h"
 #include "haarlight_tools.h"
 #include "precompute.h"
 #include "rays.h"
@@ -53,8 +56,26 @@ hl_result hl_precompute_resolve(hl_context *ctx, hl_precompute_desc *d)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "ray offset %g: must be 0 (robust, the default) or in (0, 0.1) of the bounding-box diagonal",
                        (double)d->ray_offset);
-    if (d->basis != HL_TRANSPORT_BASIS_HAAR && d->basis != HL_TRANSPORT_BASIS_SH)
-        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "basis %u: must be 0 (Haar) or 1 (spherical harmonics)", d->basis);
+    if (d->basis != HL_TRANSPORT_BASIS_HAAR && d->basis != HL_TRANSPORT_BASIS_SH && d->basis != HL_TRANSPORT_BASIS_CUBE)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "basis %u: must be 0 (Haar), 1 (spherical harmonics) or 2 (cube-face Haar)", d->basis);
+    if (d->basis != HL_TRANSPORT_BASIS_CUBE && d->cube_side)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "cube side %u given for basis %u (--cube-side needs --basis cube-haar)",
+                       d->cube_side, d->basis);
+    if (d->basis == HL_TRANSPORT_BASIS_CUBE && d->sh_order)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "spherical-harmonic order %u given for cube-face Haar (--sh-order needs --basis sh)", d->sh_order);
+    if (d->basis == HL_TRANSPORT_BASIS_CUBE) {
+        /* the largest side that fits the slots and cuts the visibility
+           cube into whole texels, as bench-basis chooses it */
+        const uint32_t q = d->cube_side ? d->cube_side : hl_basis_bench_default_cube_side(d->N, d->C);
+        if (q < 2 || q > 512 || (q & (q - 1)) || d->C % q || 6 * q * q > 2 * d->N * d->N)
+            return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                           "cube side %u: must be a power of two from 2 that divides C = %u, with its 6 C'^2 = %u "
+                           "coefficients at most the 2 N^2 = %u slots of N = %u",
+                           q, d->C, 6 * q * q, 2 * d->N * d->N, d->N);
+        d->cube_side = q;
+    }
     if (d->basis == HL_TRANSPORT_BASIS_HAAR && d->sh_order)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "spherical-harmonic order %u given for the Haar basis (--sh-order needs --basis sh)", d->sh_order);
@@ -110,6 +131,7 @@ typedef struct ref_job {
     const hl_geom *g;
     const float *shY; /* the harmonic projection (hl_sh_matrix); NULL: Haar */
     uint32_t sh_stride, sh_count;
+    uint32_t cube;    /* cube-face Haar: the faces' side; 0: none */
     uint32_t rows;
     float scale;
     hl_trunc_params tp;
@@ -136,9 +158,18 @@ static void *ref_worker(void *arg)
         uint32_t v = atomic_fetch_add(&j->next, 1u);
         if (v >= j->rows) break;
         const hl_chunk_buf *io = j->io;
-        hl_ref_cube2para(g, io->vis + (size_t)v * g->ncube, j->scale, io->normals4 + 4 * (size_t)v, T);
-        if (j->shY) hl_ref_sh_project_rows(T, g->ncoef, j->shY, j->sh_stride, j->sh_count, coef);
-        else hl_ref_haar(g, T, coef);
+        if (j->cube) {
+            /* the kernels' twins (cube_haar.cl): the faces' rows and Haar,
+               the slots past the 6 Cq^2 coefficients empty */
+            const uint32_t nt = 6 * j->cube * j->cube;
+            hl_cube_rows(g, j->cube, io->vis + (size_t)v * g->ncube, j->scale, io->normals4 + 4 * (size_t)v, T);
+            hl_cube_haar(j->cube, T, coef);
+            memset(coef + nt, 0, (size_t)(g->ncoef - nt) * sizeof(float));
+        } else {
+            hl_ref_cube2para(g, io->vis + (size_t)v * g->ncube, j->scale, io->normals4 + 4 * (size_t)v, T);
+            if (j->shY) hl_ref_sh_project_rows(T, g->ncoef, j->shY, j->sh_stride, j->sh_count, coef);
+            else hl_ref_haar(g, T, coef);
+        }
         io->tr[v] = hl_ref_truncate(g, coef, j->tp, keys);
         io->nnz[v] = hl_ref_quantize(g, coef, io->tr[v], j->scheme, io->first + v, &io->rq[v],
                                      io->bc + (size_t)v * g->nblocks, io->entries + (size_t)v * g->ncoef * 2);
@@ -152,14 +183,14 @@ static void *ref_worker(void *arg)
 hl_result hl_ref_rows(hl_context *ctx, const hl_geom *g, uint32_t rows, float vis_scale, hl_trunc_params tp,
                       uint32_t scheme, const hl_chunk_buf *io)
 {
-    return hl_ref_rows_sh(ctx, g, NULL, 0, rows, vis_scale, tp, scheme, io);
+    return hl_ref_rows_basis(ctx, g, NULL, 0, 0, rows, vis_scale, tp, scheme, io);
 }
 
-hl_result hl_ref_rows_sh(hl_context *ctx, const hl_geom *g, const float *shY, uint32_t sh_order, uint32_t rows,
-                         float vis_scale, hl_trunc_params tp, uint32_t scheme, const hl_chunk_buf *io)
+hl_result hl_ref_rows_basis(hl_context *ctx, const hl_geom *g, const float *shY, uint32_t sh_order, uint32_t cube,
+                            uint32_t rows, float vis_scale, hl_trunc_params tp, uint32_t scheme, const hl_chunk_buf *io)
 {
     ref_job j = {.g = g, .shY = shY, .sh_stride = hl_sh_stride(sh_order), .sh_count = hl_sh_count(sh_order),
-                 .rows = rows, .scale = vis_scale, .tp = tp, .scheme = scheme, .io = io};
+                 .cube = cube, .rows = rows, .scale = vis_scale, .tp = tp, .scheme = scheme, .io = io};
     atomic_init(&j.next, 0u);
     atomic_init(&j.oom, 0);
     hl_run_threads(ctx->threads, ref_worker, &j);
@@ -235,7 +266,7 @@ static void fill_info(pc_run *u)
     info->triangle_count = u->mesh->triangle_count;
     info->block_count = u->g->nblocks;
     info->basis = d->basis;
-    info->sh_order = d->basis == HL_TRANSPORT_BASIS_SH ? d->sh_order : 0;
+    info->sh_order = d->basis == HL_TRANSPORT_BASIS_SH ? d->sh_order : d->basis == HL_TRANSPORT_BASIS_CUBE ? d->cube_side : 0;
 }
 
 /* With --resume, the writer of out_path.partial and where it stopped (no
@@ -275,6 +306,7 @@ static hl_result run_open(pc_run *u)
     if (r == HL_OK && ctx->backend == HL_BACKEND_OPENCL) r = hl_cl_pipe_create(ctx, u->g, u->R, &u->pipe);
     if (r == HL_OK && u->pipe && u->shY)
         r = hl_cl_pipe_set_sh(u->pipe, u->shY, hl_sh_stride(u->d.sh_order), hl_sh_count(u->d.sh_order));
+    if (r == HL_OK && u->pipe && u->d.basis == HL_TRANSPORT_BASIS_CUBE) r = hl_cl_pipe_set_cube(u->pipe, u->d.cube_side);
     if (r == HL_OK) {
         fill_info(u);
         if (u->d.resume) r = resume_writer(u);
@@ -324,7 +356,7 @@ static hl_result run_chunk(pc_run *u, int s, uint32_t first, uint32_t count)
     b->first = first;
     if (u->pipe) return hl_cl_pipe_submit(u->pipe, s, count, u->vis_scale, u->tp, u->d.quant, b);
     double t0 = hl_now();
-    hl_result r = hl_ref_rows_sh(u->ctx, u->g, u->shY, u->d.sh_order, count, u->vis_scale, u->tp, u->d.quant, b);
+    hl_result r = hl_ref_rows_basis(u->ctx, u->g, u->shY, u->d.sh_order, u->d.basis == HL_TRANSPORT_BASIS_CUBE ? u->d.cube_side : 0, count, u->vis_scale, u->tp, u->d.quant, b);
     u->st.seconds_kernels += hl_now() - t0;
     if (r == HL_OK) r = hl_tfile_writer_append(u->w, count, b->rq, b->bc, b->entries, (size_t)u->g->ncoef * 2, b->nnz);
     for (uint32_t i = 0; i < count; i++) u->st.coefficients_kept += b->nnz[i];

@@ -25,9 +25,11 @@ hl_result hl_ref_rows(hl_context *ctx, const hl_geom *g, uint32_t rows, float vi
 
 /* hl_ref_rows with the rows projected onto spherical harmonics of the
  * order (Y: hl_sh_matrix's, per solid angle) in Haar's place; Y NULL:
- * Haar. */
-hl_result hl_ref_rows_sh(hl_context *ctx, const hl_geom *g, const float *Y, uint32_t sh_order, uint32_t rows,
-                         float vis_scale, hl_trunc_params tp, uint32_t scheme, const hl_chunk_buf *io);
+ * Haar. cube non-zero: cube-face Haar of that side instead (hl_cube_rows
+ * and hl_cube_haar in the place of cube2para and Haar). */
+hl_result hl_ref_rows_basis(hl_context *ctx, const hl_geom *g, const float *Y, uint32_t sh_order, uint32_t cube,
+                            uint32_t rows, float vis_scale, hl_trunc_params tp, uint32_t scheme,
+                            const hl_chunk_buf *io);
 
 /* Allocates / frees host chunk buffers for max_rows rows. */
 hl_result hl_chunk_buf_alloc(hl_context *ctx, const hl_geom *g, uint32_t max_rows, hl_chunk_buf *b);

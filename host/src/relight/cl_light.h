@@ -25,6 +25,8 @@ struct hl_cl_light {
     cl_mem Lp, Lw, Lsel, used, bits, res, keys;    /* lighting stages */
     cl_mem shY;                                     /* spherical harmonics in Haar's place (NULL: Haar) */
     uint32_t sh_stride, sh_count;
+    cl_mem cstart, cruns;                           /* cube-face Haar: the face texels' taps (NULL: none) */
+    uint32_t cube;                                  /* the faces' side; 0: none */
     cl_mem col, cols, rel, rstart, back, albedo, B, acc; /* transport, by column */
     cl_mem ord, klist;                              /* vertex at each position; kept slots */
     void *host[4];                                  /* CPU devices: their memory */

@@ -3,7 +3,9 @@
  * and B, selection, the dot products) in one submission, whole or stage
  * by stage, into a host array or a device (or OpenGL) buffer. For a
  * spherical-harmonic transport (hl_cl_light_set_sh) the projection onto
- * the harmonics takes Haar's place, into the first order^2 slots.
+ * the harmonics takes Haar's place, into the first order^2 slots; for a
+ * cube-face Haar one (hl_cl_light_set_cube) env2para's kernels run on the
+ * face texels' taps and the faces' Haar follows, into the first 6 Cq^2.
  *
  * Depends on: cl_light.h (the device state, OpenCL), cl_columns.c for
  * the transport's layout, lighting.h (the environment's tables).
@@ -20,7 +22,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
                      &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rel, &l->rstart, &l->back, &l->albedo, &l->B,
-                     &l->acc, &l->ord, &l->klist, &l->Lenv, &l->shY};
+                     &l->acc, &l->ord, &l->klist, &l->Lenv, &l->shY, &l->cstart, &l->cruns};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(l->cl, all[i]);
     for (int i = 0; i < 4; i++) hl_free_big(l->host[i]);
     free(l->col_start);
@@ -37,6 +39,23 @@ hl_result hl_cl_light_create(hl_context *ctx, const hl_geom *g, const hl_light_g
                              const float *albedo4, hl_cl_light **out)
 {
     return hl_cl_light_create_from(ctx, g, lg, t, NULL, albedo4, out);
+}
+
+/* A tap table (CSR rows start[0..rows], taps) on the device: start as it
+ * is, the taps as (cell index, weight bits), 8 bytes each. */
+static hl_result upload_taps(hl_cl_light *l, uint32_t rows, const uint32_t *start, const hl_env_tap *taps,
+                             uint32_t ntaps, cl_mem *mstart, cl_mem *mruns)
+{
+    hl_result r = hl_cl_make_buf(l->ctx, mstart, CL_MEM_READ_ONLY, ((size_t)rows + 1) * 4, start, "environment runs");
+    uint32_t *taps2 = r == HL_OK ? malloc(((size_t)ntaps + 1) * 8) : NULL;
+    if (r == HL_OK && !taps2) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the environment runs");
+    for (size_t e = 0; taps2 && e < ntaps; e++) {
+        taps2[2 * e] = taps[e].row * l->lg->wc + taps[e].col;
+        memcpy(&taps2[2 * e + 1], &taps[e].weight, 4);
+    }
+    if (r == HL_OK) r = hl_cl_make_buf(l->ctx, mruns, CL_MEM_READ_ONLY, ((size_t)ntaps + 1) * 8, taps2, "environment runs");
+    free(taps2);
+    return r;
 }
 
 hl_result hl_cl_light_create_from(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
@@ -57,16 +76,7 @@ hl_result hl_cl_light_create_from(hl_context *ctx, const hl_geom *g, const hl_li
 #define B(m, fl, bytes, init, what) if (r == HL_OK) r = hl_cl_make_buf(l->ctx, &l->m, fl, bytes, init, what)
     B(cells, CL_MEM_READ_ONLY, cells * 16, NULL, "environment cells");
     B(turned, CL_MEM_READ_WRITE, cells * 16, NULL, "environment cells");
-    B(start, CL_MEM_READ_ONLY, (nc + 1) * 4, lg->tap_start, "environment runs");
-    /* the taps as (cell index, weight bits): 8 bytes each */
-    uint32_t *taps2 = malloc(((size_t)lg->ntaps + 1) * 8);
-    if (!taps2) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the environment runs");
-    for (size_t e = 0; taps2 && e < lg->ntaps; e++) {
-        taps2[2 * e] = lg->taps[e].row * lg->wc + lg->taps[e].col;
-        memcpy(&taps2[2 * e + 1], &lg->taps[e].weight, 4);
-    }
-    B(runs, CL_MEM_READ_ONLY, ((size_t)lg->ntaps + 1) * 8, taps2, "environment runs");
-    free(taps2);
+    if (r == HL_OK) r = upload_taps(l, (uint32_t)nc, lg->tap_start, lg->taps, lg->ntaps, &l->start, &l->runs);
     B(slots, CL_MEM_READ_ONLY, (size_t)g->N * g->N * 4, g->slot_of_mallat, "the Haar slot order");
     B(weight, CL_MEM_READ_ONLY, nc * 4, lg->area, "selection weights");
     B(Lp, CL_MEM_READ_WRITE, 3 * nc * 4, NULL, "paraboloid lighting");
@@ -121,21 +131,51 @@ static hl_result light_launch(hl_cl_light *l, int which, size_t items)
     return HL_OK;
 }
 
-static hl_result enq_env2para(hl_cl_light *l, uint32_t s0, float f, cl_mem out)
+/* env2para on a tap table of count texels (start, runs), into three
+ * planes of count floats. */
+static hl_result enq_env2para_on(hl_cl_light *l, uint32_t s0, float f, cl_mem start, cl_mem runs, cl_uint nc,
+                                 cl_mem out)
 {
     /* CPU: 64 chunks of consecutive cells or texels; a GPU: one each per
        work-item */
     cl_kernel k = l->cl->k[K_TURN];
-    cl_uint wc = l->lg->wc, ncell = l->lg->wc * l->lg->hc, nc = l->g->ncoef, sh = s0;
+    cl_uint wc = l->lg->wc, ncell = l->lg->wc * l->lg->hc, sh = s0;
     cl_uint per = l->cl->wg == 1 ? (ncell + 63) / 64 : 1;
     LARG(k, 0, l->cells); LARG(k, 1, wc); LARG(k, 2, ncell); LARG(k, 3, sh); LARG(k, 4, f); LARG(k, 5, per);
     LARG(k, 6, l->turned);
     TRY(light_launch(l, K_TURN, (ncell + per - 1) / per));
     k = l->cl->k[K_ENV2PARA];
     per = l->cl->wg == 1 ? (nc + 63) / 64 : 1;
-    LARG(k, 0, l->turned); LARG(k, 1, l->start); LARG(k, 2, l->runs); LARG(k, 3, nc); LARG(k, 4, per);
+    LARG(k, 0, l->turned); LARG(k, 1, start); LARG(k, 2, runs); LARG(k, 3, nc); LARG(k, 4, per);
     LARG(k, 5, out);
     return light_launch(l, K_ENV2PARA, (nc + per - 1) / per);
+}
+
+static hl_result enq_env2para(hl_cl_light *l, uint32_t s0, float f, cl_mem out)
+{
+    return enq_env2para_on(l, s0, f, l->start, l->runs, l->g->ncoef, out);
+}
+
+hl_result hl_cl_light_set_cube(hl_cl_light *l, uint32_t Cq, const uint32_t *tap_start, const hl_env_tap *taps,
+                               uint32_t ntaps)
+{
+    if (Cq < 2 || (Cq & (Cq - 1)) || 6 * Cq * Cq > l->g->ncoef || !tap_start || !taps)
+        return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_light_set_cube: cube side %u on %u slots", Cq,
+                       l->g->ncoef);
+    hl_cl_release_buf(l->cl, &l->cstart);
+    hl_cl_release_buf(l->cl, &l->cruns);
+    TRY(upload_taps(l, 6 * Cq * Cq, tap_start, taps, ntaps, &l->cstart, &l->cruns));
+    l->cube = Cq;
+    return HL_OK;
+}
+
+/* The face texels' mean radiance (R, G, B planes of 6 Cq^2 in Lp), then
+ * the faces' Haar of each into Lw's slots, zeros past 6 Cq^2. */
+static hl_result enq_cube3(hl_cl_light *l, uint32_t s0, float f)
+{
+    const cl_uint nt = 6 * l->cube * l->cube;
+    TRY(enq_env2para_on(l, s0, f, l->cstart, l->cruns, nt, l->Lp));
+    return hl_cl_cube_haar_enqueue(l->ctx, l->cl, l->Lp, nt, l->Lw, l->g->ncoef, l->cube, 3);
 }
 
 static hl_result enq_haar3(hl_cl_light *l)
@@ -217,8 +257,12 @@ static hl_result enq_paraboloid(hl_cl_light *l, uint32_t s0, float f)
  * Haar (or the harmonics), selection. */
 static hl_result enq_lighting(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp)
 {
-    TRY(enq_paraboloid(l, s0, f));
-    TRY(l->shY ? enq_sh3(l) : enq_haar3(l));
+    if (l->cube) {
+        TRY(enq_cube3(l, s0, f));
+    } else {
+        TRY(enq_paraboloid(l, s0, f));
+        TRY(l->shY ? enq_sh3(l) : enq_haar3(l));
+    }
     return enq_select(l, sp);
 }
 
@@ -276,6 +320,14 @@ hl_result hl_cl_light_stage_sh(hl_cl_light *l, const float *Lp, float *Lw)
     if (!l->shY) return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_light_stage_sh: no projection set");
     LWRITE(l->Lp, (size_t)3 * l->g->ncoef * 4, Lp);
     TRY(enq_sh3(l));
+    LREAD(l->Lw, (size_t)3 * l->g->ncoef * 4, Lw, CL_TRUE);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_stage_cube(hl_cl_light *l, uint32_t s0, float f, float *Lw)
+{
+    if (!l->cube) return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_light_stage_cube: no cube side set");
+    TRY(enq_cube3(l, s0, f));
     LREAD(l->Lw, (size_t)3 * l->g->ncoef * 4, Lw, CL_TRUE);
     return HL_OK;
 }

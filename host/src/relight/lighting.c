@@ -6,7 +6,10 @@
  * tables it reads come from light_tables.c; a repeated change with the
  * same settings reuses the last colours. A spherical-harmonic transport
  * (hl_transport_info.basis) gets its lighting projected onto the same
- * harmonics in Haar's place (hl_sh_matrix), into the same slots.
+ * harmonics in Haar's place (hl_sh_matrix), into the same slots; a
+ * cube-face Haar one gets each face texel's mean radiance (cube/cube.h's
+ * taps, env2para's kernels) and the faces' Haar instead of env2para and
+ * Haar. Selection and the dot products are the same for every basis.
  * Depends on: lighting.h, cl_backend.h (the device stages), twins.h,
  * the transport (hl_dequant; transport_layout.h to read a file's header
  * again for hl_relighter_create_from_file), core.
@@ -22,6 +25,7 @@
 
 #include "capture.h"
 #include "cl_backend.h"
+#include "cube.h"
 #include "haarlight_tools.h"
 #include "lighting.h"
 #include "sh.h"
@@ -42,6 +46,7 @@ struct hl_relighter {
     double max_row_norm;    /* max over vertices of |T_v| */
     float *B4;
     float *shY;             /* spherical harmonics: the lighting's projection; NULL: Haar */
+    hl_cube_tables *cube;   /* cube-face Haar: the face texels' taps; NULL: none */
     float *Lp, *Lw, *Lsel;  /* reference scratch */
     uint8_t *used;
     uint32_t *bits;
@@ -73,6 +78,7 @@ void hl_relighter_destroy(hl_relighter *r)
     for (int i = 0; i <= (int)HL_SELECT_TRANSPORT; i++) free(r->weights[i]);
     free(r->B4);
     hl_free_big(r->shY);
+    hl_cube_tables_destroy(r->cube);
     free(r->Lp);
     free(r->Lw);
     free(r->Lsel);
@@ -180,7 +186,7 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
         object_centre(t->mesh, r->cscene.center);
         /* the device starts with lg->area, the Haar supports' (an SH
            transport's area weights differ: uploaded when first used) */
-        r->uploaded_weights = t->info.basis == HL_TRANSPORT_BASIS_SH ? 0u : HL_SELECT_AREA;
+        r->uploaded_weights = t->info.basis == HL_TRANSPORT_BASIS_HAAR ? HL_SELECT_AREA : 0u;
         /* from here on the OpenCL relighter reads no entries but the
            columns' (from src once dropped) */
         if (res == HL_OK && drop && src && ctx->backend == HL_BACKEND_OPENCL) {
@@ -189,10 +195,14 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
         }
         if (res == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_SH)
             res = hl_sh_matrix(ctx, t->info.N, t->info.sh_order, 0, &r->shY);
+        if (res == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_CUBE)
+            res = hl_cube_tables_create(ctx, t->info.sh_order, t->info.C, r->lg->wc, r->lg->hc, &r->cube);
         if (res == HL_OK && ctx->backend == HL_BACKEND_OPENCL)
             res = hl_cl_light_create_from(ctx, r->g, r->lg, t, src, r->albedo4, &r->cl);
         if (res == HL_OK && r->cl && r->shY)
             res = hl_cl_light_set_sh(r->cl, r->shY, hl_sh_stride(t->info.sh_order), hl_sh_count(t->info.sh_order));
+        if (res == HL_OK && r->cl && r->cube)
+            res = hl_cl_light_set_cube(r->cl, r->cube->Cq, r->cube->tap_start, r->cube->taps, r->cube->ntaps);
     }
     if (res != HL_OK) {
         hl_relighter_destroy(r);
@@ -255,6 +265,12 @@ hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const 
 hl_result hl_relighter_set_surroundings(hl_relighter *r, hl_surroundings *s)
 {
     if (!r) return HL_ERR_INVALID_ARGUMENT;
+    /* the capture draws the surroundings on the paraboloid texels, which a
+       cube-face transport's lighting never passes through */
+    if (s && r->cube)
+        return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT,
+                       "surroundings: not supported on a cube-face Haar transport (basis 2); precompute with --basis "
+                       "haar or sh to relight under surroundings");
     if (s && !r->cap) {
         hl_result res = hl_capture_create(r->ctx, r->g->N, 0, &r->cap);
         if (res != HL_OK) return res;
@@ -324,6 +340,19 @@ hl_result hl_selection_weights(hl_context *ctx, const hl_transport *t, const hl_
         for (uint32_t i = 0; i < nc; i++) w[i] = i < t->info.sh_order * t->info.sh_order ? (float)(4.0 * HL_PI) : 0.0f;
         return HL_OK;
     }
+    if (scheme == HL_SELECT_AREA && t->info.basis == HL_TRANSPORT_BASIS_CUBE) {
+        /* each face wavelet's support, a square of its face: its exact
+           solid angle; the slots past 6 Cq^2 hold no lighting */
+        const uint32_t Cq = t->info.sh_order, nt = 6 * Cq * Cq;
+        const double h = 2.0 / Cq;
+        for (uint32_t i = 0; i < nc; i++) {
+            uint32_t r0, c0, sw;
+            if (i >= nt) { w[i] = 0.0f; continue; }
+            hl_geom_support(Cq, (i / Cq) % Cq, i % Cq, &r0, &c0, &sw);
+            w[i] = (float)hl_cube_rect_omega(-1.0 + c0 * h, -1.0 + (c0 + sw) * h, -1.0 + r0 * h, -1.0 + (r0 + sw) * h);
+        }
+        return HL_OK;
+    }
     if (scheme == HL_SELECT_AREA) {
         memcpy(w, lg->area, (size_t)nc * 4);
         return HL_OK;
@@ -358,7 +387,17 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
 {
     const hl_geom *g = r->g;
     const hl_transport *t = r->t;
-    if (r->sur) {
+    if (r->cube) {
+        /* the face texels' mean radiance (3 planes of 6 Cq^2), then each
+           face's Haar into the slots: the kernels' twins */
+        const uint32_t Cq = r->cube->Cq, nt = r->cube->ntex;
+        hl_ref_env2para(r->cells, r->lg->wc, r->cube->tap_start, r->cube->taps, s0, f, nt, r->Lp);
+        for (int c = 0; c < 3; c++) {
+            float *Lw = r->Lw + (size_t)c * g->ncoef;
+            hl_cube_haar(Cq, r->Lp + (size_t)c * nt, Lw);
+            memset(Lw + nt, 0, (size_t)(g->ncoef - nt) * sizeof(float));
+        }
+    } else if (r->sur) {
         /* the surroundings over the environment (or black) */
         if (r->cells) hl_ref_env2para(r->cells, r->lg->wc, r->lg->tap_start, r->lg->taps, s0, f, g->ncoef, r->Lenv);
         r->cscene.fallback_L = r->cells ? r->Lenv : NULL;
@@ -369,7 +408,7 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
         hl_ref_env2para(r->cells, r->lg->wc, r->lg->tap_start, r->lg->taps, s0, f, g->ncoef, r->Lp);
     }
     const uint32_t order = t->info.sh_order;
-    for (int c = 0; c < 3; c++) {
+    for (int c = 0; c < 3 && !r->cube; c++) {
         float *Lp = r->Lp + (size_t)c * g->ncoef, *Lw = r->Lw + (size_t)c * g->ncoef;
         if (r->shY) hl_ref_sh_project_rows(Lp, g->ncoef, r->shY, hl_sh_stride(order), hl_sh_count(order), Lw);
         else hl_ref_haar(g, Lp, Lw);
