@@ -40,8 +40,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include "cl_backend.h"
 #include "cube.h"
@@ -50,24 +48,12 @@
 #include "hl_shared.h"
 #include "hl_test.h"
 #include "lighting.h"
+#include "pipeline_test.h"
 #include "twins.h"
 
 #define SCENE_N 16u
 #define SCENE_SIDE 8u /* the default at N = C = 16 */
 
-/* The most a sqrt8 code's decoded magnitude may differ from the value it
- * codes, as a fraction of the row's largest magnitude b (as
- * test_sh_pipeline.c). */
-static double sqrt8_step(void) { return (2.0 * 127.5 / 127.0 + 1.0 / 254.0) / 254.0; }
-
-static const char *data_path(const char *name)
-{
-    static char buf[4][1024];
-    static int next = 0;
-    char *b = buf[next++ & 3];
-    snprintf(b, 1024, "%s/%s", hl_test_env("HL_REPO_DATA", "data"), name);
-    return b;
-}
 
 /* ------------------------------------------------------------ kernel */
 
@@ -169,13 +155,8 @@ static void t_kernel(void)
 /* The bunny's cube-face transport at path, made on ctx. */
 static hl_mesh *cube_scene(hl_context *ctx, const char *path)
 {
-    hl_mesh_load_desc ld = {{0.8f, 0.6f, 0.4f}, 'y', 0};
-    hl_mesh *mesh = NULL;
-    HL_CHECK(hl_mesh_load(ctx, data_path("bunny_lowres.obj"), &ld, &mesh, NULL) == HL_OK, "mesh: %s",
-             hl_context_last_error(ctx));
-    hl_precompute_desc d = {.N = SCENE_N, .C = SCENE_N, .basis = HL_TRANSPORT_BASIS_CUBE};
-    HL_CHECK(hl_precompute(ctx, mesh, &d, path, NULL) == HL_OK, "precompute: %s", hl_context_last_error(ctx));
-    return mesh;
+    const hl_precompute_desc d = {.N = SCENE_N, .C = SCENE_N, .basis = HL_TRANSPORT_BASIS_CUBE};
+    return pt_scene(ctx, path, &d);
 }
 
 static hl_transport *load(hl_context *ctx, const char *path)
@@ -187,18 +168,6 @@ static hl_transport *load(hl_context *ctx, const char *path)
     return t;
 }
 
-/* Colours (3 floats a vertex) of t under env turned by deg with M terms
- * (0: all) and a selection scheme (0: the default). */
-static void relight_at(hl_context *ctx, const hl_transport *t, const hl_env *env, uint32_t M, uint32_t select,
-                       float deg, float *rgb)
-{
-    hl_relighter *r = NULL;
-    HL_CHECK(hl_relighter_create(ctx, t, &r) == HL_OK, "relighter: %s", hl_context_last_error(ctx));
-    HL_CHECK(hl_relighter_set_env(r, env) == HL_OK, "set env: %s", hl_context_last_error(ctx));
-    hl_relight_desc rd = {.terms = M ? M : 2 * t->info.N * t->info.N, .select = select, .rotate_deg = deg};
-    HL_CHECK(hl_relighter_run(r, &rd, rgb, NULL) == HL_OK, "run: %s", hl_context_last_error(ctx));
-    hl_relighter_destroy(r);
-}
 
 /* An upper bound on |t_v|, the untruncated row's norm, from what the file
  * keeps: the kept coefficients' norm is within sqrt(nnz) sqrt8 steps of
@@ -216,7 +185,7 @@ static double row_norm_bound(const hl_transport *t, uint32_t v)
             ss += x * x;
             n += 1.0;
         }
-    return (sqrt(ss) + sqrt(n) * sqrt8_step() * q.b) / sqrt(1.0 - t->info.eps);
+    return (sqrt(ss) + sqrt(n) * pt_sqrt8_step() * q.b) / sqrt(1.0 - t->info.eps);
 }
 
 /* ------------------------------------------------------------ constant */
@@ -249,7 +218,7 @@ static void t_constant(void)
         tn[v] = row_norm_bound(t, v);
     }
     /* a constant map in the faces' Haar: each face's scaling term c C' */
-    const double l0 = c * SCENE_SIDE, eps = t->info.eps, q = sqrt8_step();
+    const double l0 = c * SCENE_SIDE, eps = t->info.eps, q = pt_sqrt8_step();
     float *rgb = malloc((size_t)V * 12);
     static const uint32_t Ms[] = {6, 200, 0, 1};
     for (int backend = 0; backend < 2; backend++) {
@@ -259,7 +228,7 @@ static void t_constant(void)
             continue;
         }
         for (size_t m = 0; m < sizeof Ms / sizeof Ms[0]; m++) {
-            relight_at(ctx, t, env, Ms[m], 0, 0.0f, rgb);
+            pt_relight(ctx, t, env, Ms[m], 0, 0.0f, rgb);
             /* per vertex, six terms l0 t_f: each t_f off by at most a
                sqrt8 step of the row's largest, b, or dropped by the
                energy rule (the dropped ones' sum at most sqrt(6 eps) |t|);
@@ -378,13 +347,13 @@ static void t_cl_ref(void)
     free(a);
     hl_transport *t = load(ref, pr);
     hl_env *env = NULL;
-    HL_CHECK(hl_env_load(ref, data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
+    HL_CHECK(hl_env_load(ref, pt_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
     const uint32_t V = t->info.vertex_count, nc = 2 * SCENE_N * SCENE_N, Cq = SCENE_SIDE, nt = 6 * Cq * Cq;
     float *x = malloc((size_t)V * 12), *y = malloc((size_t)V * 12);
     static const uint32_t Ms[] = {200, 0};
     for (size_t m = 0; m < 2; m++) {
-        relight_at(ref, t, env, Ms[m], 0, 0.0f, x);
-        relight_at(cl, t, env, Ms[m], 0, 0.0f, y);
+        pt_relight(ref, t, env, Ms[m], 0, 0.0f, x);
+        pt_relight(cl, t, env, Ms[m], 0, 0.0f, y);
         char what[128];
         snprintf(what, sizeof what, "city.exr, M = %s: OpenCL against reference (relative to the brightest)",
                  Ms[m] ? "200" : "all");
@@ -412,8 +381,8 @@ static void t_cl_ref(void)
         hl_cube_tables_destroy(ct);
         hl_relighter_destroy(r);
     }
-    relight_at(ref, t, env, 50, HL_SELECT_AREA, 0.0f, x);
-    relight_at(cl, t, env, 50, HL_SELECT_AREA, 0.0f, y);
+    pt_relight(ref, t, env, 50, HL_SELECT_AREA, 0.0f, x);
+    pt_relight(cl, t, env, 50, HL_SELECT_AREA, 0.0f, y);
     hl_check_error("M = 50, --select area: OpenCL against reference (relative to the brightest)",
                    rel_diff(x, y, 3 * (size_t)V), 1e-5);
     /* a quarter turn is the map rolled by a quarter of its width: 256
@@ -430,8 +399,8 @@ static void t_cl_ref(void)
                  "envs");
         for (int backend = 0; backend < 2; backend++) {
             hl_context *ctx = backend ? cl : ref;
-            relight_at(ctx, t, e0, 200, 0, 90.0f, x);
-            relight_at(ctx, t, e1, 200, 0, 0.0f, y);
+            pt_relight(ctx, t, e0, 200, 0, 90.0f, x);
+            pt_relight(ctx, t, e1, 200, 0, 0.0f, y);
             char what[160];
             snprintf(what, sizeof what, "%s, M = 200: turned 90 degrees against the map rolled a quarter",
                      backend ? "OpenCL" : "reference");
@@ -466,12 +435,6 @@ static void t_cl_ref(void)
 
 /* ------------------------------------------------------------ bench */
 
-static double norm2(const double *x, uint32_t n)
-{
-    double s = 0.0;
-    for (uint32_t k = 0; k < n; k++) s += x[k] * x[k];
-    return sqrt(s);
-}
 
 static void t_bench(void)
 {
@@ -483,7 +446,7 @@ static void t_bench(void)
     uint32_t idx[256];
     for (uint32_t i = 0; i < n; i++) idx[i] = (uint32_t)((uint64_t)i * V / n);
     hl_env *env = NULL;
-    HL_CHECK(hl_env_load(ref, data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
+    HL_CHECK(hl_env_load(ref, pt_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
     hl_basis_bench *bb = NULL;
     const double *exact = NULL;
     double *cube = malloc((size_t)n * 3 * sizeof(double));
@@ -506,11 +469,11 @@ static void t_bench(void)
         double l[6 * SCENE_SIDE * SCENE_SIDE];
         hl_cube_haar(Cq, Lp + (size_t)ch * nt, Lw);
         for (uint32_t k = 0; k < nt; k++) l1[ch] += fabs(l[k] = Lw[k]);
-        l2[ch] = norm2(l, nt);
+        l2[ch] = pt_norm2(l, nt);
     }
     float *rgb = malloc((size_t)V * 12);
-    relight_at(ref, t, env, 0, 0, 0.0f, rgb);
-    const double q = sqrt8_step(), eps = t->info.eps;
+    pt_relight(ref, t, env, 0, 0, 0.0f, rgb);
+    const double q = pt_sqrt8_step(), eps = t->info.eps;
     double worst = 0.0, e2 = 0.0, ref2 = 0.0;
     for (uint32_t i = 0; i < n; i++) {
         const uint32_t v = idx[i];
@@ -548,55 +511,25 @@ static void t_bench(void)
 
 /* ------------------------------------------------------------ bad */
 
-/* Runs `haarlight precompute ARGS` on the bunny: its exit status, with
- * stderr's text in err. */
-static int run_precompute(const char *args, int expect_output, char *err, size_t n)
-{
-    const char *bin = hl_test_env("HL_BIN", "haarlight"), *out = hl_test_tmp_path("cube_pipeline_bad.hlt");
-    const char *log = hl_test_tmp_path("cube_pipeline_bad.txt");
-    char cmd[4096];
-    snprintf(cmd, sizeof cmd, "'%s' precompute '%s' -N 16 -q --device ref %s -o '%s' 2>'%s' >/dev/null", bin,
-             data_path("bunny_lowres.obj"), args, out, log);
-    int st = system(cmd);
-    size_t k = 0;
-    uint8_t *text = hl_test_read_file(log, &k);
-    snprintf(err, n, "%.*s", (int)k, text ? (const char *)text : "");
-    free(text);
-    HL_CHECK((access(out, F_OK) == 0) == expect_output, "%s: an output was%s written", args, expect_output ? " not" : "");
-    remove(out);
-    remove(log);
-    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
-
 static void t_bad(void)
 {
-    static const struct { const char *args, *needle; } cases[] = {
-        {"-C 8 --basis cube-haar --cube-side 1", "--cube-side 1"},
-        {"-C 8 --basis cube-haar --cube-side 3", "--cube-side 3"},
-        {"-C 8 --basis cube-haar --cube-side 1024", "--cube-side 1024"},
-        {"-C 32 --basis cube-haar --cube-side 16", "--cube-side 16 (1536 coefficients) with -N 16 (512 slots)"},
-        {"-C 12 --basis cube-haar --cube-side 8", "-C 12"},
-        {"-C 9 --basis cube-haar", "-C 9"},
-        {"-C 8 --cube-side 4", "--cube-side needs --basis cube-haar"},
-        {"-C 8 --basis sh --cube-side 4", "--cube-side needs --basis cube-haar"},
-        {"-C 8 --basis cube-haar --sh-order 4", "--sh-order needs --basis sh"},
-        {"-C 8 --basis cube", "--basis cube"},
+    static const pt_bad_option cases[] = {
+        {"-N 16 -C 8 --basis cube-haar --cube-side 1", "--cube-side 1"},
+        {"-N 16 -C 8 --basis cube-haar --cube-side 3", "--cube-side 3"},
+        {"-N 16 -C 8 --basis cube-haar --cube-side 1024", "--cube-side 1024"},
+        {"-N 16 -C 32 --basis cube-haar --cube-side 16", "--cube-side 16 (1536 coefficients) with -N 16 (512 slots)"},
+        {"-N 16 -C 12 --basis cube-haar --cube-side 8", "-C 12"},
+        {"-N 16 -C 9 --basis cube-haar", "-C 9"},
+        {"-N 16 -C 8 --cube-side 4", "--cube-side needs --basis cube-haar"},
+        {"-N 16 -C 8 --basis sh --cube-side 4", "--cube-side needs --basis cube-haar"},
+        {"-N 16 -C 8 --basis cube-haar --sh-order 4", "--sh-order needs --basis sh"},
+        {"-N 16 -C 8 --basis cube", "--basis cube"},
     };
+    pt_refuse_options(cases, sizeof cases / sizeof cases[0], "cube_pipeline_bad");
     char err[4096];
-    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-        int rc = run_precompute(cases[i].args, 0, err, sizeof err);
-        printf("%s: exit %d: %.*s\n", cases[i].args, rc, (int)strcspn(err, "\n"), err);
-        HL_CHECK(rc == 2, "%s: exit %d, expected 2", cases[i].args, rc);
-        HL_CHECK(strstr(err, cases[i].needle) != NULL, "%s: stderr does not name \"%s\": %s", cases[i].args,
-                 cases[i].needle, err);
-    }
-    int rc = run_precompute("-C 8 --basis cube-haar --cube-side 4", 1, err, sizeof err);
+    int rc = pt_run_precompute("-N 16 -C 8 --basis cube-haar --cube-side 4", "cube_pipeline_bad", 1, err, sizeof err);
     HL_CHECK(rc == 0, "--basis cube-haar --cube-side 4: exit %d: %s", rc, err);
     /* the library refuses the same */
-    hl_context *ctx = hl_test_ref_context(0);
-    hl_mesh_load_desc ld = {{0.8f, 0.8f, 0.8f}, 'y', 0};
-    hl_mesh *mesh = NULL;
-    HL_CHECK(hl_mesh_load(ctx, data_path("bunny_lowres.obj"), &ld, &mesh, NULL) == HL_OK, "mesh");
     static const hl_precompute_desc bad[] = {
         {.N = 16, .C = 8, .basis = HL_TRANSPORT_BASIS_CUBE, .cube_side = 1},
         {.N = 16, .C = 8, .basis = HL_TRANSPORT_BASIS_CUBE, .cube_side = 3},
@@ -608,16 +541,7 @@ static void t_bad(void)
         {.N = 16, .C = 8, .basis = HL_TRANSPORT_BASIS_CUBE, .sh_order = 4},
         {.N = 16, .C = 8, .basis = 3},
     };
-    const char *path = hl_test_tmp_path("cube_pipeline_lib.hlt");
-    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
-        hl_result r = hl_precompute(ctx, mesh, &bad[i], path, NULL);
-        printf("library, basis %u side %u C %u: %s\n", bad[i].basis, bad[i].cube_side, bad[i].C,
-               hl_context_last_error(ctx));
-        HL_CHECK(r == HL_ERR_INVALID_ARGUMENT, "descriptor %zu accepted (%d)", i, (int)r);
-        HL_CHECK(access(path, F_OK) != 0, "descriptor %zu wrote a file", i);
-    }
-    hl_mesh_destroy(mesh);
-    hl_context_destroy(ctx);
+    pt_library_refuses(bad, sizeof bad / sizeof bad[0], "cube_pipeline_lib");
 }
 
 int main(int argc, char **argv)

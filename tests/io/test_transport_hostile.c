@@ -337,6 +337,31 @@ static void case_badappend(void)
 /* Header offsets of the basis words (host/FORMAT.md). */
 enum { F_BASIS = 176, F_SH_ORDER = 180 };
 
+/* Drops every entry of s at or past slot limit (the rows of a basis of
+ * limit coefficients), keeping the counts and totals in step. */
+static void keep_slots_below(synth *s, uint32_t limit)
+{
+    const uint32_t B = s->info.block_count;
+    s->total = 0;
+    for (uint32_t v = 0; v < s->info.vertex_count; v++) {
+        uint8_t *e = s->entries + v * s->stride;
+        uint32_t n = 0, k = 0;
+        for (uint32_t b = 0; b < B; b++) {
+            uint32_t c = 0;
+            for (uint32_t j = 0; j < s->counts[(size_t)v * B + b]; j++, k++)
+                if (b * HL_BLOCK + e[2 * k] < limit) {
+                    e[2 * n] = e[2 * k];
+                    e[2 * n + 1] = e[2 * k + 1];
+                    n++;
+                    c++;
+                }
+            s->counts[(size_t)v * B + b] = (uint16_t)c;
+        }
+        s->nnz[v] = n;
+        s->total += n;
+    }
+}
+
 static void case_basis(void)
 {
     hl_context *ctx = make_ctx();
@@ -401,25 +426,7 @@ static void case_basis(void)
                  strstr(hl_context_last_error(ctx), "is not below the basis's 9 coefficients"),
              "writer took an entry past L^2: %s", hl_context_last_error(ctx));
     printf("writer: %s\n", hl_context_last_error(ctx));
-    const uint32_t B = s.info.block_count;
-    s.total = 0;
-    for (uint32_t v = 0; v < s.info.vertex_count; v++) {
-        uint8_t *e = s.entries + v * s.stride;
-        uint32_t n = 0, k = 0;
-        for (uint32_t b = 0; b < B; b++) {
-            uint32_t c = 0;
-            for (uint32_t j = 0; j < s.counts[(size_t)v * B + b]; j++, k++)
-                if (b * HL_BLOCK + e[2 * k] < 9) {
-                    e[2 * n] = e[2 * k];
-                    e[2 * n + 1] = e[2 * k + 1];
-                    n++;
-                    c++;
-                }
-            s.counts[(size_t)v * B + b] = (uint16_t)c;
-        }
-        s.nnz[v] = n;
-        s.total += n;
-    }
+    keep_slots_below(&s, 9);
     HL_CHECK(synth_write(ctx, bad, &s, one, 1) == HL_OK, "order 3, slots 0..8: %s", hl_context_last_error(ctx));
     t = NULL;
     HL_CHECK(hl_transport_load(ctx, bad, &t) == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_SH &&
@@ -467,25 +474,7 @@ static void case_cube_basis(void)
                  strstr(hl_context_last_error(ctx), "is not below the basis's 24 coefficients"),
              "writer took an entry past 6 C'^2: %s", hl_context_last_error(ctx));
     printf("writer: %s\n", hl_context_last_error(ctx));
-    const uint32_t B = s.info.block_count;
-    s.total = 0;
-    for (uint32_t v = 0; v < s.info.vertex_count; v++) {
-        uint8_t *e = s.entries + v * s.stride;
-        uint32_t n = 0, k = 0;
-        for (uint32_t b = 0; b < B; b++) {
-            uint32_t c = 0;
-            for (uint32_t j = 0; j < s.counts[(size_t)v * B + b]; j++, k++)
-                if (b * HL_BLOCK + e[2 * k] < 24) {
-                    e[2 * n] = e[2 * k];
-                    e[2 * n + 1] = e[2 * k + 1];
-                    n++;
-                    c++;
-                }
-            s.counts[(size_t)v * B + b] = (uint16_t)c;
-        }
-        s.nnz[v] = n;
-        s.total += n;
-    }
+    keep_slots_below(&s, 24);
     HL_CHECK(synth_write(ctx, bad, &s, one, 1) == HL_OK, "side 2, slots 0..23: %s", hl_context_last_error(ctx));
     hl_transport *t = NULL;
     HL_CHECK(hl_transport_load(ctx, bad, &t) == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_CUBE &&

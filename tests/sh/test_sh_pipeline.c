@@ -37,34 +37,19 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include "cl_backend.h"
 #include "geom.h"
 #include "haarlight_tools.h"
 #include "hl_test.h"
 #include "lighting.h"
+#include "pipeline_test.h"
 #include "sh.h"
 #include "twins.h"
 
 #define SCENE_N 16u
 #define SCENE_ORDER 20u
 
-/* The most a sqrt8 code's decoded magnitude may differ from the value it
- * codes, as a fraction of the row's largest magnitude b (hl_shared.h):
- * s is off by at most half a step, 1/254, and s runs up to 127.5/127 with
- * the dither, so |s'^2 - s^2| <= (2 s + 1/254) / 254. */
-static double sqrt8_step(void) { return (2.0 * 127.5 / 127.0 + 1.0 / 254.0) / 254.0; }
-
-static const char *data_path(const char *name)
-{
-    static char buf[4][1024];
-    static int next = 0;
-    char *b = buf[next++ & 3];
-    snprintf(b, 1024, "%s/%s", hl_test_env("HL_REPO_DATA", "data"), name);
-    return b;
-}
 
 /* ------------------------------------------------------------ kernel */
 
@@ -149,13 +134,8 @@ static void t_kernel(void)
 /* The bunny's SH transport at path, made on ctx. */
 static hl_mesh *sh_scene(hl_context *ctx, const char *path, uint32_t order)
 {
-    hl_mesh_load_desc ld = {{0.8f, 0.6f, 0.4f}, 'y', 0};
-    hl_mesh *mesh = NULL;
-    HL_CHECK(hl_mesh_load(ctx, data_path("bunny_lowres.obj"), &ld, &mesh, NULL) == HL_OK, "mesh: %s",
-             hl_context_last_error(ctx));
-    hl_precompute_desc d = {.N = SCENE_N, .C = SCENE_N, .basis = HL_TRANSPORT_BASIS_SH, .sh_order = order};
-    HL_CHECK(hl_precompute(ctx, mesh, &d, path, NULL) == HL_OK, "precompute: %s", hl_context_last_error(ctx));
-    return mesh;
+    const hl_precompute_desc d = {.N = SCENE_N, .C = SCENE_N, .basis = HL_TRANSPORT_BASIS_SH, .sh_order = order};
+    return pt_scene(ctx, path, &d);
 }
 
 static hl_transport *load(hl_context *ctx, const char *path)
@@ -172,12 +152,7 @@ static hl_transport *load(hl_context *ctx, const char *path)
 static void relight_sel(hl_context *ctx, const hl_transport *t, const hl_env *env, uint32_t M, uint32_t select,
                         float *rgb)
 {
-    hl_relighter *r = NULL;
-    HL_CHECK(hl_relighter_create(ctx, t, &r) == HL_OK, "relighter: %s", hl_context_last_error(ctx));
-    HL_CHECK(hl_relighter_set_env(r, env) == HL_OK, "set env: %s", hl_context_last_error(ctx));
-    hl_relight_desc rd = {.terms = M ? M : 2 * t->info.N * t->info.N, .select = select};
-    HL_CHECK(hl_relighter_run(r, &rd, rgb, NULL) == HL_OK, "run: %s", hl_context_last_error(ctx));
-    hl_relighter_destroy(r);
+    pt_relight(ctx, t, env, M, select, 0.0f, rgb);
 }
 
 static void relight(hl_context *ctx, const hl_transport *t, const hl_env *env, uint32_t M, float *rgb)
@@ -214,12 +189,6 @@ static void exact_sh_rows(hl_context *ctx, const hl_transport *t, const uint32_t
     hl_bench_ref_destroy(br);
 }
 
-static double norm2(const double *x, uint32_t n)
-{
-    double s = 0.0;
-    for (uint32_t k = 0; k < n; k++) s += x[k] * x[k];
-    return sqrt(s);
-}
 
 /* ------------------------------------------------------------ constant */
 
@@ -239,7 +208,7 @@ static void t_constant(void)
     for (uint32_t v = 0; v < V; v++) idx[v] = v;
     double *tsh = malloc((size_t)V * ns * sizeof(double)), *sums = malloc((size_t)V * sizeof(double)), *Ybar = NULL;
     exact_sh_rows(ref, t, idx, V, tsh, &Ybar, sums);
-    const double l0 = c * sqrt(4.0 * HL_PI), eps = t->info.eps, q = sqrt8_step();
+    const double l0 = c * sqrt(4.0 * HL_PI), eps = t->info.eps, q = pt_sqrt8_step();
     float *rgb = malloc((size_t)V * 12);
     static const uint32_t Ms[] = {1, 200, 0};
     for (int backend = 0; backend < 2; backend++) {
@@ -255,7 +224,7 @@ static void t_constant(void)
                (then |t_0| <= sqrt(eps) |t|); the float sums add 1e-5 */
             double worst = 0.0, worst_rel = 0.0;
             for (uint32_t v = 0; v < V; v++) {
-                const double tn = norm2(tsh + (size_t)v * ns, ns);
+                const double tn = pt_norm2(tsh + (size_t)v * ns, ns);
                 const double bound = l0 * (q * t->row_quant[v].b + sqrt(eps) * tn) + 1e-5 * l0 * tn;
                 for (int ch = 0; ch < 3; ch++) {
                     const double a = mesh->albedo[3 * (size_t)v + ch], want = c * a * sums[v];
@@ -303,7 +272,7 @@ static void t_cl_ref(void)
     free(b);
     hl_transport *t = load(ref, pr);
     hl_env *env = NULL;
-    HL_CHECK(hl_env_load(ref, data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
+    HL_CHECK(hl_env_load(ref, pt_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
     const uint32_t V = t->info.vertex_count;
     float *x = malloc((size_t)V * 12), *y = malloc((size_t)V * 12);
     static const uint32_t Ms[] = {200, 0};
@@ -379,7 +348,7 @@ static void t_bench(void)
     uint32_t idx[256];
     for (uint32_t i = 0; i < n; i++) idx[i] = (uint32_t)((uint64_t)i * V / n);
     hl_env *env = NULL;
-    HL_CHECK(hl_env_load(ref, data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
+    HL_CHECK(hl_env_load(ref, pt_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
     hl_basis_bench *bb = NULL;
     const double *exact = NULL;
     double *sh = malloc((size_t)n * 3 * sizeof(double));
@@ -395,11 +364,11 @@ static void t_bench(void)
     for (int ch = 0; ch < 3; ch++) hl_sh_project(Ybar, nc, ns, Lp + (size_t)ch * nc, 1, l[ch]);
     float *rgb = malloc((size_t)V * 12);
     relight(ref, t, env, 0, rgb);
-    const double q = sqrt8_step(), eps = t->info.eps;
+    const double q = pt_sqrt8_step(), eps = t->info.eps;
     double worst = 0.0, l2 = 0.0, ref2 = 0.0;
     for (uint32_t i = 0; i < n; i++) {
         const uint32_t v = idx[i];
-        const double tn = norm2(tsh + (size_t)i * ns, ns);
+        const double tn = pt_norm2(tsh + (size_t)i * ns, ns);
         for (int ch = 0; ch < 3; ch++) {
             double labs = 0.0;
             for (uint32_t k = 0; k < ns; k++) labs += fabs(l[ch][k]);
@@ -407,7 +376,7 @@ static void t_bench(void)
                the dropped ones hold at most eps of |t|^2; 1e-5 for the
                float sums */
             const double a = mesh->albedo[3 * (size_t)v + ch];
-            const double bound = a * (q * t->row_quant[v].b * labs + sqrt(eps) * tn * norm2(l[ch], ns) + 1e-5 * tn * labs);
+            const double bound = a * (q * t->row_quant[v].b * labs + sqrt(eps) * tn * pt_norm2(l[ch], ns) + 1e-5 * tn * labs);
             const double want = fmax(0.0, sh[3 * i + ch]), err = fabs(rgb[3 * (size_t)v + ch] - want);
             if (bound > 0.0) worst = fmax(worst, err / bound);
             else HL_CHECK(err == 0.0, "vertex %u: %g where the bound is 0", v, err);
@@ -434,54 +403,23 @@ static void t_bench(void)
 
 /* ------------------------------------------------------------ bad */
 
-/* Runs `haarlight precompute ARGS` on the bunny: its exit status, with
- * stderr's text in err. */
-static int run_precompute(const char *args, int expect_output, char *err, size_t n)
-{
-    const char *bin = hl_test_env("HL_BIN", "haarlight"), *out = hl_test_tmp_path("sh_pipeline_bad.hlt");
-    const char *log = hl_test_tmp_path("sh_pipeline_bad.txt");
-    char cmd[4096];
-    snprintf(cmd, sizeof cmd, "'%s' precompute '%s' -C 8 -N 16 -q --device ref %s -o '%s' 2>'%s' >/dev/null", bin,
-             data_path("bunny_lowres.obj"), args, out, log);
-    int st = system(cmd);
-    size_t k = 0;
-    uint8_t *text = hl_test_read_file(log, &k);
-    snprintf(err, n, "%.*s", (int)k, text ? (const char *)text : "");
-    free(text);
-    HL_CHECK((access(out, F_OK) == 0) == expect_output, "%s: an output was%s written", args, expect_output ? " not" : "");
-    remove(out);
-    remove(log);
-    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
-
 static void t_bad(void)
 {
-    static const struct { const char *args, *needle; } cases[] = {
-        {"--basis sh --sh-order 0", "--sh-order 0"},
-        {"--basis sh --sh-order 33", "--sh-order 33"},
-        {"--basis sh --sh-order 23", "--sh-order 23"}, /* 529 > 2 x 16^2 = 512 */
-        {"--basis sh", "--sh-order 20 (400 coefficients) with -N 8"},
-        {"--sh-order 4", "--sh-order needs --basis sh"},
-        {"--basis haar --sh-order 4", "--sh-order needs --basis sh"},
-        {"--basis wavelet", "--basis wavelet"},
+    static const pt_bad_option cases[] = {
+        {"-C 8 -N 16 --basis sh --sh-order 0", "--sh-order 0"},
+        {"-C 8 -N 16 --basis sh --sh-order 33", "--sh-order 33"},
+        {"-C 8 -N 16 --basis sh --sh-order 23", "--sh-order 23"}, /* 529 > 2 x 16^2 = 512 */
+        /* order 20 by default on -N 8 (128 slots) */
+        {"-C 8 -N 16 --basis sh -N 8", "--sh-order 20 (400 coefficients) with -N 8"},
+        {"-C 8 -N 16 --sh-order 4", "--sh-order needs --basis sh"},
+        {"-C 8 -N 16 --basis haar --sh-order 4", "--sh-order needs --basis sh"},
+        {"-C 8 -N 16 --basis wavelet", "--basis wavelet"},
     };
+    pt_refuse_options(cases, sizeof cases / sizeof cases[0], "sh_pipeline_bad");
     char err[4096];
-    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-        /* "--basis sh" alone: order 20 on -N 8 (128 slots) */
-        char args[256];
-        snprintf(args, sizeof args, "%s%s", cases[i].args, i == 3 ? " -N 8" : "");
-        int rc = run_precompute(args, 0, err, sizeof err);
-        printf("%s: exit %d: %.*s\n", args, rc, (int)strcspn(err, "\n"), err);
-        HL_CHECK(rc == 2, "%s: exit %d, expected 2", args, rc);
-        HL_CHECK(strstr(err, cases[i].needle) != NULL, "%s: stderr does not name \"%s\": %s", args, cases[i].needle, err);
-    }
-    int rc = run_precompute("--basis sh --sh-order 3", 1, err, sizeof err);
+    int rc = pt_run_precompute("-C 8 -N 16 --basis sh --sh-order 3", "sh_pipeline_bad", 1, err, sizeof err);
     HL_CHECK(rc == 0, "--basis sh --sh-order 3: exit %d: %s", rc, err);
     /* the library refuses the same */
-    hl_context *ctx = hl_test_ref_context(0);
-    hl_mesh_load_desc ld = {{0.8f, 0.8f, 0.8f}, 'y', 0};
-    hl_mesh *mesh = NULL;
-    HL_CHECK(hl_mesh_load(ctx, data_path("bunny_lowres.obj"), &ld, &mesh, NULL) == HL_OK, "mesh");
     static const hl_precompute_desc bad[] = {
         {.N = 16, .C = 8, .basis = 3},
         {.N = 16, .C = 8, .basis = HL_TRANSPORT_BASIS_SH, .sh_order = 33},
@@ -489,16 +427,7 @@ static void t_bad(void)
         {.N = 8, .C = 8, .basis = HL_TRANSPORT_BASIS_SH}, /* the default 20 on 128 slots */
         {.N = 16, .C = 8, .basis = HL_TRANSPORT_BASIS_HAAR, .sh_order = 4},
     };
-    const char *path = hl_test_tmp_path("sh_pipeline_lib.hlt");
-    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
-        hl_result r = hl_precompute(ctx, mesh, &bad[i], path, NULL);
-        printf("library, basis %u order %u N %u: %s\n", bad[i].basis, bad[i].sh_order, bad[i].N,
-               hl_context_last_error(ctx));
-        HL_CHECK(r == HL_ERR_INVALID_ARGUMENT, "descriptor %zu accepted (%d)", i, (int)r);
-        HL_CHECK(access(path, F_OK) != 0, "descriptor %zu wrote a file", i);
-    }
-    hl_mesh_destroy(mesh);
-    hl_context_destroy(ctx);
+    pt_library_refuses(bad, sizeof bad / sizeof bad[0], "sh_pipeline_lib");
 }
 
 int main(int argc, char **argv)
