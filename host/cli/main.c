@@ -76,7 +76,7 @@ static const char *const usage_precompute =
     "                       (default); sh, real spherical harmonics of the cell-integrated\n"
     "                       rows, coefficient k = l^2 + l + m in slot k; cube-haar, Haar\n"
     "                       wavelets over the six faces of a cube (the 2003 paper's layout),\n"
-    "                       face f's coefficients in slots f C'^2 .. (f + 1) C'^2 - 1.\n"
+    "                       face f's coefficients in slots f C'^2 .. (f + 1) C'^2 - 1;\n"
     "                       relight, bench and view then take the lighting into the same\n"
     "                       basis (a cube-haar file cannot be relit under --surroundings)\n"
     "  --sh-order L         with --basis sh: bands 0..L-1, L^2 coefficients, 1..32 with\n"
