@@ -225,6 +225,8 @@ static int column_pass(pass_job *j, size_t rg, uint32_t *last, uint8_t *row)
     uint32_t *c = (pass == 0 ? b->cs : b->fill) + rg * (nc + 1);
     uint32_t *rr = pass == 0 ? NULL : b->rel + 2 * rg * nc * ts;
     memset(last, 0xff, nc * 4);
+    if (pass == 1) /* the range's own entries, zeroed by the thread that fills them */
+        memset(b->col + (size_t)c[0] * COL_WORDS, 0, (size_t)(c[nc] - c[0]) * COL_WORDS * 4);
     const size_t v0 = l->range_start[rg];
     for (size_t v = v0; v < V && v < l->range_start[rg + 1]; v++) {
         uint32_t tile = (uint32_t)((v - v0) / HL_TILE), lane = (uint32_t)(v % HL_TILE);
@@ -367,7 +369,7 @@ static hl_result column_memory(col_build *b)
     memset(b->rel, 0, b->nrel * 8);
     b->col = hl_alloc_big(ctx, (size_t)b->run * COL_WORDS * 4, "transport columns");
     if (!b->col) return HL_ERR_OUT_OF_MEMORY;
-    memset(b->col, 0, (size_t)b->run * COL_WORDS * 4);
+    memset(b->col, 0, COL_WORDS * 4); /* entry 0; each range zeroes its own in pass 1 */
     return HL_OK;
 }
 
