@@ -239,7 +239,8 @@ hl_result hl_transport_merge(hl_context *ctx, const char *out_path, const char *
  * (t->entries becomes NULL: hl_transport_query_row and the like must not
  * be called on t afterwards, on failure too) and builds its columns from
  * rows read from path again, so the entries and the columns are never in
- * memory together. Refuses a path whose header does not describe t or
+ * memory together; once the columns are built it frees t's block counts
+ * and row offsets too (NULL after). Refuses a path whose header does not describe t or
  * whose entries' checksum is not that of t's. On the reference backend
  * (which relights from the entries) it is hl_relighter_create. */
 hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const char *path, hl_relighter **out);

@@ -199,6 +199,13 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
             res = hl_cube_tables_create(ctx, t->info.sh_order, t->info.C, r->lg->wc, r->lg->hc, &r->cube);
         if (res == HL_OK && ctx->backend == HL_BACKEND_OPENCL)
             res = hl_cl_light_create_from(ctx, r->g, r->lg, t, src, r->albedo4, &r->cl);
+        /* the columns are built: the row table goes too (72 bytes a vertex) */
+        if (res == HL_OK && drop && src && ctx->backend == HL_BACKEND_OPENCL) {
+            hl_free_big(drop->block_counts);
+            free(drop->row_offset);
+            drop->block_counts = NULL;
+            drop->row_offset = NULL;
+        }
         if (res == HL_OK && r->cl && r->shY)
             res = hl_cl_light_set_sh(r->cl, r->shY, hl_sh_stride(t->info.sh_order), hl_sh_count(t->info.sh_order));
         if (res == HL_OK && r->cl && r->cube)
