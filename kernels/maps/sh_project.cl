@@ -6,31 +6,42 @@
  * the caller zeroes them (they stay empty in the 2 N^2 slot space).
  * Twin: host/src/maps/twins/sh_project.c.
  *
- * One work-item per row and four consecutive coefficients: the four are
- * one float4 of a matrix row (stride is a multiple of 4, the padding
- * zero), so neighbouring work-items read neighbouring memory, and zero
- * texels (below a vertex's horizon) are skipped. The sum runs over j in
- * order, as the twin's.
+ * One work-item per HL_SH_ROWS rows and four consecutive coefficients:
+ * the four are one float4 of a matrix row (stride is a multiple of 4,
+ * the padding zero), so neighbouring work-items read neighbouring memory,
+ * and each matrix element read serves HL_SH_ROWS rows (the lighting's
+ * three colour planes in one work-item: the matrix is read once a
+ * lighting change, not three times). Zero texels (below a vertex's
+ * horizon) add nothing. Each row's sum runs over j in order, as the
+ * twin's.
  */
 #pragma OPENCL FP_CONTRACT OFF
+
+#define HL_SH_ROWS 4u
 
 kernel void hl_sh_project_rows(global const float *in, uint ncoef, global const float4 *Y, uint stride, uint nsh,
                                global float *out, uint nrows)
 {
     uint id = get_global_id(0), q = stride / 4u;
-    uint v = id / q, b = id - v * q;
-    if (v >= nrows) return;
-    global const float *x = in + (size_t)v * ncoef;
-    float4 acc = (float4)(0.0f);
+    uint v0 = id / q * HL_SH_ROWS, b = id % q;
+    if (v0 >= nrows) return;
+    const uint n = min(HL_SH_ROWS, nrows - v0);
+    global const float *x = in + (size_t)v0 * ncoef;
+    float4 acc[HL_SH_ROWS];
+    for (uint r = 0; r < HL_SH_ROWS; r++) acc[r] = (float4)(0.0f);
     for (uint j = 0; j < ncoef; j++) {
-        float t = x[j];
-        if (t == 0.0f) continue;
-        acc += t * Y[(size_t)j * q + b];
+        float4 y = Y[(size_t)j * q + b];
+        for (uint r = 0; r < n; r++) {
+            float t = x[(size_t)r * ncoef + j];
+            if (t != 0.0f) acc[r] += t * y;
+        }
     }
-    global float *o = out + (size_t)v * ncoef;
     uint k = 4u * b;
-    if (k < nsh) o[k] = acc.x;
-    if (k + 1u < nsh) o[k + 1u] = acc.y;
-    if (k + 2u < nsh) o[k + 2u] = acc.z;
-    if (k + 3u < nsh) o[k + 3u] = acc.w;
+    for (uint r = 0; r < n; r++) {
+        global float *o = out + (size_t)(v0 + r) * ncoef;
+        if (k < nsh) o[k] = acc[r].x;
+        if (k + 1u < nsh) o[k + 1u] = acc[r].y;
+        if (k + 2u < nsh) o[k + 2u] = acc[r].z;
+        if (k + 3u < nsh) o[k + 3u] = acc[r].w;
+    }
 }

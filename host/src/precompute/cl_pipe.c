@@ -137,7 +137,8 @@ hl_result hl_cl_sh_project_enqueue(hl_context *ctx, struct hl_cl *cl, cl_mem in,
     CL_TRY(ctx, clSetKernelArg(k, 4, sizeof count, &count), "clSetKernelArg");
     CL_TRY(ctx, clSetKernelArg(k, 5, sizeof out, &out), "clSetKernelArg");
     CL_TRY(ctx, clSetKernelArg(k, 6, sizeof rows, &rows), "clSetKernelArg");
-    size_t local = cl->wg, items = (size_t)rows * (stride / 4), global = (items + local - 1) / local * local;
+    /* HL_SH_ROWS (4) rows a work-item: sh_project.cl */
+    size_t local = cl->wg, items = (size_t)(rows + 3) / 4 * (stride / 4), global = (items + local - 1) / local * local;
     CL_TRY(ctx, clEnqueueNDRangeKernel(cl->queue, k, 1, NULL, &global, &local, 0, NULL, NULL),
            hl_cl_kernel_names[K_SH_PROJECT]);
     return HL_OK;
