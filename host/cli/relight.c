@@ -112,12 +112,17 @@ int cmd_relight(int argc, char **argv)
         /* what the device holds against the file (docs/MEMORY.md) */
         hl_relighter_memory m;
         struct stat sb;
-        if (hl_relighter_memory_use(rl, &m) == HL_OK && m.device_bytes && stat(scene, &sb) == 0 && sb.st_size > 0)
+        char how[96] = "";
+        if (hl_relighter_memory_use(rl, &m) == HL_OK && m.device_bytes && stat(scene, &sb) == 0 && sb.st_size > 0) {
+            if (m.parts > 1)
+                snprintf(how, sizeof how, m.resident ? ", in %u parts of their own buffers (no one buffer holds them)"
+                                                     : ", uploaded in %u parts from host memory",
+                         m.parts);
             fprintf(stderr,
                     "the device holds %.1f MB for it: %.0f bytes a vertex, %.2f times the file; the columns %.1f MB%s\n",
                     (double)m.device_bytes / 1e6, (double)m.device_bytes / t->info.vertex_count,
-                    (double)m.device_bytes / (double)sb.st_size, (double)m.column_bytes / 1e6,
-                    m.parts > 1 ? ", uploaded in parts from host memory" : "");
+                    (double)m.device_bytes / (double)sb.st_size, (double)m.column_bytes / 1e6, how);
+        }
     }
     if (r == HL_OK && env) r = hl_relighter_set_env(rl, env);
     if (r == HL_OK && surr) r = hl_relighter_set_surroundings(rl, surr);

@@ -248,13 +248,16 @@ hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const 
 /* What a relighter holds on its device: all its buffers (device_bytes;
  * the capture of surroundings' own not included), of which the transport
  * columns (column_bytes, counted whole: with parts > 1 they wait in host
- * memory and the device holds one part at a time), and the parts its dot
- * products run in (1: all the columns at once; 0 on the reference
- * backend, which holds nothing on a device). See docs/MEMORY.md. */
+ * memory and the device holds one part at a time, unless resident), and
+ * the parts its dot products run in (1: all the columns at once; 0 on the
+ * reference backend, which holds nothing on a device). resident: the
+ * parts are all on the device, each in buffers of its own (no single
+ * buffer could hold them). See docs/MEMORY.md. */
 typedef struct hl_relighter_memory {
     uint64_t device_bytes;
     uint64_t column_bytes;
     uint32_t parts;
+    uint32_t resident;
 } hl_relighter_memory;
 hl_result hl_relighter_memory_use(const hl_relighter *r, hl_relighter_memory *m);
 

@@ -15,11 +15,18 @@
  *                and in parts, give the same colours bit for bit; a file
  *                other than the transport's is refused, naming it, and
  *                the transport keeps its entries.
+ * parts.resident  a device whose largest allocation (HL_TEST_MAX_ALLOC)
+ *                is a quarter of the columns but whose memory holds them
+ *                all: parts with buffers of their own, uploaded once,
+ *                all of the columns on the device, the same colours bit
+ *                for bit, from the file and from loaded entries.
  *
  * Depends on: haarlight_core, an OpenCL device (PoCL),
  * tests/common/light_util.h.
  */
+#define _POSIX_C_SOURCE 200809L /* setenv */
 #include <stdint.h>
+#include <stdlib.h>
 
 #include "cl_backend.h"
 #include "haarlight_tools.h"
@@ -228,12 +235,66 @@ static void case_from_file(void)
     hl_context_destroy(ctx);
 }
 
+static void case_resident(void)
+{
+    const char *p = make_transport("parts_res.hlt", "");
+    char path[1024];
+    snprintf(path, sizeof path, "%s", p ? p : "");
+    hl_context *ctx = ctx_of(HL_BACKEND_OPENCL);
+    hl_transport *t = NULL, *t2 = NULL, *t3 = NULL;
+    HL_CHECK(p && ctx && hl_transport_load(ctx, path, &t) == HL_OK && hl_transport_load(ctx, path, &t2) == HL_OK &&
+                 hl_transport_load(ctx, path, &t3) == HL_OK,
+             "transports");
+    uint64_t used = 0, cols = 0;
+    if (!t || !t2 || !t3 || !measure(t, &used, &cols)) return;
+    char cap[32];
+    snprintf(cap, sizeof cap, "%llu", (unsigned long long)(cols / 4));
+    setenv("HL_TEST_MAX_ALLOC", cap, 1);
+    hl_context *small = ctx_of(HL_BACKEND_OPENCL);
+    unsetenv("HL_TEST_MAX_ALLOC");
+    const uint32_t V = t->info.vertex_count;
+    float *ca = malloc((size_t)V * 24), *cb = malloc((size_t)V * 24), *cc = malloc((size_t)V * 24);
+    hl_relighter *a = NULL, *b = NULL, *c = NULL;
+    HL_CHECK(hl_relighter_create(ctx, t, &a) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(small && hl_relighter_create(small, t2, &b) == HL_OK, "largest allocation %s bytes: %s", cap,
+             small ? hl_context_last_error(small) : "no context");
+    HL_CHECK(small && hl_relighter_create_from_file(small, t3, path, &c) == HL_OK, "from the file: %s",
+             small ? hl_context_last_error(small) : "no context");
+    uint64_t diff = 0;
+    for (int k = 0; b && c && k < 2; k++) {
+        hl_relighter_memory m;
+        HL_CHECK(hl_relighter_memory_use(k ? c : b, &m) == HL_OK, "memory use");
+        printf("largest allocation %s bytes (columns %llu): %u parts, resident %u, device %llu bytes (unlimited %llu)\n",
+               cap, (unsigned long long)cols, m.parts, m.resident, (unsigned long long)m.device_bytes,
+               (unsigned long long)used);
+        HL_CHECK(m.parts >= 4 && m.resident, "a quarter of the columns a buffer: at least 4 resident parts");
+        HL_CHECK(m.device_bytes >= cols, "the device holds all the columns");
+    }
+    if (a && b && c && colours(ctx, a, ca, V) && colours(small, b, cb, V) && colours(small, c, cc, V))
+        for (size_t i = 0; i < (size_t)V * 6; i++) diff += (memcmp(&ca[i], &cb[i], 4) != 0) + (memcmp(&ca[i], &cc[i], 4) != 0);
+    printf("resident parts: %u vertices x 3 colours x 2 settings, from entries and from the file: %llu words differ "
+           "(tolerance 0: bit-identical)\n", V, (unsigned long long)diff);
+    HL_CHECK(a && b && c && diff == 0, "%llu words differ from the relighter in one buffer", (unsigned long long)diff);
+    free(ca);
+    free(cb);
+    free(cc);
+    hl_relighter_destroy(a);
+    hl_relighter_destroy(b);
+    hl_relighter_destroy(c);
+    hl_transport_destroy(t);
+    hl_transport_destroy(t2);
+    hl_transport_destroy(t3);
+    hl_context_destroy(small);
+    hl_context_destroy(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"quarter", case_quarter},
         {"refused", case_refused},
         {"from_file", case_from_file},
+        {"resident", case_resident},
         {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);

@@ -83,6 +83,15 @@ void *hl_alloc_big(hl_context *ctx, size_t bytes, const char *what)
 
 void hl_free_big(void *p) { free(p); }
 
+void hl_release_pages(void *p, size_t bytes)
+{
+    const uintptr_t pg = 4096, a = (uintptr_t)p, b = a + bytes;
+    const uintptr_t a2 = (a + pg - 1) / pg * pg, b2 = b / pg * pg;
+#ifdef MADV_DONTNEED
+    if (b2 > a2) madvise((void *)a2, b2 - a2, MADV_DONTNEED);
+#endif
+}
+
 void hl_run_threads(int threads, void *(*fn)(void *), void *arg)
 {
     pthread_t th[64];

@@ -54,6 +54,10 @@ void *hl_calloc(hl_context *ctx, size_t count, size_t size, const char *what);
 /* Large arrays: 64-byte aligned, huge pages advised. Free with hl_free_big. */
 void *hl_alloc_big(hl_context *ctx, size_t bytes, const char *what);
 void hl_free_big(void *p);
+/* Gives the whole pages inside [p, p + bytes) of an hl_alloc_big block
+ * back to the system: their contents are lost (they read as zero), the
+ * block stays valid and is still freed with hl_free_big. */
+void hl_release_pages(void *p, size_t bytes);
 
 #define HL_PI 3.14159265358979323846
 

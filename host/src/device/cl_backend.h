@@ -190,6 +190,9 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes);
  * starts, tile bits, ranges); and the device memory a context's
  * buffers hold now (counted against its limit). */
 uint32_t hl_cl_light_parts(const hl_cl_light *l);
+/* 1 where the parts each have buffers of their own, uploaded once (the
+ * device holds all the columns, but not in one allocation). */
+int hl_cl_light_parts_resident(const hl_cl_light *l);
 uint64_t hl_cl_light_column_bytes(const hl_cl_light *l);
 uint64_t hl_cl_memory_used(const hl_context *ctx);
 /* The bytes of all the relighter's device buffers (cl_light_probe.c). */

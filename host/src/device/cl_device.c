@@ -77,6 +77,10 @@ hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t
         cl->limit_set = 1;
     }
     if (cl->limit && cl->max_alloc > cl->limit) cl->max_alloc = cl->limit;
+    /* tests: a smaller largest allocation than the device's, in bytes */
+    const char *cap = getenv("HL_TEST_MAX_ALLOC");
+    if (cap && strtoull(cap, NULL, 10) > 0 && strtoull(cap, NULL, 10) < cl->max_alloc)
+        cl->max_alloc = strtoull(cap, NULL, 10);
     snprintf(ctx->device_name, sizeof ctx->device_name, "OpenCL: %s / %s", pname, dname);
     cl_device_type type = 0;
     clGetDeviceInfo(cl->device, CL_DEVICE_TYPE, sizeof type, &type, NULL);

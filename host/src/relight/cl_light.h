@@ -42,6 +42,12 @@ struct hl_cl_light {
        set of part-sized buffers (col, cols, rel, rstart) before each
        part's launch. nparts is 1 when the device holds them all. */
     uint32_t nparts, *part_range;                   /* part p: ranges [part_range[p], part_range[p + 1]) */
+    /* resident parts: the device holds all the columns, but not in one
+       allocation (its largest, CL_DEVICE_MAX_MEM_ALLOC_SIZE, is smaller):
+       each part has buffers of its own, uploaded once (pbuf[4 p ..
+       4 p + 3]: col, cols, rel, rstart), and no host copy is kept */
+    int resident;
+    cl_mem *pbuf;
     uint32_t *part_cs;
     void *host_col, *host_rel;
     /* lighting captured from surroundings (hl_cl_light_set_capture): the
@@ -80,6 +86,11 @@ hl_result hl_cl_light_make_parts(hl_cl_light *l, const hl_col_sizes *z, void *co
 /* Enqueues part p's uploads into the part buffers (cl_parts.c); its ranges
  * count into *nr. */
 hl_result hl_cl_light_enq_part(hl_cl_light *l, uint32_t p, cl_uint *nr);
+/* The buffers part p's launch reads (into m[0..3]: col, cols, rel,
+ * rstart): its own where the parts are resident, else the shared ones. */
+void hl_cl_light_part_bufs(const hl_cl_light *l, uint32_t p, cl_mem m[4]);
+/* Releases resident parts' buffers (cl_parts.c). */
+void hl_cl_light_release_parts(hl_cl_light *l);
 
 /* Enqueues the dot products into the device's colour buffer, without
  * waiting (cl_relight.c). */

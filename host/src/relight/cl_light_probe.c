@@ -23,6 +23,11 @@ uint64_t hl_cl_light_device_bytes(const hl_cl_light *l)
         size_t bytes = 0;
         if (all[i] && clGetMemObjectInfo(all[i], CL_MEM_SIZE, sizeof bytes, &bytes, NULL) == CL_SUCCESS) sum += bytes;
     }
+    for (size_t i = 0; l->resident && i < 4 * (size_t)l->nparts; i++) {
+        size_t bytes = 0;
+        if (l->pbuf[i] && clGetMemObjectInfo(l->pbuf[i], CL_MEM_SIZE, sizeof bytes, &bytes, NULL) == CL_SUCCESS)
+            sum += bytes;
+    }
     return sum;
 }
 

@@ -48,6 +48,8 @@ static uint64_t range_entries(const hl_col_sizes *z, size_t rg)
 
 uint32_t hl_cl_light_parts(const hl_cl_light *l) { return l->nparts; }
 
+int hl_cl_light_parts_resident(const hl_cl_light *l) { return l->resident; }
+
 uint64_t hl_cl_light_column_bytes(const hl_cl_light *l)
 {
     const hl_col_sizes z = {NULL, l->col_entries + 1, l->g->ncoef, l->tstride, 0};
@@ -95,13 +97,35 @@ hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t
        (16); per padded position: running sums (12), scales (4) */
     const uint64_t after = (uint64_t)l->nverts * 36 + (uint64_t)z->vpad * 16;
     const uint64_t held = cl->used + after + (uint64_t)z->nc * HL_PARTS_HEADROOM_PER_SLOT;
-    const uint64_t avail = cl->limit > held ? cl->limit - held : 0;
+    uint64_t avail = cl->limit > held ? cl->limit - held : 0;
     const uint64_t whole = part_bytes(z, z->run - 1, l->nranges);
-    if (!cl->limit || whole <= avail) {
+    /* the largest single buffer of the whole columns: entries or tile bits */
+    const uint64_t col_buf = z->run * ENTRY_BYTES, rel_buf = (uint64_t)l->nranges * z->nc * z->ts * 8;
+    const int fits = !cl->limit || whole <= avail;
+    l->resident = 0;
+    if (fits && (col_buf > rel_buf ? col_buf : rel_buf) <= cl->max_alloc) {
         l->nparts = 1;
         l->part_range[0] = 0;
         l->part_range[1] = l->nranges;
         return HL_OK;
+    }
+    if (fits) {
+        /* the device holds them all, but no buffer may pass max_alloc:
+           parts of their own buffers each, uploaded once; on a CPU device
+           first cut finer, so that each part still has a range a core */
+        const uint64_t units = cl->units > 1 ? cl->units : 1, tiles = (l->nverts + HL_TILE - 1) / HL_TILE;
+        if (cl->wg == 1 && mult == 1 && units > 1 && (uint64_t)l->nranges < tiles) {
+            uint64_t want = (whole / cl->max_alloc + 1) * HL_PARTS_RANGES_PER_PART;
+            if (want * units > tiles) want = (tiles + units - 1) / units;
+            if (want > mult) {
+                *finer = (uint32_t)want;
+                return HL_OK;
+            }
+        }
+        l->nparts = group_ranges(l, z, cl->max_alloc, l->part_range);
+        l->resident = l->nparts > 0;
+        if (l->nparts) return HL_OK;
+        avail = cl->limit && avail < cl->max_alloc ? avail : cl->max_alloc; /* one range too big: as below */
     }
     l->nparts = group_ranges(l, z, avail, l->part_range);
     if (l->nparts) return HL_OK;
@@ -140,6 +164,76 @@ hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t
                    mib(cl->limit), lim, mib(avail), mib(held), least_v, mib(least), raise);
 }
 
+/* Part p's columns, starts, tile bits and ranges into m (col, cols, rel,
+ * rstart), the entries after m[0]'s entry 0; cs: the columns' absolute
+ * starts. */
+static hl_result upload_part(hl_cl_light *l, uint32_t p, const uint32_t *cs, const cl_mem m[4], cl_bool blocking)
+{
+    const size_t nc = l->g->ncoef, ts = l->tstride;
+    const uint32_t r0 = l->part_range[p], r1 = l->part_range[p + 1], n = r1 - r0;
+    const uint32_t e0 = cs[(size_t)r0 * (nc + 1)], e1 = cs[(size_t)(r1 - 1) * (nc + 1) + nc];
+    cl_command_queue q = l->cl->queue;
+    if (e1 > e0)
+        CL_TRY(l->ctx, clEnqueueWriteBuffer(q, m[0], blocking, (size_t)ENTRY_BYTES, (size_t)((e1 - e0) * ENTRY_BYTES),
+                                            (const char *)l->host_col + (size_t)e0 * ENTRY_BYTES, 0, NULL, NULL),
+               "upload of a part's columns");
+    CL_TRY(l->ctx, clEnqueueWriteBuffer(q, m[1], blocking, 0, (size_t)n * (nc + 1) * 4,
+                                        l->part_cs + (size_t)r0 * (nc + 1), 0, NULL, NULL),
+           "upload of a part's column starts");
+    CL_TRY(l->ctx, clEnqueueWriteBuffer(q, m[2], blocking, 0, (size_t)n * nc * ts * 8,
+                                        (const char *)l->host_rel + (size_t)r0 * nc * ts * 8, 0, NULL, NULL),
+           "upload of a part's tile bits");
+    CL_TRY(l->ctx, clEnqueueWriteBuffer(q, m[3], blocking, 0, ((size_t)n + 1) * 4, l->range_start + r0, 0, NULL,
+                                        NULL),
+           "upload of a part's ranges");
+    return HL_OK;
+}
+
+/* Buffers for a part of e entries and n ranges into m, entry 0 zeroed. */
+static hl_result make_part_bufs(hl_cl_light *l, uint64_t e, uint64_t n, size_t ts, cl_mem m[4])
+{
+    hl_context *ctx = l->ctx;
+    const size_t nc = l->g->ncoef;
+    hl_result r = hl_cl_make_buf(ctx, &m[0], CL_MEM_READ_ONLY, (size_t)((e + 1) * ENTRY_BYTES), NULL,
+                                 "transport columns (one part)");
+    if (r == HL_OK)
+        r = hl_cl_make_buf(ctx, &m[1], CL_MEM_READ_ONLY, (size_t)n * (nc + 1) * 4, NULL, "column starts (one part)");
+    if (r == HL_OK)
+        r = hl_cl_make_buf(ctx, &m[2], CL_MEM_READ_ONLY, (size_t)n * nc * ts * 8, NULL,
+                           "the columns' tile bits (one part)");
+    if (r == HL_OK)
+        r = hl_cl_make_buf(ctx, &m[3], CL_MEM_READ_ONLY, (size_t)(n + 1) * 4, NULL, "ranges (one part)");
+    if (r != HL_OK) return r;
+    /* entry 0, all zero, stays: the part's entries go after it */
+    const uint32_t zero[HL_TILE / 2] = {0};
+    CL_TRY(ctx, clEnqueueWriteBuffer(l->cl->queue, m[0], CL_TRUE, 0, sizeof zero, zero, 0, NULL, NULL), "upload");
+    return HL_OK;
+}
+
+/* Resident parts: each part's own buffers, uploaded once; the host copy
+ * of each part's entries is given back to the system as soon as it is
+ * uploaded (so the columns are not held twice), then freed. */
+static hl_result make_resident(hl_cl_light *l, const hl_col_sizes *z)
+{
+    const size_t nc = z->nc;
+    l->pbuf = calloc(4 * (size_t)l->nparts, sizeof *l->pbuf);
+    if (!l->pbuf) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the relight's parts");
+    for (uint32_t p = 0; p < l->nparts; p++) {
+        const uint32_t r0 = l->part_range[p], r1 = l->part_range[p + 1];
+        const uint32_t e0 = z->cs[(size_t)r0 * (nc + 1)], e1 = z->cs[(size_t)(r1 - 1) * (nc + 1) + nc];
+        cl_mem *m = l->pbuf + 4 * (size_t)p;
+        TRY(make_part_bufs(l, e1 - e0, r1 - r0, z->ts, m));
+        TRY(upload_part(l, p, z->cs, m, CL_TRUE));
+        hl_release_pages((char *)l->host_col + (size_t)e0 * ENTRY_BYTES, (size_t)((e1 - e0) * ENTRY_BYTES));
+    }
+    hl_free_big(l->host_col);
+    hl_free_big(l->host_rel);
+    free(l->part_cs);
+    l->host_col = l->host_rel = NULL;
+    l->part_cs = NULL;
+    return HL_OK;
+}
+
 hl_result hl_cl_light_make_parts(hl_cl_light *l, const hl_col_sizes *z, void *col, void *rel)
 {
     const size_t nc = z->nc;
@@ -156,45 +250,42 @@ hl_result hl_cl_light_make_parts(hl_cl_light *l, const hl_col_sizes *z, void *co
         if (e1 - e0 > maxe) maxe = e1 - e0;
         if (r1 - r0 > maxn) maxn = r1 - r0;
     }
-    hl_context *ctx = l->ctx;
-    hl_result r = hl_cl_make_buf(ctx, &l->col, CL_MEM_READ_ONLY, (size_t)((maxe + 1) * ENTRY_BYTES), NULL,
-                                 "transport columns (one part)");
-    if (r == HL_OK)
-        r = hl_cl_make_buf(ctx, &l->cols, CL_MEM_READ_ONLY, (size_t)maxn * (nc + 1) * 4, NULL, "column starts (one part)");
-    if (r == HL_OK)
-        r = hl_cl_make_buf(ctx, &l->rel, CL_MEM_READ_ONLY, (size_t)maxn * nc * z->ts * 8, NULL,
-                           "the columns' tile bits (one part)");
-    if (r == HL_OK)
-        r = hl_cl_make_buf(ctx, &l->rstart, CL_MEM_READ_ONLY, (size_t)(maxn + 1) * 4, NULL, "ranges (one part)");
-    if (r != HL_OK) return r;
-    /* entry 0, all zero, stays: each part's entries go after it */
-    const uint32_t zero[HL_TILE / 2] = {0};
-    CL_TRY(ctx, clEnqueueWriteBuffer(l->cl->queue, l->col, CL_TRUE, 0, sizeof zero, zero, 0, NULL, NULL), "upload");
-    return HL_OK;
+    if (l->resident) return make_resident(l, z);
+    cl_mem m[4] = {NULL, NULL, NULL, NULL};
+    hl_result r = make_part_bufs(l, maxe, maxn, z->ts, m);
+    l->col = m[0];
+    l->cols = m[1];
+    l->rel = m[2];
+    l->rstart = m[3];
+    return r;
 }
 
 hl_result hl_cl_light_enq_part(hl_cl_light *l, uint32_t p, cl_uint *nr)
 {
-    const size_t nc = l->g->ncoef, ts = l->tstride;
-    const uint32_t r0 = l->part_range[p], r1 = l->part_range[p + 1], n = r1 - r0;
-    const uint32_t e0 = l->col_start[(size_t)r0 * (nc + 1)], e1 = l->col_start[(size_t)(r1 - 1) * (nc + 1) + nc];
-    cl_command_queue q = l->cl->queue;
+    *nr = l->part_range[p + 1] - l->part_range[p];
+    if (l->resident) return HL_OK; /* on the device since creation */
     /* not waited for: the host copies live as long as the relighter, and
        the queue runs in order, so the next part's uploads wait for this
        part's launch */
-    if (e1 > e0)
-        CL_TRY(l->ctx, clEnqueueWriteBuffer(q, l->col, CL_FALSE, (size_t)ENTRY_BYTES, (size_t)((e1 - e0) * ENTRY_BYTES),
-                                            (const char *)l->host_col + (size_t)e0 * ENTRY_BYTES, 0, NULL, NULL),
-               "upload of a part's columns");
-    CL_TRY(l->ctx, clEnqueueWriteBuffer(q, l->cols, CL_FALSE, 0, (size_t)n * (nc + 1) * 4,
-                                        l->part_cs + (size_t)r0 * (nc + 1), 0, NULL, NULL),
-           "upload of a part's column starts");
-    CL_TRY(l->ctx, clEnqueueWriteBuffer(q, l->rel, CL_FALSE, 0, (size_t)n * nc * ts * 8,
-                                        (const char *)l->host_rel + (size_t)r0 * nc * ts * 8, 0, NULL, NULL),
-           "upload of a part's tile bits");
-    CL_TRY(l->ctx, clEnqueueWriteBuffer(q, l->rstart, CL_FALSE, 0, ((size_t)n + 1) * 4, l->range_start + r0, 0, NULL,
-                                        NULL),
-           "upload of a part's ranges");
-    *nr = n;
-    return HL_OK;
+    const cl_mem m[4] = {l->col, l->cols, l->rel, l->rstart};
+    return upload_part(l, p, l->col_start, m, CL_FALSE);
+}
+
+void hl_cl_light_part_bufs(const hl_cl_light *l, uint32_t p, cl_mem m[4])
+{
+    if (l->resident && l->nparts > 1) {
+        memcpy(m, l->pbuf + 4 * (size_t)p, 4 * sizeof *m);
+        return;
+    }
+    m[0] = l->col;
+    m[1] = l->cols;
+    m[2] = l->rel;
+    m[3] = l->rstart;
+}
+
+void hl_cl_light_release_parts(hl_cl_light *l)
+{
+    for (size_t i = 0; l->pbuf && i < 4 * (size_t)l->nparts; i++) hl_cl_release_buf(l->cl, &l->pbuf[i]);
+    free(l->pbuf);
+    l->pbuf = NULL;
 }

@@ -24,6 +24,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
                      &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rel, &l->rstart, &l->back, &l->albedo, &l->B,
                      &l->acc, &l->ord, &l->klist, &l->Lenv, &l->shY, &l->cstart, &l->cruns};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(l->cl, all[i]);
+    hl_cl_light_release_parts(l);
     for (int i = 0; i < 4; i++) hl_free_big(l->host[i]);
     free(l->col_start);
     free(l->part_range);
@@ -218,8 +219,10 @@ static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
     cl_kernel k = l->cl->k[K_RELIGHT];
     cl_uint nc = l->g->ncoef, nv = l->nverts, nr = l->nranges, ts = l->tstride;
     for (uint32_t p = 0; p < (l->nparts > 1 ? l->nparts : 1u); p++) {
+        cl_mem m[4];
         if (l->nparts > 1) TRY(hl_cl_light_enq_part(l, p, &nr));
-        LARG(k, 0, l->col); LARG(k, 1, l->cols); LARG(k, 2, l->rel); LARG(k, 3, ts); LARG(k, 4, l->rstart);
+        hl_cl_light_part_bufs(l, p, m);
+        LARG(k, 0, m[0]); LARG(k, 1, m[1]); LARG(k, 2, m[2]); LARG(k, 3, ts); LARG(k, 4, m[3]);
         LARG(k, 5, l->back); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->klist); LARG(k, 9, l->albedo);
         LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
         LARG(k, 15, l->keep_negative);

@@ -545,6 +545,7 @@ hl_result hl_relighter_memory_use(const hl_relighter *r, hl_relighter_memory *m)
     m->device_bytes = hl_cl_light_device_bytes(r->cl);
     m->column_bytes = hl_cl_light_column_bytes(r->cl);
     m->parts = hl_cl_light_parts(r->cl);
+    m->resident = (uint32_t)hl_cl_light_parts_resident(r->cl);
     return HL_OK;
 }
 
