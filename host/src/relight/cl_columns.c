@@ -225,8 +225,6 @@ static int column_pass(pass_job *j, size_t rg, uint32_t *last, uint8_t *row)
     uint32_t *c = (pass == 0 ? b->cs : b->fill) + rg * (nc + 1);
     uint32_t *rr = pass == 0 ? NULL : b->rel + 2 * rg * nc * ts;
     memset(last, 0xff, nc * 4);
-    if (pass == 1) /* the range's own entries, zeroed by the thread that fills them */
-        memset(b->col + (size_t)c[0] * COL_WORDS, 0, (size_t)(c[nc] - c[0]) * COL_WORDS * 4);
     const size_t v0 = l->range_start[rg];
     for (size_t v = v0; v < V && v < l->range_start[rg + 1]; v++) {
         uint32_t tile = (uint32_t)((v - v0) / HL_TILE), lane = (uint32_t)(v % HL_TILE);
@@ -252,9 +250,9 @@ static int column_pass(pass_job *j, size_t rg, uint32_t *last, uint8_t *row)
                     c[s + 1] += fresh;
                     continue;
                 }
-                if (fresh) {
+                if (fresh) { /* a new entry: zeroed here, where its lanes are written */
                     rr[2 * (s * ts + tile / 32)] |= 1u << (tile % 32);
-                    c[s]++;
+                    memset(b->col + (size_t)(c[s]++) * COL_WORDS, 0, COL_WORDS * 4);
                 }
                 const hl_row_quant q = t->row_quant[u];
                 float term = hl_dequant(l->scheme, ent[2 * i + 1], q.a, q.b, hl_dither_key((uint32_t)u, (uint32_t)s));
@@ -351,9 +349,10 @@ static hl_result column_count(col_build *b, const uint32_t *curve, uint32_t mult
     return column_starts(b);
 }
 
-/* The memory pass 1 fills, zeroed (lanes whose vertex does not store a
- * slot stay zero): the entries and tile bits straight where the device
- * reads them on a CPU device (hl_cl_adopt_buf), so never held twice. */
+/* The memory pass 1 fills (the tile bits zeroed; each entry is zeroed
+ * by pass 1 as it is made, so lanes whose vertex does not store a slot
+ * stay zero): the entries and tile bits straight where the device reads
+ * them on a CPU device (hl_cl_adopt_buf), so never held twice. */
 static hl_result column_memory(col_build *b)
 {
     hl_context *ctx = b->l->ctx;
@@ -369,7 +368,7 @@ static hl_result column_memory(col_build *b)
     memset(b->rel, 0, b->nrel * 8);
     b->col = hl_alloc_big(ctx, (size_t)b->run * COL_WORDS * 4, "transport columns");
     if (!b->col) return HL_ERR_OUT_OF_MEMORY;
-    memset(b->col, 0, COL_WORDS * 4); /* entry 0; each range zeroes its own in pass 1 */
+    memset(b->col, 0, COL_WORDS * 4); /* entry 0; pass 1 zeroes each entry as it makes it */
     return HL_OK;
 }
 

@@ -18,6 +18,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -106,31 +107,73 @@ static void object_centre(const hl_mesh *m, float c[3])
     for (int a = 0; a < 3; a++) c[a] = n ? 0.5f * (lo[a] + hi[a]) : 0.0f;
 }
 
+/* The transport weights' partial sums: vertices in chunks whose count
+ * and bounds depend only on the vertex and slot counts (never on the
+ * threads), each summed alone, then the chunks added in order, so the
+ * weights have the same bits however many threads made them. */
+typedef struct weight_job {
+    const hl_transport *t;
+    uint32_t nc, nchunks, per;
+    double *part; /* nchunks x nc */
+    double *most; /* nchunks: the largest |T_v|^2 of each */
+    atomic_uint next;
+} weight_job;
+
+static void *weight_worker(void *arg)
+{
+    weight_job *j = arg;
+    const hl_transport *t = j->t;
+    const uint32_t V = t->info.vertex_count, nb = t->info.block_count;
+    for (uint32_t c; (c = atomic_fetch_add(&j->next, 1u)) < j->nchunks;) {
+        double *acc = j->part + (size_t)c * j->nc, most = 0.0;
+        for (uint32_t v = c * j->per; v < V && v < (c + 1) * j->per; v++) {
+            double ss = 0.0;
+            const hl_row_quant q = t->row_quant[v];
+            uint64_t e = t->row_offset[v];
+            for (uint32_t b = 0; b < nb; b++)
+                for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++) {
+                    const uint32_t slot = b * HL_BLOCK + t->entries[2 * e];
+                    double x = hl_dequant(t->info.quant, t->entries[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
+                    ss += x * x;
+                    acc[slot] += fabs(x);
+                }
+            if (ss > most) most = ss;
+        }
+        j->most[c] = most;
+    }
+    return NULL;
+}
+
 /* The transport selection weights (mean |T_i| over the vertices) into w
  * (nc floats) and, when row_norm is given, the largest |T_v|: one pass
- * over the entries, summed in one order whoever asks. */
+ * over the entries on the context's threads, summed in one order whoever
+ * asks (weight_job). */
 static hl_result transport_weights(hl_context *ctx, const hl_transport *t, uint32_t nc, float *w, double *row_norm)
 {
-    const uint32_t V = t->info.vertex_count, nb = t->info.block_count;
-    double *acc = hl_calloc(ctx, nc, sizeof(double), "transport weights");
-    if (!acc) return HL_ERR_OUT_OF_MEMORY;
-    double most = 0.0;
-    for (uint32_t v = 0; v < V; v++) {
-        double ss = 0.0;
-        const hl_row_quant q = t->row_quant[v];
-        uint64_t e = t->row_offset[v];
-        for (uint32_t b = 0; b < nb; b++)
-            for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++) {
-                const uint32_t slot = b * HL_BLOCK + t->entries[2 * e];
-                double x = hl_dequant(t->info.quant, t->entries[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
-                ss += x * x;
-                acc[slot] += fabs(x);
-            }
-        if (ss > most) most = ss;
+    const uint32_t V = t->info.vertex_count;
+    /* at most 64 chunks (their sums: 64 x 8 nc bytes), of 4,096 vertices or more */
+    uint32_t nchunks = (V + 4095) / 4096;
+    if (nchunks > 64) nchunks = 64;
+    if (nchunks < 1) nchunks = 1;
+    weight_job j = {.t = t, .nc = nc, .nchunks = nchunks, .per = (V + nchunks - 1) / nchunks};
+    atomic_init(&j.next, 0u);
+    j.part = hl_calloc(ctx, (size_t)nchunks * nc, sizeof(double), "transport weights");
+    j.most = hl_calloc(ctx, nchunks, sizeof(double), "transport weights");
+    if (!j.part || !j.most) {
+        free(j.part);
+        free(j.most);
+        return HL_ERR_OUT_OF_MEMORY;
     }
+    int threads = hl_context_threads(ctx);
+    hl_run_threads(threads < (int)nchunks ? threads : (int)nchunks, weight_worker, &j);
+    double most = 0.0;
+    for (uint32_t c = 0; c < nchunks; c++) most = j.most[c] > most ? j.most[c] : most;
+    for (uint32_t c = 1; c < nchunks; c++)
+        for (uint32_t i = 0; i < nc; i++) j.part[i] += j.part[(size_t)c * nc + i];
     if (row_norm) *row_norm = sqrt(most);
-    for (uint32_t i = 0; i < nc; i++) w[i] = (float)(acc[i] / (V ? V : 1));
-    free(acc);
+    for (uint32_t i = 0; i < nc; i++) w[i] = (float)(j.part[i] / (V ? V : 1));
+    free(j.part);
+    free(j.most);
     return HL_OK;
 }
 
