@@ -166,6 +166,18 @@ relight)
   "$bin" check "$tmp/r.hlt" --env "$data/city.exr" --vertices 8 >"$tmp/check.txt" || fail "check found differences"
   grep -c "| ok |" "$tmp/check.txt" | grep -q 9 || fail "check did not report 9 stages ok"
   grep -q "(transport selection" "$tmp/check.txt" || fail "check did not use relight's default selection"
+  # the other bases: their own stages checked, the stored rows equal
+  for b in sh cube-haar; do
+    "$bin" precompute "$m" -C 32 -N 32 --basis $b -q -o "$tmp/r_$b.hlt" || fail "precompute --basis $b"
+    "$bin" check "$tmp/r_$b.hlt" --env "$data/city.exr" --vertices 8 >"$tmp/check_$b.txt" || fail "check --basis $b found differences"
+    grep -q "DIFFERS" "$tmp/check_$b.txt" && fail "check of a $b file: $(grep DIFFERS "$tmp/check_$b.txt")"
+    grep -q "rows stored in the file *|.*| ok |" "$tmp/check_$b.txt" || fail "check of a $b file: stored rows not checked"
+  done
+  grep -q "sh projection (float)" "$tmp/check_sh.txt" && grep -q "sh projection of the lighting" "$tmp/check_sh.txt" ||
+    fail "check of an SH file did not check the projections"
+  grep -q "cube face haar (float)" "$tmp/check_cube-haar.txt" && grep -q "cube faces + haar of the lighting" "$tmp/check_cube-haar.txt" ||
+    fail "check of a cube-face file did not check its stages"
+  echo "check: SH and cube-face files checked stage by stage"
   # each scheme's own weights on both sides: they keep different blocks
   for s in area unweighted; do
     "$bin" check "$tmp/r.hlt" --env "$data/city.exr" --vertices 2 --select $s >"$tmp/check_$s.txt" || fail "check --select $s found differences"

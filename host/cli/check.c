@@ -87,7 +87,7 @@ static void print_row(void *user, const hl_check_row *r)
 {
     (void)user;
     int ok = r->worst <= r->tolerance && r->mismatches == 0;
-    printf("| %-26s | %11.3g | %9.3g | %10llu of %-9llu | %s |\n", r->stage, r->worst, r->tolerance,
+    printf("| %-33s | %11.3g | %9.3g | %10llu of %-9llu | %s |\n", r->stage, r->worst, r->tolerance,
            (unsigned long long)r->mismatches, (unsigned long long)r->of, ok ? "ok" : "DIFFERS");
 }
 
@@ -96,8 +96,8 @@ static void print_row(void *user, const hl_check_row *r)
 static hl_result run_checks(const check_opts *o, hl_context *cl, hl_stage_check *chk, const hl_env *env, int *all_ok)
 {
     printf("# check: %s on %s against the plain-C reference\n\n", o->scene, hl_context_device_name(cl));
-    printf("| stage                      | worst diff  | tolerance | mismatches           | result |\n");
-    printf("|----------------------------|-------------|-----------|----------------------|--------|\n");
+    printf("| stage                             | worst diff  | tolerance | mismatches           | result |\n");
+    printf("|-----------------------------------|-------------|-----------|----------------------|--------|\n");
     hl_check_summary s;
     hl_result r = hl_stage_check_precompute(chk, cl, o->K, print_row, NULL, all_ok);
     if (r == HL_OK) r = hl_stage_check_lighting(chk, cl, env, &o->rd, print_row, NULL, all_ok, &s);

@@ -12,10 +12,12 @@
 #include <string.h>
 
 #include "cl_backend.h"
+#include "cube.h"
 #include "haarlight_tools.h"
 #include "lighting.h"
 #include "precompute.h"
 #include "rays.h"
+#include "sh.h"
 #include "twins.h"
 
 struct hl_stage_check {
@@ -25,6 +27,12 @@ struct hl_stage_check {
     hl_light_geom *lg;
     hl_ref_key *keys; /* scratch of hl_ref_truncate and hl_ref_select */
     uint32_t checked; /* vertices the precompute stages ran on */
+    /* the file's basis: spherical harmonics (the rows' and the lighting's
+       projections) or cube-face Haar (the face texels' taps); neither for
+       paraboloid Haar */
+    float *shT, *shL;
+    uint32_t sh_stride, sh_count;
+    hl_cube_tables *cube;
 };
 
 hl_result hl_stage_check_create(hl_context *ref, const hl_transport *t, hl_stage_check **out)
@@ -40,6 +48,15 @@ hl_result hl_stage_check_create(hl_context *ref, const hl_transport *t, hl_stage
         c->keys = malloc((size_t)c->g->ncoef * sizeof *c->keys);
         if (!c->keys) r = hl_fail(ref, HL_ERR_OUT_OF_MEMORY, "out of memory for the stage check");
     }
+    const uint32_t word = t->info.sh_order; /* SH: the order; cube-face Haar: the side */
+    if (r == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_SH) {
+        c->sh_stride = hl_sh_stride(word);
+        c->sh_count = hl_sh_count(word);
+        r = hl_sh_matrix(ref, t->info.N, word, 1, &c->shT);
+        if (r == HL_OK) r = hl_sh_matrix(ref, t->info.N, word, 0, &c->shL);
+    }
+    if (r == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_CUBE)
+        r = hl_cube_tables_create(ref, word, t->info.C, c->lg->wc, c->lg->hc, &c->cube);
     if (r != HL_OK) {
         hl_stage_check_destroy(c);
         return r;
@@ -52,6 +69,9 @@ void hl_stage_check_destroy(hl_stage_check *c)
 {
     if (!c) return;
     free(c->keys);
+    hl_free_big(c->shT);
+    hl_free_big(c->shL);
+    hl_cube_tables_destroy(c->cube);
     hl_light_geom_destroy(c->lg);
     hl_geom_destroy(c->g);
     free(c);
@@ -168,8 +188,66 @@ static hl_result pre_quantize(hl_stage_check *c, hl_cl_pipe *pipe, pre_rows *p, 
     return HL_OK;
 }
 
-/* Cube to paraboloid, Haar and truncation, each from the twin's output
- * of the stage before, so that both sides get identical inputs. */
+/* The paraboloid rows (cube2para) and their Haar transform or, in an SH
+ * file, their projection onto harmonics, each from the twin's output of
+ * the stage before. */
+static hl_result pre_paraboloid(hl_stage_check *c, hl_cl_pipe *pipe, pre_rows *p, float scale,
+                                hl_check_report_fn report, void *user, int *ok)
+{
+    const uint32_t K = p->K, nc = p->nc;
+    for (uint32_t i = 0; i < K; i++)
+        hl_ref_cube2para(c->g, p->vis + (size_t)i * c->g->ncube, scale, p->n4 + 4 * i, p->Ta + (size_t)i * nc);
+    hl_result r = hl_cl_pipe_cube2para(pipe, K, p->vis, scale, p->n4, p->Tb);
+    if (r != HL_OK) return r;
+    put(report, user, ok, (hl_check_row){"cube2para (float)", rel_worst(p->Ta, p->Tb, (size_t)K * nc), 1e-5, 0,
+                                         (uint64_t)K * nc});
+    memcpy(p->Tc, p->Ta, (size_t)K * nc * 4);
+    if (c->shT) {
+        memset(p->ca, 0, (size_t)K * nc * 4); /* the projection leaves the slots past order^2 */
+        for (uint32_t i = 0; i < K; i++)
+            hl_ref_sh_project_rows(p->Tc + (size_t)i * nc, nc, c->shT, c->sh_stride, c->sh_count, p->ca + (size_t)i * nc);
+        r = hl_cl_pipe_set_sh(pipe, c->shT, c->sh_stride, c->sh_count);
+        if (r == HL_OK) r = hl_cl_pipe_sh_project(pipe, K, p->Ta, p->cb);
+    } else {
+        for (uint32_t i = 0; i < K; i++) hl_ref_haar(c->g, p->Tc + (size_t)i * nc, p->ca + (size_t)i * nc);
+        r = hl_cl_pipe_haar(pipe, K, p->Ta, p->cb);
+    }
+    if (r != HL_OK) return r;
+    put(report, user, ok, (hl_check_row){c->shT ? "sh projection (float)" : "haar (float)",
+                                         rel_worst(p->ca, p->cb, (size_t)K * nc), 1e-5, 0, (uint64_t)K * nc});
+    return HL_OK;
+}
+
+/* Cube-face Haar: the rows on the faces and their Haar transform, each
+ * from the twin's output of the stage before. */
+static hl_result pre_cube(hl_stage_check *c, hl_cl_pipe *pipe, pre_rows *p, float scale, hl_check_report_fn report,
+                          void *user, int *ok)
+{
+    const uint32_t K = p->K, nc = p->nc, Cq = c->cube->Cq, nt = c->cube->ntex;
+    for (uint32_t i = 0; i < K; i++)
+        hl_cube_rows(c->g, Cq, p->vis + (size_t)i * c->g->ncube, scale, p->n4 + 4 * i, p->Ta + (size_t)i * nc);
+    hl_result r = hl_cl_pipe_set_cube(pipe, Cq);
+    if (r == HL_OK) r = hl_cl_pipe_cube_rows(pipe, K, p->vis, scale, p->n4, p->Tb);
+    if (r != HL_OK) return r;
+    double w = 0.0;
+    for (uint32_t i = 0; i < K; i++)
+        w = fmax(w, rel_worst(p->Ta + (size_t)i * nc, p->Tb + (size_t)i * nc, nt));
+    put(report, user, ok, (hl_check_row){"cube face rows (float)", w, 1e-5, 0, (uint64_t)K * nt});
+    memcpy(p->Tc, p->Ta, (size_t)K * nc * 4);
+    for (uint32_t i = 0; i < K; i++) {
+        hl_cube_haar(Cq, p->Tc + (size_t)i * nc, p->ca + (size_t)i * nc);
+        memset(p->ca + (size_t)i * nc + nt, 0, (size_t)(nc - nt) * 4);
+    }
+    r = hl_cl_pipe_cube_haar(pipe, K, p->Ta, p->cb);
+    if (r != HL_OK) return r;
+    put(report, user, ok, (hl_check_row){"cube face haar (float)", rel_worst(p->ca, p->cb, (size_t)K * nc), 1e-5, 0,
+                                         (uint64_t)K * nc});
+    return HL_OK;
+}
+
+/* The rows and their transform (pre_paraboloid or pre_cube), then
+ * truncation and quantisation, each from the twin's output of the stage
+ * before, so that both sides get identical inputs. */
 static hl_result pre_stages(hl_stage_check *c, hl_cl_pipe *pipe, pre_rows *p, hl_check_report_fn report, void *user,
                             int *ok)
 {
@@ -180,18 +258,8 @@ static hl_result pre_stages(hl_stage_check *c, hl_cl_pipe *pipe, pre_rows *p, hl
     if (pd.rule == HL_TRUNC_ENERGY && pd.eps == 0.0f) pd.eps = HL_DEFAULT_EPS;
     hl_trunc_params tp = hl_precompute_trunc_params(&pd);
     float scale = (float)(1.0 / (HL_PI * in->supersample * in->supersample));
-    for (uint32_t i = 0; i < K; i++)
-        hl_ref_cube2para(c->g, p->vis + (size_t)i * c->g->ncube, scale, p->n4 + 4 * i, p->Ta + (size_t)i * nc);
-    hl_result r = hl_cl_pipe_cube2para(pipe, K, p->vis, scale, p->n4, p->Tb);
+    hl_result r = c->cube ? pre_cube(c, pipe, p, scale, report, user, ok) : pre_paraboloid(c, pipe, p, scale, report, user, ok);
     if (r != HL_OK) return r;
-    put(report, user, ok, (hl_check_row){"cube2para (float)", rel_worst(p->Ta, p->Tb, (size_t)K * nc), 1e-5, 0,
-                                         (uint64_t)K * nc});
-    memcpy(p->Tc, p->Ta, (size_t)K * nc * 4);
-    for (uint32_t i = 0; i < K; i++) hl_ref_haar(c->g, p->Tc + (size_t)i * nc, p->ca + (size_t)i * nc);
-    r = hl_cl_pipe_haar(pipe, K, p->Ta, p->cb);
-    if (r != HL_OK) return r;
-    put(report, user, ok, (hl_check_row){"haar (float)", rel_worst(p->ca, p->cb, (size_t)K * nc), 1e-5, 0,
-                                         (uint64_t)K * nc});
     for (uint32_t i = 0; i < K; i++) p->tra[i] = hl_ref_truncate(c->g, p->ca + (size_t)i * nc, tp, c->keys);
     r = hl_cl_pipe_truncate(pipe, K, p->ca, tp, p->trb);
     if (r != HL_OK) return r;
@@ -261,6 +329,9 @@ static hl_result light_device(hl_stage_check *c, hl_context *cl, const hl_env *e
     hl_result r = hl_env_to_cells(c->ref, env, c->lg->wc, c->lg->hc, &b->cells);
     if (r == HL_OK) r = hl_cl_light_create(cl, c->g, c->lg, c->t, b->alb, light);
     if (r == HL_OK) r = hl_cl_light_set_cells(*light, b->cells);
+    if (r == HL_OK && c->shL) r = hl_cl_light_set_sh(*light, c->shL, c->sh_stride, c->sh_count);
+    if (r == HL_OK && c->cube)
+        r = hl_cl_light_set_cube(*light, c->cube->Cq, c->cube->tap_start, c->cube->taps, c->cube->ntaps);
     if (r == HL_OK) r = hl_selection_weights(c->ref, c->t, c->lg, select, b->wsel);
     if (r == HL_OK) r = hl_cl_light_set_weights(*light, b->wsel);
     return r;
@@ -287,7 +358,27 @@ static hl_result light_dots(hl_stage_check *c, hl_cl_light *light, light_bufs *b
     return HL_OK;
 }
 
-/* Environment to paraboloid, the lighting's Haar transform and the
+/* A cube-face file's lighting: each face texel's mean radiance and the
+ * faces' Haar, on the device in one go (hl_cl_light_stage_cube) against
+ * the twins. */
+static hl_result light_cube(hl_stage_check *c, hl_cl_light *light, uint32_t s0, float f, light_bufs *b,
+                            hl_check_report_fn report, void *user, int *ok)
+{
+    const uint32_t nc = c->g->ncoef, Cq = c->cube->Cq, nt = c->cube->ntex;
+    hl_ref_env2para(b->cells, c->lg->wc, c->cube->tap_start, c->cube->taps, s0, f, nt, b->La);
+    for (int k = 0; k < 3; k++) {
+        hl_cube_haar(Cq, b->La + (size_t)k * nt, b->wa + (size_t)k * nc);
+        memset(b->wa + (size_t)k * nc + nt, 0, (size_t)(nc - nt) * 4);
+    }
+    hl_result r = hl_cl_light_stage_cube(light, s0, f, b->wb);
+    if (r != HL_OK) return r;
+    put(report, user, ok, (hl_check_row){"cube faces + haar of the lighting", rel_worst(b->wa, b->wb, (size_t)nc * 3),
+                                         1e-5, 0, (uint64_t)nc * 3});
+    return HL_OK;
+}
+
+/* Environment to paraboloid and the lighting's Haar transform (or its
+ * harmonics, or a cube-face file's own lighting stages), then the
  * selection, each from the twin's output of the stage before. */
 static hl_result light_stages(hl_stage_check *c, hl_cl_light *light, const hl_relight_desc *rd, light_bufs *b,
                               hl_check_report_fn report, void *user, int *ok, hl_select_result *sra)
@@ -297,17 +388,31 @@ static hl_result light_stages(hl_stage_check *c, hl_cl_light *light, const hl_re
     uint32_t s0 = 0;
     float f = 0.0f;
     hl_rotation_to_shift(rd->rotate_deg, lg->wc, &s0, &f);
-    hl_ref_env2para(b->cells, lg->wc, lg->tap_start, lg->taps, s0, f, nc, b->La);
-    hl_result r = hl_cl_light_stage_env2para(light, s0, f, b->Lb);
+    hl_result r = HL_OK;
+    if (c->cube) {
+        r = light_cube(c, light, s0, f, b, report, user, ok);
+    } else {
+        hl_ref_env2para(b->cells, lg->wc, lg->tap_start, lg->taps, s0, f, nc, b->La);
+        r = hl_cl_light_stage_env2para(light, s0, f, b->Lb);
+        if (r != HL_OK) return r;
+        put(report, user, ok, (hl_check_row){"env2para (float)", rel_worst(b->La, b->Lb, (size_t)nc * 3), 1e-5, 0,
+                                             (uint64_t)nc * 3});
+        memcpy(b->Lb, b->La, (size_t)nc * 12);
+        if (c->shL) {
+            memset(b->wa, 0, (size_t)nc * 12); /* the projection leaves the slots past order^2 */
+            for (int k = 0; k < 3; k++)
+                hl_ref_sh_project_rows(b->La + (size_t)k * nc, nc, c->shL, c->sh_stride, c->sh_count,
+                                       b->wa + (size_t)k * nc);
+            r = hl_cl_light_stage_sh(light, b->Lb, b->wb);
+        } else {
+            r = hl_cl_light_stage_haar(light, b->Lb, b->wb);
+            for (int k = 0; k < 3; k++) hl_ref_haar(c->g, b->La + (size_t)k * nc, b->wa + (size_t)k * nc);
+        }
+        if (r == HL_OK)
+            put(report, user, ok, (hl_check_row){c->shL ? "sh projection of the lighting" : "haar of the lighting",
+                                                 rel_worst(b->wa, b->wb, (size_t)nc * 3), 1e-5, 0, (uint64_t)nc * 3});
+    }
     if (r != HL_OK) return r;
-    put(report, user, ok, (hl_check_row){"env2para (float)", rel_worst(b->La, b->Lb, (size_t)nc * 3), 1e-5, 0,
-                                         (uint64_t)nc * 3});
-    memcpy(b->Lb, b->La, (size_t)nc * 12);
-    r = hl_cl_light_stage_haar(light, b->Lb, b->wb);
-    for (int k = 0; k < 3; k++) hl_ref_haar(c->g, b->La + (size_t)k * nc, b->wa + (size_t)k * nc);
-    if (r != HL_OK) return r;
-    put(report, user, ok, (hl_check_row){"haar of the lighting", rel_worst(b->wa, b->wb, (size_t)nc * 3), 1e-5, 0,
-                                         (uint64_t)nc * 3});
     hl_select_params sp = {rd->terms, rd->select, {0, 0}};
     hl_select_result srb;
     *sra = hl_ref_select(b->wa, nc, b->wsel, sp, b->sa, b->ua, b->ka, nb, c->keys);
