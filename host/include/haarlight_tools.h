@@ -245,6 +245,18 @@ hl_result hl_transport_merge(hl_context *ctx, const char *out_path, const char *
  * (which relights from the entries) it is hl_relighter_create. */
 hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const char *path, hl_relighter **out);
 
+/* hl_relighter_create for one or a few lighting changes (`haarlight
+ * relight`): on the OpenCL backend its dot products walk t's rows as
+ * loaded (t must outlive it) instead of columns laid out first, the same
+ * colours bit for bit. Creation costs no layout (seconds on a big mesh)
+ * and the device holds the file's own bytes, but each lighting change
+ * reads every kept block of every row: for many changes (view, bench)
+ * use hl_relighter_create. Where one buffer (or what the device memory
+ * limit leaves, less 64 MiB) cannot hold the entries, it is
+ * hl_relighter_create_from_file with path (hl_relighter_create when path
+ * is NULL). */
+hl_result hl_relighter_create_once(hl_context *ctx, hl_transport *t, const char *path, hl_relighter **out);
+
 /* What a relighter holds on its device: all its buffers (device_bytes;
  * the capture of surroundings' own not included), of which the transport
  * columns (column_bytes, counted whole: with parts > 1 they wait in host

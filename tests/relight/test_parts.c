@@ -15,6 +15,13 @@
  *                and in parts, give the same colours bit for bit; a file
  *                other than the transport's is refused, naming it, and
  *                the transport keeps its entries.
+ * parts.rows     hl_relighter_create_once: the dot products on the rows
+ *                as loaded (relight_rows.cl) give the colours of the
+ *                columns bit for bit, the device holding the entries and
+ *                no columns, the transport keeping its entries; under a
+ *                device memory limit too small for the entries it builds
+ *                the columns from the file instead, in parts, with the
+ *                same colours.
  * parts.resident  a device whose largest allocation (HL_TEST_MAX_ALLOC)
  *                is a quarter of the columns but whose memory holds them
  *                all: parts with buffers of their own, uploaded once,
@@ -235,6 +242,54 @@ static void case_from_file(void)
     hl_context_destroy(ctx);
 }
 
+static void case_rows(void)
+{
+    const char *p = make_transport("parts_rows.hlt", "");
+    char path[1024];
+    snprintf(path, sizeof path, "%s", p ? p : "");
+    hl_context *ctx = ctx_of(HL_BACKEND_OPENCL);
+    hl_transport *t = NULL, *t2 = NULL, *t3 = NULL;
+    HL_CHECK(p && ctx && hl_transport_load(ctx, path, &t) == HL_OK && hl_transport_load(ctx, path, &t2) == HL_OK &&
+                 hl_transport_load(ctx, path, &t3) == HL_OK,
+             "transports");
+    uint64_t used = 0, cols = 0;
+    if (!t || !t2 || !t3 || !measure(t, &used, &cols)) return;
+    const uint32_t V = t->info.vertex_count;
+    const uint64_t entry_bytes = 2 * t->info.coefficients_kept;
+    float *ca = malloc((size_t)V * 24), *cb = malloc((size_t)V * 24), *cc = malloc((size_t)V * 24);
+    hl_context *lim = ctx_limited(used - cols + cols / 4); /* less than the entries take */
+    hl_relighter *a = NULL, *b = NULL, *c = NULL;
+    HL_CHECK(hl_relighter_create(ctx, t, &a) == HL_OK, "%s", hl_context_last_error(ctx));
+    HL_CHECK(hl_relighter_create_once(ctx, t2, path, &b) == HL_OK, "rows: %s", hl_context_last_error(ctx));
+    HL_CHECK(lim && hl_relighter_create_once(lim, t3, path, &c) == HL_OK, "limited: %s",
+             lim ? hl_context_last_error(lim) : "no context");
+    hl_relighter_memory mb = {0}, mc = {0};
+    HL_CHECK(b && hl_relighter_memory_use(b, &mb) == HL_OK && c && hl_relighter_memory_use(c, &mc) == HL_OK, "memory use");
+    printf("rows: device %llu bytes (entries %llu, columns %llu); limited: %u parts, device %llu bytes\n",
+           (unsigned long long)mb.device_bytes, (unsigned long long)entry_bytes, (unsigned long long)mb.column_bytes,
+           mc.parts, (unsigned long long)mc.device_bytes);
+    HL_CHECK(mb.device_bytes >= entry_bytes && mb.column_bytes < cols / 4 && t2->entries,
+             "the rows relighter holds the entries, not the columns, and the transport keeps them");
+    HL_CHECK(mc.parts >= 4 && !t3->entries, "under the limit: columns from the file, in parts");
+    uint64_t diff = 0;
+    if (a && b && c && colours(ctx, a, ca, V) && colours(ctx, b, cb, V) && colours(lim, c, cc, V))
+        for (size_t i = 0; i < (size_t)V * 6; i++) diff += (memcmp(&ca[i], &cb[i], 4) != 0) + (memcmp(&ca[i], &cc[i], 4) != 0);
+    printf("rows and the limited fallback: %u vertices x 3 colours x 2 settings: %llu words differ from the columns "
+           "(tolerance 0: bit-identical)\n", V, (unsigned long long)diff);
+    HL_CHECK(a && b && c && diff == 0, "%llu words differ from the columns", (unsigned long long)diff);
+    free(ca);
+    free(cb);
+    free(cc);
+    hl_relighter_destroy(a);
+    hl_relighter_destroy(b);
+    hl_relighter_destroy(c);
+    hl_transport_destroy(t);
+    hl_transport_destroy(t2);
+    hl_transport_destroy(t3);
+    hl_context_destroy(lim);
+    hl_context_destroy(ctx);
+}
+
 static void case_resident(void)
 {
     const char *p = make_transport("parts_res.hlt", "");
@@ -295,6 +350,7 @@ int main(int argc, char **argv)
         {"refused", case_refused},
         {"from_file", case_from_file},
         {"resident", case_resident},
+        {"rows", case_rows},
         {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);

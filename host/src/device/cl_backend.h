@@ -107,6 +107,13 @@ typedef struct hl_row_source {
 hl_result hl_cl_light_create_from(hl_context *ctx, const struct hl_geom *g, const struct hl_light_geom *lg,
                                   const hl_transport *t, const hl_row_source *src, const float *albedo4,
                                   hl_cl_light **out);
+/* hl_cl_light_create with no columns: the dot products walk t's rows as
+ * loaded (kernels/relight/relight_rows.cl; the same colours bit for bit),
+ * which t must keep for the light's life. For one or a few lighting
+ * changes: nothing is laid out, but each change reads every kept block
+ * of every row. */
+hl_result hl_cl_light_create_rows(hl_context *ctx, const struct hl_geom *g, const struct hl_light_geom *lg,
+                                  const hl_transport *t, const float *albedo4, hl_cl_light **out);
 void hl_cl_light_destroy(hl_cl_light *l);
 hl_result hl_cl_light_set_cells(hl_cl_light *l, const float *cells4);
 hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight);
@@ -195,6 +202,9 @@ uint32_t hl_cl_light_parts(const hl_cl_light *l);
 int hl_cl_light_parts_resident(const hl_cl_light *l);
 uint64_t hl_cl_light_column_bytes(const hl_cl_light *l);
 uint64_t hl_cl_memory_used(const hl_context *ctx);
+/* The largest buffer the context could make now: the device's largest
+ * allocation, within what its memory limit leaves. */
+uint64_t hl_cl_largest_buffer(const hl_context *ctx);
 /* The bytes of all the relighter's device buffers (cl_light_probe.c). */
 uint64_t hl_cl_light_device_bytes(const hl_cl_light *l);
 /* The device's read bandwidth: median of reps passes over `bytes`. */

@@ -25,7 +25,7 @@ cl_int hl_cl_gl_release(struct hl_cl *cl, cl_mem m);
 
 /* The program's kernels, in the order of hl_cl_kernel_names. */
 enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_TURN, K_ENV2PARA, K_SELECT, K_RELIGHT, K_BANDWIDTH,
-       K_SH_PROJECT, K_CUBE_ROWS, K_CUBE_HAAR, K_COUNT };
+       K_SH_PROJECT, K_CUBE_ROWS, K_CUBE_HAAR, K_RELIGHT_ROWS, K_COUNT };
 extern const char *const hl_cl_kernel_names[K_COUNT];
 
 /* rows per work-item of hl_cube2para (HL_C2P_ROWS in kernels/maps/cube2para.cl) */

@@ -48,6 +48,12 @@ struct hl_cl_light {
        4 p + 3]: col, cols, rel, rstart), and no host copy is kept */
     int resident;
     cl_mem *pbuf;
+    /* rows (hl_cl_light_create_rows): no columns; the dot products walk
+       the rows as loaded (kernels/relight/relight_rows.cl): the entries
+       (the transport's own memory on a CPU device), row offsets, block
+       counts and row parameters */
+    int rows;
+    cl_mem rentries, roffset, rcounts, rquant;
     uint32_t *part_cs;
     void *host_col, *host_rel;
     /* lighting captured from surroundings (hl_cl_light_set_capture): the

@@ -22,7 +22,8 @@ void hl_cl_light_destroy(hl_cl_light *l)
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
     cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
                      &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rel, &l->rstart, &l->back, &l->albedo, &l->B,
-                     &l->acc, &l->ord, &l->klist, &l->Lenv, &l->shY, &l->cstart, &l->cruns};
+                     &l->acc, &l->ord, &l->klist, &l->Lenv, &l->rentries, &l->roffset, &l->rcounts, &l->rquant,
+                     &l->shY, &l->cstart, &l->cruns};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(l->cl, all[i]);
     hl_cl_light_release_parts(l);
     for (int i = 0; i < 4; i++) hl_free_big(l->host[i]);
@@ -59,8 +60,47 @@ static hl_result upload_taps(hl_cl_light *l, uint32_t rows, const uint32_t *star
     return r;
 }
 
+/* The rows as loaded, for hl_relight_rows: the entries in place on a CPU
+ * device (CL_MEM_USE_HOST_PTR), the vertices in their own order. */
+static hl_result upload_rows(hl_cl_light *l, const hl_transport *t)
+{
+    const size_t V = l->nverts, nb = t->info.block_count;
+    hl_context *ctx = l->ctx;
+    if (!t->entries) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the transport holds no entries to relight from");
+    l->rows = 1;
+    l->nparts = 1;
+    l->order = malloc((V ? V : 1) * 4);
+    if (!l->order) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the vertex order");
+    for (size_t v = 0; v < V; v++) l->order[v] = (uint32_t)v;
+    const size_t ebytes = (size_t)(2 * t->info.coefficients_kept);
+    hl_result r = hl_cl_make_buf(ctx, &l->rentries, CL_MEM_READ_ONLY | (l->cl->wg == 1 ? CL_MEM_USE_HOST_PTR : 0),
+                                 ebytes ? ebytes : 4, ebytes ? t->entries : NULL, "the transport's entries");
+    if (r == HL_OK)
+        r = hl_cl_make_buf(ctx, &l->roffset, CL_MEM_READ_ONLY, (V + 1) * 8, t->row_offset, "the rows' offsets");
+    if (r == HL_OK)
+        r = hl_cl_make_buf(ctx, &l->rcounts, CL_MEM_READ_ONLY, V * nb * 2, t->block_counts, "the rows' block counts");
+    if (r == HL_OK)
+        r = hl_cl_make_buf(ctx, &l->rquant, CL_MEM_READ_ONLY, V * 8, t->row_quant, "the rows' parameters");
+    return r;
+}
+
+static hl_result create_light(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
+                              const hl_row_source *src, int rows, const float *albedo4, hl_cl_light **out);
+
+hl_result hl_cl_light_create_rows(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
+                                  const float *albedo4, hl_cl_light **out)
+{
+    return create_light(ctx, g, lg, t, NULL, 1, albedo4, out);
+}
+
 hl_result hl_cl_light_create_from(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
                                   const hl_row_source *src, const float *albedo4, hl_cl_light **out)
+{
+    return create_light(ctx, g, lg, t, src, 0, albedo4, out);
+}
+
+static hl_result create_light(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
+                              const hl_row_source *src, int rows, const float *albedo4, hl_cl_light **out)
 {
     *out = NULL;
     if (!ctx->cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "the context has no OpenCL device");
@@ -88,7 +128,7 @@ hl_result hl_cl_light_create_from(hl_context *ctx, const hl_geom *g, const hl_li
     B(res, CL_MEM_READ_WRITE, sizeof(hl_select_result), NULL, "selection result");
     B(keys, CL_MEM_READ_WRITE, nc * 4, NULL, "selection keys");
     B(klist, CL_MEM_READ_WRITE, (nc + 1) * 4, NULL, "kept slots");
-    if (r == HL_OK) r = hl_cl_light_build_columns(l, t, src);
+    if (r == HL_OK) r = rows ? upload_rows(l, t) : hl_cl_light_build_columns(l, t, src);
     /* albedo in the device's vertex order */
     float *alb = r == HL_OK ? malloc((V ? V : 1) * 16) : NULL;
     if (r == HL_OK && !alb) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the albedo");
@@ -218,6 +258,16 @@ static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
 {
     cl_kernel k = l->cl->k[K_RELIGHT];
     cl_uint nc = l->g->ncoef, nv = l->nverts, nr = l->nranges, ts = l->tstride;
+    if (l->rows) {
+        /* CPU: 256 chunks of consecutive vertices; a GPU: one each */
+        cl_uint nb = l->g->nblocks, per = l->cl->wg == 1 ? (nv + 255) / 256 : 1;
+        if (!per) per = 1;
+        k = l->cl->k[K_RELIGHT_ROWS];
+        LARG(k, 0, l->rentries); LARG(k, 1, l->roffset); LARG(k, 2, l->rcounts); LARG(k, 3, l->rquant);
+        LARG(k, 4, l->scheme); LARG(k, 5, nb); LARG(k, 6, nc); LARG(k, 7, l->bits); LARG(k, 8, l->Lsel);
+        LARG(k, 9, l->albedo); LARG(k, 10, l->keep_negative); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, per);
+        return light_launch(l, K_RELIGHT_ROWS, (nv + per - 1) / per);
+    }
     for (uint32_t p = 0; p < (l->nparts > 1 ? l->nparts : 1u); p++) {
         cl_mem m[4];
         if (l->nparts > 1) TRY(hl_cl_light_enq_part(l, p, &nr));

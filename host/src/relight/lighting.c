@@ -196,7 +196,7 @@ static hl_result row_measures(hl_relighter *r, const hl_transport *t)
 /* hl_relighter_create; with drop and src, drop's entries (t's) are freed
  * once read for row_measures, and the columns read them from src. */
 static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport *drop, const hl_row_source *src,
-                            hl_relighter **out)
+                            int rows, hl_relighter **out)
 {
     *out = NULL;
     if (!t || !t->mesh) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_relighter_create: no transport");
@@ -241,7 +241,8 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
         if (res == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_CUBE)
             res = hl_cube_tables_create(ctx, t->info.sh_order, t->info.C, r->lg->wc, r->lg->hc, &r->cube);
         if (res == HL_OK && ctx->backend == HL_BACKEND_OPENCL)
-            res = hl_cl_light_create_from(ctx, r->g, r->lg, t, src, r->albedo4, &r->cl);
+            res = rows ? hl_cl_light_create_rows(ctx, r->g, r->lg, t, r->albedo4, &r->cl)
+                       : hl_cl_light_create_from(ctx, r->g, r->lg, t, src, r->albedo4, &r->cl);
         /* the columns are built: the row table goes too (72 bytes a vertex) */
         if (res == HL_OK && drop && src && ctx->backend == HL_BACKEND_OPENCL) {
             hl_free_big(drop->block_counts);
@@ -264,7 +265,19 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
 
 hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out)
 {
-    return create_src(ctx, t, NULL, NULL, out);
+    return create_src(ctx, t, NULL, NULL, 0, out);
+}
+
+hl_result hl_relighter_create_once(hl_context *ctx, hl_transport *t, const char *path, hl_relighter **out)
+{
+    if (ctx->backend != HL_BACKEND_OPENCL || !ctx->cl || !t || !t->entries) return hl_relighter_create(ctx, t, out);
+    /* the entries in one buffer, with 64 MiB for the lighting stages'
+       buffers and the colours besides; else the columns (in parts where
+       need be) */
+    const uint64_t bytes = 2 * t->info.coefficients_kept;
+    if (bytes + ((uint64_t)64 << 20) > hl_cl_largest_buffer(ctx))
+        return path ? hl_relighter_create_from_file(ctx, t, path, out) : hl_relighter_create(ctx, t, out);
+    return create_src(ctx, t, NULL, NULL, 1, out);
 }
 
 /* Opens path for reading t's rows again: its header must be intact and
@@ -307,7 +320,7 @@ hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const 
     hl_row_source src;
     hl_result res = open_rows(ctx, t, path, &src);
     if (res != HL_OK) return res;
-    res = create_src(ctx, t, t, &src, out);
+    res = create_src(ctx, t, t, &src, 0, out);
     close(src.fd);
     return res;
 }

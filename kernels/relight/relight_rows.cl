@@ -1,0 +1,97 @@
+/* relight_rows.cl - vertex colours straight from the rows as the file
+ * stores them (8-bit codes in 256-slot blocks), for a relight of one or a
+ * few lighting changes: no column layout is built (relight.cl's columns
+ * take seconds to lay out on a big mesh and pay off over many changes).
+ *
+ * Each work-item takes `per` consecutive vertices. A vertex walks its
+ * blocks, skips those with no kept slot (their 8 words of kept bits all
+ * zero) and, in the others, the entries whose slot is not kept (bits); each kept term is decoded
+ * (hl_dequant with the vertex's dither), scaled by 2^-e and rounded to
+ * half precision as the columns hold it (host/src/core/half.h), and added
+ * with one fused multiply-add per colour in ascending slot order. So the
+ * sums are those of relight.cl and of its twin, bit for bit (a skipped
+ * term would add t x 0, which leaves a sum that is never -0 unchanged).
+ * Then the sums times 2^e, times the albedo, clamped at zero (unless
+ * keep_negative), the fourth float the lowest channel before the clamp.
+ * Twin: hl_ref_relight (host/src/relight/twins/relight.c).
+ */
+#pragma OPENCL FP_CONTRACT OFF
+
+/* hl_half_term of half.h: x (a term times 2^-e) rounded to the nearest
+ * half, ties to even, as a float. */
+static float hl_rows_half(float x)
+{
+    uint u = as_uint(x), sign = u & 0x80000000u;
+    u &= 0x7fffffffu;
+    float v;
+    if (u >= 0x38800000u) { /* 2^-14 and above: a normal half */
+        uint r = u - (112u << 23);
+        r += 0xfffu + ((r >> 13) & 1u);
+        uint h = r >> 13, ex = (h >> 10) & 31u, m = h & 1023u;
+        v = ldexp((float)(m | 1024u), (int)ex - 25);
+    } else { /* a whole multiple of 2^-24 */
+        v = ldexp(rint(as_float(u) * 16777216.0f), -24);
+    }
+    return sign ? -v : v;
+}
+
+/* hl_half_exponent of half.h: the exponent of the row's largest magnitude. */
+static int hl_rows_exponent(uint scheme, float a, float b)
+{
+    float m = scheme != HL_QUANT_LINEAR8 ? fabs(b) : fmax(fabs(a), fabs(b));
+    int e = 0;
+    if (m > 0.0f && isfinite(m)) frexp(m, &e);
+    return e < -125 ? -125 : e > 125 ? 125 : e;
+}
+
+kernel void hl_relight_rows(global const uchar *entries, global const ulong *row_offset,
+                            global const ushort *block_counts, global const float2 *row_quant, uint scheme,
+                            uint nblocks, uint ncoef, global const uint *bits,
+                            global const float4 *light, global const float4 *albedo, uint keep_negative,
+                            global float4 *out, uint nverts, uint per)
+{
+    const uint v0 = get_global_id(0) * per;
+    for (uint v = v0; v < v0 + per && v < nverts; v++) {
+        const float2 q = row_quant[v];
+        const int ex = hl_rows_exponent(scheme, q.x, q.y);
+        const float inv = ldexp(1.0f, -ex), back = ldexp(1.0f, ex);
+        float sr = 0.0f, sg = 0.0f, sb = 0.0f;
+        ulong e = row_offset[v];
+        global const ushort *bc = block_counts + (size_t)v * nblocks;
+        for (uint b = 0; b < nblocks; b++) {
+            const uint n = bc[b];
+            /* the block's words of kept bits (fewer in a short last block) */
+            global const uint *kb = bits + b * (HL_BLOCK / 32u);
+            const uint nw = min(HL_BLOCK / 32u, (ncoef - b * HL_BLOCK + 31u) / 32u);
+            uint any = 0u;
+            for (uint w = 0; w < nw; w++) any |= kb[w];
+            if (!any) {
+                e += n;
+                continue;
+            }
+            for (uint k = 0; k < n; k++, e++) {
+                const uint slot = b * HL_BLOCK + entries[2 * e];
+                if (!((bits[slot >> 5] >> (slot & 31u)) & 1u)) continue;
+                float t = hl_dequant(scheme, entries[2 * e + 1], q.x, q.y, hl_dither_key(v, slot));
+                t = hl_rows_half(t * inv);
+                const float4 l = light[slot];
+                sr = fma(t, l.x, sr);
+                sg = fma(t, l.y, sg);
+                sb = fma(t, l.z, sb);
+            }
+        }
+        float4 c = ((float4)(sr, sg, sb, 0.0f) * back) * albedo[v];
+        /* comparisons, not fmin/fmax, so that -0 and +0 come out as in the twin */
+        float lo = 0.0f;
+        lo = c.x < lo ? c.x : lo;
+        lo = c.y < lo ? c.y : lo;
+        lo = c.z < lo ? c.z : lo;
+        if (!keep_negative) {
+            c.x = c.x > 0.0f ? c.x : 0.0f;
+            c.y = c.y > 0.0f ? c.y : 0.0f;
+            c.z = c.z > 0.0f ? c.z : 0.0f;
+        }
+        c.w = lo;
+        out[v] = c;
+    }
+}
