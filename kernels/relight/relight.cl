@@ -139,19 +139,8 @@ static void put_colours(global const float *sums, uint n, uint p0, uint p1, glob
 {
     for (uint v = p0; v < p1; v++) {
         uint i = v - p0;
-        float4 c = ((float4)(sums[i], sums[n + i], sums[2 * n + i], 0.0f) * back[v]) * albedo[v];
-        /* comparisons, not fmin/fmax, so that -0 and +0 come out as in the twin */
-        float lo = 0.0f;
-        lo = c.x < lo ? c.x : lo;
-        lo = c.y < lo ? c.y : lo;
-        lo = c.z < lo ? c.z : lo;
-        if (!keep_negative) {
-            c.x = c.x > 0.0f ? c.x : 0.0f;
-            c.y = c.y > 0.0f ? c.y : 0.0f;
-            c.z = c.z > 0.0f ? c.z : 0.0f;
-        }
-        c.w = lo;
-        out[order[v]] = c;
+        out[order[v]] =
+            hl_colour_out(((float4)(sums[i], sums[n + i], sums[2 * n + i], 0.0f) * back[v]) * albedo[v], keep_negative);
     }
 }
 

@@ -80,18 +80,6 @@ kernel void hl_relight_rows(global const uchar *entries, global const ulong *row
                 sb = fma(t, l.z, sb);
             }
         }
-        float4 c = ((float4)(sr, sg, sb, 0.0f) * back) * albedo[v];
-        /* comparisons, not fmin/fmax, so that -0 and +0 come out as in the twin */
-        float lo = 0.0f;
-        lo = c.x < lo ? c.x : lo;
-        lo = c.y < lo ? c.y : lo;
-        lo = c.z < lo ? c.z : lo;
-        if (!keep_negative) {
-            c.x = c.x > 0.0f ? c.x : 0.0f;
-            c.y = c.y > 0.0f ? c.y : 0.0f;
-            c.z = c.z > 0.0f ? c.z : 0.0f;
-        }
-        c.w = lo;
-        out[v] = c;
+        out[v] = hl_colour_out(((float4)(sr, sg, sb, 0.0f) * back) * albedo[v], keep_negative);
     }
 }

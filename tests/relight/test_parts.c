@@ -242,105 +242,124 @@ static void case_from_file(void)
     hl_context_destroy(ctx);
 }
 
+/* Three loads of one transport (a relighter each, the first made whole
+ * with hl_relighter_create as the reference), the colours of each. */
+typedef struct trio {
+    char path[1024];
+    hl_context *ctx;
+    hl_transport *t[3];
+    hl_relighter *r[3];
+    hl_context *rctx[3]; /* the context each relighter was made on */
+    float *c[3];
+    uint32_t V;
+    uint64_t used, cols; /* an unlimited relighter's device bytes, columns' */
+} trio;
+
+static int trio_open(trio *x, const char *name)
+{
+    memset(x, 0, sizeof *x);
+    const char *p = make_transport(name, "");
+    snprintf(x->path, sizeof x->path, "%s", p ? p : "");
+    x->ctx = ctx_of(HL_BACKEND_OPENCL);
+    int ok = p && x->ctx;
+    for (int i = 0; ok && i < 3; i++) ok = hl_transport_load(x->ctx, x->path, &x->t[i]) == HL_OK;
+    HL_CHECK(ok, "transports");
+    if (!ok || !measure(x->t[0], &x->used, &x->cols)) return 0;
+    x->V = x->t[0]->info.vertex_count;
+    for (int i = 0; i < 3; i++) x->c[i] = malloc((size_t)x->V * 24);
+    x->rctx[0] = x->ctx;
+    HL_CHECK(hl_relighter_create(x->ctx, x->t[0], &x->r[0]) == HL_OK, "%s", hl_context_last_error(x->ctx));
+    return x->r[0] != NULL;
+}
+
+/* Words of relighters 1 and 2's colours that differ from relighter 0's
+ * (UINT64_MAX when one is missing or failed). */
+static uint64_t trio_diff(trio *x)
+{
+    uint64_t diff = 0;
+    for (int i = 0; i < 3; i++)
+        if (!x->r[i] || !x->c[i] || !colours(x->rctx[i], x->r[i], x->c[i], x->V)) return UINT64_MAX;
+    for (size_t i = 0; i < (size_t)x->V * 6; i++)
+        diff += (memcmp(&x->c[0][i], &x->c[1][i], 4) != 0) + (memcmp(&x->c[0][i], &x->c[2][i], 4) != 0);
+    return diff;
+}
+
+static void trio_close(trio *x)
+{
+    for (int i = 0; i < 3; i++) hl_relighter_destroy(x->r[i]);
+    for (int i = 0; i < 3; i++) {
+        hl_transport_destroy(x->t[i]);
+        free(x->c[i]);
+    }
+    /* each context once: relighters 1 and 2 may share one */
+    if (x->rctx[1] && x->rctx[1] != x->ctx) hl_context_destroy(x->rctx[1]);
+    if (x->rctx[2] && x->rctx[2] != x->ctx && x->rctx[2] != x->rctx[1]) hl_context_destroy(x->rctx[2]);
+    hl_context_destroy(x->ctx);
+}
+
 static void case_rows(void)
 {
-    const char *p = make_transport("parts_rows.hlt", "");
-    char path[1024];
-    snprintf(path, sizeof path, "%s", p ? p : "");
-    hl_context *ctx = ctx_of(HL_BACKEND_OPENCL);
-    hl_transport *t = NULL, *t2 = NULL, *t3 = NULL;
-    HL_CHECK(p && ctx && hl_transport_load(ctx, path, &t) == HL_OK && hl_transport_load(ctx, path, &t2) == HL_OK &&
-                 hl_transport_load(ctx, path, &t3) == HL_OK,
-             "transports");
-    uint64_t used = 0, cols = 0;
-    if (!t || !t2 || !t3 || !measure(t, &used, &cols)) return;
-    const uint32_t V = t->info.vertex_count;
-    const uint64_t entry_bytes = 2 * t->info.coefficients_kept;
-    float *ca = malloc((size_t)V * 24), *cb = malloc((size_t)V * 24), *cc = malloc((size_t)V * 24);
-    hl_context *lim = ctx_limited(used - cols + cols / 4); /* less than the entries take */
-    hl_relighter *a = NULL, *b = NULL, *c = NULL;
-    HL_CHECK(hl_relighter_create(ctx, t, &a) == HL_OK, "%s", hl_context_last_error(ctx));
-    HL_CHECK(hl_relighter_create_once(ctx, t2, path, &b) == HL_OK, "rows: %s", hl_context_last_error(ctx));
-    HL_CHECK(lim && hl_relighter_create_once(lim, t3, path, &c) == HL_OK, "limited: %s",
-             lim ? hl_context_last_error(lim) : "no context");
+    trio x;
+    if (!trio_open(&x, "parts_rows.hlt")) {
+        trio_close(&x);
+        return;
+    }
+    const uint64_t entry_bytes = 2 * x.t[0]->info.coefficients_kept;
+    x.rctx[1] = x.ctx;
+    x.rctx[2] = ctx_limited(x.used - x.cols + x.cols / 4); /* less than the entries take */
+    HL_CHECK(hl_relighter_create_once(x.ctx, x.t[1], x.path, &x.r[1]) == HL_OK, "rows: %s", hl_context_last_error(x.ctx));
+    HL_CHECK(x.rctx[2] && hl_relighter_create_once(x.rctx[2], x.t[2], x.path, &x.r[2]) == HL_OK, "limited: %s",
+             x.rctx[2] ? hl_context_last_error(x.rctx[2]) : "no context");
     hl_relighter_memory mb = {0}, mc = {0};
-    HL_CHECK(b && hl_relighter_memory_use(b, &mb) == HL_OK && c && hl_relighter_memory_use(c, &mc) == HL_OK, "memory use");
+    HL_CHECK(x.r[1] && hl_relighter_memory_use(x.r[1], &mb) == HL_OK && x.r[2] &&
+                 hl_relighter_memory_use(x.r[2], &mc) == HL_OK,
+             "memory use");
     printf("rows: device %llu bytes (entries %llu, columns %llu); limited: %u parts, device %llu bytes\n",
            (unsigned long long)mb.device_bytes, (unsigned long long)entry_bytes, (unsigned long long)mb.column_bytes,
            mc.parts, (unsigned long long)mc.device_bytes);
-    HL_CHECK(mb.device_bytes >= entry_bytes && mb.column_bytes < cols / 4 && t2->entries,
+    HL_CHECK(mb.device_bytes >= entry_bytes && mb.column_bytes < x.cols / 4 && x.t[1]->entries,
              "the rows relighter holds the entries, not the columns, and the transport keeps them");
-    HL_CHECK(mc.parts >= 4 && !t3->entries, "under the limit: columns from the file, in parts");
-    uint64_t diff = 0;
-    if (a && b && c && colours(ctx, a, ca, V) && colours(ctx, b, cb, V) && colours(lim, c, cc, V))
-        for (size_t i = 0; i < (size_t)V * 6; i++) diff += (memcmp(&ca[i], &cb[i], 4) != 0) + (memcmp(&ca[i], &cc[i], 4) != 0);
+    HL_CHECK(mc.parts >= 4 && !x.t[2]->entries, "under the limit: columns from the file, in parts");
+    const uint64_t diff = trio_diff(&x);
     printf("rows and the limited fallback: %u vertices x 3 colours x 2 settings: %llu words differ from the columns "
-           "(tolerance 0: bit-identical)\n", V, (unsigned long long)diff);
-    HL_CHECK(a && b && c && diff == 0, "%llu words differ from the columns", (unsigned long long)diff);
-    free(ca);
-    free(cb);
-    free(cc);
-    hl_relighter_destroy(a);
-    hl_relighter_destroy(b);
-    hl_relighter_destroy(c);
-    hl_transport_destroy(t);
-    hl_transport_destroy(t2);
-    hl_transport_destroy(t3);
-    hl_context_destroy(lim);
-    hl_context_destroy(ctx);
+           "(tolerance 0: bit-identical)\n", x.V, (unsigned long long)diff);
+    HL_CHECK(diff == 0, "%llu words differ from the columns", (unsigned long long)diff);
+    trio_close(&x);
 }
 
 static void case_resident(void)
 {
-    const char *p = make_transport("parts_res.hlt", "");
-    char path[1024];
-    snprintf(path, sizeof path, "%s", p ? p : "");
-    hl_context *ctx = ctx_of(HL_BACKEND_OPENCL);
-    hl_transport *t = NULL, *t2 = NULL, *t3 = NULL;
-    HL_CHECK(p && ctx && hl_transport_load(ctx, path, &t) == HL_OK && hl_transport_load(ctx, path, &t2) == HL_OK &&
-                 hl_transport_load(ctx, path, &t3) == HL_OK,
-             "transports");
-    uint64_t used = 0, cols = 0;
-    if (!t || !t2 || !t3 || !measure(t, &used, &cols)) return;
+    trio x;
+    if (!trio_open(&x, "parts_res.hlt")) {
+        trio_close(&x);
+        return;
+    }
     char cap[32];
-    snprintf(cap, sizeof cap, "%llu", (unsigned long long)(cols / 4));
+    snprintf(cap, sizeof cap, "%llu", (unsigned long long)(x.cols / 4));
     setenv("HL_TEST_MAX_ALLOC", cap, 1);
     hl_context *small = ctx_of(HL_BACKEND_OPENCL);
     unsetenv("HL_TEST_MAX_ALLOC");
-    const uint32_t V = t->info.vertex_count;
-    float *ca = malloc((size_t)V * 24), *cb = malloc((size_t)V * 24), *cc = malloc((size_t)V * 24);
-    hl_relighter *a = NULL, *b = NULL, *c = NULL;
-    HL_CHECK(hl_relighter_create(ctx, t, &a) == HL_OK, "%s", hl_context_last_error(ctx));
-    HL_CHECK(small && hl_relighter_create(small, t2, &b) == HL_OK, "largest allocation %s bytes: %s", cap,
+    x.rctx[1] = small;
+    x.rctx[2] = small;
+    HL_CHECK(small && hl_relighter_create(small, x.t[1], &x.r[1]) == HL_OK, "largest allocation %s bytes: %s", cap,
              small ? hl_context_last_error(small) : "no context");
-    HL_CHECK(small && hl_relighter_create_from_file(small, t3, path, &c) == HL_OK, "from the file: %s",
+    HL_CHECK(small && hl_relighter_create_from_file(small, x.t[2], x.path, &x.r[2]) == HL_OK, "from the file: %s",
              small ? hl_context_last_error(small) : "no context");
-    uint64_t diff = 0;
-    for (int k = 0; b && c && k < 2; k++) {
+    for (int k = 1; k < 3; k++) {
         hl_relighter_memory m;
-        HL_CHECK(hl_relighter_memory_use(k ? c : b, &m) == HL_OK, "memory use");
+        HL_CHECK(x.r[k] && hl_relighter_memory_use(x.r[k], &m) == HL_OK, "memory use");
+        if (!x.r[k]) continue;
         printf("largest allocation %s bytes (columns %llu): %u parts, resident %u, device %llu bytes (unlimited %llu)\n",
-               cap, (unsigned long long)cols, m.parts, m.resident, (unsigned long long)m.device_bytes,
-               (unsigned long long)used);
+               cap, (unsigned long long)x.cols, m.parts, m.resident, (unsigned long long)m.device_bytes,
+               (unsigned long long)x.used);
         HL_CHECK(m.parts >= 4 && m.resident, "a quarter of the columns a buffer: at least 4 resident parts");
-        HL_CHECK(m.device_bytes >= cols, "the device holds all the columns");
+        HL_CHECK(m.device_bytes >= x.cols, "the device holds all the columns");
     }
-    if (a && b && c && colours(ctx, a, ca, V) && colours(small, b, cb, V) && colours(small, c, cc, V))
-        for (size_t i = 0; i < (size_t)V * 6; i++) diff += (memcmp(&ca[i], &cb[i], 4) != 0) + (memcmp(&ca[i], &cc[i], 4) != 0);
+    const uint64_t diff = trio_diff(&x);
     printf("resident parts: %u vertices x 3 colours x 2 settings, from entries and from the file: %llu words differ "
-           "(tolerance 0: bit-identical)\n", V, (unsigned long long)diff);
-    HL_CHECK(a && b && c && diff == 0, "%llu words differ from the relighter in one buffer", (unsigned long long)diff);
-    free(ca);
-    free(cb);
-    free(cc);
-    hl_relighter_destroy(a);
-    hl_relighter_destroy(b);
-    hl_relighter_destroy(c);
-    hl_transport_destroy(t);
-    hl_transport_destroy(t2);
-    hl_transport_destroy(t3);
-    hl_context_destroy(small);
-    hl_context_destroy(ctx);
+           "(tolerance 0: bit-identical)\n", x.V, (unsigned long long)diff);
+    HL_CHECK(diff == 0, "%llu words differ from the relighter in one buffer", (unsigned long long)diff);
+    trio_close(&x);
 }
 
 int main(int argc, char **argv)

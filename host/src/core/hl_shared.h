@@ -193,6 +193,27 @@ HL_INLINE uint hl_radix_bin(const uint *hist, uint *need)
     }
     return b;
 }
+
+/* A vertex's colour as the dot products leave it: truncated lighting and
+ * transport can sum to a little below zero where the exact answer is
+ * dark, and no output may hold negative light, so each channel is clamped
+ * at zero (unless keep_negative); w keeps the lowest channel before the
+ * clamp (0 when none was negative). Comparisons, not fmin/fmax, so that
+ * -0 and +0 come out as in the twin (hl_ref_relight). */
+HL_INLINE float4 hl_colour_out(float4 c, uint keep_negative)
+{
+    float lo = 0.0f;
+    lo = c.x < lo ? c.x : lo;
+    lo = c.y < lo ? c.y : lo;
+    lo = c.z < lo ? c.z : lo;
+    if (!keep_negative) {
+        c.x = c.x > 0.0f ? c.x : 0.0f;
+        c.y = c.y > 0.0f ? c.y : 0.0f;
+        c.z = c.z > 0.0f ? c.z : 0.0f;
+    }
+    c.w = lo;
+    return c;
+}
 #endif
 
 /* Key of a coefficient: |v| as ordered bits. */
