@@ -577,13 +577,8 @@ int cmd_bench_basis(int argc, char **argv)
     int u = parse(argc, argv, &o);
     if (u >= 0) return u;
     hl_context_desc cd = {.backend = HL_BACKEND_REFERENCE, .threads = o.threads, .quiet = 1};
-    char err[4096];
-    hl_context *ctx = NULL;
-    if (hl_context_create(&cd, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "haarlight: %s\n", err);
-        return 1;
-    }
-    cli_watch(ctx, NULL);
+    hl_context *ctx = cli_context(&cd);
+    if (!ctx) return 1;
     hl_transport *t = NULL;
     bb_files fs;
     memset(&fs, 0, sizeof fs);

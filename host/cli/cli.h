@@ -34,6 +34,9 @@ int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context
  * NULL) once they are created, and unwatches them before destroying them. */
 void cli_watch(hl_context *a, hl_context *b);
 void cli_unwatch(void);
+/* A command's context, watched (cli_watch); prints the error and returns
+ * NULL when it cannot be made. */
+hl_context *cli_context(const hl_context_desc *cd);
 /* The extension of path's file name, from its last dot ("" when none). */
 const char *cli_ext_of(const char *path);
 /* Makes the folder dir unless it exists; prints why and returns 0 when

@@ -105,6 +105,18 @@ hl_result cli_env_load(hl_context *ctx, const char *path, hl_env_layout layout, 
     return r;
 }
 
+hl_context *cli_context(const hl_context_desc *cd)
+{
+    char err[4096];
+    hl_context *ctx = NULL;
+    if (hl_context_create(cd, &ctx, err, sizeof err) != HL_OK) {
+        fprintf(stderr, "haarlight: %s\n", err);
+        return NULL;
+    }
+    cli_watch(ctx, NULL);
+    return ctx;
+}
+
 int cli_context_pair(const hl_context_desc *cl_desc, hl_context **cl, hl_context **ref)
 {
     char err[4096];

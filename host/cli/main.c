@@ -386,16 +386,10 @@ static int cmd_precompute(int argc, char **argv)
     int u = parse_pre(argc, argv, usage_precompute, &o);
     if (u) return u;
     if (!o.out) return usage_error(usage_precompute, "%s", "no output given (-o SCENE.hlt)");
-    char err[4096];
-    hl_context *ctx = NULL;
-    hl_result r = hl_context_create(&o.cd, &ctx, err, sizeof err);
-    if (r != HL_OK) {
-        fprintf(stderr, "haarlight: %s\n", err);
-        return 1;
-    }
-    cli_watch(ctx, NULL);
+    hl_context *ctx = cli_context(&o.cd);
+    if (!ctx) return 1;
     hl_mesh *mesh = NULL;
-    r = load_scene(ctx, &o, &mesh);
+    hl_result r = load_scene(ctx, &o, &mesh);
     hl_precompute_stats st;
     if (r == HL_OK) {
         if (!o.cd.quiet) fprintf(stderr, "device: %s\n", hl_context_device_name(ctx));
@@ -522,13 +516,8 @@ static int cmd_bench_precompute(int argc, char **argv)
         snprintf(tmp, sizeof tmp, "/tmp/haarlight-bench-%d.hlt", (int)getpid());
         o.out = tmp;
     }
-    char err[4096];
-    hl_context *ctx = NULL;
-    if (hl_context_create(&o.cd, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "haarlight: %s\n", err);
-        return 1;
-    }
-    cli_watch(ctx, NULL);
+    hl_context *ctx = cli_context(&o.cd);
+    if (!ctx) return 1;
     hl_mesh *mesh = NULL;
     hl_precompute_stats st;
     double rates[5];

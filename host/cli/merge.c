@@ -77,14 +77,11 @@ int cmd_merge(int argc, char **argv)
     }
     /* No device: merging is file work. */
     hl_context_desc cd = {.backend = HL_BACKEND_REFERENCE, .quiet = quiet};
-    hl_context *ctx = NULL;
-    char err[512];
-    if (hl_context_create(&cd, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "haarlight: %s\n", err);
+    hl_context *ctx = cli_context(&cd);
+    if (!ctx) {
         free(shards);
         return 1;
     }
-    cli_watch(ctx, NULL);
     hl_merge_stats st;
     hl_result r = hl_transport_merge(ctx, out, shards, n, &st);
     int rc = 0;

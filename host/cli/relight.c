@@ -82,13 +82,8 @@ int cmd_relight(int argc, char **argv)
         is_img = !strcasecmp(ext, ".exr") || !strcasecmp(ext, ".png");
     if (!is_ply && !is_glb && !is_img) return usage_error(usage, "output %s: expected a .ply, .glb, .exr or .png name", out);
 
-    char err[4096];
-    hl_context *ctx = NULL;
-    if (hl_context_create(&cd, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "haarlight: %s\n", err);
-        return 1;
-    }
-    cli_watch(ctx, NULL);
+    hl_context *ctx = cli_context(&cd);
+    if (!ctx) return 1;
     hl_transport *t = NULL;
     hl_env *env = NULL;
     hl_relighter *rl = NULL;

@@ -218,13 +218,8 @@ static hl_result swap_in_reference(hl_context *ctx, hl_dynamic *dy, const hl_env
 /* Loads, moves, lights, renders and writes; the exit code. */
 static int run(const dyn_opts *d, cli_scene_opts *o)
 {
-    char err[4096];
-    hl_context *ctx = NULL;
-    if (hl_context_create(&o->cd, &ctx, err, sizeof err) != HL_OK) {
-        fprintf(stderr, "haarlight: %s\n", err);
-        return 1;
-    }
-    cli_watch(ctx, NULL);
+    hl_context *ctx = cli_context(&o->cd);
+    if (!ctx) return 1;
     hl_dynamic *dy = NULL;
     hl_env *env = NULL;
     hl_image *img = NULL;
