@@ -267,13 +267,21 @@ hl_result hl_cl_pipe_cube2para(hl_cl_pipe *p, uint32_t rows, const uint8_t *vis,
     return HL_OK;
 }
 
-hl_result hl_cl_pipe_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef)
+/* One transform stage alone (Haar, the faces' Haar or the harmonic
+ * projection): rows of T in, their coefficients out. */
+static hl_result transform_alone(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef,
+                                 hl_result (*enqueue)(hl_cl_pipe *, uint32_t))
 {
     TRY(check_rows(p, rows));
     WRITE(p->T, (size_t)rows * p->g->ncoef * 4, T, CL_TRUE);
-    TRY(enqueue_haar(p, rows));
+    TRY(enqueue(p, rows));
     READ(p->coef, (size_t)rows * p->g->ncoef * 4, coef, CL_TRUE, NULL);
     return HL_OK;
+}
+
+hl_result hl_cl_pipe_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef)
+{
+    return transform_alone(p, rows, T, coef, enqueue_haar);
 }
 
 hl_result hl_cl_pipe_cube_rows(hl_cl_pipe *p, uint32_t rows, const uint8_t *vis, float scale,
@@ -290,22 +298,14 @@ hl_result hl_cl_pipe_cube_rows(hl_cl_pipe *p, uint32_t rows, const uint8_t *vis,
 
 hl_result hl_cl_pipe_cube_haar(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef)
 {
-    TRY(check_rows(p, rows));
     if (!p->cube) return hl_fail(p->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_pipe_cube_haar: no cube side set");
-    WRITE(p->T, (size_t)rows * p->g->ncoef * 4, T, CL_TRUE);
-    TRY(enqueue_cube_haar(p, rows));
-    READ(p->coef, (size_t)rows * p->g->ncoef * 4, coef, CL_TRUE, NULL);
-    return HL_OK;
+    return transform_alone(p, rows, T, coef, enqueue_cube_haar);
 }
 
 hl_result hl_cl_pipe_sh_project(hl_cl_pipe *p, uint32_t rows, const float *T, float *coef)
 {
-    TRY(check_rows(p, rows));
     if (!p->shY) return hl_fail(p->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_pipe_sh_project: no projection set");
-    WRITE(p->T, (size_t)rows * p->g->ncoef * 4, T, CL_TRUE);
-    TRY(enqueue_sh(p, rows));
-    READ(p->coef, (size_t)rows * p->g->ncoef * 4, coef, CL_TRUE, NULL);
-    return HL_OK;
+    return transform_alone(p, rows, T, coef, enqueue_sh);
 }
 
 hl_result hl_cl_pipe_truncate(hl_cl_pipe *p, uint32_t rows, const float *coef, hl_trunc_params tp,
