@@ -49,21 +49,7 @@ kernel void hl_cube_face_haar(global float *T, uint in_stride, global float *coe
     uint id = get_global_id(0), v = id / 6u, f = id % 6u;
     if (v >= nrows) return;
     size_t nn = (size_t)Cq * Cq;
-    global float *x = T + (size_t)v * in_stride + f * nn;
-    global float *o = coef + (size_t)v * out_stride + f * nn;
-    for (uint s = Cq; s >= 2; s /= 2) {
-        uint h = s / 2;
-        for (uint i = 0; i < h; i++)
-            for (uint j = 0; j < h; j++) {
-                float a = x[(2 * i) * Cq + 2 * j], b = x[(2 * i) * Cq + 2 * j + 1];
-                float c = x[(2 * i + 1) * Cq + 2 * j], d = x[(2 * i + 1) * Cq + 2 * j + 1];
-                o[i * Cq + j + h] = (a - b + c - d) * 0.5f;
-                o[(i + h) * Cq + j] = (a + b - c - d) * 0.5f;
-                o[(i + h) * Cq + j + h] = (a - b - c + d) * 0.5f;
-                x[i * Cq + j] = (a + b + c + d) * 0.5f;
-            }
-    }
-    o[0] = x[0];
+    hl_haar_square(T + (size_t)v * in_stride + f * nn, coef + (size_t)v * out_stride + f * nn, 0, Cq); /* Mallat */
     if (f == 0)
         for (size_t k = 6 * nn; k < out_stride; k++) coef[(size_t)v * out_stride + k] = 0.0f;
 }

@@ -12,20 +12,6 @@ kernel void hl_haar(global float *T, global float *coef, global const uint *slot
     if (v >= nrows) return;
     size_t nn = (size_t)N * N;
     for (uint map = 0; map < 2; map++) {
-        global float *x = T + (size_t)v * 2 * nn + map * nn;
-        global float *o = coef + (size_t)v * 2 * nn + map * nn;
-        for (uint s = N; s >= 2; s /= 2) {
-            uint h = s / 2;
-            for (uint i = 0; i < h; i++)
-                for (uint j = 0; j < h; j++) {
-                    float a = x[(2 * i) * N + 2 * j], b = x[(2 * i) * N + 2 * j + 1];
-                    float c = x[(2 * i + 1) * N + 2 * j], d = x[(2 * i + 1) * N + 2 * j + 1];
-                    o[slot_of_mallat[i * N + j + h]] = (a - b + c - d) * 0.5f;
-                    o[slot_of_mallat[(i + h) * N + j]] = (a + b - c - d) * 0.5f;
-                    o[slot_of_mallat[(i + h) * N + j + h]] = (a - b - c + d) * 0.5f;
-                    x[i * N + j] = (a + b + c + d) * 0.5f;
-                }
-        }
-        o[slot_of_mallat[0]] = x[0];
+        hl_haar_square(T + (size_t)v * 2 * nn + map * nn, coef + (size_t)v * 2 * nn + map * nn, slot_of_mallat, N);
     }
 }

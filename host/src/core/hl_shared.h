@@ -194,6 +194,28 @@ HL_INLINE uint hl_radix_bin(const uint *hist, uint *need)
     return b;
 }
 
+/* The orthonormal non-standard Haar of one n x n map x (destroyed: the
+ * averages are compacted in place, which row-major order never reads
+ * back) into o: coefficient k at o[slot[k]], k in the Mallat layout, or
+ * at o[k] when slot is 0. Twin: hl_ref_haar_square. */
+HL_INLINE void hl_haar_square(global float *x, global float *o, global const uint *slot, uint n)
+{
+    for (uint s = n; s >= 2; s /= 2) {
+        uint h = s / 2;
+        for (uint i = 0; i < h; i++)
+            for (uint j = 0; j < h; j++) {
+                float a = x[(2 * i) * n + 2 * j], b = x[(2 * i) * n + 2 * j + 1];
+                float c = x[(2 * i + 1) * n + 2 * j], d = x[(2 * i + 1) * n + 2 * j + 1];
+                uint k1 = i * n + j + h, k2 = (i + h) * n + j, k3 = (i + h) * n + j + h;
+                o[slot ? slot[k1] : k1] = (a - b + c - d) * 0.5f;
+                o[slot ? slot[k2] : k2] = (a + b - c - d) * 0.5f;
+                o[slot ? slot[k3] : k3] = (a - b - c + d) * 0.5f;
+                x[i * n + j] = (a + b + c + d) * 0.5f;
+            }
+    }
+    o[slot ? slot[0] : 0] = x[0];
+}
+
 /* A vertex's colour as the dot products leave it: truncated lighting and
  * transport can sum to a little below zero where the exact answer is
  * dark, and no output may hold negative light, so each channel is clamped

@@ -26,25 +26,8 @@ double hl_cube_rect_omega(double u0, double u1, double v0, double v1)
 
 void hl_cube_haar(uint32_t Cq, float *T, float *coef)
 {
-    for (int f = 0; f < 6; f++) {
-        float *x = T + (size_t)f * Cq * Cq, *o = coef + (size_t)f * Cq * Cq;
-        for (uint32_t s = Cq; s >= 2; s /= 2) {
-            const uint32_t h = s / 2;
-            /* in place: block (i, j)'s average lands on x[i][j], which only
-               the block (i / 2, j / 2) of the next level reads (as
-               hl_ref_haar) */
-            for (uint32_t i = 0; i < h; i++)
-                for (uint32_t j = 0; j < h; j++) {
-                    const float a = x[(2 * i) * Cq + 2 * j], b = x[(2 * i) * Cq + 2 * j + 1];
-                    const float c = x[(2 * i + 1) * Cq + 2 * j], d = x[(2 * i + 1) * Cq + 2 * j + 1];
-                    o[i * Cq + j + h] = (a - b + c - d) * 0.5f;
-                    o[(i + h) * Cq + j] = (a + b - c - d) * 0.5f;
-                    o[(i + h) * Cq + j + h] = (a - b - c + d) * 0.5f;
-                    x[i * Cq + j] = (a + b + c + d) * 0.5f;
-                }
-        }
-        o[0] = x[0];
-    }
+    for (int f = 0; f < 6; f++)
+        hl_ref_haar_square(T + (size_t)f * Cq * Cq, coef + (size_t)f * Cq * Cq, NULL, Cq); /* Mallat layout */
 }
 
 void hl_cube_haar_inverse(uint32_t Cq, float *coef, float *T)

@@ -27,6 +27,11 @@ void hl_ref_cube2para(const hl_geom *g, const uint8_t *vis, float scale,
 /* Orthonormal non-standard 2D Haar of both N x N maps of T (destroyed),
  * written to coef in slot order. Works in place in T. */
 void hl_ref_haar(const hl_geom *g, float *T, float *coef);
+/* The orthonormal non-standard Haar of one n x n map x (destroyed: the
+ * averages are compacted in place) into o: coefficient k at o[slot[k]],
+ * k in the Mallat layout, or at o[k] when slot is NULL. Twin of
+ * hl_haar_square (hl_shared.h). */
+void hl_ref_haar_square(float *x, float *o, const uint32_t *slot, uint32_t n);
 
 /* Chooses the kept coefficients of one row (see hl_trunc_result).
  * scratch: g->ncoef entries, contents ignored and overwritten. */
