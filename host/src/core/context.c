@@ -85,7 +85,8 @@ void hl_free_big(void *p) { free(p); }
 
 void hl_release_pages(void *p, size_t bytes)
 {
-    const uintptr_t pg = 4096, a = (uintptr_t)p, b = a + bytes;
+    const long sz = sysconf(_SC_PAGESIZE);
+    const uintptr_t pg = sz > 0 ? (uintptr_t)sz : 4096, a = (uintptr_t)p, b = a + bytes;
     const uintptr_t a2 = (a + pg - 1) / pg * pg, b2 = b / pg * pg;
 #ifdef MADV_DONTNEED
     if (b2 > a2) madvise((void *)a2, b2 - a2, MADV_DONTNEED);

@@ -203,8 +203,10 @@ int hl_cl_light_parts_resident(const hl_cl_light *l);
 uint64_t hl_cl_light_column_bytes(const hl_cl_light *l);
 uint64_t hl_cl_memory_used(const hl_context *ctx);
 /* The largest buffer the context could make now: the device's largest
- * allocation, within what its memory limit leaves. */
+ * allocation, within what its memory limit leaves (hl_cl_memory_free:
+ * UINT64_MAX when there is no limit). */
 uint64_t hl_cl_largest_buffer(const hl_context *ctx);
+uint64_t hl_cl_memory_free(const hl_context *ctx);
 /* The bytes of all the relighter's device buffers (cl_light_probe.c). */
 uint64_t hl_cl_light_device_bytes(const hl_cl_light *l);
 /* The device's read bandwidth: median of reps passes over `bytes`. */

@@ -84,16 +84,18 @@ hl_result hl_cl_adopt_buf(hl_context *ctx, cl_mem *m, size_t bytes, void **host,
 
 uint64_t hl_cl_memory_used(const hl_context *ctx) { return ctx->cl ? ctx->cl->used : 0; }
 
-uint64_t hl_cl_largest_buffer(const hl_context *ctx)
+uint64_t hl_cl_memory_free(const hl_context *ctx)
 {
     const struct hl_cl *cl = ctx->cl;
     if (!cl) return 0;
-    uint64_t n = cl->max_alloc;
-    if (cl->limit) {
-        const uint64_t left = cl->limit > cl->used ? cl->limit - cl->used : 0;
-        n = left < n ? left : n;
-    }
-    return n;
+    if (!cl->limit) return UINT64_MAX;
+    return cl->limit > cl->used ? cl->limit - cl->used : 0;
+}
+
+uint64_t hl_cl_largest_buffer(const hl_context *ctx)
+{
+    const uint64_t left = hl_cl_memory_free(ctx);
+    return ctx->cl && ctx->cl->max_alloc < left ? ctx->cl->max_alloc : left;
 }
 
 hl_result hl_cl_buffer(hl_context *ctx, size_t bytes, void **out)

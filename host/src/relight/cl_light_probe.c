@@ -56,6 +56,7 @@ int hl_cl_light_tile_walk(const hl_cl_light *l, uint32_t rg, double entries, uin
 
 hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
 {
+    if (l->rows) return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "hl_cl_light_bytes_read: a relighter over rows has no columns");
     const size_t nc = l->g->ncoef;
     uint32_t *bits = malloc(nc / 8);
     double *per = malloc((l->nranges ? l->nranges : 1) * sizeof *per);

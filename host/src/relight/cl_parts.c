@@ -75,6 +75,9 @@ static uint32_t group_ranges(hl_cl_light *l, const hl_col_sizes *z, uint64_t ava
             e = n = 0;
             me = er > maxe ? er : maxe;
             mn = maxn > 1 ? maxn : 1;
+            /* the shared buffers take the largest part's entries and the
+               most ranges of any part, which may come from two parts */
+            if (part_bytes(z, me, mn) > avail) return 0;
         }
         e += er;
         n++;
@@ -83,6 +86,19 @@ static uint32_t group_ranges(hl_cl_light *l, const hl_col_sizes *z, uint64_t ava
     }
     pr[++np] = l->nranges;
     return np;
+}
+
+/* On a CPU device, asks for a cut of want ranges a core (at most a tile
+ * each) when that is finer than mult: sets *finer and returns 1. */
+static int cut_finer(const hl_cl_light *l, uint64_t want, uint32_t mult, uint32_t *finer)
+{
+    const struct hl_cl *cl = l->cl;
+    const uint64_t units = cl->units > 1 ? cl->units : 1, tiles = (l->nverts + HL_TILE - 1) / HL_TILE;
+    if (cl->wg != 1 || (uint64_t)l->nranges >= tiles) return 0;
+    if (want * units > tiles) want = (tiles + units - 1) / units;
+    if (want <= mult) return 0;
+    *finer = (uint32_t)want;
+    return 1;
 }
 
 hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t mult, uint32_t *finer)
@@ -113,15 +129,9 @@ hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t
         /* the device holds them all, but no buffer may pass max_alloc:
            parts of their own buffers each, uploaded once; on a CPU device
            first cut finer, so that each part still has a range a core */
-        const uint64_t units = cl->units > 1 ? cl->units : 1, tiles = (l->nverts + HL_TILE - 1) / HL_TILE;
-        if (cl->wg == 1 && mult == 1 && units > 1 && (uint64_t)l->nranges < tiles) {
-            uint64_t want = (whole / cl->max_alloc + 1) * HL_PARTS_RANGES_PER_PART;
-            if (want * units > tiles) want = (tiles + units - 1) / units;
-            if (want > mult) {
-                *finer = (uint32_t)want;
-                return HL_OK;
-            }
-        }
+        if (mult == 1 && cl->units > 1 &&
+            cut_finer(l, (whole / cl->max_alloc + 1) * HL_PARTS_RANGES_PER_PART, mult, finer))
+            return HL_OK;
         l->nparts = group_ranges(l, z, cl->max_alloc, l->part_range);
         l->resident = l->nparts > 0;
         if (l->nparts) return HL_OK;
@@ -131,15 +141,11 @@ hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t
     if (l->nparts) return HL_OK;
     /* one range is too big: on a CPU device cut finer, so that each range
        holds at most 1 / HL_PARTS_RANGES_PER_PART of what is free */
-    const uint64_t units = cl->units > 1 ? cl->units : 1, tiles = (l->nverts + HL_TILE - 1) / HL_TILE;
-    if (cl->wg == 1 && avail && (uint64_t)l->nranges < tiles) {
+    if (avail) {
+        const uint64_t units = cl->units > 1 ? cl->units : 1;
         uint64_t want = (whole / avail + 1) * HL_PARTS_RANGES_PER_PART / units + 1;
         if (want < 2 * (uint64_t)mult) want = 2 * (uint64_t)mult;
-        if (want * units > tiles) want = (tiles + units - 1) / units;
-        if (want > mult) {
-            *finer = (uint32_t)want;
-            return HL_OK;
-        }
+        if (cut_finer(l, want, mult, finer)) return HL_OK;
     }
     const char *lim = cl->limit_set ? " (--device-memory or HL_DEVICE_MEMORY)" : " (the device's)";
     const char *raise = cl->limit_set ? "raise the limit or " : "";

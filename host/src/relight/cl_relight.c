@@ -73,7 +73,8 @@ static hl_result upload_rows(hl_cl_light *l, const hl_transport *t)
     if (!l->order) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the vertex order");
     for (size_t v = 0; v < V; v++) l->order[v] = (uint32_t)v;
     const size_t ebytes = (size_t)(2 * t->info.coefficients_kept);
-    hl_result r = hl_cl_make_buf(ctx, &l->rentries, CL_MEM_READ_ONLY | (l->cl->wg == 1 ? CL_MEM_USE_HOST_PTR : 0),
+    /* in place on a CPU device (no host pointer to use when there are no entries) */
+    hl_result r = hl_cl_make_buf(ctx, &l->rentries, CL_MEM_READ_ONLY | (l->cl->wg == 1 && ebytes ? CL_MEM_USE_HOST_PTR : 0),
                                  ebytes ? ebytes : 4, ebytes ? t->entries : NULL, "the transport's entries");
     if (r == HL_OK)
         r = hl_cl_make_buf(ctx, &l->roffset, CL_MEM_READ_ONLY, (V + 1) * 8, t->row_offset, "the rows' offsets");

@@ -230,16 +230,16 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
         /* the device starts with lg->area, the Haar supports' (an SH
            transport's area weights differ: uploaded when first used) */
         r->uploaded_weights = t->info.basis == HL_TRANSPORT_BASIS_HAAR ? HL_SELECT_AREA : 0u;
+        if (res == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_SH)
+            res = hl_sh_matrix(ctx, t->info.N, t->info.sh_order, 0, &r->shY);
+        if (res == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_CUBE)
+            res = hl_cube_tables_create(ctx, t->info.sh_order, t->info.C, r->lg->wc, r->lg->hc, &r->cube);
         /* from here on the OpenCL relighter reads no entries but the
            columns' (from src once dropped) */
         if (res == HL_OK && drop && src && ctx->backend == HL_BACKEND_OPENCL) {
             hl_free_big(drop->entries);
             drop->entries = NULL;
         }
-        if (res == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_SH)
-            res = hl_sh_matrix(ctx, t->info.N, t->info.sh_order, 0, &r->shY);
-        if (res == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_CUBE)
-            res = hl_cube_tables_create(ctx, t->info.sh_order, t->info.C, r->lg->wc, r->lg->hc, &r->cube);
         if (res == HL_OK && ctx->backend == HL_BACKEND_OPENCL)
             res = rows ? hl_cl_light_create_rows(ctx, r->g, r->lg, t, r->albedo4, &r->cl)
                        : hl_cl_light_create_from(ctx, r->g, r->lg, t, src, r->albedo4, &r->cl);
@@ -271,11 +271,12 @@ hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relight
 hl_result hl_relighter_create_once(hl_context *ctx, hl_transport *t, const char *path, hl_relighter **out)
 {
     if (ctx->backend != HL_BACKEND_OPENCL || !ctx->cl || !t || !t->entries) return hl_relighter_create(ctx, t, out);
-    /* the entries in one buffer, with 64 MiB for the lighting stages'
-       buffers and the colours besides; else the columns (in parts where
-       need be) */
-    const uint64_t bytes = 2 * t->info.coefficients_kept;
-    if (bytes + ((uint64_t)64 << 20) > hl_cl_largest_buffer(ctx))
+    /* the entries in one buffer, and beside them the row table (16 bytes
+       and 2 a block a vertex), albedo and colours (32 a vertex) and 64 MiB
+       for the lighting stages; else the columns (in parts where need be) */
+    const uint64_t V = t->info.vertex_count, bytes = 2 * t->info.coefficients_kept;
+    const uint64_t all = bytes + V * (48 + 2 * (uint64_t)t->info.block_count) + ((uint64_t)64 << 20);
+    if (bytes > hl_cl_largest_buffer(ctx) || all > hl_cl_memory_free(ctx))
         return path ? hl_relighter_create_from_file(ctx, t, path, out) : hl_relighter_create(ctx, t, out);
     return create_src(ctx, t, NULL, NULL, 1, out);
 }

@@ -203,7 +203,6 @@ static hl_result pre_paraboloid(hl_stage_check *c, hl_cl_pipe *pipe, pre_rows *p
                                          (uint64_t)K * nc});
     memcpy(p->Tc, p->Ta, (size_t)K * nc * 4);
     if (c->shT) {
-        memset(p->ca, 0, (size_t)K * nc * 4); /* the projection leaves the slots past order^2 */
         for (uint32_t i = 0; i < K; i++)
             hl_ref_sh_project_rows(p->Tc + (size_t)i * nc, nc, c->shT, c->sh_stride, c->sh_count, p->ca + (size_t)i * nc);
         r = hl_cl_pipe_set_sh(pipe, c->shT, c->sh_stride, c->sh_count);
@@ -399,7 +398,6 @@ static hl_result light_stages(hl_stage_check *c, hl_cl_light *light, const hl_re
                                              (uint64_t)nc * 3});
         memcpy(b->Lb, b->La, (size_t)nc * 12);
         if (c->shL) {
-            memset(b->wa, 0, (size_t)nc * 12); /* the projection leaves the slots past order^2 */
             for (int k = 0; k < 3; k++)
                 hl_ref_sh_project_rows(b->La + (size_t)k * nc, nc, c->shL, c->sh_stride, c->sh_count,
                                        b->wa + (size_t)k * nc);
