@@ -57,7 +57,7 @@ basis)
   scene
   "$bin" bench-basis "$tmp/s.hlt" --env "$data/city.exr" --sky --vertices 64 --terms 25,200,400,all \
     --bytes 20,60,100000 --reps 2 -o "$tmp/out" >"$tmp/stdout.txt" 2>"$tmp/stderr.txt" ||
-    { cat "$tmp/stderr.txt"; fail "bench-basis exited $?"; }
+    { rc=$?; cat "$tmp/stderr.txt"; fail "bench-basis exited $rc"; }
   cat "$tmp/stdout.txt"
   for f in basis.md basis.csv basis.gp basis.svg; do [ -s "$tmp/out/$f" ] || fail "no $f"; done
   ls "$tmp/out" | grep -q tmp && fail "temporary files left: $(ls "$tmp/out")"
@@ -85,7 +85,7 @@ basis)
   for m in city sky; do
     s25=$(awk -F, -v m=$m '$1 == m && $2 == "sh" && $3 == 25 && $4 == "whole" { print $6 }' "$csv")
     s400=$(awk -F, -v m=$m '$1 == m && $2 == "sh" && $3 == 400 && $4 == "whole" { print $6 }' "$csv")
-    hall=$(awk -F, -v m=$m '$1 == m && $2 ~ /^haar/ && $3 == 512 && $4 == "whole" { s += $6 + $7 } END { print s }' "$csv")
+    hall=$(awk -F, -v m=$m '$1 == m && $2 ~ /^haar/ && $3 == 512 && $4 == "whole" { s += $6 + $7; n++ } END { print n == 3 ? s : "missing" }' "$csv")
     call=$(awk -F, -v m=$m '$1 == m && $2 ~ /^cube-haar/ && $3 == 384 && $4 == "whole" { s += $9; n++ } END { print n == 3 ? s : "missing" }' "$csv")
     echo "$m: sh L2 at 25 terms $s25, at 400 $s400; haar at all 512 terms: L2 + max $hall; cube Haar at all 384 against its own exact: $call (tolerance 1e-6)"
     awk -v a="$s400" -v b="$s25" 'BEGIN { exit !(a != "" && a <= b) }' || fail "$m: sh at 400 terms ($s400) above 25 ($s25)"
@@ -100,7 +100,7 @@ basis)
 cube_side)
   scene
   "$bin" bench-basis "$tmp/s.hlt" --sky --vertices 16 --terms all --bytes 1000 --reps 1 --cube-side 4 -q -o "$tmp/out" \
-    >"$tmp/stdout.txt" 2>"$tmp/stderr.txt" || { cat "$tmp/stderr.txt"; fail "bench-basis exited $?"; }
+    >"$tmp/stdout.txt" 2>"$tmp/stderr.txt" || { rc=$?; cat "$tmp/stderr.txt"; fail "bench-basis exited $rc"; }
   n=$(awk -F, '$2 == "cube-haar" && $4 == "whole" { print $3 }' "$tmp/out/basis.csv")
   own=$(awk -F, '$2 == "cube-haar" && $4 == "whole" { print $9 }' "$tmp/out/basis.csv")
   echo "--cube-side 4: $n cube terms, at all of them against its own exact colours $own (tolerance 1e-6)"

@@ -240,10 +240,12 @@ static void t_constant(void)
         for (int i = 0; i < 64 * 3; i++) big = fmax(big, fabs(exact[i]));
         for (hl_basis b = HL_BASIS_CUBE; b <= HL_BASIS_CUBE_TRANSPORT; b++) {
             r = hl_basis_bench_colours(bb, b, n, c);
+            HL_CHECK(r == HL_OK, "%s at every term: %s", hl_basis_name(b), hl_context_last_error(f.ctx));
             for (int i = 0; i < 64 * 3 && r == HL_OK; i++) all = fmax(all, fabs(c[i] - exact[i]));
         }
         /* a constant map has only the six faces' scaling coefficients */
         r = hl_basis_bench_colours(bb, HL_BASIS_CUBE, 6, c);
+        HL_CHECK(r == HL_OK, "cube at 6 terms: %s", hl_context_last_error(f.ctx));
         for (int i = 0; i < 64 * 3 && r == HL_OK; i++) six = fmax(six, fabs(c[i] - exact[i]));
         /* rows cut to bytes: SH's first harmonic alone (8 + 2 + 2 = 12
            bytes) and cube rows cut to nothing (8 + 2 x 2 bytes) */

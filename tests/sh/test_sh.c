@@ -361,12 +361,13 @@ static void t_tool(void)
     if (r == HL_OK) {
         double c[64 * 3], big = 0.0, e1 = 0.0, e400 = 0.0;
         int same = 1;
-        hl_basis_bench_colours(bb, HL_BASIS_SH, 1, c);
+        HL_CHECK(hl_basis_bench_colours(bb, HL_BASIS_SH, 1, c) == HL_OK, "sh at 1 term");
         for (int i = 0; i < 64 * 3; i++) big = fmax(big, fabs(exact[i])), e1 = fmax(e1, fabs(c[i] - exact[i]));
-        hl_basis_bench_colours(bb, HL_BASIS_SH, 400, c);
+        HL_CHECK(hl_basis_bench_colours(bb, HL_BASIS_SH, 400, c) == HL_OK, "sh at 400 terms");
         for (int i = 0; i < 64 * 3; i++) e400 = fmax(e400, fabs(c[i] - exact[i]));
         for (hl_basis b = HL_BASIS_HAAR; b <= HL_BASIS_HAAR_TRANSPORT; b++) {
-            hl_basis_bench_colours(bb, b, hl_basis_bench_count(bb, b), c);
+            HL_CHECK(hl_basis_bench_colours(bb, b, hl_basis_bench_count(bb, b), c) == HL_OK, "%s at every term",
+                     hl_basis_name(b));
             for (int i = 0; i < 64 * 3; i++) same &= c[i] == exact[i];
         }
         HL_CHECK(big > 0.1, "the exact colours are dark (%g)", big);
