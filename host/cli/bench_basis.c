@@ -292,10 +292,12 @@ static void md_heading(FILE *md, const bb_opts *o, const hl_transport_info *in, 
 
 /* The paraboloid's and the cube's exact colours of the n2 vertices k K /
  * n2 against the continuous reference: L2 into out[0], out[1]. */
-static hl_result continuous(hl_basis_bench *bb, const hl_env *env, uint32_t K, uint32_t n2, double out[2])
+static hl_result continuous(hl_context *ctx, hl_basis_bench *bb, const hl_env *env, uint32_t K, uint32_t n2,
+                            double out[2])
 {
     double *cont = malloc((size_t)n2 * 3 * sizeof(double)), *sub = malloc((size_t)n2 * 3 * sizeof(double));
-    hl_result r = cont && sub ? hl_basis_bench_continuous(bb, env, n2, cont) : HL_ERR_OUT_OF_MEMORY;
+    hl_result r = cont && sub ? hl_basis_bench_continuous(bb, env, n2, cont)
+                              : hl_tools_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the continuous reference");
     for (int f = 0; f < 2 && r == HL_OK; f++) {
         const double *ex = hl_basis_bench_exact(bb, f ? HL_BASIS_CUBE : HL_BASIS_HAAR);
         double er[3] = {NAN, NAN, NAN};
@@ -311,7 +313,7 @@ static hl_result continuous(hl_basis_bench *bb, const hl_env *env, uint32_t K, u
 
 /* One map: every basis at every M it has, whole and cut to each budget,
  * rows into the CSV; the figures into res. */
-static hl_result measure_env(hl_basis_bench *bb, const hl_env *env, const char *name, const bb_opts *o, uint32_t K,
+static hl_result measure_env(hl_context *ctx, hl_basis_bench *bb, const hl_env *env, const char *name, const bb_opts *o, uint32_t K,
                              bb_files *fs, double *rgb, bb_results *res, int e)
 {
     const double *exact = NULL;
@@ -322,7 +324,7 @@ static hl_result measure_env(hl_basis_bench *bb, const hl_env *env, const char *
         errors(hl_basis_bench_exact(bb, HL_BASIS_CUBE), exact, K, er);
         res->floor[e] = er[0];
     }
-    if (r == HL_OK && o->K2) r = continuous(bb, env, K, o->K2 < K ? o->K2 : K, res->cont[e]);
+    if (r == HL_OK && o->K2) r = continuous(ctx, bb, env, K, o->K2 < K ? o->K2 : K, res->cont[e]);
     for (int b = 0; b < HL_BASIS_COUNT && r == HL_OK; b++) {
         const hl_basis basis = (hl_basis)b;
         const uint32_t count = hl_basis_bench_count(bb, basis);
@@ -552,7 +554,7 @@ static hl_result run(hl_context *ctx, const bb_opts *o, hl_transport *t, bb_file
     }
     for (int e = 0; e < o->nenvs && r == HL_OK; e++) {
         if (!o->quiet) fprintf(stderr, "bench-basis: %s\n", names[e]);
-        r = measure_env(bb, envs[e], names[e], o, K, fs, rgb, res, e);
+        r = measure_env(ctx, bb, envs[e], names[e], o, K, fs, rgb, res, e);
         for (int b = 0; b < HL_BASIS_COUNT && r == HL_OK; b++)
             for (uint32_t i = 0; i < o->nterms; i++)
                 ms_tot[((size_t)e * HL_BASIS_COUNT + b) * BB_MAX_TERMS + i] =

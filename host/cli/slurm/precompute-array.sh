@@ -125,9 +125,10 @@ merge() {
 # after its end). Polls rather than `sbatch --wait`, which exits 0 even
 # for a cancelled job and sleeps 2, 8, then 32 s between its looks.
 wait_job() {
-  local text state
+  local text state failures=0
   while :; do
     if text="$(scontrol show job -o "$1" 2>&1)"; then
+      failures=0
       state="$(grep -o 'JobState=[A-Z_]*' <<<"$text" | head -n 1 | cut -d= -f2)"
       case "$state" in
         COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|PREEMPTED|BOOT_FAIL|DEADLINE|OUT_OF_MEMORY)
@@ -135,6 +136,9 @@ wait_job() {
       esac
     elif grep -q 'Invalid job id' <<<"$text"; then
       return 0
+    elif [ $((failures += 1)) -ge 30 ]; then # not a restart: say why and give up
+      echo "precompute-array: scontrol cannot report job $1 (30 tries): $text" >&2
+      echo "UNKNOWN"; return 0
     fi # else the controller did not answer (a restart): ask again
     sleep "$2"
   done

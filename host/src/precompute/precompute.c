@@ -71,9 +71,9 @@ hl_result hl_precompute_resolve(hl_context *ctx, hl_precompute_desc *d)
         const uint32_t q = d->cube_side ? d->cube_side : hl_basis_bench_default_cube_side(d->N, d->C);
         if (q < 2 || q > 512 || (q & (q - 1)) || d->C % q || 6 * q * q > 2 * d->N * d->N)
             return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
-                           "cube side %u: must be a power of two from 2 that divides C = %u, with its 6 C'^2 = %u "
+                           "cube side %u: must be a power of two from 2 to 512 that divides C = %u, with its 6 C'^2 "
                            "coefficients at most the 2 N^2 = %u slots of N = %u",
-                           q, d->C, 6 * q * q, 2 * d->N * d->N, d->N);
+                           q, d->C, 2 * d->N * d->N, d->N);
         d->cube_side = q;
     }
     if (d->basis == HL_TRANSPORT_BASIS_HAAR && d->sh_order)
