@@ -313,8 +313,8 @@ static hl_result continuous(hl_context *ctx, hl_basis_bench *bb, const hl_env *e
 
 /* One map: every basis at every M it has, whole and cut to each budget,
  * rows into the CSV; the figures into res. */
-static hl_result measure_env(hl_context *ctx, hl_basis_bench *bb, const hl_env *env, const char *name, const bb_opts *o, uint32_t K,
-                             bb_files *fs, double *rgb, bb_results *res, int e)
+static hl_result measure_env(hl_context *ctx, hl_basis_bench *bb, const hl_env *env, const char *name,
+                             const bb_opts *o, uint32_t K, bb_files *fs, double *rgb, bb_results *res, int e)
 {
     const double *exact = NULL;
     hl_result r = hl_basis_bench_set_env(bb, env, &exact);
