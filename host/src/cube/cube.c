@@ -348,6 +348,16 @@ static hl_result build_taps(hl_context *ctx, hl_cube_tables *ct)
     return r;
 }
 
+void hl_cube_support_areas(uint32_t Cq, float *area)
+{
+    const double h = 2.0 / Cq;
+    for (uint32_t q = 0; q < 6 * Cq * Cq; q++) {
+        uint32_t r0, c0, w;
+        hl_geom_support(Cq, (q / Cq) % Cq, q % Cq, &r0, &c0, &w);
+        area[q] = (float)hl_cube_rect_omega(-1.0 + c0 * h, -1.0 + (c0 + w) * h, -1.0 + r0 * h, -1.0 + (r0 + w) * h);
+    }
+}
+
 hl_result hl_cube_tables_create(hl_context *ctx, uint32_t Cq, uint32_t C, uint32_t wc, uint32_t hc,
                                 hl_cube_tables **out)
 {
@@ -369,11 +379,9 @@ hl_result hl_cube_tables_create(hl_context *ctx, uint32_t Cq, uint32_t C, uint32
     const double h = 2.0 / Cq;
     for (uint32_t q = 0; q < ct->ntex && r == HL_OK; q++) {
         const uint32_t row = (q / Cq) % Cq, col = q % Cq;
-        uint32_t r0, c0, w;
         ct->omega[q] = hl_cube_rect_omega(-1.0 + col * h, -1.0 + (col + 1) * h, -1.0 + row * h, -1.0 + (row + 1) * h);
-        hl_geom_support(Cq, row, col, &r0, &c0, &w);
-        ct->area[q] = (float)hl_cube_rect_omega(-1.0 + c0 * h, -1.0 + (c0 + w) * h, -1.0 + r0 * h, -1.0 + (r0 + w) * h);
     }
+    if (r == HL_OK) hl_cube_support_areas(Cq, ct->area);
     if (r == HL_OK) r = build_taps(ctx, ct);
     if (r != HL_OK) {
         hl_cube_tables_destroy(ct);

@@ -39,6 +39,9 @@ typedef struct hl_cube_tables {
 } hl_cube_tables;
 
 /* Cq: a power of two, 2 to 512, dividing C. */
+/* The solid angle of each face wavelet's support (a square of its face),
+ * in coefficient order: 6 Cq^2 floats into area. */
+void hl_cube_support_areas(uint32_t Cq, float *area);
 hl_result hl_cube_tables_create(hl_context *ctx, uint32_t Cq, uint32_t C, uint32_t wc, uint32_t hc,
                                 hl_cube_tables **out);
 void hl_cube_tables_destroy(hl_cube_tables *ct);

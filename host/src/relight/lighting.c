@@ -408,13 +408,8 @@ hl_result hl_selection_weights(hl_context *ctx, const hl_transport *t, const hl_
         /* each face wavelet's support, a square of its face: its exact
            solid angle; the slots past 6 Cq^2 hold no lighting */
         const uint32_t Cq = t->info.sh_order, nt = 6 * Cq * Cq;
-        const double h = 2.0 / Cq;
-        for (uint32_t i = 0; i < nc; i++) {
-            uint32_t r0, c0, sw;
-            if (i >= nt) { w[i] = 0.0f; continue; }
-            hl_geom_support(Cq, (i / Cq) % Cq, i % Cq, &r0, &c0, &sw);
-            w[i] = (float)hl_cube_rect_omega(-1.0 + c0 * h, -1.0 + (c0 + sw) * h, -1.0 + r0 * h, -1.0 + (r0 + sw) * h);
-        }
+        hl_cube_support_areas(Cq, w);
+        memset(w + nt, 0, (size_t)(nc - nt) * sizeof *w);
         return HL_OK;
     }
     if (scheme == HL_SELECT_AREA) {
