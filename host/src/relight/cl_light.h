@@ -65,6 +65,14 @@ struct hl_cl_light {
     cl_mem Lenv;
 };
 
+/* The addresses of every device buffer of l but the resident parts' (for
+ * the walks that release or count them all): an initializer list. */
+#define HL_CL_LIGHT_BUFFERS(l)                                                                                         \
+    {&(l)->cells, &(l)->turned, &(l)->start, &(l)->runs, &(l)->slots, &(l)->weight, &(l)->Lp, &(l)->Lw, &(l)->Lsel,    \
+     &(l)->used, &(l)->bits, &(l)->res, &(l)->keys, &(l)->col, &(l)->cols, &(l)->rel, &(l)->rstart, &(l)->back,        \
+     &(l)->albedo, &(l)->B, &(l)->acc, &(l)->ord, &(l)->klist, &(l)->Lenv, &(l)->rentries, &(l)->roffset,            \
+     &(l)->rcounts, &(l)->rquant, &(l)->shY, &(l)->cstart, &(l)->cruns}
+
 /* Orders the vertices, cuts them into ranges and uploads t's rows as
  * columns (cl_columns.c): l->order, range_start, nranges, tstride,
  * col_entries, col_start and the buffers col, cols, rel, rstart, back.

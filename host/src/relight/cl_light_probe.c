@@ -15,14 +15,11 @@ uint32_t hl_cl_light_ranges(const hl_cl_light *l) { return l->nranges; }
 
 uint64_t hl_cl_light_device_bytes(const hl_cl_light *l)
 {
-    const cl_mem all[] = {l->cells, l->turned, l->start, l->runs, l->slots, l->weight, l->Lp, l->Lw, l->Lsel, l->used,
-                          l->bits, l->res, l->keys, l->col, l->cols, l->rel, l->rstart, l->back, l->albedo, l->B,
-                          l->acc, l->ord, l->klist, l->Lenv, l->shY, l->cstart, l->cruns, l->rentries, l->roffset,
-                          l->rcounts, l->rquant};
+    const cl_mem *all[] = HL_CL_LIGHT_BUFFERS(l);
     uint64_t sum = 0;
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) {
         size_t bytes = 0;
-        if (all[i] && clGetMemObjectInfo(all[i], CL_MEM_SIZE, sizeof bytes, &bytes, NULL) == CL_SUCCESS) sum += bytes;
+        if (*all[i] && clGetMemObjectInfo(*all[i], CL_MEM_SIZE, sizeof bytes, &bytes, NULL) == CL_SUCCESS) sum += bytes;
     }
     for (size_t i = 0; l->resident && i < 4 * (size_t)l->nparts; i++) {
         size_t bytes = 0;

@@ -20,10 +20,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
 {
     if (!l) return;
     if (l->cl && l->cl->queue) clFinish(l->cl->queue);
-    cl_mem *all[] = {&l->cells, &l->turned, &l->start, &l->runs, &l->slots, &l->weight, &l->Lp, &l->Lw, &l->Lsel, &l->used,
-                     &l->bits, &l->res, &l->keys, &l->col, &l->cols, &l->rel, &l->rstart, &l->back, &l->albedo, &l->B,
-                     &l->acc, &l->ord, &l->klist, &l->Lenv, &l->rentries, &l->roffset, &l->rcounts, &l->rquant,
-                     &l->shY, &l->cstart, &l->cruns};
+    cl_mem *all[] = HL_CL_LIGHT_BUFFERS(l);
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(l->cl, all[i]);
     hl_cl_light_release_parts(l);
     for (int i = 0; i < 4; i++) hl_free_big(l->host[i]);
