@@ -17,33 +17,6 @@
  */
 #pragma OPENCL FP_CONTRACT OFF
 
-/* hl_half_term of half.h: x (a term times 2^-e) rounded to the nearest
- * half, ties to even, as a float. */
-static float hl_rows_half(float x)
-{
-    uint u = as_uint(x), sign = u & 0x80000000u;
-    u &= 0x7fffffffu;
-    float v;
-    if (u >= 0x38800000u) { /* 2^-14 and above: a normal half */
-        uint r = u - (112u << 23);
-        r += 0xfffu + ((r >> 13) & 1u);
-        uint h = r >> 13, ex = (h >> 10) & 31u, m = h & 1023u;
-        v = ldexp((float)(m | 1024u), (int)ex - 25);
-    } else { /* a whole multiple of 2^-24 */
-        v = ldexp(rint(as_float(u) * 16777216.0f), -24);
-    }
-    return sign ? -v : v;
-}
-
-/* hl_half_exponent of half.h: the exponent of the row's largest magnitude. */
-static int hl_rows_exponent(uint scheme, float a, float b)
-{
-    float m = scheme != HL_QUANT_LINEAR8 ? fabs(b) : fmax(fabs(a), fabs(b));
-    int e = 0;
-    if (m > 0.0f && isfinite(m)) frexp(m, &e);
-    return e < -125 ? -125 : e > 125 ? 125 : e;
-}
-
 kernel void hl_relight_rows(global const uchar *entries, global const ulong *row_offset,
                             global const ushort *block_counts, global const float2 *row_quant, uint scheme,
                             uint nblocks, uint ncoef, global const uint *bits,
@@ -53,7 +26,7 @@ kernel void hl_relight_rows(global const uchar *entries, global const ulong *row
     const uint v0 = get_global_id(0) * per;
     for (uint v = v0; v < v0 + per && v < nverts; v++) {
         const float2 q = row_quant[v];
-        const int ex = hl_rows_exponent(scheme, q.x, q.y);
+        const int ex = hl_half_exponent(scheme, q.x, q.y);
         const float inv = ldexp(1.0f, -ex), back = ldexp(1.0f, ex);
         float sr = 0.0f, sg = 0.0f, sb = 0.0f;
         ulong e = row_offset[v];
@@ -73,7 +46,7 @@ kernel void hl_relight_rows(global const uchar *entries, global const ulong *row
                 const uint slot = b * HL_BLOCK + entries[2 * e];
                 if (!((bits[slot >> 5] >> (slot & 31u)) & 1u)) continue;
                 float t = hl_dequant(scheme, entries[2 * e + 1], q.x, q.y, hl_dither_key(v, slot));
-                t = hl_rows_half(t * inv);
+                t = hl_half_value(hl_half_bits(t * inv)); /* hl_half_term of half.h */
                 const float4 l = light[slot];
                 sr = fma(t, l.x, sr);
                 sg = fma(t, l.y, sg);

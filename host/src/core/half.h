@@ -30,45 +30,13 @@
 
 #include "hl_shared.h"
 
-/* e for a row with parameters (a, b): its terms are scaled by 2^-e, and its
- * sums by 2^e (both exact: e is clamped so that 2^e and 2^-e are normal). */
-static inline int hl_half_exponent(uint32_t scheme, float a, float b)
-{
-    float m = scheme != HL_QUANT_LINEAR8 ? fabsf(b) : fmaxf(fabsf(a), fabsf(b));
-    int e = 0;
-    if (m > 0.0f && isfinite(m)) frexpf(m, &e);
-    return e < -125 ? -125 : e > 125 ? 125 : e;
-}
-
-/* The nearest half to x (|x| below 65520; ties to even), as its bits. */
-static inline uint16_t hl_half_bits(float x)
-{
-    uint32_t u;
-    memcpy(&u, &x, 4);
-    uint16_t sign = (uint16_t)((u >> 16) & 0x8000u);
-    u &= 0x7fffffffu;
-    if (u >= 0x38800000u) { /* 2^-14 and above: a normal half */
-        uint32_t r = u - (112u << 23);
-        r += 0xfffu + ((r >> 13) & 1u);
-        return (uint16_t)(sign | (r >> 13));
-    }
-    float a;
-    memcpy(&a, &u, 4);
-    /* a subnormal half: a whole multiple of 2^-24 (the scaling is exact,
-       the rounding to nearest even) */
-    return (uint16_t)(sign | (uint16_t)lrintf(a * 16777216.0f));
-}
-
-static inline float hl_half_value(uint16_t h)
-{
-    uint32_t ex = (h >> 10) & 31u, m = h & 1023u;
-    float v = ex ? ldexpf((float)(m | 1024u), (int)ex - 25) : ldexpf((float)m, -24);
-    return (h & 0x8000u) ? -v : v;
-}
+/* hl_half_exponent, hl_half_bits and hl_half_value are in hl_shared.h,
+ * where the kernel that relights from the rows (relight_rows.cl) uses
+ * them too. */
 
 /* A decoded value t of a row with exponent e as the device holds it (the
  * half of t 2^-e), and as the dot products add it (that half's value). */
-static inline uint16_t hl_half_held(float t, int e) { return hl_half_bits(ldexpf(t, -e)); }
+static inline uint16_t hl_half_held(float t, int e) { return (uint16_t)hl_half_bits(ldexpf(t, -e)); }
 static inline float hl_half_term(float t, int e) { return hl_half_value(hl_half_held(t, e)); }
 
 #endif

@@ -19,9 +19,20 @@
 #define HL_INLINE inline
 #define HL_AS_U32(f) as_uint(f)
 #define HL_AS_F32(u) as_float(u)
+#define HL_FABSF fabs
+#define HL_FMAXF fmax
+#define HL_FREXPF frexp
+#define HL_LDEXPF ldexp
+#define HL_RINTF rint
 #else
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
+#define HL_FABSF fabsf
+#define HL_FMAXF fmaxf
+#define HL_FREXPF frexpf
+#define HL_LDEXPF ldexpf
+#define HL_RINTF rintf
 #define HL_U32 uint32_t
 #define HL_U64 uint64_t
 #define HL_INLINE static inline
@@ -99,6 +110,40 @@ typedef struct hl_row_quant {
     float a;
     float b;
 } hl_row_quant;
+
+/* The terms as the relight's dot products hold them (host/src/core/half.h
+ * says why): e for a row with parameters (a, b), whose terms are scaled by
+ * 2^-e and sums by 2^e (both exact: e is clamped so that 2^e and 2^-e are
+ * normal); the nearest half to x (|x| below 65520; ties to even), as its
+ * bits; and a half's value. */
+HL_INLINE int hl_half_exponent(HL_U32 scheme, float a, float b)
+{
+    float m = scheme != HL_QUANT_LINEAR8 ? HL_FABSF(b) : HL_FMAXF(HL_FABSF(a), HL_FABSF(b));
+    int e = 0;
+    if (m > 0.0f && isfinite(m)) HL_FREXPF(m, &e);
+    return e < -125 ? -125 : e > 125 ? 125 : e;
+}
+
+HL_INLINE HL_U32 hl_half_bits(float x)
+{
+    HL_U32 u = HL_AS_U32(x), sign = (u >> 16) & 0x8000u;
+    u &= 0x7fffffffu;
+    if (u >= 0x38800000u) { /* 2^-14 and above: a normal half */
+        HL_U32 r = u - (112u << 23);
+        r += 0xfffu + ((r >> 13) & 1u);
+        return sign | (r >> 13);
+    }
+    /* a subnormal half: a whole multiple of 2^-24 (the scaling is exact,
+       the rounding to nearest even) */
+    return sign | (HL_U32)HL_RINTF(HL_AS_F32(u) * 16777216.0f);
+}
+
+HL_INLINE float hl_half_value(HL_U32 h)
+{
+    HL_U32 ex = (h >> 10) & 31u, m = h & 1023u;
+    float v = ex ? HL_LDEXPF((float)(m | 1024u), (int)ex - 25) : HL_LDEXPF((float)m, -24);
+    return (h & 0x8000u) ? -v : v;
+}
 
 /* Per-vertex result of the truncation stage. Coefficient i is kept when
  * key_i > thresh, or key_i == thresh and fewer than ties earlier

@@ -258,7 +258,7 @@ static int column_pass(pass_job *j, size_t rg, uint32_t *last, uint8_t *row)
                 float term = hl_dequant(l->scheme, ent[2 * i + 1], q.a, q.b, hl_dither_key((uint32_t)u, (uint32_t)s));
                 /* hl_half_held(term, e), its ldexpf as a multiply by 2^-e:
                    exact powers of two, so the same rounding, 4x faster */
-                ((uint16_t *)(b->col + (size_t)(c[s] - 1) * COL_WORDS))[lane] = hl_half_bits(term * b->inv[v]);
+                ((uint16_t *)(b->col + (size_t)(c[s] - 1) * COL_WORDS))[lane] = (uint16_t)hl_half_bits(term * b->inv[v]);
             }
     }
     for (size_t s = 0; pass == 1 && s < nc; s++) {
