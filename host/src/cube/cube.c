@@ -348,6 +348,18 @@ static hl_result build_taps(hl_context *ctx, hl_cube_tables *ct)
     return r;
 }
 
+void hl_cube_lighting_haar(const hl_cube_tables *ct, const float *cells, uint32_t s0, float f, uint32_t ncoef,
+                           float *Lp, float *Lw)
+{
+    const uint32_t nt = ct->ntex;
+    hl_ref_env2para(cells, ct->wc, ct->tap_start, ct->taps, s0, f, nt, Lp);
+    for (int c = 0; c < 3; c++) {
+        float *w = Lw + (size_t)c * ncoef;
+        hl_cube_haar(ct->Cq, Lp + (size_t)c * nt, w);
+        memset(w + nt, 0, (size_t)(ncoef - nt) * sizeof *w);
+    }
+}
+
 void hl_cube_support_areas(uint32_t Cq, float *area)
 {
     const double h = 2.0 / Cq;

@@ -39,6 +39,13 @@ typedef struct hl_cube_tables {
 } hl_cube_tables;
 
 /* Cq: a power of two, 2 to 512, dividing C. */
+/* A cube-face file's lighting, the twin of its device stages: each face
+ * texel's mean radiance from the environment's cells turned by (s0, f)
+ * (three planes of 6 Cq^2 into Lp, destroyed), then the faces' Haar into
+ * Lw (three planes of ncoef, zero past 6 Cq^2). */
+void hl_cube_lighting_haar(const hl_cube_tables *ct, const float *cells, uint32_t s0, float f, uint32_t ncoef,
+                           float *Lp, float *Lw);
+
 /* The solid angle of each face wavelet's support (a square of its face),
  * in coefficient order: 6 Cq^2 floats into area. */
 void hl_cube_support_areas(uint32_t Cq, float *area);

@@ -449,13 +449,7 @@ static hl_result run_reference(hl_relighter *r, uint32_t s0, float f, hl_select_
     if (r->cube) {
         /* the face texels' mean radiance (3 planes of 6 Cq^2), then each
            face's Haar into the slots: the kernels' twins */
-        const uint32_t Cq = r->cube->Cq, nt = r->cube->ntex;
-        hl_ref_env2para(r->cells, r->lg->wc, r->cube->tap_start, r->cube->taps, s0, f, nt, r->Lp);
-        for (int c = 0; c < 3; c++) {
-            float *Lw = r->Lw + (size_t)c * g->ncoef;
-            hl_cube_haar(Cq, r->Lp + (size_t)c * nt, Lw);
-            memset(Lw + nt, 0, (size_t)(g->ncoef - nt) * sizeof(float));
-        }
+        hl_cube_lighting_haar(r->cube, r->cells, s0, f, g->ncoef, r->Lp, r->Lw);
     } else if (r->sur) {
         /* the surroundings over the environment (or black) */
         if (r->cells) hl_ref_env2para(r->cells, r->lg->wc, r->lg->tap_start, r->lg->taps, s0, f, g->ncoef, r->Lenv);

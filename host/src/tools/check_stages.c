@@ -363,12 +363,8 @@ static hl_result light_dots(hl_stage_check *c, hl_cl_light *light, light_bufs *b
 static hl_result light_cube(hl_stage_check *c, hl_cl_light *light, uint32_t s0, float f, light_bufs *b,
                             hl_check_report_fn report, void *user, int *ok)
 {
-    const uint32_t nc = c->g->ncoef, Cq = c->cube->Cq, nt = c->cube->ntex;
-    hl_ref_env2para(b->cells, c->lg->wc, c->cube->tap_start, c->cube->taps, s0, f, nt, b->La);
-    for (int k = 0; k < 3; k++) {
-        hl_cube_haar(Cq, b->La + (size_t)k * nt, b->wa + (size_t)k * nc);
-        memset(b->wa + (size_t)k * nc + nt, 0, (size_t)(nc - nt) * 4);
-    }
+    const uint32_t nc = c->g->ncoef;
+    hl_cube_lighting_haar(c->cube, b->cells, s0, f, nc, b->La, b->wa);
     hl_result r = hl_cl_light_stage_cube(light, s0, f, b->wb);
     if (r != HL_OK) return r;
     put(report, user, ok, (hl_check_row){"cube faces + haar of the lighting", rel_worst(b->wa, b->wb, (size_t)nc * 3),
