@@ -269,13 +269,16 @@ int hl_tf_row_slots_problem(uint32_t N, uint32_t limit, const uint16_t *counts, 
 {
     if (limit >= slot_total(N)) return 0;
     uint64_t e = 0;
-    for (uint32_t b = 0; b < blocks_for(N); b++)
-        for (uint32_t j = 0; j < counts[b]; j++, e++) {
-            uint32_t slot = b * HL_BLOCK + entries[2 * e];
-            if (slot >= limit)
-                return snprintf(msg, n, "block %u entry %u: slot %u is not below the basis's %u coefficients", b, j,
-                                slot, limit), 1;
-        }
+    /* a block's indices increase (hl_tf_row_problem), so its last entry
+       holds its largest slot */
+    for (uint32_t b = 0; b < blocks_for(N); b++) {
+        e += counts[b];
+        if (!counts[b]) continue;
+        uint32_t slot = b * HL_BLOCK + entries[2 * (e - 1)];
+        if (slot >= limit)
+            return snprintf(msg, n, "block %u entry %u: slot %u is not below the basis's %u coefficients", b,
+                            counts[b] - 1u, slot, limit), 1;
+    }
     return 0;
 }
 

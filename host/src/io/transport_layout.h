@@ -201,10 +201,11 @@ int hl_tf_shard_header_problem(const tf_header *h, const uint8_t bytes[TF_HEADER
 /* A row's quantisation parameters under scheme quant. */
 int hl_tf_row_quant_problem(uint32_t quant, hl_row_quant rq, char *msg, size_t n);
 /* Checks one vertex's block counts and entries. entries may be NULL to
- * check only the counts (the sum is returned in *nnz either way). With
- * entries, every slot must be below limit (tf_slot_limit). */
+ * check only the counts (the sum is returned in *nnz either way). */
 int hl_tf_row_problem(uint32_t N, const uint16_t *counts, const uint8_t *entries, uint64_t *nnz, char *msg,
                       size_t n);
+/* After hl_tf_row_problem passed on the entries: every slot is below limit
+ * (tf_slot_limit), checked on each block's last entry. */
 int hl_tf_row_slots_problem(uint32_t N, uint32_t limit, const uint16_t *counts, const uint8_t *entries, char *msg,
                             size_t n);
 
