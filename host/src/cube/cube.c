@@ -360,6 +360,13 @@ void hl_cube_lighting_haar(const hl_cube_tables *ct, const float *cells, uint32_
     }
 }
 
+uint32_t hl_cube_default_side(uint32_t N, uint32_t C)
+{
+    uint32_t q = N / 2;
+    while (q >= 2 && C % q) q /= 2;
+    return q >= 2 ? q : 0;
+}
+
 void hl_cube_support_areas(uint32_t Cq, float *area)
 {
     const double h = 2.0 / Cq;

@@ -46,6 +46,11 @@ typedef struct hl_cube_tables {
 void hl_cube_lighting_haar(const hl_cube_tables *ct, const float *cells, uint32_t s0, float f, uint32_t ncoef,
                            float *Lp, float *Lw);
 
+/* The default cube side for paraboloids of side N and visibility cubes
+ * of side C: the largest power of two from 2 up to N / 2 (so 6 C'^2 fits
+ * the 2 N^2 slots) that divides C; 0 when there is none. */
+uint32_t hl_cube_default_side(uint32_t N, uint32_t C);
+
 /* The solid angle of each face wavelet's support (a square of its face),
  * in coefficient order: 6 Cq^2 floats into area. */
 void hl_cube_support_areas(uint32_t Cq, float *area);

@@ -68,7 +68,7 @@ hl_result hl_precompute_resolve(hl_context *ctx, hl_precompute_desc *d)
     if (d->basis == HL_TRANSPORT_BASIS_CUBE) {
         /* the largest side that fits the slots and cuts the visibility
            cube into whole texels, as bench-basis chooses it */
-        const uint32_t q = d->cube_side ? d->cube_side : hl_basis_bench_default_cube_side(d->N, d->C);
+        const uint32_t q = d->cube_side ? d->cube_side : hl_cube_default_side(d->N, d->C);
         if (q < 2 || q > 512 || (q & (q - 1)) || d->C % q || 6 * q * q > 2 * d->N * d->N)
             return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                            "cube side %u: must be a power of two from 2 to 512 that divides C = %u, with its 6 C'^2 "

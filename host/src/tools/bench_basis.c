@@ -124,12 +124,7 @@ void hl_basis_bench_destroy(hl_basis_bench *b)
     free(b);
 }
 
-uint32_t hl_basis_bench_default_cube_side(uint32_t N, uint32_t C)
-{
-    uint32_t q = N / 2;
-    while (q >= 2 && C % q) q /= 2;
-    return q >= 2 ? q : 0;
-}
+uint32_t hl_basis_bench_default_cube_side(uint32_t N, uint32_t C) { return hl_cube_default_side(N, C); }
 
 uint32_t hl_basis_bench_cube_side(const hl_basis_bench *b) { return b->Cq; }
 
