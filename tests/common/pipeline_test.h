@@ -60,6 +60,27 @@ static inline void pt_relight(hl_context *ctx, const hl_transport *t, const hl_e
     hl_relighter_destroy(r);
 }
 
+/* Relights t under env (a constant map of radiance c) with M terms on
+ * ctx and measures the colours against the exact ones, c albedo sums[v]:
+ * the worst error over each vertex's bound (albedo times bound[v]; a
+ * vertex with bound 0 must be exact) into *worst, the worst error
+ * relative to the exact colour into *worst_rel. */
+static inline void pt_constant_errors(hl_context *ctx, const hl_transport *t, const hl_mesh *mesh, const hl_env *env,
+                                      uint32_t M, double c, const double *sums, const double *bound, float *rgb,
+                                      double *worst, double *worst_rel)
+{
+    pt_relight(ctx, t, env, M, 0, 0.0f, rgb);
+    *worst = *worst_rel = 0.0;
+    for (uint32_t v = 0; v < t->info.vertex_count; v++)
+        for (int ch = 0; ch < 3; ch++) {
+            const double a = mesh->albedo[3 * (size_t)v + ch], want = c * a * sums[v];
+            const double err = fabs(rgb[3 * (size_t)v + ch] - want);
+            if (bound[v] > 0.0) *worst = fmax(*worst, err / (a * bound[v]));
+            else HL_CHECK(err == 0.0, "vertex %u: %g where the exact colour is 0", v, err);
+            if (want > 0.0) *worst_rel = fmax(*worst_rel, err / want);
+        }
+}
+
 /* Runs `haarlight precompute BUNNY -q --device ref ARGS` into
  * HL_TMP/stem.hlt: its exit status, with stderr's text in err; checks
  * whether an output was written. */

@@ -224,6 +224,12 @@ static void t_constant(void)
     /* a constant map in the faces' Haar: each face's scaling term c C' */
     const double l0 = c * SCENE_SIDE, eps = t->info.eps, q = pt_sqrt8_step();
     float *rgb = malloc((size_t)V * 12);
+    /* per vertex, six terms l0 t_f: each t_f off by at most a sqrt8 step
+       of the row's largest, b, or dropped by the energy rule (the dropped
+       ones' sum at most sqrt(6 eps) |t|); the float sums add 1e-5 */
+    double *bound = malloc((size_t)V * sizeof(double));
+    for (uint32_t v = 0; v < V; v++)
+        bound[v] = l0 * (6.0 * q * t->row_quant[v].b + sqrt(6.0 * eps) * tn[v]) + 1e-5 * l0 * sqrt(6.0) * tn[v];
     static const uint32_t Ms[] = {6, 200, 0, 1};
     for (int backend = 0; backend < 2; backend++) {
         hl_context *ctx = backend ? cl : ref;
@@ -232,23 +238,8 @@ static void t_constant(void)
             continue;
         }
         for (size_t m = 0; m < sizeof Ms / sizeof Ms[0]; m++) {
-            pt_relight(ctx, t, env, Ms[m], 0, 0.0f, rgb);
-            /* per vertex, six terms l0 t_f: each t_f off by at most a
-               sqrt8 step of the row's largest, b, or dropped by the
-               energy rule (the dropped ones' sum at most sqrt(6 eps) |t|);
-               the float sums add 1e-5 */
-            double worst = 0.0, worst_rel = 0.0;
-            for (uint32_t v = 0; v < V; v++) {
-                const double bound = l0 * (6.0 * q * t->row_quant[v].b + sqrt(6.0 * eps) * tn[v]) +
-                                     1e-5 * l0 * sqrt(6.0) * tn[v];
-                for (int ch = 0; ch < 3; ch++) {
-                    const double a = mesh->albedo[3 * (size_t)v + ch], want = c * a * sums[v];
-                    const double err = fabs(rgb[3 * (size_t)v + ch] - want);
-                    if (bound > 0.0) worst = fmax(worst, err / (a * bound));
-                    else HL_CHECK(err == 0.0, "vertex %u: %g where the exact colour is 0", v, err);
-                    if (want > 0.0) worst_rel = fmax(worst_rel, err / want);
-                }
-            }
+            double worst, worst_rel;
+            pt_constant_errors(ctx, t, mesh, env, Ms[m], c, sums, bound, rgb, &worst, &worst_rel);
             char what[160];
             snprintf(what, sizeof what, "%s, M = %s: error over the vertex's bound (sqrt8 step of b, truncation)",
                      backend ? "OpenCL" : "reference", Ms[m] == 0 ? "all" : Ms[m] == 6 ? "6" : Ms[m] == 1 ? "1" : "200");
@@ -261,6 +252,7 @@ static void t_constant(void)
         }
     }
     free(rgb);
+    free(bound);
     free(rgb_in);
     free(idx);
     free(texel);

@@ -214,6 +214,14 @@ static void t_constant(void)
     exact_sh_rows(ref, t, idx, V, tsh, &Ybar, sums);
     const double l0 = c * sqrt(4.0 * HL_PI), eps = t->info.eps, q = pt_sqrt8_step();
     float *rgb = malloc((size_t)V * 12);
+    /* per vertex: the first coefficient is off by at most a sqrt8 step of
+       the row's largest, b, or dropped by the energy rule (then |t_0| <=
+       sqrt(eps) |t|); the float sums add 1e-5 */
+    double *bound = malloc((size_t)V * sizeof(double));
+    for (uint32_t v = 0; v < V; v++) {
+        const double tn = pt_norm2(tsh + (size_t)v * ns, ns);
+        bound[v] = l0 * (q * t->row_quant[v].b + sqrt(eps) * tn) + 1e-5 * l0 * tn;
+    }
     static const uint32_t Ms[] = {1, 200, 0};
     for (int backend = 0; backend < 2; backend++) {
         hl_context *ctx = backend ? cl : ref;
@@ -222,22 +230,8 @@ static void t_constant(void)
             continue;
         }
         for (size_t m = 0; m < sizeof Ms / sizeof Ms[0]; m++) {
-            relight(ctx, t, env, Ms[m], rgb);
-            /* per vertex: the first coefficient is off by at most a sqrt8
-               step of the row's largest, b, or dropped by the energy rule
-               (then |t_0| <= sqrt(eps) |t|); the float sums add 1e-5 */
-            double worst = 0.0, worst_rel = 0.0;
-            for (uint32_t v = 0; v < V; v++) {
-                const double tn = pt_norm2(tsh + (size_t)v * ns, ns);
-                const double bound = l0 * (q * t->row_quant[v].b + sqrt(eps) * tn) + 1e-5 * l0 * tn;
-                for (int ch = 0; ch < 3; ch++) {
-                    const double a = mesh->albedo[3 * (size_t)v + ch], want = c * a * sums[v];
-                    const double err = fabs(rgb[3 * (size_t)v + ch] - want);
-                    if (bound > 0.0) worst = fmax(worst, err / (a * bound));
-                    else HL_CHECK(err == 0.0, "vertex %u: %g where the exact colour is 0", v, err);
-                    if (want > 0.0) worst_rel = fmax(worst_rel, err / want);
-                }
-            }
+            double worst, worst_rel;
+            pt_constant_errors(ctx, t, mesh, env, Ms[m], c, sums, bound, rgb, &worst, &worst_rel);
             char what[160];
             snprintf(what, sizeof what, "%s, M = %s: error over the vertex's bound (sqrt8 step of b, truncation)",
                      backend ? "OpenCL" : "reference", Ms[m] == 1 ? "1" : Ms[m] == 200 ? "200" : "all");
@@ -246,6 +240,7 @@ static void t_constant(void)
         }
     }
     free(rgb);
+    free(bound);
     free(rgb_in);
     free(idx);
     free(tsh);
