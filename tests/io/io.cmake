@@ -19,7 +19,7 @@ hl_test_cases(test_image image io tonemap)
 hl_test_exe(test_transport_file ${CMAKE_CURRENT_LIST_DIR}/test_transport_file.c)
 hl_test_cases(test_transport_file transport_file roundtrip atomic truncated)
 hl_test_exe(test_transport_hostile ${CMAKE_CURRENT_LIST_DIR}/test_transport_hostile.c)
-hl_test_cases(test_transport_hostile transport_hostile corrupt badappend basis cube_basis)
+hl_test_cases(test_transport_hostile transport_hostile corrupt badappend basis cube_basis pieces)
 # Mesh module: loading (native OBJ and assimp), welding, clean-up,
 # orientation, normals, ground plane and bad input; mesh_shared reads the
 # optional shared meshes and skips without them.

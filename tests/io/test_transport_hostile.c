@@ -9,7 +9,8 @@
  * entry at or past L^2, a reserved byte beside them, all refused naming
  * the file and the field; the writer refuses such an entry too, and a
  * spherical-harmonic file within its L^2 slots reads back entry for
- * entry). The header offsets are those of host/FORMAT.md, so this test
+ * entry), pieces (the loader's threaded pieces and row checks, made
+ * small). The header offsets are those of host/FORMAT.md, so this test
  * also pins the documented layout; checksums are forged with the test's
  * own bitwise CRC-32.
  * Depends on: haarlight_core (reference backend only),
@@ -485,6 +486,96 @@ static void case_cube_basis(void)
     small_done(ctx, &s, data, f, path, bad);
 }
 
+/* A byte-swapped pair of indices (now decreasing) in vertex v's entries,
+ * which start at entry off. */
+static void swap_first_pair(uint8_t *f, uint64_t entries_off, uint64_t off)
+{
+    uint8_t *e = f + entries_off + 2 * off, tmp = e[0];
+    e[0] = e[2];
+    e[2] = tmp;
+}
+
+/* The loader's pieces and row chunks made small (HL_TEST_LOAD_PIECE = 64
+ * bytes, HL_TEST_ROW_CHUNK = 3 vertices) on 4 threads: a good file loads
+ * entry for entry (the pieces' checksums joined); a byte changed in the
+ * last piece fails the joined checksum; of two bad rows in different
+ * chunks the lower vertex is named, and a bad block count is named before
+ * bad entries above it but after bad entries below it, as one pass in
+ * vertex order would. */
+static void case_pieces(void)
+{
+    setenv("HL_TEST_LOAD_PIECE", "64", 1);
+    setenv("HL_TEST_ROW_CHUNK", "3", 1);
+    hl_context *ctx = hl_test_ref_context(4);
+    char path[512], bad[512], needle[32];
+    tmp_path(path, sizeof path, "file_pieces_src.hlt");
+    tmp_path(bad, sizeof bad, "file_pieces.hlt");
+    synth s;
+    synth_make(&s, 8, HL_QUANT_SQRT8, 40, 60);
+    static const uint32_t all[] = {1000};
+    hl_result r = synth_write(ctx, path, &s, all, 1);
+    HL_CHECK(r == HL_OK, "write: %s", hl_context_last_error(ctx));
+    uint8_t *data = NULL;
+    size_t size = 0;
+    HL_CHECK(read_file(path, &data, &size) == 0, "read");
+    const uint64_t rows_off = rd64(data + F_ROWS_OFFSET), entries_off = rd64(data + F_ENTRIES_OFFSET);
+    printf("%llu entry bytes: %llu pieces of 64, %u vertices in chunks of 3\n", (unsigned long long)(2 * s.total),
+           (unsigned long long)((2 * s.total + 63) / 64), s.info.vertex_count);
+    HL_CHECK(2 * s.total > 4 * 64, "the file should span at least 5 pieces");
+    hl_transport *t = NULL;
+    r = hl_transport_load(ctx, path, &t);
+    HL_CHECK(r == HL_OK, "load in pieces: %s", hl_context_last_error(ctx));
+    if (t) synth_compare(t, &s, "pieces");
+    hl_transport_destroy(t);
+
+    uint8_t *f = malloc(size);
+    memcpy(f, data, size);
+    f[entries_off + 2 * s.total - 1] ^= 0x55;
+    expect_refused(ctx, bad, f, size, "a byte of the last piece", "checksum mismatch in the entries section");
+
+    /* two rows with two entries or more, in different chunks, and a row
+       before the first */
+    uint32_t a = s.info.vertex_count, b = a;
+    uint64_t off = 0, offa = 0, offb = 0;
+    for (uint32_t v = 0; v < s.info.vertex_count; off += s.nnz[v], v++) {
+        if (s.nnz[v] < 2 || v < 4) continue;
+        if (a == s.info.vertex_count) a = v, offa = off;
+        else if (b == s.info.vertex_count && v / 3 > a / 3) b = v, offb = off;
+    }
+    HL_CHECK(b < s.info.vertex_count, "the file needs two rows of two entries in different chunks past vertex 3");
+    if (b < s.info.vertex_count) {
+        memcpy(f, data, size);
+        swap_first_pair(f, entries_off, offa);
+        swap_first_pair(f, entries_off, offb);
+        fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
+        snprintf(needle, sizeof needle, "vertex %u:", a);
+        expect_refused(ctx, bad, f, size, "bad entries in two chunks", needle);
+        memcpy(f, data, size);
+        swap_first_pair(f, entries_off, offb);
+        fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
+        f[rows_off + 10 * 1 + 8] = 129; /* vertex 1: 129 entries in a 128-slot block */
+        f[rows_off + 10 * 1 + 9] = 0;
+        fix_section_crc(f, F_ROWS_OFFSET, F_ROWS_CRC);
+        expect_refused(ctx, bad, f, size, "a bad count below bad entries", "vertex 1:");
+        memcpy(f, data, size);
+        swap_first_pair(f, entries_off, offa);
+        fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
+        f[rows_off + 10 * b + 8] = 129;
+        f[rows_off + 10 * b + 9] = 0;
+        fix_section_crc(f, F_ROWS_OFFSET, F_ROWS_CRC);
+        snprintf(needle, sizeof needle, "vertex %u:", a);
+        expect_refused(ctx, bad, f, size, "bad entries below a bad count", needle);
+    }
+    free(f);
+    free(data);
+    remove(bad);
+    remove(path);
+    synth_free(&s);
+    hl_context_destroy(ctx);
+    unsetenv("HL_TEST_LOAD_PIECE");
+    unsetenv("HL_TEST_ROW_CHUNK");
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
@@ -492,6 +583,7 @@ int main(int argc, char **argv)
         {"badappend", case_badappend},
         {"basis", case_basis},
         {"cube_basis", case_cube_basis},
+        {"pieces", case_pieces},
         {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);

@@ -18,6 +18,7 @@
 #include <fcntl.h>
 #include <inttypes.h>
 #include <math.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -72,35 +73,107 @@ static hl_result read_range(tf_reader *rd, void *dst, uint64_t bytes, uint64_t o
     return HL_OK;
 }
 
-/* The entries are read in pieces of this many bytes, the checksum taken
- * piece by piece while they are in cache (one pass over memory, not two),
- * and a file this big or bigger shows a progress line. */
+/* The entries are read in pieces of this many bytes, each piece's
+ * checksum taken while it is in cache (one pass over memory, not two), and
+ * a file this big or bigger shows a progress line. */
 #define TF_LOAD_PIECE ((size_t)64 << 20)
 #define TF_LOAD_PROGRESS ((uint64_t)256 << 20)
+
+/* The pieces are taken in turn by the context's threads, so the kernel's
+ * zeroing of the fresh pages, the copy and the checksum spread over the
+ * cores (on the 1.28 GB dragon they were a single core's 2 s); the pieces'
+ * CRCs are then joined in file order (zlib's crc32_combine), the CRC one
+ * pass would give. */
+/* Tests: smaller pieces (HL_TEST_LOAD_PIECE bytes) and row chunks
+ * (HL_TEST_ROW_CHUNK vertices), so that a small file takes the joined
+ * checksums and the threaded row checks. */
+static size_t test_size(const char *name, size_t normal)
+{
+    const char *s = getenv(name);
+    const unsigned long long v = s ? strtoull(s, NULL, 10) : 0;
+    return v > 0 && v < normal ? (size_t)v : normal;
+}
+
+typedef struct load_job {
+    tf_reader *rd;
+    uint8_t *dst;
+    uint64_t bytes, off;
+    size_t piece, npieces;
+    uint32_t *crc; /* per piece */
+    int *status;   /* per piece: 0 read, an errno, or -1 short */
+    int show;
+    double t0;
+    atomic_size_t next;
+    atomic_uint_fast64_t done;
+    atomic_int failed, printing;
+} load_job;
+
+static void *load_worker(void *arg)
+{
+    load_job *j = arg;
+    for (size_t p; !atomic_load(&j->failed) && (p = atomic_fetch_add(&j->next, 1)) < j->npieces;) {
+        const uint64_t at = (uint64_t)p * j->piece;
+        const size_t n = j->bytes - at < j->piece ? (size_t)(j->bytes - at) : j->piece;
+        const int k = hl_tf_pread_all(j->rd->fd, j->dst + at, n, j->off + at);
+        if (k != 0) {
+            j->status[p] = k < 0 ? (errno ? errno : EIO) : -1;
+            atomic_store(&j->failed, 1);
+            break;
+        }
+        j->crc[p] = crc_update(0, j->dst + at, n);
+        const uint64_t done = atomic_fetch_add(&j->done, n) + n;
+        if (j->show && done < j->bytes && !atomic_exchange(&j->printing, 1)) {
+            const double el = hl_now() - j->t0, mb = (double)done * 1e-6;
+            fprintf(stderr, "\rloading %s: %.0f of %.0f MB (%.0f MB/s)   ", j->rd->path, mb, (double)j->bytes * 1e-6,
+                    el > 0 ? mb / el : 0.0);
+            atomic_store(&j->printing, 0);
+        }
+    }
+    return NULL;
+}
 
 /* The entries section into dst, its CRC into *crc, with a progress line
  * on a terminal for a big file (not with the context's quiet flag). */
 static hl_result read_entries(tf_reader *rd, uint8_t *dst, uint64_t bytes, uint64_t off, uint32_t *crc)
 {
-    const int show = !rd->ctx->quiet && bytes >= TF_LOAD_PROGRESS && isatty(2);
-    const double t0 = hl_now();
-    uint32_t c = 0;
-    for (uint64_t done = 0; done < bytes;) {
-        const size_t n = bytes - done < TF_LOAD_PIECE ? (size_t)(bytes - done) : TF_LOAD_PIECE;
-        hl_result r = read_range(rd, dst + done, n, off + done, "entries section");
-        if (r != HL_OK) return r;
-        c = crc_update(c, dst + done, n);
-        done += n;
-        if (show) {
-            const double el = hl_now() - t0;
-            const double mb = (double)done * 1e-6;
-            fprintf(stderr, "\rloading %s: %.0f of %.0f MB (%.0f MB/s)   ", rd->path, mb, (double)bytes * 1e-6,
-                    el > 0 ? mb / el : 0.0);
-            if (done == bytes) fputc('\n', stderr);
-        }
+    if (bytes > SIZE_MAX) return hl_fail(rd->ctx, HL_ERR_OUT_OF_MEMORY, "%s: entries section too large for this host", rd->path);
+    load_job j = {.rd = rd, .dst = dst, .bytes = bytes, .off = off, .piece = test_size("HL_TEST_LOAD_PIECE", TF_LOAD_PIECE)};
+    j.npieces = (size_t)((bytes + j.piece - 1) / j.piece);
+    j.show = !rd->ctx->quiet && bytes >= TF_LOAD_PROGRESS && isatty(2);
+    j.t0 = hl_now();
+    j.crc = hl_calloc(rd->ctx, j.npieces ? j.npieces : 1, sizeof *j.crc, "the entries' checksums");
+    j.status = hl_calloc(rd->ctx, j.npieces ? j.npieces : 1, sizeof *j.status, "the entries' checksums");
+    if (!j.crc || !j.status) {
+        free(j.crc);
+        free(j.status);
+        return HL_ERR_OUT_OF_MEMORY;
     }
+    atomic_init(&j.next, 0);
+    atomic_init(&j.done, 0);
+    atomic_init(&j.failed, 0);
+    atomic_init(&j.printing, 0);
+    const int threads = hl_context_threads(rd->ctx);
+    hl_run_threads(threads < (int)j.npieces ? threads : (int)j.npieces, load_worker, &j);
+    hl_result r = HL_OK;
+    uint32_t c = 0;
+    for (size_t p = 0; p < j.npieces && r == HL_OK; p++) {
+        const uint64_t at = (uint64_t)p * j.piece;
+        if (j.status[p] > 0)
+            r = hl_fail(rd->ctx, HL_ERR_IO, "%s: cannot read the entries section: %s", rd->path, strerror(j.status[p]));
+        else if (j.status[p] < 0)
+            r = hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: truncated while reading the entries section (file shrank?)", rd->path);
+        else
+            c = p ? (uint32_t)crc32_combine(c, j.crc[p], (z_off_t)(bytes - at < j.piece ? bytes - at : j.piece))
+                  : j.crc[0];
+    }
+    if (r == HL_OK && j.show) {
+        const double el = hl_now() - j.t0, mb = (double)bytes * 1e-6;
+        fprintf(stderr, "\rloading %s: %.0f of %.0f MB (%.0f MB/s)   \n", rd->path, mb, mb, el > 0 ? mb / el : 0.0);
+    }
+    free(j.crc);
+    free(j.status);
     *crc = c;
-    return HL_OK;
+    return r;
 }
 
 static hl_result check_crc(tf_reader *rd, int sec, uint32_t stored, uint32_t computed)
@@ -240,31 +313,83 @@ static hl_result read_rows(tf_reader *rd, const tf_header *h, hl_transport *t)
     return check_crc(rd, SEC_ROWS, sec->crc, crc);
 }
 
+/* The rows' entries checked by the context's threads: vertices in chunks
+ * taken in turn, each chunk stopping at its first bad row; the lowest bad
+ * vertex is reported, as a single pass would. */
+typedef struct row_job {
+    const hl_transport *t;
+    uint32_t nv, per, nchunks; /* vertices 0 .. nv - 1 */
+    uint32_t *bad;             /* per chunk: its first bad vertex, or nv */
+    char (*msg)[256];          /* per chunk: what is wrong there */
+    atomic_uint next;
+} row_job;
+
+static void *row_worker(void *arg)
+{
+    row_job *j = arg;
+    const hl_transport_info *i = &j->t->info;
+    const uint32_t B = i->block_count, limit = tf_slot_limit(i);
+    for (uint32_t c; (c = atomic_fetch_add(&j->next, 1u)) < j->nchunks;) {
+        j->bad[c] = j->nv;
+        for (uint32_t v = c * j->per; v < j->nv && v < (c + 1) * j->per; v++) {
+            const uint16_t *counts = j->t->block_counts + (size_t)v * B;
+            const uint8_t *e = j->t->entries + 2 * j->t->row_offset[v];
+            uint64_t nnz;
+            if (hl_tf_row_problem(i->N, counts, e, &nnz, j->msg[c], sizeof j->msg[c]) ||
+                hl_tf_row_slots_problem(i->N, limit, counts, e, j->msg[c], sizeof j->msg[c])) {
+                j->bad[c] = v;
+                break;
+            }
+        }
+    }
+    return NULL;
+}
+
 /* Derives row_offset and checks every row against the entries. Runs after
  * all checksums, so it reports structure errors in files that are intact
- * but were written wrongly. */
+ * but were written wrongly. The counts and offsets first, in order (a bad
+ * one stops there); then the entries of the rows before it, on the
+ * context's threads. */
 static hl_result validate_rows(tf_reader *rd, hl_transport *t)
 {
     const hl_transport_info *i = &t->info;
-    uint32_t B = i->block_count;
+    uint32_t B = i->block_count, first = i->vertex_count; /* the first row whose counts are bad */
     uint64_t off = 0;
-    char msg[256];
-    for (uint32_t v = 0; v < i->vertex_count; v++) {
+    char msg[256] = "";
+    for (uint32_t v = 0; v < i->vertex_count && first == i->vertex_count; v++) {
         t->row_offset[v] = off;
         uint64_t nnz = 0;
         const uint16_t *counts = t->block_counts + (size_t)v * B;
-        if (hl_tf_row_quant_problem(i->quant, t->row_quant[v], msg, sizeof msg))
-            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, v, msg);
-        if (hl_tf_row_problem(i->N, counts, NULL, &nnz, msg, sizeof msg))
-            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, v, msg);
-        if (nnz > i->coefficients_kept - off)
-            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: block counts run past coefficients_kept = %" PRIu64,
-                           rd->path, v, i->coefficients_kept);
-        if (hl_tf_row_problem(i->N, counts, t->entries + 2 * off, &nnz, msg, sizeof msg) ||
-            hl_tf_row_slots_problem(i->N, tf_slot_limit(i), counts, t->entries + 2 * off, msg, sizeof msg))
-            return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, v, msg);
-        off += nnz;
+        if (hl_tf_row_quant_problem(i->quant, t->row_quant[v], msg, sizeof msg) ||
+            hl_tf_row_problem(i->N, counts, NULL, &nnz, msg, sizeof msg))
+            first = v;
+        else if (nnz > i->coefficients_kept - off)
+            first = v, snprintf(msg, sizeof msg, "block counts run past coefficients_kept = %" PRIu64, i->coefficients_kept);
+        else
+            off += nnz;
     }
+    row_job j = {.t = t, .nv = first, .per = (uint32_t)test_size("HL_TEST_ROW_CHUNK", 8192)};
+    j.nchunks = (first + j.per - 1) / j.per;
+    atomic_init(&j.next, 0u);
+    j.bad = hl_calloc(rd->ctx, j.nchunks ? j.nchunks : 1, sizeof *j.bad, "the row checks");
+    j.msg = hl_calloc(rd->ctx, j.nchunks ? j.nchunks : 1, sizeof *j.msg, "the row checks");
+    if (!j.bad || !j.msg) {
+        free(j.bad);
+        free(j.msg);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    const int threads = hl_context_threads(rd->ctx);
+    if (j.nchunks) hl_run_threads(threads < (int)j.nchunks ? threads : (int)j.nchunks, row_worker, &j);
+    uint32_t c = 0;
+    while (c < j.nchunks && j.bad[c] == first) c++;
+    hl_result r = HL_OK;
+    if (c < j.nchunks)
+        r = hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, j.bad[c], j.msg[c]);
+    else if (first < i->vertex_count)
+        r = hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, first, msg);
+    free(j.bad);
+    free(j.msg);
+    if (r != HL_OK) return r;
     t->row_offset[i->vertex_count] = off;
     if (off != i->coefficients_kept)
         return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: block counts of all vertices sum to %" PRIu64
