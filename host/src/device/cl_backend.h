@@ -129,9 +129,15 @@ struct hl_capture_scene;
 hl_result hl_cl_light_set_capture(hl_cl_light *l, struct hl_capture *cap, const struct hl_capture_scene *scene,
                                   int with_env);
 /* A lighting change in one submission: env2para, Haar of R, G, B,
- * selection, dot products; B4 gets 4 floats per vertex. */
-hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, float *B4,
+ * selection, dot products; *B4 points at the colours, 4 floats per
+ * vertex, valid until the next call that enqueues work on l (or its
+ * destruction): l's colour buffer mapped for reading, which on a CPU
+ * device is its own memory, read in place. */
+hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, const float **B4,
                           hl_select_result *res);
+/* The last colours again, as hl_cl_light_run gave them (mapped anew
+ * where something has run since). */
+hl_result hl_cl_light_colours(hl_cl_light *l, const float **B4);
 /* As hl_cl_light_run, but the colours (4 floats per vertex) go to out, a
  * cl_mem of this context holding at least that many bytes, and nothing is
  * read back but the selection's result. With gl set, out came from

@@ -28,6 +28,7 @@ struct hl_cl_light {
     cl_mem cstart, cruns;                           /* cube-face Haar: the face texels' taps (NULL: none) */
     uint32_t cube;                                  /* the faces' side; 0: none */
     cl_mem col, cols, rel, rstart, back, albedo, B, acc; /* transport, by column */
+    const float *Bmap;                              /* B mapped for reading (NULL: not mapped) */
     cl_mem ord, klist;                              /* vertex at each position; kept slots */
     void *host[4];                                  /* CPU devices: their memory */
     uint32_t nranges, *range_start;                 /* vertices of each work-item */

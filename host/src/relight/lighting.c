@@ -45,7 +45,8 @@ struct hl_relighter {
     float *weights[HL_SELECT_TRANSPORT + 1]; /* per scheme, made when first asked */
     uint32_t uploaded_weights;
     double max_row_norm;    /* max over vertices of |T_v| */
-    float *B4;
+    float *B4;              /* the reference's colours (NULL on OpenCL) */
+    const float *rgba;      /* the last colours: B4, or the device's, mapped */
     float *shY;             /* spherical harmonics: the lighting's projection; NULL: Haar */
     hl_cube_tables *cube;   /* cube-face Haar: the face texels' taps; NULL: none */
     float *Lp, *Lw, *Lsel;  /* reference scratch */
@@ -53,7 +54,7 @@ struct hl_relighter {
     uint32_t *bits;
     hl_ref_key *keys;       /* hl_ref_select's scratch */
     int have_last;
-    void *last_out;         /* where the last colours went: NULL for B4 */
+    void *last_out;         /* where the last colours went: NULL for rgba */
     hl_relight_desc last;
     uint64_t last_serial;
     hl_relight_stats last_stats;
@@ -245,14 +246,16 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
     const uint32_t nc = r->g ? r->g->ncoef : 0;
     if (res == HL_OK) {
         r->albedo4 = hl_malloc(ctx, (size_t)V * 16, "albedo");
-        r->B4 = hl_malloc(ctx, (size_t)V * 16, "vertex colours");
+        /* OpenCL: the colours are read where the device wrote them */
+        r->B4 = ctx->backend == HL_BACKEND_OPENCL ? NULL : hl_malloc(ctx, (size_t)V * 16, "vertex colours");
         r->Lp = hl_malloc(ctx, (size_t)nc * 12, "lighting");
         r->Lw = hl_malloc(ctx, (size_t)nc * 12, "lighting");
         r->Lsel = hl_malloc(ctx, (size_t)nc * 16, "lighting");
         r->used = hl_malloc(ctx, r->g->nblocks, "block flags");
         r->bits = hl_malloc(ctx, (size_t)nc / 8, "kept-slot bits");
         r->keys = hl_malloc(ctx, (size_t)nc * sizeof *r->keys, "the selection's sort keys");
-        if (!r->albedo4 || !r->B4 || !r->Lp || !r->Lw || !r->Lsel || !r->used || !r->bits || !r->keys)
+        if (!r->albedo4 || (!r->B4 && ctx->backend != HL_BACKEND_OPENCL) || !r->Lp || !r->Lw || !r->Lsel ||
+            !r->used || !r->bits || !r->keys)
             res = HL_ERR_OUT_OF_MEMORY;
     }
     if (res == HL_OK) {
@@ -529,7 +532,7 @@ static void negative_light(const float *B4, uint32_t V, hl_relight_stats *st)
     st->most_negative = hi > 0.0f ? (double)lo / hi : (lo < 0.0f ? -1.0 : 0.0);
 }
 
-/* A lighting change, its colours into B4 (and from there into vertex_rgb
+/* A lighting change, its colours into rgba (and from there into vertex_rgb
  * when given) or, with out set, into that device buffer
  * (hl_cl_light_run_into). */
 static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb, void *out, int gl,
@@ -557,6 +560,10 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         r->last.keep_negative == d.keep_negative) {
         st = r->last_stats;
         st.reused = 1;
+        if (!out && r->cl) {
+            hl_result res = hl_cl_light_colours(r->cl, &r->rgba);
+            if (res != HL_OK) return res;
+        }
     } else {
         const float *weight = NULL;
         hl_result res = scheme_weights(r, d.select, &weight);
@@ -569,15 +576,16 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         hl_rotation_to_shift(d.rotate_deg, r->lg->wc, &s0, &f);
         hl_select_params sp = {d.terms, d.select, {0, 0}};
         hl_select_result sr;
-        r->have_last = 0; /* B4 or out may be half written on failure */
+        r->have_last = 0; /* rgba or out may be half written on failure */
         if (r->cl) hl_cl_light_keep_negative(r->cl, d.keep_negative);
         if (res == HL_OK && r->cl) res = hl_cl_light_set_capture(r->cl, r->sur ? r->cap : NULL, &r->cscene, r->cells != NULL);
         if (res == HL_OK && out) res = hl_cl_light_run_into(r->cl, s0, f, sp, out, gl, &sr);
         else if (res == HL_OK)
-            res = r->cl ? hl_cl_light_run(r->cl, s0, f, sp, r->B4, &sr)
+            res = r->cl ? hl_cl_light_run(r->cl, s0, f, sp, &r->rgba, &sr)
                         : run_reference(r, s0, f, sp, weight, d.keep_negative, &sr);
         if (res != HL_OK) return res;
-        if (!out) negative_light(r->B4, V, &st);
+        if (!r->cl) r->rgba = r->B4;
+        if (!out) negative_light(r->rgba, V, &st);
         double et = sr.energy_total, ek = sr.energy_kept;
         st.terms_kept = sr.kept;
         st.energy_kept = et > 0 ? ek / et : 1.0;
@@ -592,7 +600,7 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
     }
     if (vertex_rgb)
         for (uint32_t v = 0; v < V; v++)
-            for (int c = 0; c < 3; c++) vertex_rgb[3 * (size_t)v + c] = r->B4[4 * (size_t)v + c];
+            for (int c = 0; c < 3; c++) vertex_rgb[3 * (size_t)v + c] = r->rgba[4 * (size_t)v + c];
     st.seconds = hl_now() - t0;
     if (stats) *stats = st;
     return HL_OK;
@@ -606,7 +614,7 @@ hl_result hl_relighter_run(hl_relighter *r, const hl_relight_desc *desc, float *
 hl_result hl_relighter_run4(hl_relighter *r, const hl_relight_desc *desc, const float **rgba, hl_relight_stats *stats)
 {
     hl_result res = run(r, desc, NULL, NULL, 0, stats);
-    *rgba = res == HL_OK ? r->B4 : NULL;
+    *rgba = res == HL_OK ? r->rgba : NULL;
     return res;
 }
 

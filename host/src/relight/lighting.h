@@ -36,7 +36,9 @@ void hl_rotation_to_shift(float rotate_deg, uint32_t wc, uint32_t *s0, float *f)
 
 /* hl_relighter_run with the colours left in the relighter: *rgba points at
  * 4 floats per vertex (the fourth: the lowest channel before the clamp at
- * zero, or 0), valid until the next run or destroy.
+ * zero, or 0), valid until the next run, anything else that runs on
+ * the relighter's device (the bench probes) or destroy: on the OpenCL
+ * backend the device's own colour buffer, mapped for reading.
  * Saves the copy to 3 floats where the caller wants 4 (the viewer's GL
  * buffer). */
 hl_result hl_relighter_run4(hl_relighter *r, const hl_relight_desc *desc, const float **rgba, hl_relight_stats *stats);
