@@ -187,6 +187,7 @@ int vw_dyn_load(viewer *v, int *rc)
         cli_fail(v->ctx, HL_ERR_IO);
         return 0;
     }
+    v->t_path = hlt;
     hl_result r = scene_is_hlt ? hl_dynamic_create_from_mesh(v->ctx, v->t->mesh, 0, &y->desc, &y->d)
                                : hl_dynamic_create_from_file(v->ctx, v->scene, y->ground, &y->desc, &y->d);
     if (r != HL_OK) {

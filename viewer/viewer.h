@@ -182,6 +182,8 @@ typedef struct viewer {
 
     hl_context *ctx;
     hl_transport *t;     /* NULL with --dynamic and no transport */
+    const char *t_path;  /* the file t was loaded from */
+    hl_transport *t_rows; /* t loaded again for a second try at the relighter (make_relighter) */
     const hl_mesh *mesh; /* the mesh drawn: the transport's or the dynamic scene's */
     vw_dyn dy;
     vw_sur su;
