@@ -73,6 +73,15 @@ static void small_done(hl_context *ctx, synth *s, uint8_t *data, uint8_t *f, con
     hl_context_destroy(ctx);
 }
 
+/* Vertex v of an N = 8 file (row records of 8 + 2 bytes) claims 129
+ * entries in its 128-slot block; the rows' checksum made to match. */
+static void overfill_count(uint8_t *f, uint64_t rows_off, uint32_t v)
+{
+    f[rows_off + 10 * (uint64_t)v + 8] = 129;
+    f[rows_off + 10 * (uint64_t)v + 9] = 0;
+    fix_section_crc(f, F_ROWS_OFFSET, F_ROWS_CRC);
+}
+
 static void case_corrupt(void)
 {
     hl_context *ctx = make_ctx();
@@ -176,9 +185,7 @@ static void case_corrupt(void)
 
     /* row records: 8 + 2 bytes for N = 8 */
     memcpy(f, data, size);
-    f[rows_off + 10 * 2 + 8] = 129; /* vertex 2: 129 entries in a 128-slot block */
-    f[rows_off + 10 * 2 + 9] = 0;
-    fix_section_crc(f, F_ROWS_OFFSET, F_ROWS_CRC);
+    overfill_count(f, rows_off, 2);
     expect_refused(ctx, bad, f, size, "count over slots", "vertex 2");
     memcpy(f, data, size);
     f[rows_off + 10 * 0 + 8] += 1; /* vertex 0 is empty; now it claims an entry */
@@ -486,13 +493,14 @@ static void case_cube_basis(void)
     small_done(ctx, &s, data, f, path, bad);
 }
 
-/* A byte-swapped pair of indices (now decreasing) in vertex v's entries,
- * which start at entry off. */
-static void swap_first_pair(uint8_t *f, uint64_t entries_off, uint64_t off)
+/* The first two indices of the row whose entries start at entry off
+ * swapped (now decreasing); the entries' checksum made to match. */
+static void unorder_row(uint8_t *f, uint64_t entries_off, uint64_t off)
 {
     uint8_t *e = f + entries_off + 2 * off, tmp = e[0];
     e[0] = e[2];
     e[2] = tmp;
+    fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
 }
 
 /* The loader's pieces and row chunks made small (HL_TEST_LOAD_PIECE = 64
@@ -545,24 +553,17 @@ static void case_pieces(void)
     HL_CHECK(b < s.info.vertex_count, "the file needs two rows of two entries in different chunks past vertex 3");
     if (b < s.info.vertex_count) {
         memcpy(f, data, size);
-        swap_first_pair(f, entries_off, offa);
-        swap_first_pair(f, entries_off, offb);
-        fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
+        unorder_row(f, entries_off, offa);
+        unorder_row(f, entries_off, offb);
         snprintf(needle, sizeof needle, "vertex %u:", a);
         expect_refused(ctx, bad, f, size, "bad entries in two chunks", needle);
         memcpy(f, data, size);
-        swap_first_pair(f, entries_off, offb);
-        fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
-        f[rows_off + 10 * 1 + 8] = 129; /* vertex 1: 129 entries in a 128-slot block */
-        f[rows_off + 10 * 1 + 9] = 0;
-        fix_section_crc(f, F_ROWS_OFFSET, F_ROWS_CRC);
+        unorder_row(f, entries_off, offb);
+        overfill_count(f, rows_off, 1);
         expect_refused(ctx, bad, f, size, "a bad count below bad entries", "vertex 1:");
         memcpy(f, data, size);
-        swap_first_pair(f, entries_off, offa);
-        fix_section_crc(f, F_ENTRIES_OFFSET, F_ENTRIES_CRC);
-        f[rows_off + 10 * b + 8] = 129;
-        f[rows_off + 10 * b + 9] = 0;
-        fix_section_crc(f, F_ROWS_OFFSET, F_ROWS_CRC);
+        unorder_row(f, entries_off, offa);
+        overfill_count(f, rows_off, b);
         snprintf(needle, sizeof needle, "vertex %u:", a);
         expect_refused(ctx, bad, f, size, "bad entries below a bad count", needle);
     }

@@ -94,6 +94,26 @@ static size_t test_size(const char *name, size_t normal)
     return v > 0 && v < normal ? (size_t)v : normal;
 }
 
+/* Two zeroed tables of n entries each (of sa and sb bytes) for a threaded
+ * pass; 0, with neither kept, when out of memory. */
+static int job_tables(hl_context *ctx, size_t n, size_t sa, void **a, size_t sb, void **b, const char *what)
+{
+    *a = hl_calloc(ctx, n ? n : 1, sa, what);
+    *b = *a ? hl_calloc(ctx, n ? n : 1, sb, what) : NULL;
+    if (!*b) {
+        free(*a);
+        *a = NULL;
+    }
+    return *b != NULL;
+}
+
+/* fn on the context's threads, no more threads than items. */
+static void run_on_threads(hl_context *ctx, size_t items, void *(*fn)(void *), void *arg)
+{
+    const int threads = hl_context_threads(ctx);
+    if (items) hl_run_threads((size_t)threads < items ? threads : (int)items, fn, arg);
+}
+
 typedef struct load_job {
     tf_reader *rd;
     uint8_t *dst;
@@ -141,19 +161,16 @@ static hl_result read_entries(tf_reader *rd, uint8_t *dst, uint64_t bytes, uint6
     j.npieces = (size_t)((bytes + j.piece - 1) / j.piece);
     j.show = !rd->ctx->quiet && bytes >= TF_LOAD_PROGRESS && isatty(2);
     j.t0 = hl_now();
-    j.crc = hl_calloc(rd->ctx, j.npieces ? j.npieces : 1, sizeof *j.crc, "the entries' checksums");
-    j.status = hl_calloc(rd->ctx, j.npieces ? j.npieces : 1, sizeof *j.status, "the entries' checksums");
-    if (!j.crc || !j.status) {
-        free(j.crc);
-        free(j.status);
+    void *crcs, *status;
+    if (!job_tables(rd->ctx, j.npieces, sizeof *j.crc, &crcs, sizeof *j.status, &status, "the entries' checksums"))
         return HL_ERR_OUT_OF_MEMORY;
-    }
+    j.crc = crcs;
+    j.status = status;
     atomic_init(&j.next, 0);
     atomic_init(&j.done, 0);
     atomic_init(&j.failed, 0);
     atomic_init(&j.printing, 0);
-    const int threads = hl_context_threads(rd->ctx);
-    hl_run_threads(threads < (int)j.npieces ? threads : (int)j.npieces, load_worker, &j);
+    run_on_threads(rd->ctx, j.npieces, load_worker, &j);
     hl_result r = HL_OK;
     uint32_t c = 0;
     for (size_t p = 0; p < j.npieces && r == HL_OK; p++) {
@@ -371,15 +388,12 @@ static hl_result validate_rows(tf_reader *rd, hl_transport *t)
     row_job j = {.t = t, .nv = first, .per = (uint32_t)test_size("HL_TEST_ROW_CHUNK", 8192)};
     j.nchunks = (first + j.per - 1) / j.per;
     atomic_init(&j.next, 0u);
-    j.bad = hl_calloc(rd->ctx, j.nchunks ? j.nchunks : 1, sizeof *j.bad, "the row checks");
-    j.msg = hl_calloc(rd->ctx, j.nchunks ? j.nchunks : 1, sizeof *j.msg, "the row checks");
-    if (!j.bad || !j.msg) {
-        free(j.bad);
-        free(j.msg);
+    void *bad, *msgs;
+    if (!job_tables(rd->ctx, j.nchunks, sizeof *j.bad, &bad, sizeof *j.msg, &msgs, "the row checks"))
         return HL_ERR_OUT_OF_MEMORY;
-    }
-    const int threads = hl_context_threads(rd->ctx);
-    if (j.nchunks) hl_run_threads(threads < (int)j.nchunks ? threads : (int)j.nchunks, row_worker, &j);
+    j.bad = bad;
+    j.msg = msgs;
+    run_on_threads(rd->ctx, j.nchunks, row_worker, &j);
     uint32_t c = 0;
     while (c < j.nchunks && j.bad[c] == first) c++;
     hl_result r = HL_OK;
