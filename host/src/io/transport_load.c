@@ -348,7 +348,9 @@ static void *row_worker(void *arg)
     const uint32_t B = i->block_count, limit = tf_slot_limit(i);
     for (uint32_t c; (c = atomic_fetch_add(&j->next, 1u)) < j->nchunks;) {
         j->bad[c] = j->nv;
-        for (uint32_t v = c * j->per; v < j->nv && v < (c + 1) * j->per; v++) {
+        /* 64-bit bounds: near 2^32 vertices a 32-bit product wraps */
+        const uint64_t v0 = (uint64_t)c * j->per, v1 = v0 + j->per < j->nv ? v0 + j->per : j->nv;
+        for (uint32_t v = (uint32_t)v0; v < v1; v++) {
             const uint16_t *counts = j->t->block_counts + (size_t)v * B;
             const uint8_t *e = j->t->entries + 2 * j->t->row_offset[v];
             uint64_t nnz;
@@ -386,7 +388,7 @@ static hl_result validate_rows(tf_reader *rd, hl_transport *t)
             off += nnz;
     }
     row_job j = {.t = t, .nv = first, .per = (uint32_t)test_size("HL_TEST_ROW_CHUNK", 8192)};
-    j.nchunks = (first + j.per - 1) / j.per;
+    j.nchunks = (uint32_t)(((uint64_t)first + j.per - 1) / j.per);
     atomic_init(&j.next, 0u);
     void *bad, *msgs;
     if (!job_tables(rd->ctx, j.nchunks, sizeof *j.bad, &bad, sizeof *j.msg, &msgs, "the row checks"))

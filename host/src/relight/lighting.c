@@ -156,7 +156,8 @@ static double weigh_row_sqrt8(const hl_transport *t, uint32_t v, double *acc)
             const uint32_t code = en[2 * e + 1] & 127u, slot = b * HL_BLOCK + en[2 * e];
             if (!code) continue;
             const float s = ((float)code - hl_dither(hl_dither_key(v, slot))) * (1.0f / 127.0f);
-            const double x = (double)(mx * (s * s));
+            const float m = mx * (s * s); /* rounded to float first, as hl_dequant_sqrt8 returns it */
+            const double x = m;
             ss += x * x;
             acc[slot] += x;
         }
@@ -171,7 +172,8 @@ static void *weight_worker(void *arg)
     const uint32_t V = t->info.vertex_count;
     for (uint32_t c; (c = atomic_fetch_add(&j->next, 1u)) < j->nchunks;) {
         double *acc = j->part + (size_t)c * j->nc, most = 0.0;
-        for (uint32_t v = c * j->per; v < V && v < (c + 1) * j->per; v++) {
+        const uint64_t v0 = (uint64_t)c * j->per, v1 = v0 + j->per < V ? v0 + j->per : V;
+        for (uint32_t v = (uint32_t)v0; v < v1; v++) {
             const double ss = t->info.quant == HL_QUANT_SQRT8 ? weigh_row_sqrt8(t, v, acc) : weigh_row(t, v, acc);
             if (ss > most) most = ss;
         }
