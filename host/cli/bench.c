@@ -548,7 +548,11 @@ static hl_result bench_subnormal(bench *b, const file_relighters *fr)
 static hl_result bench_file(bench *b, int f)
 {
     file_relighters fr = {.f = f};
-    hl_result r = hl_relighter_create(b->cl, b->t[f], &fr.rc);
+    /* the columns from the file's rows, the loaded entries freed first
+       (so never held beside them), unless the reference relighter or the
+       image errors want the entries after */
+    hl_result r = b->o.ref_timing || b->o.image ? hl_relighter_create(b->cl, b->t[f], &fr.rc)
+                                                : hl_relighter_create_from_file(b->cl, b->t[f], b->o.files[f], &fr.rc);
     if (r == HL_OK && b->o.ref_timing) r = hl_relighter_create(b->ref, b->t[f], &fr.rr);
     if (r != HL_OK) {
         hl_relighter_destroy(fr.rc);
