@@ -13,8 +13,9 @@
  * parts.from_file  hl_relighter_create_from_file: the entries freed, the
  *                columns built from rows read from the file again, whole
  *                and in parts, give the same colours bit for bit; a file
- *                other than the transport's is refused, naming it, and
- *                the transport keeps its entries.
+ *                other than the transport's, or the same file with an
+ *                entry changed (checksums made to match), is refused,
+ *                and the transport keeps its entries.
  * parts.rows     hl_relighter_create_once: the dot products on the rows
  *                as loaded (relight_rows.cl) give the colours of the
  *                columns bit for bit, the device holding the entries and
@@ -42,6 +43,7 @@
 #include "lighting.h"
 #include "twins.h"
 #include "light_util.h"
+#include "mesh_util.h"
 
 static hl_context *ctx_limited(uint64_t bytes)
 {
@@ -192,6 +194,11 @@ static int colours(hl_context *ctx, hl_relighter *r, float *out, uint32_t V)
     return ok;
 }
 
+static void put_le32(uint8_t *p, uint32_t v)
+{
+    for (int k = 0; k < 4; k++) p[k] = (uint8_t)(v >> 8 * k);
+}
+
 static void case_from_file(void)
 {
     const char *p = make_transport("parts_f.hlt", "");
@@ -227,6 +234,32 @@ static void case_from_file(void)
     printf("other file: %s\n", msg);
     HL_CHECK(res == HL_ERR_FORMAT && !d && strstr(msg, other), "a file other than the transport's is refused, naming it");
     HL_CHECK(t4->entries != NULL, "a refused transport keeps its entries");
+    /* the same file with one code changed and its checksums made to
+       match: the header still describes t4, the entries' checksum (taken
+       on the context's threads) does not */
+    char changed[1100];
+    snprintf(changed, sizeof changed, "%s.changed.hlt", path);
+    size_t n = 0;
+    uint8_t *f = hl_test_read_file(path, &n);
+    HL_CHECK(f && n > 192, "read %s", path);
+    if (f && n > 192) {
+        /* host/FORMAT.md: the entries' offset and size at 128 and 136,
+           their CRC at 152, the header's (over bytes 0..187) at 188 */
+        uint64_t eo = 0, es = 0;
+        for (int k = 7; k >= 0; k--) eo = eo << 8 | f[128 + k], es = es << 8 | f[136 + k];
+        HL_CHECK(eo + es <= n && es >= 2, "the entries section lies in the file");
+        f[eo + 1] ^= 1u; /* the first entry's code */
+        put_le32(f + 152, hl_test_crc32(f + eo, (size_t)es));
+        put_le32(f + 188, hl_test_crc32(f, 188));
+        write_file(changed, f, n);
+        res = hl_relighter_create_from_file(ctx, t4, changed, &d);
+        msg = hl_context_last_error(ctx);
+        printf("changed entries: %s\n", msg);
+        HL_CHECK(res == HL_ERR_FORMAT && !d && strstr(msg, "changed since"), "a file whose entries changed is refused");
+        HL_CHECK(t4->entries != NULL, "a refused transport keeps its entries");
+        remove(changed);
+    }
+    free(f);
     free(ca);
     free(cb);
     free(cc);

@@ -131,6 +131,10 @@ static inline uint32_t crc_update(uint32_t crc, const void *data, size_t n)
     return (uint32_t)crc32_z(crc, data, n);
 }
 
+/* crc_update(0, data, bytes) on the context's threads: pieces of 64 MiB
+ * checksummed apart and joined in order (transport_load.c). */
+hl_result hl_tf_crc_threads(hl_context *ctx, const void *data, uint64_t bytes, uint32_t *crc);
+
 /* ---------------------------------------------------------------- sizes */
 
 static inline uint32_t slot_total(uint32_t N) { return 2u * N * N; }

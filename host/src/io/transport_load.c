@@ -114,6 +114,49 @@ static void run_on_threads(hl_context *ctx, size_t items, void *(*fn)(void *), v
     if (items) hl_run_threads((size_t)threads < items ? threads : (int)items, fn, arg);
 }
 
+/* The CRC of bytes in pieces of `piece` from each piece's own CRC, joined
+ * in order: the CRC one pass would give. */
+static uint32_t join_crcs(const uint32_t *crc, size_t npieces, uint64_t bytes, size_t piece)
+{
+    uint32_t c = npieces ? crc[0] : 0;
+    for (size_t p = 1; p < npieces; p++) {
+        const uint64_t at = (uint64_t)p * piece;
+        c = (uint32_t)crc32_combine(c, crc[p], (z_off_t)(bytes - at < piece ? bytes - at : piece));
+    }
+    return c;
+}
+
+typedef struct crc_job {
+    const uint8_t *data;
+    uint64_t bytes;
+    size_t piece, npieces;
+    uint32_t *crc;
+    atomic_size_t next;
+} crc_job;
+
+static void *crc_worker(void *arg)
+{
+    crc_job *j = arg;
+    for (size_t p; (p = atomic_fetch_add(&j->next, 1)) < j->npieces;) {
+        const uint64_t at = (uint64_t)p * j->piece;
+        j->crc[p] = crc_update(0, j->data + at, j->bytes - at < j->piece ? (size_t)(j->bytes - at) : j->piece);
+    }
+    return NULL;
+}
+
+hl_result hl_tf_crc_threads(hl_context *ctx, const void *data, uint64_t bytes, uint32_t *crc)
+{
+    crc_job j = {.data = data, .bytes = bytes, .piece = TF_LOAD_PIECE};
+    j.npieces = (size_t)((bytes + j.piece - 1) / j.piece);
+    j.crc = hl_calloc(ctx, j.npieces ? j.npieces : 1, sizeof *j.crc, "the checksums");
+    if (!j.crc) return HL_ERR_OUT_OF_MEMORY;
+    atomic_init(&j.next, 0);
+    run_on_threads(ctx, j.npieces, crc_worker, &j);
+    *crc = join_crcs(j.crc, j.npieces, bytes, j.piece);
+    free(j.crc);
+    return HL_OK;
+}
+
 typedef struct load_job {
     tf_reader *rd;
     uint8_t *dst;
@@ -172,17 +215,14 @@ static hl_result read_entries(tf_reader *rd, uint8_t *dst, uint64_t bytes, uint6
     atomic_init(&j.printing, 0);
     run_on_threads(rd->ctx, j.npieces, load_worker, &j);
     hl_result r = HL_OK;
-    uint32_t c = 0;
+    /* the first piece that failed, as one pass would have met it */
     for (size_t p = 0; p < j.npieces && r == HL_OK; p++) {
-        const uint64_t at = (uint64_t)p * j.piece;
         if (j.status[p] > 0)
             r = hl_fail(rd->ctx, HL_ERR_IO, "%s: cannot read the entries section: %s", rd->path, strerror(j.status[p]));
         else if (j.status[p] < 0)
             r = hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: truncated while reading the entries section (file shrank?)", rd->path);
-        else
-            c = p ? (uint32_t)crc32_combine(c, j.crc[p], (z_off_t)(bytes - at < j.piece ? bytes - at : j.piece))
-                  : j.crc[0];
     }
+    const uint32_t c = r == HL_OK ? join_crcs(j.crc, j.npieces, bytes, j.piece) : 0;
     if (r == HL_OK && j.show) {
         const double el = hl_now() - j.t0, mb = (double)bytes * 1e-6;
         fprintf(stderr, "\rloading %s: %.0f of %.0f MB (%.0f MB/s)   \n", rd->path, mb, mb, el > 0 ? mb / el : 0.0);

@@ -334,6 +334,11 @@ static hl_result open_rows(hl_context *ctx, const hl_transport *t, const char *p
     tf_header h;
     struct stat st;
     const hl_transport_info *i = &t->info;
+    uint32_t ecrc = 0;
+    if (hl_tf_crc_threads(ctx, t->entries, 2 * i->coefficients_kept, &ecrc) != HL_OK) {
+        close(fd);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
     int bad = hl_tf_pread_all(fd, bytes, sizeof bytes, 0) != 0 || fstat(fd, &st) != 0 ||
               memcmp(bytes, TF_MAGIC, 8) != 0 || get_u32(bytes + H_HEADER_CRC) != crc_update(0, bytes, H_HEADER_CRC);
     if (!bad) {
@@ -342,7 +347,7 @@ static hl_result open_rows(hl_context *ctx, const hl_transport *t, const char *p
               h.info.vertex_count != i->vertex_count || h.info.block_count != i->block_count ||
               h.info.basis != i->basis || h.info.sh_order != i->sh_order ||
               h.info.coefficients_kept != i->coefficients_kept || h.sec[SEC_ENTRIES].size != 2 * i->coefficients_kept ||
-              h.sec[SEC_ENTRIES].crc != crc_update(0, t->entries, (size_t)(2 * i->coefficients_kept));
+              h.sec[SEC_ENTRIES].crc != ecrc;
     }
     if (bad) {
         close(fd);
