@@ -38,6 +38,19 @@ static inline void hl_check_error(const char *what, double worst, double tol)
     if (!ok) hl_test_failures++;
 }
 
+/* max |a - b| over max |a| (max |a - b| where a is all zero); a NaN
+ * difference makes the result NaN, which no tolerance accepts. */
+static inline double hl_test_rel_diff(const float *a, const float *b, size_t n)
+{
+    double w = 0.0, m = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        double e = fabs((double)a[i] - b[i]);
+        if (!(e <= w)) w = e;
+        m = fmax(m, fabs((double)a[i]));
+    }
+    return m > 0.0 ? w / m : w;
+}
+
 /* The exit code of a skipped case (SKIP_RETURN_CODE in tests/CMakeLists.txt). */
 #define HL_TEST_SKIP 77
 static int hl_test_skipped = 0;
@@ -141,15 +154,22 @@ static inline hl_context *hl_test_cl_context(int threads)
     return ctx;
 }
 
-/* HL_TMP/name in one of 8 rotating buffers, so a test can hold several. */
-static inline const char *hl_test_tmp_path(const char *name)
+/* The folder named by environment variable var (dflt when unset), then
+ * name, in one of 16 rotating buffers, so a test can hold several. */
+static inline const char *hl_test_path_in(const char *var, const char *dflt, const char *name)
 {
-    static char buf[8][1024];
+    static char buf[16][1024];
     static int next = 0;
-    char *b = buf[next++ & 7];
-    snprintf(b, 1024, "%s/%s", hl_test_env("HL_TMP", "/tmp"), name);
+    char *b = buf[next++ & 15];
+    snprintf(b, 1024, "%s/%s", hl_test_env(var, dflt), name);
     return b;
 }
+
+/* HL_TMP/name. */
+static inline const char *hl_test_tmp_path(const char *name) { return hl_test_path_in("HL_TMP", "/tmp", name); }
+
+/* The repository's data folder (HL_REPO_DATA)/name. */
+static inline const char *hl_test_data_path(const char *name) { return hl_test_path_in("HL_REPO_DATA", "data", name); }
 
 /* The whole file (malloc'ed, one spare byte), its size in *n; NULL when it
  * cannot be read (*n then 0). */

@@ -136,17 +136,6 @@ static float *colours(hl_context *ctx, hl_relighter *r, const hl_transport *t, u
     return rgb;
 }
 
-/* max |a - b| over max |a| */
-static double rel_diff(const float *a, const float *b, size_t n)
-{
-    double w = 0.0, m = 0.0;
-    for (size_t i = 0; i < n; i++) {
-        double e = fabs((double)a[i] - b[i]);
-        if (!(e <= w)) w = e;
-        m = fmax(m, fabs((double)a[i]));
-    }
-    return m > 0.0 ? w / m : w;
-}
 
 /* A 2:1 environment: a soft gradient, times scale. */
 static hl_env *gradient_env(hl_context *ctx, uint32_t W, float scale)
@@ -198,7 +187,7 @@ static void case_twin(void)
                 snprintf(what, sizeof what, "surroundings over %s, M=%s: OpenCL vs reference colours (relative to max)",
                          withenv ? "an environment" : "black", k ? "200" : "all");
                 /* as hl.relight.twin: float sums in another order */
-                hl_check_error(what, rel_diff(a, b, n), 1e-4);
+                hl_check_error(what, hl_test_rel_diff(a, b, n), 1e-4);
             }
             free(a);
             free(b);
@@ -242,7 +231,7 @@ static void case_reuse(void)
     float *m = r ? colours(cl, r, t, 0, &s3) : NULL;
     HL_CHECK(m && !s3.reused, "moved surroundings must relight (reused %d)", m ? s3.reused : -1);
     if (a && m) {
-        double d = rel_diff(a, m, n);
+        double d = hl_test_rel_diff(a, m, n);
         printf("moved lamp: colours change by %.3g of the brightest\n", d);
         HL_CHECK(d > 0.05, "a lamp carried a quarter turn changed the colours by only %.3g", d);
     }
@@ -251,7 +240,7 @@ static void case_reuse(void)
     HL_CHECK(back && !s4.reused, "moved back must relight");
     if (a && back) {
         HL_CHECK(!memcmp(a, back, n * 4), "moved back: colours differ from the first run");
-        hl_check_error("moved back: against the first run (bitwise, max abs)", rel_diff(a, back, n), 0.0);
+        hl_check_error("moved back: against the first run (bitwise, max abs)", hl_test_rel_diff(a, back, n), 0.0);
     }
     free(a); free(b); free(m); free(back);
     hl_relighter_destroy(r);
@@ -306,7 +295,7 @@ static void case_crosscheck(void)
             sd += fabs((double)a[i] - b[i]);
             sa += a[i];
         }
-        double worst = rel_diff(a, b, (size_t)V * 3);
+        double worst = hl_test_rel_diff(a, b, (size_t)V * 3);
         printf("%u vertices; brightest channel %.4g\n", V, m);
         /* Both paths see the same surroundings; they differ where an edge
            cuts a paraboloid texel: the capture weights the texel's rays

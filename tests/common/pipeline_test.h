@@ -19,20 +19,22 @@
  * the dither, so |s'^2 - s^2| <= (2 s + 1/254) / 254. */
 static inline double pt_sqrt8_step(void) { return (2.0 * 127.5 / 127.0 + 1.0 / 254.0) / 254.0; }
 
-static inline const char *pt_data_path(const char *name)
-{
-    static char buf[4][1024];
-    static int next = 0;
-    char *b = buf[next++ & 3];
-    snprintf(b, 1024, "%s/%s", hl_test_env("HL_REPO_DATA", "data"), name);
-    return b;
-}
-
 static inline double pt_norm2(const double *x, uint32_t n)
 {
     double s = 0.0;
     for (uint32_t k = 0; k < n; k++) s += x[k] * x[k];
     return sqrt(s);
+}
+
+/* Checks that files a and b hold the same bytes, printing what held. */
+static inline void pt_check_same_file(const char *a, const char *b, const char *what)
+{
+    size_t na = 0, nb = 0;
+    uint8_t *x = hl_test_read_file(a, &na), *y = hl_test_read_file(b, &nb);
+    HL_CHECK(x && y && na == nb && memcmp(x, y, na) == 0, "%s: the files differ (%zu, %zu bytes)", what, na, nb);
+    printf("%s: the files are equal (%zu bytes)\n", what, na);
+    free(x);
+    free(y);
 }
 
 /* The bunny (albedo 0.8 0.6 0.4) and its transport at path, made on ctx
@@ -41,7 +43,7 @@ static inline hl_mesh *pt_scene(hl_context *ctx, const char *path, const hl_prec
 {
     hl_mesh_load_desc ld = {{0.8f, 0.6f, 0.4f}, 'y', 0};
     hl_mesh *mesh = NULL;
-    HL_CHECK(hl_mesh_load(ctx, pt_data_path("bunny_lowres.obj"), &ld, &mesh, NULL) == HL_OK, "mesh: %s",
+    HL_CHECK(hl_mesh_load(ctx, hl_test_data_path("bunny_lowres.obj"), &ld, &mesh, NULL) == HL_OK, "mesh: %s",
              hl_context_last_error(ctx));
     HL_CHECK(hl_precompute(ctx, mesh, d, path, NULL) == HL_OK, "precompute: %s", hl_context_last_error(ctx));
     return mesh;
@@ -58,6 +60,39 @@ static inline void pt_relight(hl_context *ctx, const hl_transport *t, const hl_e
     hl_relight_desc rd = {.terms = M ? M : 2 * t->info.N * t->info.N, .select = select, .rotate_deg = deg};
     HL_CHECK(hl_relighter_run(r, &rd, rgb, NULL) == HL_OK, "run: %s", hl_context_last_error(ctx));
     hl_relighter_destroy(r);
+}
+
+/* Relights t under env with all its terms on ctx and checks the n
+ * vertices idx against want (3 colours a vertex, bench-basis's; clamped
+ * at zero here, as every output is) within each vertex's bound: every
+ * stored coefficient off by at most a sqrt8 step of its row's b, the
+ * dropped ones holding at most eps of |t|^2, and 1e-5 for the float sums;
+ * tn[i] bounds vertex idx[i]'s row norm, l1 and l2 are each channel's
+ * lighting norms. Prints the worst error over the bound (tolerance 1)
+ * under `what`, and the relative L2. */
+static inline void pt_check_against(hl_context *ctx, const hl_transport *t, const hl_mesh *mesh, const hl_env *env,
+                                    const uint32_t *idx, uint32_t n, const double *want3, const double *tn,
+                                    const double l1[3], const double l2[3], const char *what)
+{
+    float *rgb = malloc((size_t)t->info.vertex_count * 12);
+    pt_relight(ctx, t, env, 0, 0, 0.0f, rgb);
+    const double q = pt_sqrt8_step(), eps = t->info.eps;
+    double worst = 0.0, e2 = 0.0, ref2 = 0.0;
+    for (uint32_t i = 0; i < n; i++) {
+        const uint32_t v = idx[i];
+        for (int ch = 0; ch < 3; ch++) {
+            const double a = mesh->albedo[3 * (size_t)v + ch];
+            const double bound = a * (q * t->row_quant[v].b * l1[ch] + sqrt(eps) * tn[i] * l2[ch] + 1e-5 * tn[i] * l1[ch]);
+            const double want = fmax(0.0, want3[3 * i + ch]), err = fabs(rgb[3 * (size_t)v + ch] - want);
+            if (bound > 0.0) worst = fmax(worst, err / bound);
+            else HL_CHECK(err == 0.0, "vertex %u: %g where the bound is 0", v, err);
+            e2 += err * err;
+            ref2 += want * want;
+        }
+    }
+    hl_check_error(what, worst, 1.0);
+    printf("    (relative L2 over the %u vertices: %.3g)\n", n, sqrt(e2 / ref2));
+    free(rgb);
 }
 
 /* Relights t under env (a constant map of radiance c) with M terms on
@@ -93,7 +128,7 @@ static inline int pt_run_precompute(const char *args, const char *stem, int expe
     const char *log = hl_test_tmp_path(name);
     char cmd[4096];
     snprintf(cmd, sizeof cmd, "'%s' precompute '%s' -q --device ref %s -o '%s' 2>'%s' >/dev/null", bin,
-             pt_data_path("bunny_lowres.obj"), args, out, log);
+             hl_test_data_path("bunny_lowres.obj"), args, out, log);
     int st = system(cmd);
     size_t k = 0;
     uint8_t *text = hl_test_read_file(log, &k);
@@ -125,7 +160,7 @@ static inline void pt_library_refuses(const hl_precompute_desc *bad, size_t n, c
     hl_context *ctx = hl_test_ref_context(0);
     hl_mesh_load_desc ld = {{0.8f, 0.8f, 0.8f}, 'y', 0};
     hl_mesh *mesh = NULL;
-    HL_CHECK(hl_mesh_load(ctx, pt_data_path("bunny_lowres.obj"), &ld, &mesh, NULL) == HL_OK, "mesh");
+    HL_CHECK(hl_mesh_load(ctx, hl_test_data_path("bunny_lowres.obj"), &ld, &mesh, NULL) == HL_OK, "mesh");
     char name[128];
     snprintf(name, sizeof name, "%s.hlt", stem);
     const char *path = hl_test_tmp_path(name);

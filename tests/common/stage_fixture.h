@@ -90,14 +90,6 @@ static inline void ref_T(const fixture *f, float *T)
         hl_ref_cube2para(f->g, f->vis + (size_t)i * f->g->ncube, VIS_SCALE, f->n4 + 4 * i, T + (size_t)i * f->g->ncoef);
 }
 
-static inline double rel_diff(const float *a, const float *b, size_t n)
-{
-    double worst = 0.0, scale = 0.0;
-    for (size_t i = 0; i < n; i++) scale = fmax(scale, fabs(a[i]));
-    for (size_t i = 0; i < n; i++) worst = fmax(worst, fabs((double)a[i] - b[i]));
-    return scale > 0 ? worst / scale : worst;
-}
-
 /* Coefficients of all rows plus synthetic rows: all zero, all equal
  * (every key tied), and one non-zero. */
 static inline float *make_coef(fixture *f, uint32_t *rows_out)

@@ -269,13 +269,6 @@ static void t_constant(void)
 
 /* ------------------------------------------------------------ cl_ref */
 
-static double rel_diff(const float *x, const float *y, size_t n)
-{
-    double big = 0.0, worst = 0.0;
-    for (size_t i = 0; i < n; i++) big = fmax(big, fabs(x[i]));
-    for (size_t i = 0; i < n; i++) worst = fmax(worst, fabs((double)x[i] - y[i]));
-    return big > 0.0 ? worst / big : worst;
-}
 
 /* The device's cube lighting stage turned by deg against the twins:
  * env2para's on the face texels' taps, then hl_cube_haar. */
@@ -301,7 +294,7 @@ static void check_stage(hl_context *cl, hl_context *ref, const hl_transport *t, 
     snprintf(what, sizeof what,
              "the relighter's cube lighting stage (OpenCL, turned %g degrees) against the twins, relative to the largest",
              (double)deg);
-    hl_check_error(what, rel_diff(tw, Lw, 3 * (size_t)nc), 1e-6);
+    hl_check_error(what, hl_test_rel_diff(tw, Lw, 3 * (size_t)nc), 1e-6);
     free(Lw);
     free(Lp);
     free(tw);
@@ -316,12 +309,7 @@ static void t_cl_ref(void)
     if (!cl) exit(HL_TEST_SKIP);
     const char *pr = hl_test_tmp_path("cube_pipeline_ref.hlt"), *pc = hl_test_tmp_path("cube_pipeline_cl.hlt");
     hl_mesh *m1 = cube_scene(ref, pr), *m2 = cube_scene(cl, pc);
-    size_t na = 0, nb = 0;
-    uint8_t *a = hl_test_read_file(pr, &na), *b = hl_test_read_file(pc, &nb);
-    HL_CHECK(a && b && na == nb && memcmp(a, b, na) == 0, "the OpenCL file differs from the reference's (%zu, %zu bytes)",
-             na, nb);
-    printf("precompute: OpenCL and reference files equal (%zu bytes)\n", na);
-    free(b);
+    pt_check_same_file(pr, pc, "precompute, OpenCL against reference");
     /* three shards merged: the basis words carried, the same file */
     {
         hl_precompute_desc d = {.N = SCENE_N, .C = SCENE_N, .basis = HL_TRANSPORT_BASIS_CUBE};
@@ -332,18 +320,13 @@ static void t_cl_ref(void)
             HL_CHECK(hl_precompute_shard(ref, m1, &d, i, 3, sp[i], NULL) == HL_OK, "shard %u: %s", i,
                      hl_context_last_error(ref));
         HL_CHECK(hl_transport_merge(ref, pm, sp, 3, NULL) == HL_OK, "merge: %s", hl_context_last_error(ref));
-        size_t nm = 0;
-        uint8_t *m = hl_test_read_file(pm, &nm);
-        HL_CHECK(m && nm == na && memcmp(a, m, na) == 0, "the merged shards differ from the whole run's file");
-        printf("three shards merged: equal to the whole run's file\n");
-        free(m);
+        pt_check_same_file(pr, pm, "three shards merged, against the whole run");
         for (int i = 0; i < 3; i++) remove(sp[i]);
         remove(pm);
     }
-    free(a);
     hl_transport *t = load(ref, pr);
     hl_env *env = NULL;
-    HL_CHECK(hl_env_load(ref, pt_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
+    HL_CHECK(hl_env_load(ref, hl_test_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
     const uint32_t V = t->info.vertex_count, nc = 2 * SCENE_N * SCENE_N, Cq = SCENE_SIDE, nt = 6 * Cq * Cq;
     float *x = malloc((size_t)V * 12), *y = malloc((size_t)V * 12);
     static const uint32_t Ms[] = {200, 0};
@@ -354,7 +337,7 @@ static void t_cl_ref(void)
         snprintf(what, sizeof what, "city.exr, M = %s: OpenCL against reference (relative to the brightest)",
                  Ms[m] ? "200" : "all");
         /* the same float sums in another order on the device */
-        hl_check_error(what, rel_diff(x, y, 3 * (size_t)V), 1e-5);
+        hl_check_error(what, hl_test_rel_diff(x, y, 3 * (size_t)V), 1e-5);
     }
     check_stage(cl, ref, t, env, 0.0f);
     check_stage(cl, ref, t, env, 37.0f);
@@ -380,7 +363,7 @@ static void t_cl_ref(void)
     pt_relight(ref, t, env, 50, HL_SELECT_AREA, 0.0f, x);
     pt_relight(cl, t, env, 50, HL_SELECT_AREA, 0.0f, y);
     hl_check_error("M = 50, --select area: OpenCL against reference (relative to the brightest)",
-                   rel_diff(x, y, 3 * (size_t)V), 1e-5);
+                   hl_test_rel_diff(x, y, 3 * (size_t)V), 1e-5);
     /* a quarter turn is the map rolled by a quarter of its width: 256
        columns over the 128 cells of N = 16, so the cells roll by 32 */
     {
@@ -400,7 +383,7 @@ static void t_cl_ref(void)
             char what[160];
             snprintf(what, sizeof what, "%s, M = 200: turned 90 degrees against the map rolled a quarter",
                      backend ? "OpenCL" : "reference");
-            hl_check_error(what, rel_diff(x, y, 3 * (size_t)V), 0.0);
+            hl_check_error(what, hl_test_rel_diff(x, y, 3 * (size_t)V), 0.0);
         }
         hl_env_destroy(e0);
         hl_env_destroy(e1);
@@ -442,7 +425,7 @@ static void t_bench(void)
     uint32_t idx[256];
     for (uint32_t i = 0; i < n; i++) idx[i] = (uint32_t)((uint64_t)i * V / n);
     hl_env *env = NULL;
-    HL_CHECK(hl_env_load(ref, pt_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
+    HL_CHECK(hl_env_load(ref, hl_test_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
     hl_basis_bench *bb = NULL;
     const double *exact = NULL;
     double *cube = malloc((size_t)n * 3 * sizeof(double));
@@ -467,30 +450,10 @@ static void t_bench(void)
         for (uint32_t k = 0; k < nt; k++) l1[ch] += fabs(l[k] = Lw[k]);
         l2[ch] = pt_norm2(l, nt);
     }
-    float *rgb = malloc((size_t)V * 12);
-    pt_relight(ref, t, env, 0, 0, 0.0f, rgb);
-    const double q = pt_sqrt8_step(), eps = t->info.eps;
-    double worst = 0.0, e2 = 0.0, ref2 = 0.0;
-    for (uint32_t i = 0; i < n; i++) {
-        const uint32_t v = idx[i];
-        const double tn = row_norm_bound(t, v);
-        for (int ch = 0; ch < 3; ch++) {
-            /* every stored coefficient off by at most a sqrt8 step of b;
-               the dropped ones hold at most eps of |t|^2; 1e-5 for the
-               float sums */
-            const double a = mesh->albedo[3 * (size_t)v + ch];
-            const double bound = a * (q * t->row_quant[v].b * l1[ch] + sqrt(eps) * tn * l2[ch] + 1e-5 * tn * l1[ch]);
-            const double want = fmax(0.0, cube[3 * i + ch]), err = fabs(rgb[3 * (size_t)v + ch] - want);
-            if (bound > 0.0) worst = fmax(worst, err / bound);
-            else HL_CHECK(err == 0.0, "vertex %u: %g where the bound is 0", v, err);
-            e2 += err * err;
-            ref2 += want * want;
-        }
-    }
-    hl_check_error("city.exr, all 384 terms: relight against bench-basis's cube colours, over each vertex's bound",
-                   worst, 1.0);
-    printf("    (relative L2 over the 256 vertices: %.3g)\n", sqrt(e2 / ref2));
-    free(rgb);
+    double tn[256];
+    for (uint32_t i = 0; i < n; i++) tn[i] = row_norm_bound(t, idx[i]);
+    pt_check_against(ref, t, mesh, env, idx, n, cube, tn, l1, l2,
+                     "city.exr, all 384 terms: relight against bench-basis's cube colours, over each vertex's bound");
     free(Lp);
     free(Lw);
     free(cube);

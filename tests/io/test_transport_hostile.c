@@ -370,6 +370,32 @@ static void keep_slots_below(synth *s, uint32_t limit)
     }
 }
 
+/* The writer refuses s's rows under basis and order (the second word)
+ * while an entry lies at or past limit, the basis's coefficients; kept
+ * to slots below limit they are written to path and read back with that
+ * basis and order, entry for entry. */
+static void write_basis_rows(hl_context *ctx, const char *path, synth *s, uint32_t basis, uint32_t order,
+                             uint32_t limit, const char *what)
+{
+    char needle[64];
+    snprintf(needle, sizeof needle, "is not below the basis's %u coefficients", limit);
+    s->info.basis = basis;
+    s->info.sh_order = order;
+    static const uint32_t one[] = {1};
+    HL_CHECK(synth_write(ctx, path, s, one, 1) == HL_ERR_INVALID_ARGUMENT && strstr(hl_context_last_error(ctx), needle),
+             "%s: the writer took an entry past %u: %s", what, limit, hl_context_last_error(ctx));
+    printf("writer: %s\n", hl_context_last_error(ctx));
+    keep_slots_below(s, limit);
+    HL_CHECK(synth_write(ctx, path, s, one, 1) == HL_OK, "%s, slots below %u: %s", what, limit,
+             hl_context_last_error(ctx));
+    hl_transport *t = NULL;
+    HL_CHECK(hl_transport_load(ctx, path, &t) == HL_OK && t->info.basis == basis && t->info.sh_order == order,
+             "%s: %s", what, hl_context_last_error(ctx));
+    if (t) synth_compare(t, s, what);
+    printf("%s with %llu entries read back\n", what, (unsigned long long)s->total);
+    hl_transport_destroy(t);
+}
+
 static void case_basis(void)
 {
     hl_context *ctx = make_ctx();
@@ -427,21 +453,7 @@ static void case_basis(void)
     HL_CHECK(refused == 11, "%d of 11 orders refused with slot %u used", refused, top);
     /* the writer refuses the same rows under order 3; kept to slots 0..8
        they are written, and read back as order 3, entry for entry */
-    s.info.basis = HL_TRANSPORT_BASIS_SH;
-    s.info.sh_order = 3;
-    static const uint32_t one[] = {1};
-    HL_CHECK(synth_write(ctx, bad, &s, one, 1) == HL_ERR_INVALID_ARGUMENT &&
-                 strstr(hl_context_last_error(ctx), "is not below the basis's 9 coefficients"),
-             "writer took an entry past L^2: %s", hl_context_last_error(ctx));
-    printf("writer: %s\n", hl_context_last_error(ctx));
-    keep_slots_below(&s, 9);
-    HL_CHECK(synth_write(ctx, bad, &s, one, 1) == HL_OK, "order 3, slots 0..8: %s", hl_context_last_error(ctx));
-    t = NULL;
-    HL_CHECK(hl_transport_load(ctx, bad, &t) == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_SH &&
-                 t->info.sh_order == 3, "order 3 file: %s", hl_context_last_error(ctx));
-    if (t) synth_compare(t, &s, "spherical-harmonic file");
-    printf("order 3 file with %llu entries read back\n", (unsigned long long)s.total);
-    hl_transport_destroy(t);
+    write_basis_rows(ctx, bad, &s, HL_TRANSPORT_BASIS_SH, 3, 9, "spherical-harmonic file, order 3");
     small_done(ctx, &s, data, f, path, bad);
 }
 
@@ -475,21 +487,7 @@ static void case_cube_basis(void)
         expect_refused(ctx, bad, f, size, forged[k].what, forged[k].needle);
         expect_refused(ctx, bad, f, size, forged[k].what, "file_cube.hlt");
     }
-    s.info.basis = HL_TRANSPORT_BASIS_CUBE;
-    s.info.sh_order = 2;
-    static const uint32_t one[] = {1};
-    HL_CHECK(synth_write(ctx, bad, &s, one, 1) == HL_ERR_INVALID_ARGUMENT &&
-                 strstr(hl_context_last_error(ctx), "is not below the basis's 24 coefficients"),
-             "writer took an entry past 6 C'^2: %s", hl_context_last_error(ctx));
-    printf("writer: %s\n", hl_context_last_error(ctx));
-    keep_slots_below(&s, 24);
-    HL_CHECK(synth_write(ctx, bad, &s, one, 1) == HL_OK, "side 2, slots 0..23: %s", hl_context_last_error(ctx));
-    hl_transport *t = NULL;
-    HL_CHECK(hl_transport_load(ctx, bad, &t) == HL_OK && t->info.basis == HL_TRANSPORT_BASIS_CUBE &&
-                 t->info.sh_order == 2, "cube side 2 file: %s", hl_context_last_error(ctx));
-    if (t) synth_compare(t, &s, "cube-face Haar file");
-    printf("cube side 2 file with %llu entries read back\n", (unsigned long long)s.total);
-    hl_transport_destroy(t);
+    write_basis_rows(ctx, bad, &s, HL_TRANSPORT_BASIS_CUBE, 2, 24, "cube-face Haar file, side 2");
     small_done(ctx, &s, data, f, path, bad);
 }
 

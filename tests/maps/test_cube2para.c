@@ -35,7 +35,7 @@ static void case_cube2para(void)
         printf("N=%u C=%u: %u rows in %.2f ms\n", f.g->N, f.g->C, f.rows, 1e3 * (hl_now() - t0));
         /* same operations in the same order: only contraction or a
            different rounding mode could make them differ */
-        hl_check_error("cube2para OpenCL vs C, relative to max |T|", rel_diff(a, b, n), 1e-6);
+        hl_check_error("cube2para OpenCL vs C, relative to max |T|", hl_test_rel_diff(a, b, n), 1e-6);
         free(a);
         free(b);
         teardown(&f);

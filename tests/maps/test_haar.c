@@ -41,7 +41,7 @@ static void case_haar(void)
         for (uint32_t i = 0; i < f.rows; i++) hl_ref_haar(f.g, T2 + (size_t)i * f.g->ncoef, a + (size_t)i * f.g->ncoef);
         char what[64];
         snprintf(what, sizeof what, "haar N=%u OpenCL vs C, relative", f.g->N);
-        hl_check_error(what, rel_diff(a, b, n), 1e-6);
+        hl_check_error(what, hl_test_rel_diff(a, b, n), 1e-6);
         free(T); free(T2); free(a); free(b);
         teardown(&f);
     }

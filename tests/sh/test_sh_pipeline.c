@@ -153,17 +153,6 @@ static hl_transport *load(hl_context *ctx, const char *path)
 
 /* Colours (3 floats a vertex) of t under env with M terms (0: all) and a
  * selection scheme (0: the default). */
-static void relight_sel(hl_context *ctx, const hl_transport *t, const hl_env *env, uint32_t M, uint32_t select,
-                        float *rgb)
-{
-    pt_relight(ctx, t, env, M, select, 0.0f, rgb);
-}
-
-static void relight(hl_context *ctx, const hl_transport *t, const hl_env *env, uint32_t M, float *rgb)
-{
-    relight_sel(ctx, t, env, M, 0, rgb);
-}
-
 /* The exact rows of the n vertices idx projected in double as bench-basis
  * does it: t (n x order^2); with the Ybar it used (*Ybar, order^2 a texel)
  * and, when sums is given, each row's sum of T_j. */
@@ -262,30 +251,21 @@ static void t_cl_ref(void)
     if (!cl) exit(HL_TEST_SKIP);
     const char *pr = hl_test_tmp_path("sh_pipeline_ref.hlt"), *pc = hl_test_tmp_path("sh_pipeline_cl.hlt");
     hl_mesh *m1 = sh_scene(ref, pr, SCENE_ORDER), *m2 = sh_scene(cl, pc, SCENE_ORDER);
-    size_t na = 0, nb = 0;
-    uint8_t *a = hl_test_read_file(pr, &na), *b = hl_test_read_file(pc, &nb);
-    HL_CHECK(a && b && na == nb && memcmp(a, b, na) == 0, "the OpenCL file differs from the reference's (%zu, %zu bytes)",
-             na, nb);
-    printf("precompute: OpenCL and reference files equal (%zu bytes)\n", na);
-    free(a);
-    free(b);
+    pt_check_same_file(pr, pc, "precompute, OpenCL against reference");
     hl_transport *t = load(ref, pr);
     hl_env *env = NULL;
-    HL_CHECK(hl_env_load(ref, pt_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
+    HL_CHECK(hl_env_load(ref, hl_test_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
     const uint32_t V = t->info.vertex_count;
     float *x = malloc((size_t)V * 12), *y = malloc((size_t)V * 12);
     static const uint32_t Ms[] = {200, 0};
     for (size_t m = 0; m < 2; m++) {
-        relight(ref, t, env, Ms[m], x);
-        relight(cl, t, env, Ms[m], y);
-        double big = 0.0, worst = 0.0;
-        for (size_t i = 0; i < 3 * (size_t)V; i++) big = fmax(big, x[i]);
-        for (size_t i = 0; i < 3 * (size_t)V; i++) worst = fmax(worst, fabs((double)x[i] - y[i]));
+        pt_relight(ref, t, env, Ms[m], 0, 0.0f, x);
+        pt_relight(cl, t, env, Ms[m], 0, 0.0f, y);
         char what[128];
         snprintf(what, sizeof what, "city.exr, M = %s: OpenCL against reference (relative to the brightest)",
                  Ms[m] ? "200" : "all");
         /* the same float sums in another order on the device */
-        hl_check_error(what, big > 0 ? worst / big : worst, 1e-5);
+        hl_check_error(what, hl_test_rel_diff(x, y, 3 * (size_t)V), 1e-5);
     }
     /* the relighter's own lighting stage on the device, against the twin
        with the lighting matrix */
@@ -317,9 +297,9 @@ static void t_cl_ref(void)
     /* every harmonic's support is the sphere: area-weighted selection
        ranks as the unweighted one (on both backends: the device's weights
        are uploaded, not the Haar supports it starts with) */
-    relight_sel(ref, t, env, 50, HL_SELECT_UNWEIGHTED, x);
+    pt_relight(ref, t, env, 50, HL_SELECT_UNWEIGHTED, 0.0f, x);
     for (int backend = 0; backend < 2; backend++) {
-        relight_sel(backend ? cl : ref, t, env, 50, HL_SELECT_AREA, y);
+        pt_relight(backend ? cl : ref, t, env, 50, HL_SELECT_AREA, 0.0f, y);
         HL_CHECK(memcmp(x, y, (size_t)V * 12) == 0, "%s: M = 50 by area differs from unweighted",
                  backend ? "OpenCL" : "reference");
     }
@@ -348,7 +328,7 @@ static void t_bench(void)
     uint32_t idx[256];
     for (uint32_t i = 0; i < n; i++) idx[i] = (uint32_t)((uint64_t)i * V / n);
     hl_env *env = NULL;
-    HL_CHECK(hl_env_load(ref, pt_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
+    HL_CHECK(hl_env_load(ref, hl_test_data_path("city.exr"), &env, NULL) == HL_OK, "env: %s", hl_context_last_error(ref));
     hl_basis_bench *bb = NULL;
     const double *exact = NULL;
     double *sh = malloc((size_t)n * 3 * sizeof(double));
@@ -361,33 +341,15 @@ static void t_bench(void)
     hl_bench_ref *br = NULL;
     float *Lp = malloc((size_t)nc * 12);
     HL_CHECK(hl_bench_ref_create(ref, t, &br) == HL_OK && hl_bench_ref_lighting(br, env, Lp, NULL) == HL_OK, "lighting");
-    for (int ch = 0; ch < 3; ch++) hl_sh_project(Ybar, nc, ns, Lp + (size_t)ch * nc, 1, l[ch]);
-    float *rgb = malloc((size_t)V * 12);
-    relight(ref, t, env, 0, rgb);
-    const double q = pt_sqrt8_step(), eps = t->info.eps;
-    double worst = 0.0, l2 = 0.0, ref2 = 0.0;
-    for (uint32_t i = 0; i < n; i++) {
-        const uint32_t v = idx[i];
-        const double tn = pt_norm2(tsh + (size_t)i * ns, ns);
-        for (int ch = 0; ch < 3; ch++) {
-            double labs = 0.0;
-            for (uint32_t k = 0; k < ns; k++) labs += fabs(l[ch][k]);
-            /* every stored coefficient off by at most a sqrt8 step of b;
-               the dropped ones hold at most eps of |t|^2; 1e-5 for the
-               float sums */
-            const double a = mesh->albedo[3 * (size_t)v + ch];
-            const double bound = a * (q * t->row_quant[v].b * labs + sqrt(eps) * tn * pt_norm2(l[ch], ns) + 1e-5 * tn * labs);
-            const double want = fmax(0.0, sh[3 * i + ch]), err = fabs(rgb[3 * (size_t)v + ch] - want);
-            if (bound > 0.0) worst = fmax(worst, err / bound);
-            else HL_CHECK(err == 0.0, "vertex %u: %g where the bound is 0", v, err);
-            l2 += err * err;
-            ref2 += want * want;
-        }
+    double l1[3] = {0}, l2[3], tn[256];
+    for (int ch = 0; ch < 3; ch++) {
+        hl_sh_project(Ybar, nc, ns, Lp + (size_t)ch * nc, 1, l[ch]);
+        for (uint32_t k = 0; k < ns; k++) l1[ch] += fabs(l[ch][k]);
+        l2[ch] = pt_norm2(l[ch], ns);
     }
-    hl_check_error("city.exr, all 400 terms: relight against bench-basis's SH colours, over each vertex's bound",
-                   worst, 1.0);
-    printf("    (relative L2 over the 256 vertices: %.3g)\n", sqrt(l2 / ref2));
-    free(rgb);
+    for (uint32_t i = 0; i < n; i++) tn[i] = pt_norm2(tsh + (size_t)i * ns, ns);
+    pt_check_against(ref, t, mesh, env, idx, n, sh, tn, l1, l2,
+                     "city.exr, all 400 terms: relight against bench-basis's SH colours, over each vertex's bound");
     free(Lp);
     free(tsh);
     free(sh);
