@@ -78,13 +78,20 @@ void hl_cl_pipe_destroy(hl_cl_pipe *p)
 
 #define ARG(k, i, v) CL_TRY(p->ctx, clSetKernelArg(k, i, sizeof(v), &(v)), "clSetKernelArg")
 
+/* Kernel `which` over items work-items, rounded up to whole groups. */
+static hl_result launch_items(hl_context *ctx, struct hl_cl *cl, int which, size_t items)
+{
+    size_t local = cl->wg, global = (items + local - 1) / local * local;
+    CL_TRY(ctx, clEnqueueNDRangeKernel(cl->queue, cl->k[which], 1, NULL, &global, &local, 0, NULL, NULL),
+           hl_cl_kernel_names[which]);
+    return HL_OK;
+}
+#define CARG(k, i, v) CL_TRY(ctx, clSetKernelArg(k, i, sizeof(v), &(v)), "clSetKernelArg")
+
 static hl_result launch(hl_cl_pipe *p, int which, uint32_t rows)
 {
     if (which == K_CUBE2PARA) rows = (rows + C2P_ROWS - 1) / C2P_ROWS;
-    size_t local = p->cl->wg, global = (rows + local - 1) / local * local;
-    CL_TRY(p->ctx, clEnqueueNDRangeKernel(p->cl->queue, p->cl->k[which], 1, NULL, &global, &local, 0, NULL, NULL),
-           hl_cl_kernel_names[which]);
-    return HL_OK;
+    return launch_items(p->ctx, p->cl, which, rows);
 }
 
 static hl_result enqueue_cube2para(hl_cl_pipe *p, int slot, uint32_t rows, float scale)
@@ -130,18 +137,10 @@ hl_result hl_cl_sh_project_enqueue(hl_context *ctx, struct hl_cl *cl, cl_mem in,
     CL_TRY(ctx, clEnqueueFillBuffer(cl->queue, out, &zero, sizeof zero, 0, (size_t)rows * ncoef * 4, 0, NULL, NULL),
            "clEnqueueFillBuffer");
     cl_kernel k = cl->k[K_SH_PROJECT];
-    CL_TRY(ctx, clSetKernelArg(k, 0, sizeof in, &in), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 1, sizeof ncoef, &ncoef), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 2, sizeof Y, &Y), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 3, sizeof stride, &stride), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 4, sizeof count, &count), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 5, sizeof out, &out), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 6, sizeof rows, &rows), "clSetKernelArg");
+    CARG(k, 0, in); CARG(k, 1, ncoef); CARG(k, 2, Y); CARG(k, 3, stride); CARG(k, 4, count); CARG(k, 5, out);
+    CARG(k, 6, rows);
     /* HL_SH_ROWS (4) rows a work-item: sh_project.cl */
-    size_t local = cl->wg, items = (size_t)(rows + 3) / 4 * (stride / 4), global = (items + local - 1) / local * local;
-    CL_TRY(ctx, clEnqueueNDRangeKernel(cl->queue, k, 1, NULL, &global, &local, 0, NULL, NULL),
-           hl_cl_kernel_names[K_SH_PROJECT]);
-    return HL_OK;
+    return launch_items(ctx, cl, K_SH_PROJECT, (size_t)(rows + 3) / 4 * (stride / 4));
 }
 
 static hl_result enqueue_sh(hl_cl_pipe *p, uint32_t rows)
@@ -172,17 +171,9 @@ hl_result hl_cl_cube_haar_enqueue(hl_context *ctx, struct hl_cl *cl, cl_mem in, 
                                   cl_uint out_stride, cl_uint Cq, cl_uint rows)
 {
     cl_kernel k = cl->k[K_CUBE_HAAR];
-    CL_TRY(ctx, clSetKernelArg(k, 0, sizeof in, &in), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 1, sizeof in_stride, &in_stride), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 2, sizeof out, &out), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 3, sizeof out_stride, &out_stride), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 4, sizeof Cq, &Cq), "clSetKernelArg");
-    CL_TRY(ctx, clSetKernelArg(k, 5, sizeof rows, &rows), "clSetKernelArg");
+    CARG(k, 0, in); CARG(k, 1, in_stride); CARG(k, 2, out); CARG(k, 3, out_stride); CARG(k, 4, Cq); CARG(k, 5, rows);
     /* one work-item per face of each row */
-    size_t local = cl->wg, items = (size_t)rows * 6, global = (items + local - 1) / local * local;
-    CL_TRY(ctx, clEnqueueNDRangeKernel(cl->queue, k, 1, NULL, &global, &local, 0, NULL, NULL),
-           hl_cl_kernel_names[K_CUBE_HAAR]);
-    return HL_OK;
+    return launch_items(ctx, cl, K_CUBE_HAAR, (size_t)rows * 6);
 }
 
 static hl_result enqueue_cube_haar(hl_cl_pipe *p, uint32_t rows)
