@@ -50,17 +50,20 @@ static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return 
 #define HL_TILE 16
 
 /* The dot products (kernels/relight/relight.cl) walk a range's tiles one of two
- * ways. The column walk adds each kept entry into sums in memory (per
- * 16-lane entry 6 vector loads and 6 stores of the sums besides the
- * multiply-adds). The tile walk adds a few kept slots at a time, tile by
- * tile, into sums held in registers, but reads an all-zero entry wherever
- * a tile lacks a slot, and draws on several columns at once. It is taken
- * where the kept slots' entries fill at least 5/8 of the range's tiles
- * (entries: their count over the m kept slots; nt tiles); the host counts
- * bytes by the same rule. On the bunny with ground under city.exr that is
- * M up to about 500. At M = 200 it took 0.79 to 0.87 of the column walk's
- * time under city, forest and interior (sunset: no clear difference); at
- * M = 300 to 500 about the same; at M = 1000 (58% filled) 1.33 times. */
+ * ways. The column walk takes the kept slots 4 at a time and visits the
+ * tiles any of the 4 holds, loading and storing each such tile's sums in
+ * memory once per group (entry 0 for a slot the tile lacks). The tile walk
+ * adds 8 kept slots at a time, tile by tile, into sums held in registers,
+ * over every tile, reading an all-zero entry wherever a tile lacks a slot.
+ * The tile walk is taken where the kept slots' entries fill at least 5/8
+ * of the range's tiles (entries: their count over the m kept slots; nt
+ * tiles); the host counts bytes by the same rule. On the bunny with
+ * ground under city.exr that is M up to about 500; there the two walks
+ * take the same time at M = 100 to 500 (0.35 to 1.3 ms), the column walk
+ * 0.73 of the earlier one-slot-at-a-time walk's at M = 1000. On the 2M
+ * vertex terrain (tiles nearly full) the tile walk takes 0.6 of the column
+ * walk's time, on the dragon (0.59 filled) the column walk wins
+ * (docs/SCALE.md). */
 HL_INLINE int hl_tile_walk_pays(HL_U64 entries, HL_U32 m, HL_U32 nt)
 {
     return m > 0 && 8 * entries >= (HL_U64)5 * m * nt;
