@@ -61,8 +61,8 @@
  * added in slot order (entry 0 for a slot the tile lacks) and stored once.
  * One slot at a time the sums were loaded and stored for every entry (6
  * vector loads and 6 stores besides the 6 multiply-adds), and those, not
- * the entries' bytes, set the time: groups of 4 took 0.72 to 0.78 of it on
- * the dragon at M = 200 (docs/SCALE.md). The last group's places past
+ * the entries' bytes, set the time: groups of 4 take about three quarters
+ * of it on the dragon at M = 200 (docs/SCALE.md). The last group's places past
  * the m kept slots hold no tiles and no light. */
 #define HL_COL_GROUP 4
 static void walk_columns(global const uint *col, global const uint *cs, global const uint2 *rw, uint tstride,
