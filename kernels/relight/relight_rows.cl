@@ -12,7 +12,8 @@
  * sums are those of relight.cl and of its twin, bit for bit (a skipped
  * term would add t x 0, which leaves a sum that is never -0 unchanged).
  * Then the sums times 2^e, times the albedo, clamped at zero (unless
- * keep_negative), the fourth float the lowest channel before the clamp.
+ * keep_negative), the fourth float the lowest channel before the clamp;
+ * each work-item's clamp tally (hl_tally_add) into tally.
  * Twin: hl_ref_relight (host/src/relight/twins/relight.c).
  */
 #pragma OPENCL FP_CONTRACT OFF
@@ -21,9 +22,11 @@ kernel void hl_relight_rows(global const uchar *entries, global const ulong *row
                             global const ushort *block_counts, global const float2 *row_quant, uint scheme,
                             uint nblocks, uint ncoef, global const uint *bits,
                             global const float4 *light, global const float4 *albedo, uint keep_negative,
-                            global float4 *out, uint nverts, uint per)
+                            global float4 *out, uint nverts, uint per, global float4 *tally)
 {
     const uint v0 = get_global_id(0) * per;
+    if (v0 >= nverts) return; /* past the last item (whole groups) */
+    float4 tl = (float4)(0.0f);
     for (uint v = v0; v < v0 + per && v < nverts; v++) {
         const float2 q = row_quant[v];
         const int ex = hl_half_exponent(scheme, q.x, q.y);
@@ -53,6 +56,9 @@ kernel void hl_relight_rows(global const uchar *entries, global const ulong *row
                 sb = fma(t, l.z, sb);
             }
         }
-        out[v] = hl_colour_out(((float4)(sr, sg, sb, 0.0f) * back) * albedo[v], keep_negative);
+        const float4 c = hl_colour_out(((float4)(sr, sg, sb, 0.0f) * back) * albedo[v], keep_negative);
+        out[v] = c;
+        tl = hl_tally_add(tl, c);
     }
+    tally[get_global_id(0)] = tl;
 }

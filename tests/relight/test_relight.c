@@ -12,7 +12,9 @@
  *                      directions and turn.
  * relight.extreme      very bright and very dim lighting stay finite and
  *                      scale.
- * relight.negative     no light below zero comes out.
+ * relight.negative     no light below zero comes out; the clamp's count and
+ *                      lowest value, tallied by the kernel (by column and
+ *                      from the rows), match those of the colours.
  *
  * Depends on: haarlight_core, an OpenCL device (PoCL),
  * tests/common/light_util.h.
@@ -22,6 +24,7 @@
 #include "cl_backend.h"
 #include "geom.h"
 #include "half.h"
+#include "haarlight_tools.h"
 #include "hl_test.h"
 #include "lighting.h"
 #include "twins.h"
@@ -453,16 +456,21 @@ static void case_negative(void)
     hl_env *env = NULL;
     HL_CHECK(hl_env_create(ref, W, H, px, &env, NULL) == HL_OK, "lone sun");
     free(px);
-    hl_relighter *r[2] = {NULL, NULL};
-    HL_CHECK(hl_relighter_create(cl, t, &r[0]) == HL_OK && hl_relighter_create(ref, t, &r[1]) == HL_OK, "relighters");
-    HL_CHECK(hl_relighter_set_env(r[0], env) == HL_OK && hl_relighter_set_env(r[1], env) == HL_OK, "set env");
-    float *raw[2] = {malloc((size_t)V * 12), malloc((size_t)V * 12)};
-    float *out[2] = {malloc((size_t)V * 12), malloc((size_t)V * 12)};
+    /* OpenCL by column (its clamp tallied per range), the reference (from
+       the colours), OpenCL from the rows (tallied per work-item) */
+    hl_relighter *r[3] = {NULL, NULL, NULL};
+    HL_CHECK(hl_relighter_create(cl, t, &r[0]) == HL_OK && hl_relighter_create(ref, t, &r[1]) == HL_OK &&
+                 hl_relighter_create_once(cl, t, NULL, &r[2]) == HL_OK,
+             "relighters");
+    HL_CHECK(hl_cl_light_ranges(hl_relighter_device(r[2])) == 0, "the third relighter walks the rows");
+    for (int b = 0; b < 3; b++) HL_CHECK(hl_relighter_set_env(r[b], env) == HL_OK, "set env");
+    float *raw[3] = {malloc((size_t)V * 12), malloc((size_t)V * 12), malloc((size_t)V * 12)};
+    float *out[3] = {malloc((size_t)V * 12), malloc((size_t)V * 12), malloc((size_t)V * 12)};
     uint32_t raw_negative = 0, out_negative = 0, differ = 0;
     for (uint32_t m = 0; m < 3; m++) {
         const uint32_t M = m == 0 ? 50u : m == 1 ? 200u : HL_TERMS_ALL;
-        hl_relight_stats st[2], sr[2];
-        for (int b = 0; b < 2; b++) {
+        hl_relight_stats st[3], sr[3];
+        for (int b = 0; b < 3; b++) {
             hl_relight_desc keep = {.terms = M, .keep_negative = 1}, clamp = {.terms = M};
             HL_CHECK(hl_relighter_run(r[b], &keep, raw[b], &sr[b]) == HL_OK, "raw run");
             HL_CHECK(hl_relighter_run(r[b], &clamp, out[b], &st[b]) == HL_OK, "clamped run");
@@ -482,23 +490,24 @@ static void case_negative(void)
             n += vlo < 0.0f;
             lo = vlo < lo ? vlo : lo;
         }
-        for (int b = 0; b < 2; b++) {
-            differ += memcmp(raw[0], raw[1], (size_t)V * 12) != 0 || memcmp(out[0], out[1], (size_t)V * 12) != 0;
+        for (int b = 0; b < 3; b++) {
+            differ += memcmp(raw[b], raw[1], (size_t)V * 12) != 0 || memcmp(out[b], out[1], (size_t)V * 12) != 0;
             differ += !st[b].negative_counted || st[b].negative_vertices != n ||
                       st[b].most_negative != (hi > 0.0f ? (double)lo / hi : 0.0);
             differ += sr[b].negative_vertices != n; /* counted on the raw run too */
         }
         raw_negative += n;
         printf("negative: lone sun, M = %s: %u of %u vertices below zero before the clamp, the lowest %.3g%% of the "
-               "brightest; OpenCL %u, reference %u clamped\n", M == HL_TERMS_ALL ? "all" : (m ? "200" : "50"), n, V,
-               100.0 * (hi > 0.0f ? (double)lo / hi : 0.0), st[0].negative_vertices, st[1].negative_vertices);
+               "brightest; OpenCL %u (rows %u), reference %u clamped\n", M == HL_TERMS_ALL ? "all" : (m ? "200" : "50"),
+               n, V, 100.0 * (hi > 0.0f ? (double)lo / hi : 0.0), st[0].negative_vertices, st[2].negative_vertices,
+               st[1].negative_vertices);
     }
     printf("negative: %u channels below zero in the clamped colours (tolerance 0); %u mismatches between the "
            "backends, the raw sums and the counts (tolerance 0)\n", out_negative, differ);
     HL_CHECK(raw_negative > 0, "the lone sun must drive some raw sums below zero, or this case tests nothing");
     HL_CHECK(out_negative == 0, "%u clamped channels are below zero", out_negative);
     HL_CHECK(differ == 0, "%u mismatches", differ);
-    for (int b = 0; b < 2; b++) {
+    for (int b = 0; b < 3; b++) {
         hl_relighter_destroy(r[b]);
         free(raw[b]);
         free(out[b]);

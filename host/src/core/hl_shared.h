@@ -284,6 +284,21 @@ HL_INLINE float4 hl_colour_out(float4 c, uint keep_negative)
     c.w = lo;
     return c;
 }
+
+/* The clamp's tally over a work-item's vertices, so that the host need
+ * not read every colour to report it: x the lowest channel before the
+ * clamp (0 if none was negative), y the brightest channel as written, z
+ * the count of vertices with a channel below zero (its bits), w 0. The
+ * host joins the work-items' tallies (lighting.c). */
+HL_INLINE float4 hl_tally_add(float4 t, float4 c)
+{
+    t.x = c.w < t.x ? c.w : t.x;
+    t.y = c.x > t.y ? c.x : t.y;
+    t.y = c.y > t.y ? c.y : t.y;
+    t.y = c.z > t.y ? c.z : t.y;
+    t.z = as_float(as_uint(t.z) + (c.w < 0.0f ? 1u : 0u));
+    return t;
+}
 #endif
 
 /* Key of a coefficient: |v| as ordered bits. */

@@ -138,6 +138,11 @@ hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params
 /* The last colours again, as hl_cl_light_run gave them (mapped anew
  * where something has run since). */
 hl_result hl_cl_light_colours(hl_cl_light *l, const float **B4);
+/* The clamp's tally of the colours hl_cl_light_run last gave (joined from
+ * the work-items' tallies read back with them): the vertices with a
+ * channel below zero before the clamp, the lowest such channel (0 if
+ * none) and the brightest channel written. */
+void hl_cl_light_clamp_tally(const hl_cl_light *l, uint32_t *negative, float *lowest, float *brightest);
 /* As hl_cl_light_run, but the colours (4 floats per vertex) go to out, a
  * cl_mem of this context holding at least that many bytes, and nothing is
  * read back but the selection's result. With gl set, out came from

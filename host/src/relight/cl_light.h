@@ -28,6 +28,9 @@ struct hl_cl_light {
     cl_mem cstart, cruns;                           /* cube-face Haar: the face texels' taps (NULL: none) */
     uint32_t cube;                                  /* the faces' side; 0: none */
     cl_mem col, cols, rel, rstart, back, albedo, B, acc; /* transport, by column */
+    cl_mem tally;                                   /* each work-item's clamp tally (hl_tally_add) */
+    uint32_t ntally;                                /* work-items that write one */
+    float *tally_host;                              /* read back with the colours */
     const float *Bmap;                              /* B mapped for reading (NULL: not mapped) */
     cl_mem ord, klist;                              /* vertex at each position; kept slots */
     void *host[4];                                  /* CPU devices: their memory */
@@ -72,7 +75,7 @@ struct hl_cl_light {
     {&(l)->cells, &(l)->turned, &(l)->start, &(l)->runs, &(l)->slots, &(l)->weight, &(l)->Lp, &(l)->Lw, &(l)->Lsel,    \
      &(l)->used, &(l)->bits, &(l)->res, &(l)->keys, &(l)->col, &(l)->cols, &(l)->rel, &(l)->rstart, &(l)->back,        \
      &(l)->albedo, &(l)->B, &(l)->acc, &(l)->ord, &(l)->klist, &(l)->Lenv, &(l)->rentries, &(l)->roffset,            \
-     &(l)->rcounts, &(l)->rquant, &(l)->shY, &(l)->cstart, &(l)->cruns}
+     &(l)->rcounts, &(l)->rquant, &(l)->shY, &(l)->cstart, &(l)->cruns, &(l)->tally}
 
 /* Orders the vertices, cuts them into ranges and uploads t's rows as
  * columns (cl_columns.c): l->order, range_start, nranges, tstride,

@@ -43,6 +43,7 @@ void hl_cl_light_destroy(hl_cl_light *l)
     hl_free_big(l->host_rel);
     free(l->range_start);
     free(l->order);
+    free(l->tally_host);
     free(l);
 }
 
@@ -92,6 +93,18 @@ static hl_result upload_rows(hl_cl_light *l, const hl_transport *t)
     if (r == HL_OK)
         r = hl_cl_make_buf(ctx, &l->rquant, CL_MEM_READ_ONLY, V * 8, t->row_quant, "the rows' parameters");
     return r;
+}
+
+/* Work-items of the rows' launch (relight_rows.cl), and the vertices
+ * each takes (*per, when asked): on a CPU 256 chunks of consecutive
+ * vertices, on a GPU one each. */
+static cl_uint rows_items(const hl_cl_light *l, cl_uint *per)
+{
+    const cl_uint nv = l->nverts;
+    cl_uint p = l->cl->wg == 1 ? (nv + 255) / 256 : 1;
+    if (!p) p = 1;
+    if (per) *per = p;
+    return (nv + p - 1) / p;
 }
 
 static hl_result create_light(hl_context *ctx, const hl_geom *g, const hl_light_geom *lg, const hl_transport *t,
@@ -149,6 +162,14 @@ static hl_result create_light(hl_context *ctx, const hl_geom *g, const hl_light_
     /* on a CPU device in memory the host maps without a copy */
     B(B, CL_MEM_READ_WRITE | (l->cl->wg == 1 ? CL_MEM_ALLOC_HOST_PTR : 0), V * 16, NULL, "vertex colours");
     B(acc, CL_MEM_READ_WRITE, (size_t)3 * (l->nranges && V ? l->range_start[l->nranges] : 1) * 4, NULL, "running sums");
+    /* a clamp tally per range, or per work-item of the rows' launch
+       (rows_items), rounded up to whole groups */
+    l->ntally = rows ? rows_items(l, NULL) : l->nranges;
+    size_t tally_slots = ((size_t)l->ntally + l->cl->wg - 1) / l->cl->wg * l->cl->wg;
+    if (!tally_slots) tally_slots = 1;
+    B(tally, CL_MEM_READ_WRITE, tally_slots * 16, NULL, "the clamp's tallies");
+    if (r == HL_OK && !(l->tally_host = malloc(tally_slots * 16)))
+        r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the clamp's tallies");
 #undef B
     if (r != HL_OK) { hl_cl_light_destroy(l); return r; }
     *out = l;
@@ -271,14 +292,14 @@ static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
     cl_kernel k = l->cl->k[K_RELIGHT];
     cl_uint nc = l->g->ncoef, nv = l->nverts, nr = l->nranges, ts = l->tstride;
     if (l->rows) {
-        /* CPU: 256 chunks of consecutive vertices; a GPU: one each */
-        cl_uint nb = l->g->nblocks, per = l->cl->wg == 1 ? (nv + 255) / 256 : 1;
-        if (!per) per = 1;
+        cl_uint nb = l->g->nblocks, per;
+        const cl_uint items = rows_items(l, &per);
         k = l->cl->k[K_RELIGHT_ROWS];
         LARG(k, 0, l->rentries); LARG(k, 1, l->roffset); LARG(k, 2, l->rcounts); LARG(k, 3, l->rquant);
         LARG(k, 4, l->scheme); LARG(k, 5, nb); LARG(k, 6, nc); LARG(k, 7, l->bits); LARG(k, 8, l->Lsel);
         LARG(k, 9, l->albedo); LARG(k, 10, l->keep_negative); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, per);
-        return light_launch(l, K_RELIGHT_ROWS, (nv + per - 1) / per);
+        LARG(k, 14, l->tally);
+        return light_launch(l, K_RELIGHT_ROWS, items);
     }
     for (uint32_t p = 0; p < (l->nparts > 1 ? l->nparts : 1u); p++) {
         cl_mem m[4];
@@ -287,7 +308,9 @@ static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
         LARG(k, 0, m[0]); LARG(k, 1, m[1]); LARG(k, 2, m[2]); LARG(k, 3, ts); LARG(k, 4, m[3]);
         LARG(k, 5, l->back); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->klist); LARG(k, 9, l->albedo);
         LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
-        LARG(k, 15, l->keep_negative);
+        LARG(k, 15, l->keep_negative); LARG(k, 16, l->tally);
+        const cl_uint t0 = l->nparts > 1 ? l->part_range[p] : 0;
+        LARG(k, 17, t0);
         TRY(light_launch(l, K_RELIGHT, nr));
     }
     return HL_OK;
@@ -354,7 +377,26 @@ hl_result hl_cl_light_run(hl_cl_light *l, uint32_t s0, float f, hl_select_params
     TRY(enq_lighting(l, s0, f, sp));
     TRY(hl_cl_light_enq_relight(l));
     LREAD(l->res, sizeof *res, res, CL_FALSE);
+    /* done by the time the colours' blocking map returns (in order) */
+    if (l->ntally) LREAD(l->tally, (size_t)l->ntally * 16, l->tally_host, CL_FALSE);
     return hl_cl_light_colours(l, B4);
+}
+
+void hl_cl_light_clamp_tally(const hl_cl_light *l, uint32_t *negative, float *lowest, float *brightest)
+{
+    uint32_t n = 0;
+    float lo = 0.0f, hi = 0.0f;
+    for (uint32_t i = 0; i < l->ntally; i++) {
+        const float *t = l->tally_host + 4 * (size_t)i;
+        uint32_t c;
+        memcpy(&c, &t[2], 4);
+        n += c;
+        lo = t[0] < lo ? t[0] : lo;
+        hi = t[1] > hi ? t[1] : hi;
+    }
+    *negative = n;
+    *lowest = lo;
+    *brightest = hi;
 }
 
 hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, void *out, int gl,
