@@ -164,18 +164,24 @@ static void walk_tiles(global const uint *col, global const uint *cs, global con
 
 /* The colours of positions p0 .. p1 - 1 from their sums (planes of n
  * floats from position p0), each added to the clamp's tally. */
-static float4 put_colours(global const float *sums, uint n, uint p0, uint p1, global const float *back,
-                          global const float4 *albedo, global const uint *order, uint keep_negative,
-                          global float4 *out, float4 tally)
+static void put_colours(global const float *sums, uint n, uint p0, uint p1, global const float *back,
+                        global const float4 *albedo, global const uint *order, uint keep_negative,
+                        global float4 *out, float *lo, float *hi, uint *neg)
 {
+    /* tallied in the loop's own variables, joined once after it: PoCL
+       kept the caller's in memory, a load and store a vertex */
+    float l = 0.0f, h = 0.0f;
+    uint k = 0;
     for (uint v = p0; v < p1; v++) {
         uint i = v - p0;
         const float4 c =
             hl_colour_out(((float4)(sums[i], sums[n + i], sums[2 * n + i], 0.0f) * back[v]) * albedo[v], keep_negative);
         out[order[v]] = c;
-        tally = hl_tally_add(tally, c);
+        hl_tally_add(c, &l, &h, &k);
     }
-    return tally;
+    *lo = l < *lo ? l : *lo;
+    *hi = h > *hi ? h : *hi;
+    *neg += k;
 }
 
 /* tally[tally0 + w]: the clamp's tally of range w's vertices
@@ -195,16 +201,17 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
     ulong entries = 0;
     for (uint j = 0; j < m; j++) entries += cs[kept[1 + j] + 1] - cs[kept[1 + j]];
     global const uint2 *rw = rel + (size_t)w * ncoef * tstride;
-    float4 t = (float4)(0.0f);
+    float lo = 0.0f, hi = 0.0f;
+    uint neg = 0;
     if (!hl_tile_walk_pays(entries, m, nt)) {
         walk_columns(col, cs, rw, tstride, light, kept, m, ar, range);
-        t = put_colours(ar, range, v0, v1, back, albedo, order, keep_negative, out, t);
+        put_colours(ar, range, v0, v1, back, albedo, order, keep_negative, out, &lo, &hi, &neg);
     } else {
         for (uint t0 = 0; t0 < nt; t0 += HL_SUM_TILES) {
             const uint tn = min((uint)HL_SUM_TILES, nt - t0), n = tn * HL_TILE, p0 = v0 + t0 * HL_TILE;
             walk_tiles(col, cs, rw, tstride, light, kept, m, ar, t0, tn);
-            t = put_colours(ar, n, p0, min(p0 + n, v1), back, albedo, order, keep_negative, out, t);
+            put_colours(ar, n, p0, min(p0 + n, v1), back, albedo, order, keep_negative, out, &lo, &hi, &neg);
         }
     }
-    tally[tally0 + w] = t;
+    tally[tally0 + w] = (float4)(lo, hi, as_float(neg), 0.0f);
 }

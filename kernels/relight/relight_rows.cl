@@ -26,7 +26,8 @@ kernel void hl_relight_rows(global const uchar *entries, global const ulong *row
 {
     const uint v0 = get_global_id(0) * per;
     if (v0 >= nverts) return; /* past the last item (whole groups) */
-    float4 tl = (float4)(0.0f);
+    float lo = 0.0f, hi = 0.0f;
+    uint neg = 0;
     for (uint v = v0; v < v0 + per && v < nverts; v++) {
         const float2 q = row_quant[v];
         const int ex = hl_half_exponent(scheme, q.x, q.y);
@@ -58,7 +59,7 @@ kernel void hl_relight_rows(global const uchar *entries, global const ulong *row
         }
         const float4 c = hl_colour_out(((float4)(sr, sg, sb, 0.0f) * back) * albedo[v], keep_negative);
         out[v] = c;
-        tl = hl_tally_add(tl, c);
+        hl_tally_add(c, &lo, &hi, &neg);
     }
-    tally[get_global_id(0)] = tl;
+    tally[get_global_id(0)] = (float4)(lo, hi, as_float(neg), 0.0f);
 }

@@ -286,18 +286,18 @@ HL_INLINE float4 hl_colour_out(float4 c, uint keep_negative)
 }
 
 /* The clamp's tally over a work-item's vertices, so that the host need
- * not read every colour to report it: x the lowest channel before the
- * clamp (0 if none was negative), y the brightest channel as written, z
- * the count of vertices with a channel below zero (its bits), w 0. The
- * host joins the work-items' tallies (lighting.c). */
-HL_INLINE float4 hl_tally_add(float4 t, float4 c)
+ * not read every colour to report it: *lo the lowest channel before the
+ * clamp (0 if none was negative), *hi the brightest channel as written,
+ * *n the vertices with a channel below zero. Scalars, so that they stay
+ * in registers across the colours' loop. Each work-item writes them as
+ * (lo, hi, n's bits, 0) and the host joins the work-items' tallies
+ * (lighting.c). */
+HL_INLINE void hl_tally_add(float4 c, float *lo, float *hi, uint *n)
 {
-    t.x = c.w < t.x ? c.w : t.x;
-    t.y = c.x > t.y ? c.x : t.y;
-    t.y = c.y > t.y ? c.y : t.y;
-    t.y = c.z > t.y ? c.z : t.y;
-    t.z = as_float(as_uint(t.z) + (c.w < 0.0f ? 1u : 0u));
-    return t;
+    const float m = c.y > c.x ? c.y : c.x, top = c.z > m ? c.z : m;
+    *lo = c.w < *lo ? c.w : *lo;
+    *hi = top > *hi ? top : *hi;
+    *n += c.w < 0.0f ? 1u : 0u;
 }
 #endif
 
