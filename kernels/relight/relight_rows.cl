@@ -25,7 +25,7 @@ kernel void hl_relight_rows(global const uchar *entries, global const ulong *row
                             global float4 *out, uint nverts, uint per, global float4 *tally)
 {
     const uint v0 = get_global_id(0) * per;
-    if (v0 >= nverts) return; /* past the last item (whole groups) */
+    if (v0 >= nverts) return; /* past the last item: they fill the last group, and write no tally */
     float lo = 0.0f, hi = 0.0f;
     uint neg = 0;
     for (uint v = v0; v < v0 + per && v < nverts; v++) {

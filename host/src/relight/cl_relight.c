@@ -163,12 +163,12 @@ static hl_result create_light(hl_context *ctx, const hl_geom *g, const hl_light_
     B(B, CL_MEM_READ_WRITE | (l->cl->wg == 1 ? CL_MEM_ALLOC_HOST_PTR : 0), V * 16, NULL, "vertex colours");
     B(acc, CL_MEM_READ_WRITE, (size_t)3 * (l->nranges && V ? l->range_start[l->nranges] : 1) * 4, NULL, "running sums");
     /* a clamp tally per range, or per work-item of the rows' launch
-       (rows_items), rounded up to whole groups */
+       (rows_items); the work-items past them, which fill the last group,
+       write none */
     l->ntally = rows ? rows_items(l, NULL) : l->nranges;
-    size_t tally_slots = ((size_t)l->ntally + l->cl->wg - 1) / l->cl->wg * l->cl->wg;
-    if (!tally_slots) tally_slots = 1;
-    B(tally, CL_MEM_READ_WRITE, tally_slots * 16, NULL, "the clamp's tallies");
-    if (r == HL_OK && !(l->tally_host = malloc(tally_slots * 16)))
+    const size_t tally_bytes = (l->ntally ? (size_t)l->ntally : 1) * 16;
+    B(tally, CL_MEM_READ_WRITE, tally_bytes, NULL, "the clamp's tallies");
+    if (r == HL_OK && !(l->tally_host = malloc(tally_bytes)))
         r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the clamp's tallies");
 #undef B
     if (r != HL_OK) { hl_cl_light_destroy(l); return r; }
