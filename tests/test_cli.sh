@@ -116,6 +116,11 @@ interrupt)
   [ -e "$tmp/int.hlt" ] && fail "output written by a killed run"
   "$bin" precompute "$m" --ground -o "$tmp/int.hlt" --chunk 300 --resume 2>"$tmp/resume.err" || fail "resume"
   grep -E "resuming|no .*partial" "$tmp/resume.err"
+  # stderr is a file here, as in a batch job's log: whole progress lines,
+  # the last at 100% with the rate and the time left, no carriage returns
+  grep -E "^precompute: ([0-9]+)/\1 vertices \(100%\), [0-9.]+ Mrays/s, ETA 0 s$" "$tmp/resume.err" ||
+    fail "no final progress line in a log that is not a terminal"
+  grep -q $'\r' "$tmp/resume.err" && fail "carriage returns in a log that is not a terminal"
   cmp "$tmp/whole.hlt" "$tmp/int.hlt" || fail "a resumed run wrote other bytes than an unbroken one"
   echo "resumed after SIGINT and SIGKILL: same bytes as the unbroken run ($(stat -c %s "$tmp/int.hlt") bytes)"
   [ -e "$tmp/int.hlt.partial" ] && fail "partial file left after a complete run"

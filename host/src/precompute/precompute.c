@@ -202,13 +202,22 @@ hl_result hl_ref_rows_basis(hl_context *ctx, const hl_geom *g, const float *shY,
 
 /* ------------------------------------------------ the whole run */
 
-static void progress(hl_context *ctx, uint32_t done, uint32_t total, uint64_t rays, double t_rays, double t0)
+/* On a terminal a line rewritten in place after every chunk; otherwise
+ * (a batch job's log) a whole line every HL_PROGRESS_EVERY seconds and at
+ * the end, so that a log shows the rate and the time left without a line
+ * a chunk. */
+#define HL_PROGRESS_EVERY 30.0
+static void progress(hl_context *ctx, uint32_t done, uint32_t total, uint64_t rays, double t_rays, double t0,
+                     double *shown)
 {
-    if (ctx->quiet || !isatty(2)) return;
-    double el = hl_now() - t0, eta = done ? el * (double)(total - done) / done : 0.0;
-    fprintf(stderr, "\rprecompute: %u/%u vertices (%3.0f%%), %.1f Mrays/s, ETA %.0f s   ", done, total,
-            100.0 * done / total, t_rays > 0 ? (double)rays / t_rays * 1e-6 : 0.0, eta);
-    if (done == total) fputc('\n', stderr);
+    if (ctx->quiet) return;
+    const int tty = isatty(2);
+    const double now = hl_now(), el = now - t0, eta = done ? el * (double)(total - done) / done : 0.0;
+    if (!tty && done < total && now - *shown < HL_PROGRESS_EVERY) return;
+    *shown = now;
+    fprintf(stderr, "%sprecompute: %u/%u vertices (%3.0f%%), %.1f Mrays/s, ETA %.0f s%s", tty ? "\r" : "", done, total,
+            100.0 * done / total, t_rays > 0 ? (double)rays / t_rays * 1e-6 : 0.0, eta, tty ? "   " : "\n");
+    if (tty && done == total) fputc('\n', stderr);
 }
 
 static void fill_normals(const hl_mesh *m, uint32_t first, uint32_t count, float *n4)
@@ -229,7 +238,7 @@ typedef struct pc_run {
     const char *out_path;
     hl_precompute_desc d;
     hl_precompute_stats st;
-    double t_start;
+    double t_start, t_shown; /* t_shown: the last progress line */
     hl_geom *g;
     hl_rt *rt;
     hl_cl_pipe *pipe;
@@ -343,7 +352,7 @@ static hl_result append_device_chunk(pc_run *u, int s, uint32_t k, hl_vis_counts
     u->vc_done = vc_before;
     if (r == HL_OK) r = hl_tfile_writer_checkpoint(u->w, u->vc_done.rays_cast, u->vc_done.rays_culled);
     if (r != HL_OK) return r;
-    progress(u->ctx, pf + pc - u->lo, u->hi - u->lo, u->vc.rays_cast, u->st.seconds_rays, u->t_start);
+    progress(u->ctx, pf + pc - u->lo, u->hi - u->lo, u->vc.rays_cast, u->st.seconds_rays, u->t_start, &u->t_shown);
     return HL_OK;
 }
 
@@ -362,7 +371,7 @@ static hl_result run_chunk(pc_run *u, int s, uint32_t first, uint32_t count)
     for (uint32_t i = 0; i < count; i++) u->st.coefficients_kept += b->nnz[i];
     u->vc_done = u->vc;
     if (r == HL_OK) r = hl_tfile_writer_checkpoint(u->w, u->vc_done.rays_cast, u->vc_done.rays_culled);
-    progress(u->ctx, first + count - u->lo, u->hi - u->lo, u->vc.rays_cast, u->st.seconds_rays, u->t_start);
+    progress(u->ctx, first + count - u->lo, u->hi - u->lo, u->vc.rays_cast, u->st.seconds_rays, u->t_start, &u->t_shown);
     return r;
 }
 
@@ -438,7 +447,7 @@ hl_result hl_precompute_shard(hl_context *ctx, const hl_mesh *mesh, const hl_pre
                            "vertices", shard_index, shard_count, u.V);
         hl_shard_range(u.V, shard_index, shard_count, &u.lo, &u.hi);
     }
-    u.t_start = hl_now();
+    u.t_start = u.t_shown = hl_now();
     u.start = u.lo;
     u.R = u.d.chunk < u.hi - u.lo ? u.d.chunk : u.hi - u.lo;
     u.nchunks = (u.hi - u.lo + u.R - 1) / u.R;
