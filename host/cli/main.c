@@ -103,7 +103,8 @@ static const char *const usage_precompute =
     "                       relight and info refuse. `haarlight merge -o SCENE.hlt`\n"
     "                       with all N shards (same mesh and options) writes the\n"
     "                       same bytes as one run without --shard\n"
-    "  -q, --quiet          no progress line\n";
+    "  -q, --quiet          no progress lines (on a terminal, one line rewritten in\n"
+    "                       place; elsewhere, as in a batch job's log, one every 30 s)\n";
 
 /* The contexts of the running command, for the SIGINT and SIGTERM
  * handler: it may run at any moment, so it reads them through lock-free
