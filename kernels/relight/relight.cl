@@ -6,7 +6,8 @@
  * holds the vertices in its own order (order[p]: the vertex at position p;
  * see vertex_order), positions grouped in tiles of HL_TILE and tiles in
  * ranges, one range per work-item (range_start: position boundaries, whole
- * tiles); albedo and back are in position order, colours go to their
+ * tiles); albedo and back are in position order (the albedo one for all,
+ * albedo_step 0, where every vertex has the same), colours go to their
  * vertices.
  *
  * For each range and slot the column lists the tiles in which at least one
@@ -49,10 +50,21 @@
 #error "HL_TILE must be 8 or 16"
 #endif
 
-/* The tile walk: kept slots added per pass over the tiles, and tiles whose
- * sums (3 x 16 x 4 bytes each) it keeps at once, 96 KB in the L2 cache. */
-#define HL_GROUP 8
+/* The tile walk: tiles whose sums (3 x 16 x 4 bytes each) it keeps at
+ * once, 96 KB in the L2 cache (a whole number of words of tile bits); the
+ * kept slots it adds per pass over them: HL_TILE_GROUP (hl_shared.h). */
 #define HL_SUM_TILES 512
+#if HL_SUM_TILES % 32
+#error "HL_SUM_TILES must be a whole number of 32-tile words"
+#endif
+
+/* One entry's terms d of a kept slot with light l, added to a tile's sums. */
+static inline void add_terms(FV d, float4 l, FV *r, FV *gr, FV *b)
+{
+    *r = fma(d, (FV)(l.x), *r);
+    *gr = fma(d, (FV)(l.y), *gr);
+    *b = fma(d, (FV)(l.z), *b);
+}
 
 /* The column walk: the kept slots in groups of HL_COL_GROUP, each group's
  * columns walked together, tile by tile through the tiles any of them
@@ -95,11 +107,8 @@ static void walk_columns(global const uint *col, global const uint *cs, global c
 #pragma unroll
                 for (uint g = 0; g < HL_COL_GROUP; g++) {
                     const uint hit = xg[g] & low;
-                    FV d = LOAD_TERMS(0, (global const half *)(hit ? e[g] : col));
+                    add_terms(LOAD_TERMS(0, (global const half *)(hit ? e[g] : col)), li[g], &r, &gr, &b);
                     e[g] += hit ? ENTRY : 0u;
-                    r = fma(d, (FV)(li[g].x), r);
-                    gr = fma(d, (FV)(li[g].y), gr);
-                    b = fma(d, (FV)(li[g].z), b);
                 }
                 vr[tq] = r;
                 vg[tq] = gr;
@@ -110,72 +119,141 @@ static void walk_columns(global const uint *col, global const uint *cs, global c
 }
 
 /* The tile walk over tiles t0 .. t0 + tn - 1: the kept slots in groups of
- * HL_GROUP, each group's terms added tile by tile into sums held in
+ * HL_TILE_GROUP, each group's terms added tile by tile into sums held in
  * registers; between groups the sums wait in `acc` (planes of tn tiles,
- * which stay in the cache). */
+ * which stay in the cache). The tiles go a word of tile bits (32 tiles)
+ * at a time: where every slot of the group holds every tile of the word,
+ * as on a mesh whose tiles are nearly all full, each slot's entries for
+ * the word lie one after another and are read without testing the bits
+ * (about half the instructions a term: the walk is bound by them, not by
+ * the bytes, on a 2-core host; docs/SCALE.md). The sums come out the same
+ * either way: the same multiply-adds in the same order. */
 static void walk_tiles(global const uint *col, global const uint *cs, global const uint2 *rw, uint tstride,
                        global const float4 *light, global const uint *kept, uint m, global float *acc, uint t0,
                        uint tn)
 {
     global FV *sr = (global FV *)acc, *sg = sr + tn, *sb = sg + tn;
-    for (uint j0 = 0; j0 < m; j0 += HL_GROUP) {
+    for (uint j0 = 0; j0 < m; j0 += HL_TILE_GROUP) {
         /* the group's slots; past the last kept one, the last again with
            no light, adding exact zeros */
-        global const uint2 *row[HL_GROUP];
-        global const uint *before[HL_GROUP];
-        float4 li[HL_GROUP];
-        for (uint g = 0; g < HL_GROUP; g++) {
+        global const uint2 *row[HL_TILE_GROUP];
+        global const uint *before[HL_TILE_GROUP];
+        float4 li[HL_TILE_GROUP];
+        for (uint g = 0; g < HL_TILE_GROUP; g++) {
             uint s = kept[1 + min(j0 + g, m - 1)];
             row[g] = rw + (size_t)s * tstride;
             before[g] = col + ((size_t)cs[s] - 1) * ENTRY; /* entry r at before + r ENTRY */
             li[g] = j0 + g < m ? light[s] : (float4)(0.0f);
         }
-        /* per slot: the tile bits of the word at hand, and where the next
-           tile it holds has its terms */
-        uint bits[HL_GROUP];
-        global const uint *next[HL_GROUP];
-        for (uint t = 0; t < tn; t++) {
-            const uint tt = t0 + t, bit = tt & 31u;
-            if (t == 0 || bit == 0) {
+        for (uint t = 0; t < tn;) {
+            /* the word's tiles t .. t + n - 1; per slot its tile bits and
+               where the first tile it holds here has its terms */
+            const uint tt = t0 + t, bit = tt & 31u, n = min(32u - bit, tn - t);
+            const uint want = (n == 32u ? ~0u : (1u << n) - 1u) << bit;
+            uint bits[HL_TILE_GROUP], all = want;
+            global const uint *next[HL_TILE_GROUP];
 #pragma unroll
-                for (uint g = 0; g < HL_GROUP; g++) {
-                    uint2 rk = row[g][tt >> 5];
-                    bits[g] = rk.x;
-                    next[g] = before[g] + (size_t)(rk.y + popcount(rk.x & ((1u << bit) - 1u)) + 1u) * ENTRY;
+            for (uint g = 0; g < HL_TILE_GROUP; g++) {
+                uint2 rk = row[g][tt >> 5];
+                bits[g] = rk.x;
+                all &= rk.x;
+                next[g] = before[g] + (size_t)(rk.y + popcount(rk.x & ((1u << bit) - 1u)) + 1u) * ENTRY;
+            }
+            const int dense = all == want;
+            for (uint u = 0; u < n; u++) {
+                FV r, gr, b;
+                if (j0 == 0) r = gr = b = (FV)(0.0f);
+                else { r = sr[t + u]; gr = sg[t + u]; b = sb[t + u]; }
+                if (dense) {
+#pragma unroll
+                    for (uint g = 0; g < HL_TILE_GROUP; g++)
+                        add_terms(LOAD_TERMS(u, (global const half *)next[g]), li[g], &r, &gr, &b);
+                } else {
+#pragma unroll
+                    for (uint g = 0; g < HL_TILE_GROUP; g++) {
+                        uint hit = (bits[g] >> (bit + u)) & 1u;
+                        global const uint *e = hit ? next[g] : col;
+                        next[g] += hit ? ENTRY : 0u;
+                        add_terms(LOAD_TERMS(0, (global const half *)e), li[g], &r, &gr, &b);
+                    }
                 }
+                sr[t + u] = r; sg[t + u] = gr; sb[t + u] = b;
             }
-            FV r, gr, b;
-            if (j0 == 0) r = gr = b = (FV)(0.0f);
-            else { r = sr[t]; gr = sg[t]; b = sb[t]; }
-#pragma unroll
-            for (uint g = 0; g < HL_GROUP; g++) {
-                uint hit = (bits[g] >> bit) & 1u;
-                global const uint *e = hit ? next[g] : col;
-                next[g] += hit ? ENTRY : 0u;
-                FV d = LOAD_TERMS(0, (global const half *)e);
-                r = fma(d, (FV)(li[g].x), r);
-                gr = fma(d, (FV)(li[g].y), gr);
-                b = fma(d, (FV)(li[g].z), b);
-            }
-            sr[t] = r; sg[t] = gr; sb[t] = b;
+            t += n;
         }
     }
 }
 
 /* The colours of positions p0 .. p1 - 1 from their sums (planes of n
- * floats from position p0), each added to the clamp's tally. */
+ * floats from position p0), each added to the clamp's tally. Eight
+ * positions at a time: the same operations as hl_colour_out and
+ * hl_tally_add lane by lane, so the same colours and tally, for about a
+ * fifth of the scalar loop's instructions (it was a seventh of the tile
+ * walk's on a mesh with full tiles; docs/SCALE.md). p0 is a whole tile. */
 static void put_colours(global const float *sums, uint n, uint p0, uint p1, global const float *back,
-                        global const float4 *albedo, global const uint *order, uint keep_negative,
+                        global const float4 *albedo, uint astep, global const uint *order, uint keep_negative,
                         global float4 *out, float *lo, float *hi, uint *neg)
 {
     /* tallied in the loop's own variables, joined once after it: PoCL
        kept the caller's in memory, a load and store a vertex */
-    float l = 0.0f, h = 0.0f;
+    float8 l8 = (float8)(0.0f), h8 = (float8)(0.0f);
+    int8 k8 = (int8)(0);
+    uint v = p0;
+    for (; v + 8u <= p1; v += 8u) {
+        const uint i = v - p0;
+        const float8 bk = vload8(0, back + v);
+        float8 ar, ag, ab;
+        if (astep) {
+            const float16 a0 = vload16(0, (global const float *)(albedo + v));
+            const float16 a1 = vload16(0, (global const float *)(albedo + v + 4));
+            ar = (float8)(a0.s048c, a1.s048c);
+            ag = (float8)(a0.s159d, a1.s159d);
+            ab = (float8)(a0.s26ae, a1.s26ae);
+        } else {
+            const float4 a = albedo[0];
+            ar = (float8)(a.x);
+            ag = (float8)(a.y);
+            ab = (float8)(a.z);
+        }
+        float8 r = (vload8(0, sums + i) * bk) * ar;
+        float8 g = (vload8(0, sums + n + i) * bk) * ag;
+        float8 b = (vload8(0, sums + 2 * n + i) * bk) * ab;
+        const float8 zero = (float8)(0.0f);
+        float8 c = select(zero, r, r < zero);
+        c = select(c, g, g < c);
+        c = select(c, b, b < c);
+        if (!keep_negative) {
+            r = select(zero, r, r > zero);
+            g = select(zero, g, g > zero);
+            b = select(zero, b, b > zero);
+        }
+        const float8 m = select(r, g, g > r), top = select(m, b, b > m);
+        l8 = select(l8, c, c < l8);
+        h8 = select(h8, top, top > h8);
+        k8 -= c < zero; /* true is -1 */
+        float q[4][8];
+        vstore8(r, 0, q[0]);
+        vstore8(g, 0, q[1]);
+        vstore8(b, 0, q[2]);
+        vstore8(c, 0, q[3]);
+#pragma unroll
+        for (uint j = 0; j < 8u; j++) out[order[v + j]] = (float4)(q[0][j], q[1][j], q[2][j], q[3][j]);
+    }
+    float l = 0.0f, h = 0.0f, ls[8], hs[8];
+    int ks[8];
+    vstore8(l8, 0, ls);
+    vstore8(h8, 0, hs);
+    vstore8(k8, 0, ks);
     uint k = 0;
-    for (uint v = p0; v < p1; v++) {
+    for (uint j = 0; j < 8u; j++) {
+        l = ls[j] < l ? ls[j] : l;
+        h = hs[j] > h ? hs[j] : h;
+        k += (uint)ks[j];
+    }
+    for (; v < p1; v++) {
         uint i = v - p0;
         const float4 c =
-            hl_colour_out(((float4)(sums[i], sums[n + i], sums[2 * n + i], 0.0f) * back[v]) * albedo[v], keep_negative);
+            hl_colour_out(((float4)(sums[i], sums[n + i], sums[2 * n + i], 0.0f) * back[v]) * albedo[v * astep], keep_negative);
         out[order[v]] = c;
         hl_tally_add(c, &l, &h, &k);
     }
@@ -190,7 +268,7 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
                        global const uint *range_start, global const float *back, uint ncoef,
                        global const float4 *light, global const uint *kept, global const float4 *albedo,
                        global float *acc, global float4 *out, uint nverts, uint nranges, global const uint *order,
-                       uint keep_negative, global float4 *tally, uint tally0)
+                       uint keep_negative, global float4 *tally, uint tally0, uint albedo_step)
 {
     uint w = get_global_id(0);
     if (w >= nranges) return;
@@ -205,12 +283,12 @@ kernel void hl_relight(global const uint *col, global const uint *col_start, glo
     uint neg = 0;
     if (!hl_tile_walk_pays(entries, m, nt)) {
         walk_columns(col, cs, rw, tstride, light, kept, m, ar, range);
-        put_colours(ar, range, v0, v1, back, albedo, order, keep_negative, out, &lo, &hi, &neg);
+        put_colours(ar, range, v0, v1, back, albedo, albedo_step, order, keep_negative, out, &lo, &hi, &neg);
     } else {
         for (uint t0 = 0; t0 < nt; t0 += HL_SUM_TILES) {
             const uint tn = min((uint)HL_SUM_TILES, nt - t0), n = tn * HL_TILE, p0 = v0 + t0 * HL_TILE;
             walk_tiles(col, cs, rw, tstride, light, kept, m, ar, t0, tn);
-            put_colours(ar, n, p0, min(p0 + n, v1), back, albedo, order, keep_negative, out, &lo, &hi, &neg);
+            put_colours(ar, n, p0, min(p0 + n, v1), back, albedo, albedo_step, order, keep_negative, out, &lo, &hi, &neg);
         }
     }
     tally[tally0 + w] = (float4)(lo, hi, as_float(neg), 0.0f);

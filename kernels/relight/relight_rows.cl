@@ -11,7 +11,8 @@
  * with one fused multiply-add per colour in ascending slot order. So the
  * sums are those of relight.cl and of its twin, bit for bit (a skipped
  * term would add t x 0, which leaves a sum that is never -0 unchanged).
- * Then the sums times 2^e, times the albedo, clamped at zero (unless
+ * Then the sums times 2^e, times the albedo (one for all where
+ * albedo_step is 0: every vertex has the same), clamped at zero (unless
  * keep_negative), the fourth float the lowest channel before the clamp;
  * each work-item's clamp tally (hl_tally_add) into tally.
  * Twin: hl_ref_relight (host/src/relight/twins/relight.c).
@@ -22,7 +23,7 @@ kernel void hl_relight_rows(global const uchar *entries, global const ulong *row
                             global const ushort *block_counts, global const float2 *row_quant, uint scheme,
                             uint nblocks, uint ncoef, global const uint *bits,
                             global const float4 *light, global const float4 *albedo, uint keep_negative,
-                            global float4 *out, uint nverts, uint per, global float4 *tally)
+                            global float4 *out, uint nverts, uint per, global float4 *tally, uint albedo_step)
 {
     const uint v0 = get_global_id(0) * per;
     if (v0 >= nverts) return; /* past the last item: they fill the last group, and write no tally */
@@ -57,7 +58,7 @@ kernel void hl_relight_rows(global const uchar *entries, global const ulong *row
                 sb = fma(t, l.z, sb);
             }
         }
-        const float4 c = hl_colour_out(((float4)(sr, sg, sb, 0.0f) * back) * albedo[v], keep_negative);
+        const float4 c = hl_colour_out(((float4)(sr, sg, sb, 0.0f) * back) * albedo[v * albedo_step], keep_negative);
         out[v] = c;
         hl_tally_add(c, &lo, &hi, &neg);
     }

@@ -126,9 +126,18 @@ static inline void lighting_chain(int dots)
         hl_light_geom_create(ref, g, &lg);
         const uint32_t V = t->info.vertex_count, nc = g->ncoef;
         float *alb = malloc((size_t)V * 16);
-        for (uint32_t v = 0; v < V; v++) { memcpy(alb + 4 * v, t->mesh->albedo + 3 * v, 12); alb[4 * v + 3] = 0; }
+        /* the first scheme with one albedo for all (the device holds one),
+           the second with an albedo a vertex */
+        for (uint32_t v = 0; v < V; v++) {
+            for (int c = 0; c < 3; c++)
+                alb[4 * v + c] = scheme ? t->mesh->albedo[3 * v + c] * (0.5f + (float)((v * 7 + c) % 11) / 20.0f)
+                                        : t->mesh->albedo[c];
+            alb[4 * v + 3] = 0;
+        }
         hl_cl_light *l = NULL;
         HL_CHECK(hl_cl_light_create(cl, g, lg, t, alb, &l) == HL_OK, "%s", hl_context_last_error(cl));
+        HL_CHECK(l && hl_cl_light_one_albedo(l) == !scheme, "scheme %d: one albedo for all %d", scheme,
+                 l ? hl_cl_light_one_albedo(l) : -1);
         hl_env *env = make_env(ref, 512, 100, 60, 3e4f);
         float *cells = NULL, *Lp = malloc((size_t)nc * 12), *Lp2 = malloc((size_t)nc * 12);
         float *wa = malloc((size_t)nc * 12), *wb = malloc((size_t)nc * 12);
@@ -146,6 +155,7 @@ static inline void lighting_chain(int dots)
         hl_ref_key *keys = malloc((size_t)nc * sizeof *keys);
         static const uint32_t Ms[] = {1, 25, 200, 1000, HL_TERMS_ALL};
         uint32_t walks[2] = {0, 0}; /* ranges walked by tile, by column */
+        uint64_t words[2] = {0, 0}; /* the tile walk's words: without and with testing the bits */
         for (uint32_t sel = HL_SELECT_AREA; sel <= HL_SELECT_UNWEIGHTED; sel++)
             for (size_t m = 0; m < 5; m++) {
                 hl_select_params sp = {Ms[m], sel, {0, 0}};
@@ -176,6 +186,10 @@ static inline void lighting_chain(int dots)
                        ra.blocks_used, g->nblocks, ra.energy_total > 0 ? ra.energy_kept / ra.energy_total : 1.0, diff, V);
                 HL_CHECK(diff == 0, "dot products: OpenCL must equal C bit for bit");
                 walks[0] += count_walks(l, ka, &walks[1]);
+                uint64_t wd = 0, wm = 0;
+                HL_CHECK(hl_cl_light_tile_words(l, ka, &wd, &wm) == HL_OK, "%s", hl_context_last_error(cl));
+                words[0] += wd;
+                words[1] += wm;
                 if (Ms[m] == 200) check_balance(l, ka, V);
                 free(ones);
             }
@@ -183,6 +197,9 @@ static inline void lighting_chain(int dots)
         if (dots) {
             printf("ranges walked by tile: %u, by column: %u\n", walks[0], walks[1]);
             HL_CHECK(walks[0] > 0 && walks[1] > 0, "both walks of the dot products tested");
+            printf("tile walk words: %llu where every slot holds every tile, %llu testing the bits\n",
+                   (unsigned long long)words[0], (unsigned long long)words[1]);
+            HL_CHECK(words[0] > 0 && words[1] > 0, "both ways of the tile walk tested");
         }
         free(sa); free(sb); free(Ba); free(Bb); free(ua); free(ub); free(ka); free(kb); free(keys);
         free(Lp); free(Lp2); free(wa); free(wb); free(alb);

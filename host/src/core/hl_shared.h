@@ -64,6 +64,7 @@ static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return 
  * vertex terrain (tiles nearly full) the tile walk takes 0.6 of the column
  * walk's time, on the dragon (0.59 filled) the column walk wins
  * (docs/SCALE.md). */
+#define HL_TILE_GROUP 8 /* kept slots the tile walk adds per pass */
 HL_INLINE int hl_tile_walk_pays(HL_U64 entries, HL_U32 m, HL_U32 nt)
 {
     return m > 0 && 8 * entries >= (HL_U64)5 * m * nt;

@@ -194,11 +194,18 @@ hl_result hl_cl_light_time_relight(hl_cl_light *l, uint32_t reps, double *second
  * each would walk for the kept slots in bits (per_range: one per range);
  * returns the number of kept slots. */
 uint32_t hl_cl_light_ranges(const hl_cl_light *l);
+/* Whether the device holds one albedo for all (every vertex has the same). */
+int hl_cl_light_one_albedo(const hl_cl_light *l);
 double hl_cl_light_kept_entries(const hl_cl_light *l, const uint32_t *bits, double *per_range);
 /* Whether range rg takes the tile walk rather than the column walk
  * (kernels/relight/relight.cl) when `kept` kept slots hold `entries` of its column
  * entries. */
 int hl_cl_light_tile_walk(const hl_cl_light *l, uint32_t rg, double entries, uint32_t kept);
+/* Of the tile walk's words for the kept slots in bits (a group of
+ * HL_TILE_GROUP kept slots over 32 tiles of a range that takes the tile
+ * walk), those where every slot holds every tile, walked without testing
+ * the bits, and the rest. Needs the columns in one part. */
+hl_result hl_cl_light_tile_words(hl_cl_light *l, const uint32_t *bits, uint64_t *dense, uint64_t *mixed);
 /* Bytes the dot-product kernel reads and writes for the last selection
  * (each byte once: what stays in cache is not counted twice). */
 hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes);

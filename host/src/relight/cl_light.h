@@ -21,6 +21,7 @@ struct hl_cl_light {
     const hl_light_geom *lg;
     uint32_t nverts, scheme;
     cl_uint keep_negative; /* the dot products' clamp at zero is off */
+    cl_uint albedo_step;   /* 1: an albedo a position; 0: one for all (every vertex's the same) */
     cl_mem cells, turned, start, runs, slots, weight; /* tables and inputs */
     cl_mem Lp, Lw, Lsel, used, bits, res, keys;    /* lighting stages */
     cl_mem shY;                                     /* spherical harmonics in Haar's place (NULL: Haar) */

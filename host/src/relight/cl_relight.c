@@ -136,6 +136,11 @@ static hl_result create_light(hl_context *ctx, const hl_geom *g, const hl_light_
     l->nverts = t->info.vertex_count;
     l->scheme = t->info.quant;
     size_t nc = g->ncoef, V = l->nverts, cells = (size_t)lg->wc * lg->hc;
+    /* one albedo for all where every vertex has the same (scanned meshes
+       without colours, the terrain): 16 bytes a vertex less for each
+       change to read (before the columns: their memory plan counts it) */
+    l->albedo_step = 0;
+    for (size_t i = 1; i < V && !l->albedo_step; i++) l->albedo_step = memcmp(albedo4 + 4 * i, albedo4, 16) != 0;
     hl_result r = HL_OK;
 #define B(m, fl, bytes, init, what) if (r == HL_OK) r = hl_cl_make_buf(l->ctx, &l->m, fl, bytes, init, what)
     B(cells, CL_MEM_READ_ONLY, cells * 16, NULL, "environment cells");
@@ -152,11 +157,12 @@ static hl_result create_light(hl_context *ctx, const hl_geom *g, const hl_light_
     B(keys, CL_MEM_READ_WRITE, nc * 4, NULL, "selection keys");
     B(klist, CL_MEM_READ_WRITE, (nc + 1) * 4, NULL, "kept slots");
     if (r == HL_OK) r = rows ? upload_rows(l, t) : hl_cl_light_build_columns(l, t, src);
-    /* albedo in the device's vertex order */
-    float *alb = r == HL_OK ? malloc((V ? V : 1) * 16) : NULL;
+    /* albedo in the device's vertex order, or the one albedo */
+    const size_t na = l->albedo_step ? V : 1;
+    float *alb = r == HL_OK ? calloc(na, 16) : NULL;
     if (r == HL_OK && !alb) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the albedo");
-    for (size_t i = 0; alb && i < V; i++) memcpy(alb + 4 * i, albedo4 + 4 * (size_t)l->order[i], 16);
-    B(albedo, CL_MEM_READ_ONLY, V * 16, alb, "albedo");
+    for (size_t i = 0; alb && i < na && i < V; i++) memcpy(alb + 4 * i, albedo4 + 4 * (size_t)l->order[i], 16);
+    B(albedo, CL_MEM_READ_ONLY, na * 16, alb, "albedo");
     free(alb);
     B(ord, CL_MEM_READ_ONLY, V * 4, l->order, "vertex order");
     /* on a CPU device in memory the host maps without a copy */
@@ -298,7 +304,7 @@ static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
         LARG(k, 0, l->rentries); LARG(k, 1, l->roffset); LARG(k, 2, l->rcounts); LARG(k, 3, l->rquant);
         LARG(k, 4, l->scheme); LARG(k, 5, nb); LARG(k, 6, nc); LARG(k, 7, l->bits); LARG(k, 8, l->Lsel);
         LARG(k, 9, l->albedo); LARG(k, 10, l->keep_negative); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, per);
-        LARG(k, 14, l->tally);
+        LARG(k, 14, l->tally); LARG(k, 15, l->albedo_step);
         return light_launch(l, K_RELIGHT_ROWS, items);
     }
     for (uint32_t p = 0; p < (l->nparts > 1 ? l->nparts : 1u); p++) {
@@ -310,7 +316,7 @@ static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
         LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
         LARG(k, 15, l->keep_negative); LARG(k, 16, l->tally);
         const cl_uint t0 = l->nparts > 1 ? l->part_range[p] : 0;
-        LARG(k, 17, t0);
+        LARG(k, 17, t0); LARG(k, 18, l->albedo_step);
         TRY(light_launch(l, K_RELIGHT, nr));
     }
     return HL_OK;
