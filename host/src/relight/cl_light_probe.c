@@ -112,7 +112,8 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
     free(bits);
     /* per kept slot its place in the list and, per range, its column's
        start and end; per vertex slot its scale; per vertex its albedo,
-       place and colour (its albedo: one for all when albedo_step is 0). Then per range, by its walk (hl_tile_walk_pays):
+       place and colour (the albedo one for all when albedo_step is 0).
+       Then per range, by its walk (hl_tile_walk_pays):
        both read each kept entry's halves and, per kept slot and 32 tiles,
        a word of tile bits and a count (the column walk up to its last
        entry: counted whole); the column walk reads its sums too (zeroed,
