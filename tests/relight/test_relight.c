@@ -453,6 +453,7 @@ static void case_negative(void)
     HL_CHECK(path && cl && hl_transport_load(ref, path, &t) == HL_OK, "transport");
     if (!t || !cl) return;
     const uint32_t V = t->info.vertex_count, W = 256, H = 128;
+    HL_CHECK(V % 8 != 0, "%u vertices: the colours' one-at-a-time tail is not exercised", V);
     float *px = calloc((size_t)W * H * 3, sizeof(float));
     for (int c = 0; c < 3; c++) px[3 * ((size_t)30 * W + 70) + c] = 5e4f; /* high above the horizon */
     hl_env *env = NULL;

@@ -109,11 +109,11 @@ hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t
     l->nparts = 0;
     l->part_range = malloc(((size_t)l->nranges + 1) * 4);
     if (!l->part_range) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the relight's parts");
-    /* made after the columns, per vertex: albedo (16, or 16 in all: one
-       for all), order (4), colours (16); per padded position: running
+    /* made after the columns: the albedo (16 a vertex, or one for all);
+       per vertex order (4), colours (16); per padded position: running
        sums (12), scales (4); per range a clamp tally (16) */
-    const uint64_t after = (uint64_t)l->nverts * (20 + 16 * l->albedo_step) + 16 + (uint64_t)z->vpad * 16 +
-                           (uint64_t)l->nranges * 16;
+    const uint64_t albedo = (l->albedo_step ? (uint64_t)l->nverts : 1) * 16;
+    const uint64_t after = albedo + (uint64_t)l->nverts * 20 + (uint64_t)z->vpad * 16 + (uint64_t)l->nranges * 16;
     const uint64_t held = cl->used + after + (uint64_t)z->nc * HL_PARTS_HEADROOM_PER_SLOT;
     uint64_t avail = cl->limit > held ? cl->limit - held : 0;
     const uint64_t whole = part_bytes(z, z->run - 1, l->nranges);
