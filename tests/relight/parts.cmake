@@ -3,4 +3,4 @@
 # PoCL); a relighter that reads the rows again from the file instead of
 # holding them (hl_relighter_create_from_file).
 hl_test_exe(test_parts ${CMAKE_CURRENT_LIST_DIR}/test_parts.c)
-hl_test_cases(test_parts parts quarter refused from_file resident rows)
+hl_test_cases(test_parts parts quarter refused from_file resident rows both)

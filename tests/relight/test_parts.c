@@ -30,6 +30,11 @@
  *                all: parts with buffers of their own, uploaded once,
  *                all of the columns on the device, the same colours bit
  *                for bit, from the file and from loaded entries.
+ * parts.both     a device memory limit that holds 3/4 of the columns
+ *                and a largest allocation of a quarter (as PoCL gives
+ *                when the page cache holds a big file): parts uploaded
+ *                in turn whose shared buffers each fit the largest
+ *                allocation, the same colours bit for bit.
  *
  * Depends on: haarlight_core, an OpenCL device (PoCL),
  * tests/common/light_util.h.
@@ -406,6 +411,39 @@ static void case_resident(void)
     trio_close(&x);
 }
 
+static void case_both(void)
+{
+    trio x;
+    if (!trio_open(&x, "parts_both.hlt")) {
+        trio_close(&x);
+        return;
+    }
+    char cap[32];
+    snprintf(cap, sizeof cap, "%llu", (unsigned long long)(x.cols / 4));
+    setenv("HL_TEST_MAX_ALLOC", cap, 1);
+    hl_context *small = ctx_limited(x.used - x.cols + x.cols / 4 * 3);
+    unsetenv("HL_TEST_MAX_ALLOC");
+    x.rctx[1] = small;
+    x.rctx[2] = small;
+    HL_CHECK(small && hl_relighter_create(small, x.t[1], &x.r[1]) == HL_OK, "3/4 of the columns, largest allocation %s "
+             "bytes: %s", cap, small ? hl_context_last_error(small) : "no context");
+    HL_CHECK(small && hl_relighter_create_from_file(small, x.t[2], x.path, &x.r[2]) == HL_OK, "from the file: %s",
+             small ? hl_context_last_error(small) : "no context");
+    for (int k = 1; k < 3; k++) {
+        hl_relighter_memory m;
+        HL_CHECK(x.r[k] && hl_relighter_memory_use(x.r[k], &m) == HL_OK, "memory use");
+        if (!x.r[k]) continue;
+        printf("3/4 of the columns, largest allocation %s bytes (columns %llu): %u parts, resident %u\n", cap,
+               (unsigned long long)x.cols, m.parts, m.resident);
+        HL_CHECK(m.parts >= 4 && !m.resident, "a quarter of the columns a buffer: at least 4 parts, uploaded in turn");
+    }
+    const uint64_t diff = trio_diff(&x);
+    printf("both limits: %u vertices x 3 colours x 2 settings, from entries and from the file: %llu words differ "
+           "(tolerance 0: bit-identical)\n", x.V, (unsigned long long)diff);
+    HL_CHECK(diff == 0, "%llu words differ from the relighter in one buffer", (unsigned long long)diff);
+    trio_close(&x);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
@@ -414,6 +452,7 @@ int main(int argc, char **argv)
         {"from_file", case_from_file},
         {"resident", case_resident},
         {"rows", case_rows},
+        {"both", case_both},
         {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);

@@ -137,8 +137,10 @@ hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t
         l->nparts = group_ranges(l, z, cl->max_alloc, l->part_range);
         l->resident = l->nparts > 0;
         if (l->nparts) return HL_OK;
-        avail = cl->limit && avail < cl->max_alloc ? avail : cl->max_alloc; /* one range too big: as below */
     }
+    /* parts uploaded in turn share one set of buffers, which must each fit
+       the largest allocation too (part_bytes counts them together) */
+    if (!cl->limit || avail > cl->max_alloc) avail = cl->max_alloc;
     l->nparts = group_ranges(l, z, avail, l->part_range);
     if (l->nparts) return HL_OK;
     /* one range is too big: on a CPU device cut finer, so that each range
