@@ -564,6 +564,9 @@ static hl_result bench_file(bench *b, int f)
         hl_relighter_destroy(fr.rc);
         return r;
     }
+    char pre[1100];
+    snprintf(pre, sizeof pre, "bench: %s: ", b->o.files[f]);
+    cli_device_memory(pre, fr.rc, b->o.files[f], b->V, 1);
     const hl_transport_info *fi = &b->t[f]->info;
     fr.bytes = 2.0 * (double)fi->coefficients_kept + (double)b->V * (8 + 2.0 * fi->block_count);
     for (int e = 0; e < b->o.nenvs && r == HL_OK; e++) r = bench_env_rows(b, &fr, e);

@@ -42,6 +42,10 @@ const char *cli_ext_of(const char *path);
 /* Makes the folder dir unless it exists; prints why and returns 0 when
  * it cannot. */
 int cli_make_dir(const char *dir);
+/* Prints on stderr, after prefix, what the device holds for relighter rl
+ * against the bytes of its file scene (docs/MEMORY.md), its columns
+ * (cols) and the parts they run in. */
+void cli_device_memory(const char *prefix, hl_relighter *rl, const char *scene, uint32_t V, int cols);
 /* Prints the context's last error; returns the exit code for r. */
 int cli_fail(hl_context *ctx, hl_result r);
 /* hl_env_load, then (unless quiet) a line on stderr saying how many

@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 
 #include "cli.h"
+#include "haarlight_tools.h"
 
 int usage_error(const char *usage, const char *fmt, const char *arg)
 {
@@ -142,4 +143,21 @@ int cli_make_dir(const char *dir)
     if (mkdir(dir, 0777) == 0 || errno == EEXIST) return 1;
     fprintf(stderr, "haarlight: %s: cannot create the output folder: %s\n", dir, strerror(errno));
     return 0;
+}
+
+void cli_device_memory(const char *prefix, hl_relighter *rl, const char *scene, uint32_t V, int cols)
+{
+    hl_relighter_memory m;
+    struct stat sb;
+    char how[96] = "", col[64] = "";
+    if (hl_relighter_memory_use(rl, &m) != HL_OK || !m.device_bytes || stat(scene, &sb) != 0 || sb.st_size <= 0 || !V)
+        return;
+    if (m.parts > 1)
+        snprintf(how, sizeof how, m.resident ? ", in %u parts of their own buffers (no one buffer holds them)"
+                                             : ", uploaded in %u parts from host memory",
+                 m.parts);
+    if (cols) snprintf(col, sizeof col, "; the columns %.1f MB", (double)m.column_bytes / 1e6);
+    fprintf(stderr, "%sthe device holds %.1f MB for it: %.0f bytes a vertex, %.2f times the file%s%s\n", prefix,
+            (double)m.device_bytes / 1e6, (double)m.device_bytes / V, (double)m.device_bytes / (double)sb.st_size, col,
+            how);
 }

@@ -107,22 +107,7 @@ int cmd_relight(int argc, char **argv)
     if (r == HL_OK && !cd.quiet)
         fprintf(stderr, "relighter ready in %.2f s (%s)\n", hl_tools_now() - t_rl,
                 t->entries ? "the rows as loaded" : "the transport laid out for the device");
-    if (r == HL_OK && !cd.quiet) {
-        /* what the device holds against the file (docs/MEMORY.md) */
-        hl_relighter_memory m;
-        struct stat sb;
-        char how[96] = "", cols[64] = "";
-        if (hl_relighter_memory_use(rl, &m) == HL_OK && m.device_bytes && stat(scene, &sb) == 0 && sb.st_size > 0) {
-            if (m.parts > 1)
-                snprintf(how, sizeof how, m.resident ? ", in %u parts of their own buffers (no one buffer holds them)"
-                                                     : ", uploaded in %u parts from host memory",
-                         m.parts);
-            if (!t->entries) snprintf(cols, sizeof cols, "; the columns %.1f MB", (double)m.column_bytes / 1e6);
-            fprintf(stderr, "the device holds %.1f MB for it: %.0f bytes a vertex, %.2f times the file%s%s\n",
-                    (double)m.device_bytes / 1e6, (double)m.device_bytes / t->info.vertex_count,
-                    (double)m.device_bytes / (double)sb.st_size, cols, how);
-        }
-    }
+    if (r == HL_OK && !cd.quiet) cli_device_memory("", rl, scene, t->info.vertex_count, !t->entries);
     if (r == HL_OK && env) r = hl_relighter_set_env(rl, env);
     if (r == HL_OK && surr) r = hl_relighter_set_surroundings(rl, surr);
     if (r == HL_OK) {
