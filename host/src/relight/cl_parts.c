@@ -174,19 +174,31 @@ hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t
                    mib(cl->limit), lim, mib(avail), mib(held), least_v, mib(least), raise);
 }
 
+/* Resident parts upload their entries in pieces of this many bytes, each
+ * piece's host pages given back once it is on the device: the peak holds
+ * the columns and one piece, not the columns and one part (the 2M-vertex
+ * terrain in 4 parts: 1.8 GB more). */
+#define HL_RESIDENT_PIECE ((size_t)64 << 20)
+
 /* Part p's columns, starts, tile bits and ranges into m (col, cols, rel,
  * rstart), the entries after m[0]'s entry 0; cs: the columns' absolute
- * starts. */
-static hl_result upload_part(hl_cl_light *l, uint32_t p, const uint32_t *cs, const cl_mem m[4], cl_bool blocking)
+ * starts. release (blocking uploads only): the host copy of the entries
+ * given back piece by piece as they are uploaded. */
+static hl_result upload_part(hl_cl_light *l, uint32_t p, const uint32_t *cs, const cl_mem m[4], cl_bool blocking,
+                             int release)
 {
     const size_t nc = l->g->ncoef, ts = l->tstride;
     const uint32_t r0 = l->part_range[p], r1 = l->part_range[p + 1], n = r1 - r0;
     const uint32_t e0 = cs[(size_t)r0 * (nc + 1)], e1 = cs[(size_t)(r1 - 1) * (nc + 1) + nc];
     cl_command_queue q = l->cl->queue;
-    if (e1 > e0)
-        CL_TRY(l->ctx, clEnqueueWriteBuffer(q, m[0], blocking, (size_t)ENTRY_BYTES, (size_t)((e1 - e0) * ENTRY_BYTES),
-                                            (const char *)l->host_col + (size_t)e0 * ENTRY_BYTES, 0, NULL, NULL),
+    const size_t total = (size_t)((e1 - e0) * ENTRY_BYTES), piece = release ? HL_RESIDENT_PIECE : total;
+    char *src = (char *)l->host_col + (size_t)e0 * ENTRY_BYTES;
+    for (size_t at = 0; at < total; at += piece) {
+        const size_t k = total - at < piece ? total - at : piece;
+        CL_TRY(l->ctx, clEnqueueWriteBuffer(q, m[0], blocking, (size_t)ENTRY_BYTES + at, k, src + at, 0, NULL, NULL),
                "upload of a part's columns");
+        if (release) hl_release_pages(src + at, k);
+    }
     CL_TRY(l->ctx, clEnqueueWriteBuffer(q, m[1], blocking, 0, (size_t)n * (nc + 1) * 4,
                                         l->part_cs + (size_t)r0 * (nc + 1), 0, NULL, NULL),
            "upload of a part's column starts");
@@ -233,8 +245,7 @@ static hl_result make_resident(hl_cl_light *l, const hl_col_sizes *z)
         const uint32_t e0 = z->cs[(size_t)r0 * (nc + 1)], e1 = z->cs[(size_t)(r1 - 1) * (nc + 1) + nc];
         cl_mem *m = l->pbuf + 4 * (size_t)p;
         TRY(make_part_bufs(l, e1 - e0, r1 - r0, z->ts, m));
-        TRY(upload_part(l, p, z->cs, m, CL_TRUE));
-        hl_release_pages((char *)l->host_col + (size_t)e0 * ENTRY_BYTES, (size_t)((e1 - e0) * ENTRY_BYTES));
+        TRY(upload_part(l, p, z->cs, m, CL_TRUE, 1));
     }
     hl_free_big(l->host_col);
     hl_free_big(l->host_rel);
@@ -278,7 +289,7 @@ hl_result hl_cl_light_enq_part(hl_cl_light *l, uint32_t p, cl_uint *nr)
        the queue runs in order, so the next part's uploads wait for this
        part's launch */
     const cl_mem m[4] = {l->col, l->cols, l->rel, l->rstart};
-    return upload_part(l, p, l->col_start, m, CL_FALSE);
+    return upload_part(l, p, l->col_start, m, CL_FALSE, 0);
 }
 
 void hl_cl_light_part_bufs(const hl_cl_light *l, uint32_t p, cl_mem m[4])
