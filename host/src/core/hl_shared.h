@@ -55,19 +55,19 @@ static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return 
  * memory once per group (entry 0 for a slot the tile lacks). The tile walk
  * adds 8 kept slots at a time, tile by tile, into sums held in registers,
  * over every tile, reading an all-zero entry wherever a tile lacks a slot.
- * The tile walk is taken where the kept slots' entries fill at least 5/8
- * of the range's tiles (entries: their count over the m kept slots; nt
- * tiles); the host counts bytes by the same rule. On the bunny with
- * ground under city.exr that is M up to about 500; there the two walks
- * take the same time at M = 100 to 500 (0.35 to 1.3 ms), the column walk
- * 0.73 of the earlier one-slot-at-a-time walk's at M = 1000. On the 2M
- * vertex terrain (tiles nearly full) the tile walk takes 0.6 of the column
- * walk's time, on the dragon (0.59 filled) the column walk wins
+ * The tile walk is taken where the kept slots' entries fill at least
+ * 9/16 of the range's tiles (entries: their count over the m kept slots;
+ * nt tiles); the host counts bytes by the same rule. Both walks forced,
+ * the tile walk took 0.81 to 0.89 of the column walk's time on the
+ * dragon at fills 0.64 to 0.59 and 1.08 at 0.48, on the bunny with ground
+ * 0.83 to 0.90 at fills 0.79 to 0.53 and 0.95 at 0.45: the crossing lies
+ * near 0.52 on the one, 0.42 on the other; on the 2M-vertex terrain
+ * (tiles nearly full) it takes 0.6 of the column walk's time
  * (docs/SCALE.md). */
 #define HL_TILE_GROUP 8 /* kept slots the tile walk adds per pass */
 HL_INLINE int hl_tile_walk_pays(HL_U64 entries, HL_U32 m, HL_U32 nt)
 {
-    return m > 0 && 8 * entries >= (HL_U64)5 * m * nt;
+    return m > 0 && 16 * entries >= (HL_U64)9 * m * nt;
 }
 
 /* Truncation rules and quantisation schemes. They are public too:
