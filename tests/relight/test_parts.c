@@ -376,21 +376,26 @@ static void case_rows(void)
     trio_close(&x);
 }
 
-static void case_resident(void)
+/* Relighters 1 and 2 (from loaded entries, from the file) on one context
+ * whose largest allocation is a quarter of the columns, and (memory_too)
+ * whose device memory holds only 3/4 of them: resident parts, or parts
+ * uploaded in turn; the same colours as one buffer, bit for bit. */
+static void capped(const char *name, int memory_too)
 {
     trio x;
-    if (!trio_open(&x, "parts_res.hlt")) {
+    if (!trio_open(&x, name)) {
         trio_close(&x);
         return;
     }
     char cap[32];
     snprintf(cap, sizeof cap, "%llu", (unsigned long long)(x.cols / 4));
     setenv("HL_TEST_MAX_ALLOC", cap, 1);
-    hl_context *small = ctx_of(HL_BACKEND_OPENCL);
+    hl_context *small = memory_too ? ctx_limited(x.used - x.cols + x.cols / 4 * 3) : ctx_of(HL_BACKEND_OPENCL);
     unsetenv("HL_TEST_MAX_ALLOC");
+    const char *what = memory_too ? "3/4 of the columns' memory and a largest allocation of" : "a largest allocation of";
     x.rctx[1] = small;
     x.rctx[2] = small;
-    HL_CHECK(small && hl_relighter_create(small, x.t[1], &x.r[1]) == HL_OK, "largest allocation %s bytes: %s", cap,
+    HL_CHECK(small && hl_relighter_create(small, x.t[1], &x.r[1]) == HL_OK, "%s %s bytes: %s", what, cap,
              small ? hl_context_last_error(small) : "no context");
     HL_CHECK(small && hl_relighter_create_from_file(small, x.t[2], x.path, &x.r[2]) == HL_OK, "from the file: %s",
              small ? hl_context_last_error(small) : "no context");
@@ -398,51 +403,23 @@ static void case_resident(void)
         hl_relighter_memory m;
         HL_CHECK(x.r[k] && hl_relighter_memory_use(x.r[k], &m) == HL_OK, "memory use");
         if (!x.r[k]) continue;
-        printf("largest allocation %s bytes (columns %llu): %u parts, resident %u, device %llu bytes (unlimited %llu)\n",
-               cap, (unsigned long long)x.cols, m.parts, m.resident, (unsigned long long)m.device_bytes,
+        printf("%s %s bytes (columns %llu): %u parts, resident %u, device %llu bytes (unlimited %llu)\n", what, cap,
+               (unsigned long long)x.cols, m.parts, m.resident, (unsigned long long)m.device_bytes,
                (unsigned long long)x.used);
-        HL_CHECK(m.parts >= 4 && m.resident, "a quarter of the columns a buffer: at least 4 resident parts");
-        HL_CHECK(m.device_bytes >= x.cols, "the device holds all the columns");
+        HL_CHECK(m.parts >= 4 && m.resident == !memory_too, "a quarter of the columns a buffer: at least 4 parts, %s",
+                 memory_too ? "uploaded in turn" : "resident");
+        HL_CHECK(memory_too || m.device_bytes >= x.cols, "the device holds all the columns");
     }
     const uint64_t diff = trio_diff(&x);
-    printf("resident parts: %u vertices x 3 colours x 2 settings, from entries and from the file: %llu words differ "
-           "(tolerance 0: bit-identical)\n", x.V, (unsigned long long)diff);
+    printf("%s parts: %u vertices x 3 colours x 2 settings, from entries and from the file: %llu words differ "
+           "(tolerance 0: bit-identical)\n", memory_too ? "both limits," : "resident", x.V, (unsigned long long)diff);
     HL_CHECK(diff == 0, "%llu words differ from the relighter in one buffer", (unsigned long long)diff);
     trio_close(&x);
 }
 
-static void case_both(void)
-{
-    trio x;
-    if (!trio_open(&x, "parts_both.hlt")) {
-        trio_close(&x);
-        return;
-    }
-    char cap[32];
-    snprintf(cap, sizeof cap, "%llu", (unsigned long long)(x.cols / 4));
-    setenv("HL_TEST_MAX_ALLOC", cap, 1);
-    hl_context *small = ctx_limited(x.used - x.cols + x.cols / 4 * 3);
-    unsetenv("HL_TEST_MAX_ALLOC");
-    x.rctx[1] = small;
-    x.rctx[2] = small;
-    HL_CHECK(small && hl_relighter_create(small, x.t[1], &x.r[1]) == HL_OK, "3/4 of the columns, largest allocation %s "
-             "bytes: %s", cap, small ? hl_context_last_error(small) : "no context");
-    HL_CHECK(small && hl_relighter_create_from_file(small, x.t[2], x.path, &x.r[2]) == HL_OK, "from the file: %s",
-             small ? hl_context_last_error(small) : "no context");
-    for (int k = 1; k < 3; k++) {
-        hl_relighter_memory m;
-        HL_CHECK(x.r[k] && hl_relighter_memory_use(x.r[k], &m) == HL_OK, "memory use");
-        if (!x.r[k]) continue;
-        printf("3/4 of the columns, largest allocation %s bytes (columns %llu): %u parts, resident %u\n", cap,
-               (unsigned long long)x.cols, m.parts, m.resident);
-        HL_CHECK(m.parts >= 4 && !m.resident, "a quarter of the columns a buffer: at least 4 parts, uploaded in turn");
-    }
-    const uint64_t diff = trio_diff(&x);
-    printf("both limits: %u vertices x 3 colours x 2 settings, from entries and from the file: %llu words differ "
-           "(tolerance 0: bit-identical)\n", x.V, (unsigned long long)diff);
-    HL_CHECK(diff == 0, "%llu words differ from the relighter in one buffer", (unsigned long long)diff);
-    trio_close(&x);
-}
+static void case_resident(void) { capped("parts_res.hlt", 0); }
+
+static void case_both(void) { capped("parts_both.hlt", 1); }
 
 int main(int argc, char **argv)
 {
