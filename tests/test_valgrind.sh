@@ -24,21 +24,13 @@ printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n
 vg=(valgrind --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite
     --show-leak-kinds=definite --suppressions="$src/tests/valgrind.supp" -q)
 fails=0
-for under in "" valgrind; do
-  for step in precompute relight; do
-    if [ "$step" = precompute ]; then
-      args=(precompute "$tmp/tet.obj" --ground --ground-res 8 -N 16 -C 16 -o "$tmp/warm.hlt")
-    else
-      args=(relight "$tmp/warm.hlt" --sky --size 64x48 -o "$tmp/warm.png")
-    fi
-    if [ -z "$under" ]; then
-      "$bin" "${args[@]}" -q || { echo "FAIL: warming PoCL's kernel cache: $step failed outside valgrind"; exit 1; }
-    else
-      valgrind -q --leak-check=no --error-exitcode=0 "$bin" "${args[@]}" -q 2>/dev/null ||
-        { echo "FAIL: warming PoCL's kernel cache: $step failed under valgrind"; exit 1; }
-    fi
-  done
-done
+# the OpenCL runs, each command prefixed by "$@" (nothing, or valgrind)
+warm() {
+  "$@" "$bin" precompute "$tmp/tet.obj" --ground --ground-res 8 -N 16 -C 16 -o "$tmp/warm.hlt" -q &&
+    "$@" "$bin" relight "$tmp/warm.hlt" --sky --size 64x48 -o "$tmp/warm.png" -q
+}
+warm || { echo "FAIL: warming PoCL's kernel cache: a run failed outside valgrind"; exit 1; }
+warm valgrind -q --leak-check=no 2>/dev/null || { echo "FAIL: warming PoCL's kernel cache: a run failed under valgrind"; exit 1; }
 echo "PoCL kernel cache warmed outside valgrind and under it, unchecked (${POCL_CACHE_DIR:-its default folder})"
 run() {
   local name="$1"; shift

@@ -1,4 +1,4 @@
-/* cli_util.c - option parsing shared by the subcommands. */
+/* cli_util.c - option parsing and messages shared by the subcommands. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <math.h>
