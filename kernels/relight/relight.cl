@@ -66,10 +66,11 @@ typedef __fp16 hl_halves __attribute__((ext_vector_type(HL_TILE)));
  * pass reads each slot's entries for these tiles as one run, and the
  * longer the runs the better the reads stream: on the dragon at M = 200,
  * 3.57 ms at 4,096 tiles against 4.03 at 512 (96 KB, which the L2 cache
- * holds), and no faster at 8,192 or 16,384 (docs/SCALE.md). */
+ * holds), and no faster at 8,192 or 16,384 (docs/SCALE.md). A whole
+ * number of 32-tile words, so that no word is split between passes;
+ * the walk takes any count (hl.relight.twin_passes builds it with 3). */
+#ifndef HL_SUM_TILES
 #define HL_SUM_TILES 4096
-#if HL_SUM_TILES % 32
-#error "HL_SUM_TILES must be a whole number of 32-tile words"
 #endif
 
 /* One entry's terms d of a kept slot with light l, added to a tile's sums. */

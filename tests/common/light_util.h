@@ -138,6 +138,13 @@ static inline void lighting_chain(int dots)
         HL_CHECK(hl_cl_light_create(cl, g, lg, t, alb, &l) == HL_OK, "%s", hl_context_last_error(cl));
         HL_CHECK(l && hl_cl_light_one_albedo(l) == !scheme, "scheme %d: one albedo for all %d", scheme,
                  l ? hl_cl_light_one_albedo(l) : -1);
+        const char *pass = getenv("HL_TEST_SUM_TILES");
+        if (pass && l) {
+            /* the tile walk's passes made short: every range takes several */
+            const uint32_t per = (uint32_t)atoi(pass), least = (V + HL_TILE - 1) / HL_TILE / hl_cl_light_ranges(l);
+            printf("tile walk: %u tiles a pass, at least %u tiles a range\n", per, least);
+            HL_CHECK(per > 0 && least > per, "the ranges (%u tiles and up) must take more than one pass of %u", least, per);
+        }
         hl_env *env = make_env(ref, 512, 100, 60, 3e4f);
         float *cells = NULL, *Lp = malloc((size_t)nc * 12), *Lp2 = malloc((size_t)nc * 12);
         float *wa = malloc((size_t)nc * 12), *wb = malloc((size_t)nc * 12);

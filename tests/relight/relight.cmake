@@ -4,6 +4,6 @@
 hl_test_exe(test_select ${CMAKE_CURRENT_LIST_DIR}/test_select.c)
 hl_test_cases(test_select select twin)
 hl_test_exe(test_relight ${CMAKE_CURRENT_LIST_DIR}/test_relight.c)
-hl_test_cases(test_relight relight twin relighter into furnace orientation extreme negative)
+hl_test_cases(test_relight relight twin twin_passes relighter into furnace orientation extreme negative)
 hl_test_exe(test_render ${CMAKE_CURRENT_LIST_DIR}/test_render.c)
 hl_test_cases(test_render render constant_colour barycentric background explicit_camera bad_args)

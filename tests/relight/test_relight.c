@@ -5,6 +5,7 @@
  * relight.twin         lighting Haar, selection and dot products: OpenCL
  *                      equals C bit for bit, both walks of the kernel
  *                      (by tile, by column) and the ranges' balance.
+ * relight.twin_passes  the same with the tile walk in passes of 3 tiles.
  * relight.relighter    whole relights against the exact discrete sum.
  * relight.into         colours left on the device equal the read-back ones.
  * relight.furnace      an open vertex under a white sky gives its albedo.
@@ -19,6 +20,7 @@
  * Depends on: haarlight_core, an OpenCL device (PoCL),
  * tests/common/light_util.h.
  */
+#define _POSIX_C_SOURCE 200809L /* setenv */
 #include <stdint.h>
 
 #include "cl_backend.h"
@@ -31,6 +33,16 @@
 #include "light_util.h"
 
 static void case_twin(void) { lighting_chain(1); }
+
+/* The same with the tile walk's passes 3 tiles long (HL_TEST_SUM_TILES,
+ * a build option of the kernels): each range walked in several passes,
+ * each starting inside a word of tile bits. */
+static void case_twin_passes(void)
+{
+    setenv("HL_TEST_SUM_TILES", "3", 1);
+    lighting_chain(1);
+    unsetenv("HL_TEST_SUM_TILES");
+}
 
 /* Whole relights through the public API. */
 static void case_relighter(void)
@@ -525,6 +537,7 @@ int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"twin", case_twin},
+        {"twin_passes", case_twin_passes},
         {"relighter", case_relighter},
         {"into", case_into},
         {"furnace", case_furnace},

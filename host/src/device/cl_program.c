@@ -102,6 +102,11 @@ hl_result hl_cl_build_program(hl_context *ctx, struct hl_cl *cl)
     /* the quantiser divides; correctly rounded division makes the OpenCL
        integers equal to the plain-C twin's where the device allows it */
     if (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) strcat(opts, " -cl-fp32-correctly-rounded-divide-sqrt");
+    /* tests: the tile walk's passes made short (HL_TEST_SUM_TILES tiles,
+       kernels/relight/relight.cl), so that a small mesh takes several */
+    const char *pass = getenv("HL_TEST_SUM_TILES");
+    const unsigned long tiles = pass ? strtoul(pass, NULL, 10) : 0;
+    if (tiles > 0 && tiles < 4096) snprintf(opts + strlen(opts), sizeof opts - strlen(opts), " -DHL_SUM_TILES=%lu", tiles);
     e = clBuildProgram(cl->program, 1, &cl->device, opts, NULL, NULL);
     if (e != CL_SUCCESS) {
         size_t n = 0;
