@@ -56,18 +56,17 @@ static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return 
  * adds 8 kept slots at a time, tile by tile, into sums held in registers,
  * over every tile, reading an all-zero entry wherever a tile lacks a slot.
  * The tile walk is taken where the kept slots' entries fill at least
- * 9/16 of the range's tiles (entries: their count over the m kept slots;
- * nt tiles); the host counts bytes by the same rule. Both walks forced,
- * the tile walk took 0.81 to 0.89 of the column walk's time on the
- * dragon at fills 0.64 to 0.59 and 1.08 at 0.48, on the bunny with ground
- * 0.83 to 0.90 at fills 0.79 to 0.53 and 0.95 at 0.45: the crossing lies
- * near 0.52 on the one, 0.42 on the other; on the 2M-vertex terrain
- * (tiles nearly full) it takes 0.6 of the column walk's time
- * (docs/SCALE.md). */
+ * 7/16 of the range's tiles (entries: their count over the m kept slots;
+ * nt tiles); the host counts bytes by the same rule. Both walks forced
+ * (each prefetching its columns), the tile walk took 0.75 to 0.91 of the
+ * column walk's time on the dragon at fills 0.70 to 0.48, 1.05 at 0.40
+ * and 1.28 at 0.28; on the bunny with ground 0.83 to 0.89 at fills 0.68
+ * to 0.49 and 1.03 at 0.34: the crossing lies near 0.42 on the one, 0.37
+ * on the other (docs/SCALE.md). */
 #define HL_TILE_GROUP 8 /* kept slots the tile walk adds per pass */
 HL_INLINE int hl_tile_walk_pays(HL_U64 entries, HL_U32 m, HL_U32 nt)
 {
-    return m > 0 && 16 * entries >= (HL_U64)9 * m * nt;
+    return m > 0 && 16 * entries >= (HL_U64)7 * m * nt;
 }
 
 /* Truncation rules and quantisation schemes. They are public too:
