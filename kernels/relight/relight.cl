@@ -78,8 +78,9 @@ typedef __fp16 hl_halves __attribute__((ext_vector_type(HL_TILE)));
  * runs' lines coming: asking for each column's entries HL_AHEAD entries
  * (2 KB) ahead took the dragon's dot products at M = 200 from 3.7 to
  * 3.0 ms (16 entries ahead 3.55, 32 to 128 alike; docs/SCALE.md). A
- * prefetch is only a hint: past a column's end it reads nothing. Where
- * the compiler is not clang on x86-64 there is none. */
+ * prefetch is only a hint and never faults, so one past a column's or
+ * the buffer's end does no harm. Where the compiler is not clang on
+ * x86-64 there is none. */
 #define HL_AHEAD 64u
 #if defined(__clang__) && defined(__x86_64__)
 #define HL_PREFETCH(p) __builtin_prefetch((const void *)(size_t)(p))

@@ -58,7 +58,7 @@ static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return 
  * The tile walk is taken where the kept slots' entries fill at least
  * 7/16 of the range's tiles (entries: their count over the m kept slots;
  * nt tiles); the host counts bytes by the same rule. Both walks forced
- * (each prefetching its columns), the tile walk took 0.75 to 0.91 of the
+ * (each prefetching its columns), the tile walk took 0.77 to 0.89 of the
  * column walk's time on the dragon at fills 0.70 to 0.48, 1.05 at 0.40
  * and 1.28 at 0.28; on the bunny with ground 0.83 to 0.89 at fills 0.68
  * to 0.49 and 1.03 at 0.34: the crossing lies near 0.42 on the one, 0.37
