@@ -8,7 +8,9 @@
  * walk it), and the energies for the error bound (the dropped energy
  * summed on its own: total - kept cancels in float when a bright sun
  * dominates), scaled by a power of two (hl_light_energy_scale) so that
- * they stay finite and non-zero.
+ * they stay finite and non-zero, summed by chunks and a tree
+ * (hl_select_chunk, hl_select_fold) as the GPU shape's select_group.cl
+ * sums them.
  * A block's flag counts only its detail slots 1..255: slot 0 holds a
  * coarse coefficient (kept almost always), which would otherwise mark
  * every block used.
@@ -53,34 +55,40 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
     }
     for (uint b = 0; b < nblocks; b++) block_used[b] = 0;
     for (uint w = 0; w < ncoef / 32u; w++) kept_bits[w] = 0;
-    float et = 0.0f, ek = 0.0f, ed = 0.0f;
+    float et[HL_SELECT_LANES], ek[HL_SELECT_LANES], ed[HL_SELECT_LANES];
+    for (uint c = 0; c < HL_SELECT_LANES; c++) et[c] = ek[c] = ed[c] = 0.0f;
+    const uint chunk = hl_select_chunk(ncoef);
     uint kept = 0, seen = 0;
     for (uint i = 0; i < ncoef; i++) {
         float r = L[i], g = L[ncoef + i], b = L[2 * ncoef + i];
         float y = hl_luminance(r, g, b) * es;
-        et += y * y;
+        const uint c = i / chunk;
+        et[c] += y * y;
         uint k = keys[i];
         int keep = k > thresh || (k == thresh && k != 0u && seen++ < ties);
         out[i] = keep ? (float4)(r, g, b, 0.0f) : (float4)(0.0f);
         if (keep) {
-            ek += y * y;
+            ek[c] += y * y;
             kept++;
             if (i & 255u) block_used[i >> 8] = 1;
             kept_bits[i >> 5] |= 1u << (i & 31u);
             kept_list[kept] = i;
         } else {
-            ed += y * y;
+            ed[c] += y * y;
         }
     }
     kept_list[0] = kept;
     uint used = 0;
     for (uint b = 0; b < nblocks; b++) used += block_used[b];
+    hl_select_fold(et);
+    hl_select_fold(ek);
+    hl_select_fold(ed);
     hl_select_result s;
-    s.energy_total = et;
-    s.energy_kept = ek;
+    s.energy_total = et[0];
+    s.energy_kept = ek[0];
     s.kept = kept;
     s.blocks_used = used;
-    s.energy_dropped = ed;
+    s.energy_dropped = ed[0];
     s.energy_exp = eb;
     s.pad_[0] = s.pad_[1] = 0u;
     *res = s;

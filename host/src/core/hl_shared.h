@@ -64,6 +64,10 @@ static inline float hl_as_f32_(uint32_t u) { float f; memcpy(&f, &u, 4); return 
  * to 0.49 and 1.03 at 0.34: the crossing lies near 0.42 on the one, 0.37
  * on the other (docs/SCALE.md). */
 #define HL_TILE_GROUP 8 /* kept slots the tile walk adds per pass */
+/* The GPU shape's dot products (kernels/relight/relight_items.cl) take a
+ * work-item a position, over ranges of this many tiles: 512 positions,
+ * one 32-bit word of tile bits a slot, shared by the range's work-items. */
+#define HL_ITEMS_RANGE_TILES 32
 HL_INLINE int hl_tile_walk_pays(HL_U64 entries, HL_U32 m, HL_U32 nt)
 {
     return m > 0 && 16 * entries >= (HL_U64)7 * m * nt;
@@ -220,6 +224,29 @@ HL_INLINE float hl_light_energy_scale(float ymax, HL_U32 *biased)
     if (b > 253u) b = 253u;
     *biased = b;
     return HL_AS_F32((254u - b) << 23);         /* 2^(127 - b) = 2^-e */
+}
+
+/* The order in which the selection sums its energies (select.cl,
+ * select_group.cl and the twin alike, so that all three give the same
+ * bits): the slots cut into HL_SELECT_LANES chunks of hl_select_chunk
+ * consecutive slots (a whole number of 32-slot words, so that each chunk
+ * owns its words of kept bits; the last chunks may be empty), each chunk
+ * summed in slot order, then the chunks' sums added pairwise
+ * (hl_select_fold). The GPU shape's selection gives each chunk to one of
+ * a work-group's HL_SELECT_LANES work-items; the tree is also closer to
+ * the exact sum than one long run of additions. */
+#define HL_SELECT_LANES 256u
+HL_INLINE HL_U32 hl_select_chunk(HL_U32 ncoef)
+{
+    HL_U32 c = (ncoef + HL_SELECT_LANES - 1u) / HL_SELECT_LANES;
+    return (c + 31u) / 32u * 32u;
+}
+/* e[0] += ... the pairwise tree over e[0 .. HL_SELECT_LANES - 1]: at each
+ * step h (128, 64, ..., 1) e[k] += e[k + h] for k < h. */
+HL_INLINE void hl_select_fold(float *e)
+{
+    for (HL_U32 h = HL_SELECT_LANES / 2u; h > 0u; h /= 2u)
+        for (HL_U32 k = 0; k < h; k++) e[k] += e[k + h];
 }
 
 /* Luminance of linear Rec.709 RGB. */

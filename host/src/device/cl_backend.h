@@ -197,6 +197,12 @@ uint32_t hl_cl_light_ranges(const hl_cl_light *l);
 /* Whether the device holds one albedo for all (every vertex has the same). */
 int hl_cl_light_one_albedo(const hl_cl_light *l);
 double hl_cl_light_kept_entries(const hl_cl_light *l, const uint32_t *bits, double *per_range);
+/* Whether the relighter runs the GPU shape's dot products
+ * (kernels/relight/relight_items.cl: a work-item a position, no walks). */
+int hl_cl_light_gpu_shape(const hl_cl_light *l);
+/* Whether its selection runs as one work-group (select_group.cl, the GPU
+ * shape where the device takes it) rather than one work-item. */
+int hl_cl_light_select_as_group(const hl_cl_light *l);
 /* Whether range rg takes the tile walk rather than the column walk
  * (kernels/relight/relight.cl) when `kept` kept slots hold `entries` of its column
  * entries. */

@@ -65,7 +65,7 @@ void hl_cl_release_buf(struct hl_cl *cl, cl_mem *m)
  * miss the TLB: PERF-NOTES measured 1.5x the read rate with huge pages. */
 hl_result hl_cl_big_buf(hl_context *ctx, cl_mem *m, size_t bytes, const void *init, void **keep, const char *what)
 {
-    if (ctx->cl->wg != 1 || !bytes) return hl_cl_make_buf(ctx, m, CL_MEM_READ_ONLY, bytes, init, what);
+    if (!ctx->cl->host_memory || !bytes) return hl_cl_make_buf(ctx, m, CL_MEM_READ_ONLY, bytes, init, what);
     *keep = hl_alloc_big(ctx, bytes, what);
     if (!*keep) return HL_ERR_OUT_OF_MEMORY;
     if (init) memcpy(*keep, init, bytes);
@@ -74,7 +74,7 @@ hl_result hl_cl_big_buf(hl_context *ctx, cl_mem *m, size_t bytes, const void *in
 
 hl_result hl_cl_adopt_buf(hl_context *ctx, cl_mem *m, size_t bytes, void **host, const char *what)
 {
-    if (ctx->cl->wg == 1 && bytes)
+    if (ctx->cl->host_memory && bytes)
         return hl_cl_make_buf(ctx, m, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, *host, what);
     hl_result r = hl_cl_make_buf(ctx, m, CL_MEM_READ_ONLY, bytes, *host, what);
     hl_free_big(*host);

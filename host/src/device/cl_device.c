@@ -32,6 +32,47 @@ const char *hl_cl_err_name(cl_int e)
     }
 }
 
+/* The launches' shape (cl_internal.h): HL_DEVICE_SHAPE=cpu|gpu forces
+ * one, else a CPU device gets the CPU shape and any other the GPU shape.
+ * The GPU shape's work-groups: 64 work-items (two warps of 32, one
+ * wavefront of 64), or the device's largest group where that is less. */
+static hl_result choose_shape(hl_context *ctx, struct hl_cl *cl, cl_device_type type)
+{
+    const char *v = getenv("HL_DEVICE_SHAPE");
+    if (v && *v && strcmp(v, "auto") != 0 && strcmp(v, "cpu") != 0 && strcmp(v, "gpu") != 0)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "HL_DEVICE_SHAPE=%s: expected cpu, gpu or auto", v);
+    if (v && !strcmp(v, "cpu")) cl->gpu_shape = 0;
+    else if (v && !strcmp(v, "gpu")) cl->gpu_shape = 1;
+    else cl->gpu_shape = !(type & CL_DEVICE_TYPE_CPU);
+    cl->wg = cl->gpu_shape ? (cl->max_wg < 64 ? cl->max_wg : 64) : 1;
+    return HL_OK;
+}
+
+/* The largest work-group kernel k may run with here, at most cap, as a
+ * power of two. */
+static size_t kernel_group(const struct hl_cl *cl, cl_kernel k, size_t cap)
+{
+    size_t most = 0;
+    if (clGetKernelWorkGroupInfo(k, cl->device, CL_KERNEL_WORK_GROUP_SIZE, sizeof most, &most, NULL) != CL_SUCCESS)
+        most = cl->max_wg;
+    if (most > cl->max_wg) most = cl->max_wg;
+    if (most > cap) most = cap;
+    size_t p = 1;
+    while (p * 2 <= most) p *= 2;
+    return p;
+}
+
+/* The GPU shape's group sizes (cl_internal.h): up to 256 work-items, and
+ * the selection as a group only where the kernel takes all
+ * HL_SELECT_LANES (reqd_work_group_size) and its 6 KB of local memory. */
+static void group_sizes(struct hl_cl *cl)
+{
+    cl->haar_wg = kernel_group(cl, cl->k[K_HAAR_GROUP], 256);
+    cl->items_wg = kernel_group(cl, cl->k[K_RELIGHT_ITEMS], 256);
+    cl->select_group = cl->gpu_shape && kernel_group(cl, cl->k[K_SELECT_GROUP], HL_SELECT_LANES) == HL_SELECT_LANES &&
+                       cl->local_mem >= 8192;
+}
+
 hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t *properties,
                        uint64_t device_memory)
 {
@@ -84,10 +125,17 @@ hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t
     snprintf(ctx->device_name, sizeof ctx->device_name, "OpenCL: %s / %s", pname, dname);
     cl_device_type type = 0;
     clGetDeviceInfo(cl->device, CL_DEVICE_TYPE, sizeof type, &type, NULL);
-    cl->wg = (type & CL_DEVICE_TYPE_CPU) ? 1 : 64;
     cl->units = 1;
     clGetDeviceInfo(cl->device, CL_DEVICE_MAX_COMPUTE_UNITS, sizeof cl->units, &cl->units, NULL);
     if (cl->units < 1) cl->units = 1;
+    cl->max_wg = 1;
+    clGetDeviceInfo(cl->device, CL_DEVICE_MAX_WORK_GROUP_SIZE, sizeof cl->max_wg, &cl->max_wg, NULL);
+    if (cl->max_wg < 1) cl->max_wg = 1;
+    clGetDeviceInfo(cl->device, CL_DEVICE_LOCAL_MEM_SIZE, sizeof cl->local_mem, &cl->local_mem, NULL);
+    cl->host_memory = (type & CL_DEVICE_TYPE_CPU) != 0;
+    TRY(choose_shape(ctx, cl, type));
+    snprintf(ctx->device_name + strlen(ctx->device_name), sizeof ctx->device_name - strlen(ctx->device_name),
+             " (%s shape)", cl->gpu_shape ? "GPU" : "CPU");
     cl_context_properties props[34] = {CL_CONTEXT_PLATFORM, (cl_context_properties)cl->platform};
     size_t np_ = 2;
     for (size_t i = 0; properties && properties[i]; i += 2) {
@@ -104,7 +152,9 @@ hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t
     CL_TRY(ctx, e, "clCreateContext");
     cl->queue = clCreateCommandQueue(cl->context, cl->device, 0, &e);
     CL_TRY(ctx, e, "clCreateCommandQueue");
-    return hl_cl_build_program(ctx, cl);
+    TRY(hl_cl_build_program(ctx, cl));
+    group_sizes(cl);
+    return HL_OK;
 }
 
 void hl_cl_destroy(struct hl_cl *cl)
@@ -153,9 +203,18 @@ hl_result hl_list_devices(void *file, char *err, size_t err_size)
             clGetDeviceInfo(devs[d], CL_DEVICE_GLOBAL_MEM_SIZE, sizeof mem, &mem, NULL);
             clGetDeviceInfo(devs[d], CL_DEVICE_TYPE, sizeof type, &type, NULL);
             clGetDeviceInfo(devs[d], CL_DEVICE_EXTENSIONS, sizeof ext, ext, NULL);
+            size_t wg = 0;
+            cl_ulong lmem = 0;
+            clGetDeviceInfo(devs[d], CL_DEVICE_MAX_WORK_GROUP_SIZE, sizeof wg, &wg, NULL);
+            clGetDeviceInfo(devs[d], CL_DEVICE_LOCAL_MEM_SIZE, sizeof lmem, &lmem, NULL);
             fprintf(f, "  device %u: %s [%s] %s, %u compute units, %.1f GiB%s   (--device cl:%u:%u)\n", d, dn,
                     type & CL_DEVICE_TYPE_GPU ? "GPU" : type & CL_DEVICE_TYPE_CPU ? "CPU" : "other", dv, cu,
                     (double)mem / (1024.0 * 1024.0 * 1024.0), strstr(ext, "cl_khr_gl_sharing") ? ", GL sharing" : "", p, d);
+            const char *v = getenv("HL_DEVICE_SHAPE");
+            const int forced = v && (!strcmp(v, "cpu") || !strcmp(v, "gpu"));
+            const int gpu = forced ? !strcmp(v, "gpu") : !(type & CL_DEVICE_TYPE_CPU);
+            fprintf(f, "            work-groups up to %zu, %.0f KiB local memory; runs in the %s shape%s\n", wg,
+                    (double)lmem / 1024.0, gpu ? "GPU" : "CPU", forced ? " (HL_DEVICE_SHAPE)" : "");
         }
     }
     return HL_OK;

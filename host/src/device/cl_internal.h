@@ -25,7 +25,9 @@ cl_int hl_cl_gl_release(struct hl_cl *cl, cl_mem m);
 
 /* The program's kernels, in the order of hl_cl_kernel_names. */
 enum { K_CUBE2PARA, K_HAAR, K_TRUNCATE, K_QUANTIZE, K_TURN, K_ENV2PARA, K_SELECT, K_RELIGHT, K_BANDWIDTH,
-       K_SH_PROJECT, K_CUBE_ROWS, K_CUBE_HAAR, K_RELIGHT_ROWS, K_COUNT };
+       K_SH_PROJECT, K_CUBE_ROWS, K_CUBE_HAAR, K_RELIGHT_ROWS,
+       /* the GPU shape's own (cl->gpu_shape) */
+       K_SELECT_GROUP, K_HAAR_GROUP, K_RELIGHT_ITEMS, K_BANDWIDTH_GRID, K_COUNT };
 extern const char *const hl_cl_kernel_names[K_COUNT];
 
 /* rows per work-item of hl_cube2para (HL_C2P_ROWS in kernels/maps/cube2para.cl) */
@@ -45,9 +47,27 @@ struct hl_cl {
        device; used counts the buffers made through hl_cl_make_buf. */
     cl_ulong limit, used;
     int limit_set; /* the limit came from the caller, not the device */
-    size_t wg; /* work-group size: 1 on CPUs, where each work-item's long
-                  row loop is the unit of work and PoCL would otherwise
-                  put every row in one group on one core */
+    /* The shape of the launches (docs/PERFORMANCE.md, "Device shapes"):
+       chosen from the device's type, or forced (HL_DEVICE_SHAPE), so that
+       PoCL runs the GPU shape's kernels in the tests too.
+       CPU shape: each work-item walks its own long chunk (a row, a range
+       of tiles), work-groups of 1, since PoCL would otherwise put every
+       chunk of a group on one core. GPU shape: a work-item a vertex,
+       texel or slot, work-groups of wg, whole stages in one group where
+       they need barriers. */
+    int gpu_shape;
+    size_t wg;      /* work-group size: 1 in the CPU shape */
+    size_t max_wg;  /* the device's largest work-group */
+    cl_ulong local_mem; /* the device's local memory a group, bytes */
+    /* the GPU shape's work-groups for the stages that run as groups (each
+       a power of two, within what the device and the kernel allow):
+       Haar of the lighting, the dot products; the selection runs as one
+       group of HL_SELECT_LANES where select_group is set, else as
+       select.cl's one work-item */
+    size_t haar_wg, items_wg;
+    int select_group;
+    int host_memory; /* the device computes in host memory (a CPU device):
+                        buffers may use our own pages in place */
     cl_uint units; /* compute units (cores on a CPU device) */
 };
 

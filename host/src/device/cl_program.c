@@ -20,7 +20,8 @@ extern const hl_embedded_kernel hl_embedded_kernels[];
 const char *const hl_cl_kernel_names[K_COUNT] = {"hl_cube2para", "hl_haar",   "hl_truncate", "hl_quantize", "hl_turn",
                                                  "hl_env2para",  "hl_select", "hl_relight",  "hl_read_bandwidth",
                                                  "hl_sh_project_rows", "hl_cube_face_rows", "hl_cube_face_haar",
-                                                 "hl_relight_rows"};
+                                                 "hl_relight_rows", "hl_select_group", "hl_haar_group",
+                                                 "hl_relight_items", "hl_read_bandwidth_grid"};
 
 static char *read_text_file(const char *path)
 {

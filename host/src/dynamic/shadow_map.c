@@ -557,7 +557,7 @@ static hl_result render_device(hl_shadow_maps *sm, uint32_t K, float *depth)
     const float empty = HL_SHADOW_EMPTY;
     CL_TRY(ctx, clEnqueueFillBuffer(cl->queue, sm->ddepth, &empty, 4, 0, K * mapbytes, 0, NULL, NULL), "clearing the maps");
     cl_uint ntris = sm->ntris, R = sm->R;
-    cl_uint per = cl->wg == 1 ? (ntris + HL_SHADOW_CPU_CHUNKS - 1) / HL_SHADOW_CPU_CHUNKS : 1;
+    cl_uint per = !cl->gpu_shape ? (ntris + HL_SHADOW_CPU_CHUNKS - 1) / HL_SHADOW_CPU_CHUNKS : 1;
     size_t items = (ntris + per - 1) / per;
     size_t local[2] = {cl->wg, 1}, global[2] = {(items + cl->wg - 1) / cl->wg * cl->wg, K};
     cl_kernel k = sm->kern;

@@ -83,7 +83,10 @@ static hl_result vertex_order(hl_cl_light *l, const hl_transport *t, uint32_t **
 /* Range boundaries, in whole tiles (HL_TILE positions), into *starts;
  * returns the count, or 0 when out of memory.
  *
- * On a GPU: 4 tiles (64 vertices) per work-item, in curve order.
+ * In the GPU shape: ranges of HL_ITEMS_RANGE_TILES tiles (512 positions)
+ * in curve order, one word of tile bits a slot, walked by a work-item a
+ * position (kernels/relight/relight_items.cl); mult > 1 (relight in
+ * parts) makes them mult times shorter (a power of two, down to a tile).
  *
  * On a CPU device: one range per core, and the tiles are dealt to the ranges in turn (tile c of
  * the curve to range c mod R), so l->order is rearranged here. Dealt
@@ -99,8 +102,11 @@ static hl_result vertex_order(hl_cl_light *l, const hl_transport *t, uint32_t **
 static uint32_t cut_ranges(hl_cl_light *l, const uint32_t *curve, uint32_t mult, uint32_t **starts)
 {
     const size_t V = l->nverts, tiles = (V + HL_TILE - 1) / HL_TILE;
-    if (l->cl->wg != 1) {
-        const size_t per = 64 / HL_TILE, n = tiles ? (tiles + per - 1) / per : 1;
+    if (l->cl->gpu_shape) {
+        size_t per = HL_ITEMS_RANGE_TILES;
+        while (per > 1 && per * mult > HL_ITEMS_RANGE_TILES) per /= 2;
+        const size_t n = tiles ? (tiles + per - 1) / per : 1;
+        l->range_tiles = (uint32_t)per;
         uint32_t *rs = malloc((n + 1) * 4);
         l->order = malloc((V ? V : 1) * 4);
         if (!rs || !l->order) {

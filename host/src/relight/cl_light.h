@@ -35,7 +35,8 @@ struct hl_cl_light {
     const float *Bmap;                              /* B mapped for reading (NULL: not mapped) */
     cl_mem ord, klist;                              /* vertex at each position; kept slots */
     void *host[4];                                  /* CPU devices: their memory */
-    uint32_t nranges, *range_start;                 /* vertices of each work-item */
+    uint32_t nranges, *range_start;                 /* vertices of each work-item (CPU shape) */
+    uint32_t range_tiles;                           /* GPU shape: tiles a range (the last may have fewer) */
     uint32_t tstride;                               /* words of 32 tiles in the largest range */
     uint64_t col_entries;                           /* tile entries in all columns */
     uint32_t *col_start;                            /* host copy, for counting bytes */
@@ -110,6 +111,15 @@ hl_result hl_cl_light_enq_part(hl_cl_light *l, uint32_t p, cl_uint *nr);
 void hl_cl_light_part_bufs(const hl_cl_light *l, uint32_t p, cl_mem m[4]);
 /* Releases resident parts' buffers (cl_parts.c). */
 void hl_cl_light_release_parts(hl_cl_light *l);
+
+/* The work-groups of a range in the dot products, each writing its own
+ * clamp tally: 1 in the CPU shape (a work-item a range); in the GPU shape
+ * (relight_items.cl) a range's positions over the group size
+ * (hl_cl_light_items_group). */
+uint32_t hl_cl_light_range_groups(const hl_cl_light *l);
+/* The GPU shape's dot products' work-group: items_wg, or a range's
+ * positions where a finer cut made them fewer. */
+size_t hl_cl_light_items_group(const hl_cl_light *l);
 
 /* Enqueues the dot products into the device's colour buffer, without
  * waiting (cl_relight.c). */

@@ -46,8 +46,11 @@ double hl_cl_light_kept_entries(const hl_cl_light *l, const uint32_t *bits, doub
     return kept;
 }
 
+int hl_cl_light_gpu_shape(const hl_cl_light *l) { return l->cl->gpu_shape; }
+
 int hl_cl_light_tile_walk(const hl_cl_light *l, uint32_t rg, double entries, uint32_t kept)
 {
+    if (l->cl->gpu_shape) return 0; /* relight_items.cl has one walk */
     const uint32_t nt = (l->range_start[rg + 1] - l->range_start[rg]) / HL_TILE;
     return hl_tile_walk_pays((uint64_t)entries, kept, nt);
 }
@@ -110,6 +113,19 @@ hl_result hl_cl_light_bytes_read(hl_cl_light *l, double *bytes)
     }
     const double kept = hl_cl_light_kept_entries(l, bits, per);
     free(bits);
+    if (l->cl->gpu_shape) {
+        /* relight_items.cl: per kept slot its place in the list and its
+           light, and per range its column's start and its word of tile
+           bits (read by each of the range's groups, counted once: the
+           cache holds them); each kept entry's halves; per position its
+           scale; per vertex its albedo, place and colour */
+        double b = kept * (20.0 + (double)l->nranges * 12.0) + (double)l->range_start[l->nranges] * 4.0 +
+                   (double)l->nverts * (20.0 + 16.0 * l->albedo_step);
+        for (size_t rg = 0; rg < l->nranges; rg++) b += per[rg] * 2.0 * HL_TILE;
+        free(per);
+        *bytes = b;
+        return HL_OK;
+    }
     /* per kept slot its place in the list and, per range, its column's
        start and end; per vertex slot its scale; per vertex its albedo,
        place and colour (the albedo one for all when albedo_step is 0).

@@ -88,13 +88,20 @@ static uint32_t group_ranges(hl_cl_light *l, const hl_col_sizes *z, uint64_t ava
     return np;
 }
 
-/* On a CPU device, asks for a cut of want ranges a core (at most a tile
- * each) when that is finer than mult: sets *finer and returns 1. */
+/* In the CPU shape, asks for a cut of want ranges a core (at most a tile
+ * each) when that is finer than mult: sets *finer and returns 1. In the
+ * GPU shape, for ranges half as long (cl_columns.c's cut_ranges), down to
+ * a tile. */
 static int cut_finer(const hl_cl_light *l, uint64_t want, uint32_t mult, uint32_t *finer)
 {
     const struct hl_cl *cl = l->cl;
     const uint64_t units = cl->units > 1 ? cl->units : 1, tiles = (l->nverts + HL_TILE - 1) / HL_TILE;
-    if (cl->wg != 1 || (uint64_t)l->nranges >= tiles) return 0;
+    if (cl->gpu_shape) {
+        if (l->range_tiles <= 1 || (uint64_t)l->nranges >= tiles) return 0;
+        *finer = 2 * mult;
+        return 1;
+    }
+    if ((uint64_t)l->nranges >= tiles) return 0;
     if (want * units > tiles) want = (tiles + units - 1) / units;
     if (want <= mult) return 0;
     *finer = (uint32_t)want;
@@ -111,9 +118,11 @@ hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t
     if (!l->part_range) return hl_fail(l->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the relight's parts");
     /* made after the columns: the albedo (16 a vertex, or one for all);
        per vertex order (4), colours (16); per padded position: running
-       sums (12), scales (4); per range a clamp tally (16) */
+       sums (12, the CPU shape's), scales (4); per range's work-group a
+       clamp tally (16) */
     const uint64_t albedo = (l->albedo_step ? (uint64_t)l->nverts : 1) * 16;
-    const uint64_t after = albedo + (uint64_t)l->nverts * 20 + (uint64_t)z->vpad * 16 + (uint64_t)l->nranges * 16;
+    const uint64_t after = albedo + (uint64_t)l->nverts * 20 + (uint64_t)z->vpad * (cl->gpu_shape ? 4 : 16) +
+                           (uint64_t)l->nranges * hl_cl_light_range_groups(l) * 16;
     const uint64_t held = cl->used + after + (uint64_t)z->nc * HL_PARTS_HEADROOM_PER_SLOT;
     uint64_t avail = cl->limit > held ? cl->limit - held : 0;
     const uint64_t whole = part_bytes(z, z->run - 1, l->nranges);
@@ -131,7 +140,7 @@ hl_result hl_cl_light_plan_parts(hl_cl_light *l, const hl_col_sizes *z, uint32_t
         /* the device holds them all, but no buffer may pass max_alloc:
            parts of their own buffers each, uploaded once; on a CPU device
            first cut finer, so that each part still has a range a core */
-        if (mult == 1 && cl->units > 1 &&
+        if (mult == 1 && cl->units > 1 && !cl->gpu_shape &&
             cut_finer(l, (whole / cl->max_alloc + 1) * HL_PARTS_RANGES_PER_PART, mult, finer))
             return HL_OK;
         l->nparts = group_ranges(l, z, cl->max_alloc, l->part_range);

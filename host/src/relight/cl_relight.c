@@ -84,7 +84,7 @@ static hl_result upload_rows(hl_cl_light *l, const hl_transport *t)
     for (size_t v = 0; v < V; v++) l->order[v] = (uint32_t)v;
     const size_t ebytes = (size_t)(2 * t->info.coefficients_kept);
     /* in place on a CPU device (no host pointer to use when there are no entries) */
-    hl_result r = hl_cl_make_buf(ctx, &l->rentries, CL_MEM_READ_ONLY | (l->cl->wg == 1 && ebytes ? CL_MEM_USE_HOST_PTR : 0),
+    hl_result r = hl_cl_make_buf(ctx, &l->rentries, CL_MEM_READ_ONLY | (l->cl->host_memory && ebytes ? CL_MEM_USE_HOST_PTR : 0),
                                  ebytes ? ebytes : 4, ebytes ? t->entries : NULL, "the transport's entries");
     if (r == HL_OK)
         r = hl_cl_make_buf(ctx, &l->roffset, CL_MEM_READ_ONLY, (V + 1) * 8, t->row_offset, "the rows' offsets");
@@ -101,7 +101,7 @@ static hl_result upload_rows(hl_cl_light *l, const hl_transport *t)
 static cl_uint rows_items(const hl_cl_light *l, cl_uint *per)
 {
     const cl_uint nv = l->nverts;
-    cl_uint p = l->cl->wg == 1 ? (nv + 255) / 256 : 1;
+    cl_uint p = l->cl->gpu_shape ? 1 : (nv + 255) / 256;
     if (!p) p = 1;
     if (per) *per = p;
     return (nv + p - 1) / p;
@@ -166,12 +166,14 @@ static hl_result create_light(hl_context *ctx, const hl_geom *g, const hl_light_
     free(alb);
     B(ord, CL_MEM_READ_ONLY, V * 4, l->order, "vertex order");
     /* on a CPU device in memory the host maps without a copy */
-    B(B, CL_MEM_READ_WRITE | (l->cl->wg == 1 ? CL_MEM_ALLOC_HOST_PTR : 0), V * 16, NULL, "vertex colours");
-    B(acc, CL_MEM_READ_WRITE, (size_t)3 * (l->nranges && V ? l->range_start[l->nranges] : 1) * 4, NULL, "running sums");
-    /* a clamp tally per range, or per work-item of the rows' launch
-       (rows_items); the work-items past them, which fill the last group,
-       write none */
-    l->ntally = rows ? rows_items(l, NULL) : l->nranges;
+    B(B, CL_MEM_READ_WRITE | (l->cl->host_memory ? CL_MEM_ALLOC_HOST_PTR : 0), V * 16, NULL, "vertex colours");
+    /* the CPU shape's running sums (the GPU shape keeps them in registers) */
+    const size_t sums = l->cl->gpu_shape || !l->nranges || !V ? 1 : l->range_start[l->nranges];
+    B(acc, CL_MEM_READ_WRITE, (size_t)3 * sums * 4, NULL, "running sums");
+    /* a clamp tally per range (per work-group of a range in the GPU
+       shape), or per work-item of the rows' launch (rows_items); the
+       work-items past them, which fill the last group, write none */
+    l->ntally = rows ? rows_items(l, NULL) : l->nranges * hl_cl_light_range_groups(l);
     const size_t tally_bytes = (l->ntally ? (size_t)l->ntally : 1) * 16;
     B(tally, CL_MEM_READ_WRITE, tally_bytes, NULL, "the clamp's tallies");
     if (r == HL_OK && !(l->tally_host = malloc(tally_bytes)))
@@ -200,11 +202,29 @@ hl_result hl_cl_light_set_weights(hl_cl_light *l, const float *weight)
     return HL_OK;
 }
 
+size_t hl_cl_light_items_group(const hl_cl_light *l)
+{
+    const size_t pos = (size_t)l->range_tiles * HL_TILE;
+    return l->cl->items_wg < pos ? l->cl->items_wg : pos;
+}
+
+uint32_t hl_cl_light_range_groups(const hl_cl_light *l)
+{
+    return l->cl->gpu_shape ? (uint32_t)((size_t)l->range_tiles * HL_TILE / hl_cl_light_items_group(l)) : 1u;
+}
+
+/* items work-items, in groups of the shape's size: one for select.cl,
+ * HL_SELECT_LANES for select_group.cl (items 1: one group), haar_wg for
+ * Haar's groups and items_wg for the GPU shape's dot products (items: a
+ * multiple of the group). */
 static hl_result light_launch(hl_cl_light *l, int which, size_t items)
 {
-    /* selection is one work-item */
-    size_t local = which == K_SELECT ? 1 : l->cl->wg;
-    size_t global = (items + local - 1) / local * local;
+    size_t local = which == K_SELECT             ? 1
+                   : which == K_SELECT_GROUP     ? HL_SELECT_LANES
+                   : which == K_HAAR_GROUP       ? l->cl->haar_wg
+                   : which == K_RELIGHT_ITEMS    ? hl_cl_light_items_group(l)
+                                                 : l->cl->wg;
+    size_t global = which == K_SELECT_GROUP ? HL_SELECT_LANES : (items + local - 1) / local * local;
     CL_TRY(l->ctx, clEnqueueNDRangeKernel(l->cl->queue, l->cl->k[which], 1, NULL, &global, &local, 0, NULL, NULL),
            hl_cl_kernel_names[which]);
     return HL_OK;
@@ -219,12 +239,12 @@ static hl_result enq_env2para_on(hl_cl_light *l, uint32_t s0, float f, cl_mem st
        work-item */
     cl_kernel k = l->cl->k[K_TURN];
     cl_uint wc = l->lg->wc, ncell = l->lg->wc * l->lg->hc, sh = s0;
-    cl_uint per = l->cl->wg == 1 ? (ncell + 63) / 64 : 1;
+    cl_uint per = l->cl->gpu_shape ? 1 : (ncell + 63) / 64;
     LARG(k, 0, l->cells); LARG(k, 1, wc); LARG(k, 2, ncell); LARG(k, 3, sh); LARG(k, 4, f); LARG(k, 5, per);
     LARG(k, 6, l->turned);
     TRY(light_launch(l, K_TURN, (ncell + per - 1) / per));
     k = l->cl->k[K_ENV2PARA];
-    per = l->cl->wg == 1 ? (nc + 63) / 64 : 1;
+    per = l->cl->gpu_shape ? 1 : (nc + 63) / 64;
     LARG(k, 0, l->turned); LARG(k, 1, start); LARG(k, 2, runs); LARG(k, 3, nc); LARG(k, 4, per);
     LARG(k, 5, out);
     return light_launch(l, K_ENV2PARA, (nc + per - 1) / per);
@@ -257,12 +277,15 @@ static hl_result enq_cube3(hl_cl_light *l, uint32_t s0, float f)
     return hl_cl_cube_haar_enqueue(l->ctx, l->cl, l->Lp, nt, l->Lw, l->g->ncoef, l->cube, 3);
 }
 
+/* Haar of R, G and B: a work-item a row, or in the GPU shape a group a
+ * map of a row (haar_group.cl). */
 static hl_result enq_haar3(hl_cl_light *l)
 {
-    cl_kernel k = l->cl->k[K_HAAR];
+    const int which = l->cl->gpu_shape ? K_HAAR_GROUP : K_HAAR;
+    cl_kernel k = l->cl->k[which];
     cl_uint N = l->g->N, rows = 3;
     LARG(k, 0, l->Lp); LARG(k, 1, l->Lw); LARG(k, 2, l->slots); LARG(k, 3, N); LARG(k, 4, rows);
-    return light_launch(l, K_HAAR, 3);
+    return light_launch(l, which, which == K_HAAR_GROUP ? 2 * rows * l->cl->haar_wg : rows);
 }
 
 hl_result hl_cl_light_set_sh(hl_cl_light *l, const float *Y, uint32_t stride, uint32_t count)
@@ -280,14 +303,23 @@ static hl_result enq_sh3(hl_cl_light *l)
     return hl_cl_sh_project_enqueue(l->ctx, l->cl, l->Lp, l->g->ncoef, l->shY, l->sh_stride, l->sh_count, l->Lw, 3);
 }
 
+/* The selection: select.cl's one work-item, or in the GPU shape one
+ * group (select_group.cl, the same results) where the device takes it and
+ * the slots fill whole words of kept bits and at most 512 blocks. */
+int hl_cl_light_select_as_group(const hl_cl_light *l)
+{
+    return l->cl->select_group && l->g->ncoef % 32 == 0 && l->g->nblocks <= 512;
+}
+
 static hl_result enq_select(hl_cl_light *l, hl_select_params sp)
 {
-    cl_kernel k = l->cl->k[K_SELECT];
+    const int which = hl_cl_light_select_as_group(l) ? K_SELECT_GROUP : K_SELECT;
+    cl_kernel k = l->cl->k[which];
     cl_uint nc = l->g->ncoef, nb = l->g->nblocks;
     LARG(k, 0, l->Lw); LARG(k, 1, nc); LARG(k, 2, l->weight); LARG(k, 3, sp); LARG(k, 4, l->Lsel);
     LARG(k, 5, l->used); LARG(k, 6, l->bits); LARG(k, 7, nb); LARG(k, 8, l->res); LARG(k, 9, l->keys);
     LARG(k, 10, l->klist);
-    return light_launch(l, K_SELECT, 1);
+    return light_launch(l, which, 1);
 }
 
 /* One launch over all the ranges, or one a part (cl_parts.c), each after
@@ -307,15 +339,25 @@ static hl_result enq_relight_to(hl_cl_light *l, cl_mem out)
         LARG(k, 14, l->tally); LARG(k, 15, l->albedo_step);
         return light_launch(l, K_RELIGHT_ROWS, items);
     }
+    if (l->cl->gpu_shape) k = l->cl->k[K_RELIGHT_ITEMS];
     for (uint32_t p = 0; p < (l->nparts > 1 ? l->nparts : 1u); p++) {
         cl_mem m[4];
         if (l->nparts > 1) TRY(hl_cl_light_enq_part(l, p, &nr));
         hl_cl_light_part_bufs(l, p, m);
+        const cl_uint t0 = l->nparts > 1 ? l->part_range[p] : 0;
+        if (l->cl->gpu_shape) { /* relight_items.cl: a work-item a position */
+            LARG(k, 0, m[0]); LARG(k, 1, m[1]); LARG(k, 2, m[2]); LARG(k, 3, ts); LARG(k, 4, m[3]);
+            LARG(k, 5, l->back); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->klist); LARG(k, 9, l->albedo);
+            LARG(k, 10, out); LARG(k, 11, nv); LARG(k, 12, nr); LARG(k, 13, l->ord); LARG(k, 14, l->keep_negative);
+            const cl_uint rpos = l->range_tiles * HL_TILE;
+            LARG(k, 15, l->tally); LARG(k, 16, t0); LARG(k, 17, l->albedo_step); LARG(k, 18, rpos);
+            TRY(light_launch(l, K_RELIGHT_ITEMS, (size_t)nr * rpos));
+            continue;
+        }
         LARG(k, 0, m[0]); LARG(k, 1, m[1]); LARG(k, 2, m[2]); LARG(k, 3, ts); LARG(k, 4, m[3]);
         LARG(k, 5, l->back); LARG(k, 6, nc); LARG(k, 7, l->Lsel); LARG(k, 8, l->klist); LARG(k, 9, l->albedo);
         LARG(k, 10, l->acc); LARG(k, 11, out); LARG(k, 12, nv); LARG(k, 13, nr); LARG(k, 14, l->ord);
         LARG(k, 15, l->keep_negative); LARG(k, 16, l->tally);
-        const cl_uint t0 = l->nparts > 1 ? l->part_range[p] : 0;
         LARG(k, 17, t0); LARG(k, 18, l->albedo_step);
         TRY(light_launch(l, K_RELIGHT, nr));
     }
