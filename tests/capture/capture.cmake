@@ -4,3 +4,4 @@
 # path, and bad input.
 hl_test_exe(test_capture ${CMAKE_CURRENT_LIST_DIR}/test_capture.c)
 hl_test_cases(test_capture capture twin energy crosscheck bad)
+hl_test_cases_gpu_shape(test_capture capture twin crosscheck)

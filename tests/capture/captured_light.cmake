@@ -4,3 +4,4 @@
 # carried around the bunny.
 hl_test_exe(test_captured_light ${CMAKE_CURRENT_LIST_DIR}/test_captured_light.c)
 hl_test_cases(test_captured_light captured_light twin reuse crosscheck motion bad)
+hl_test_cases_gpu_shape(test_captured_light captured_light twin crosscheck)

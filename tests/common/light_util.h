@@ -114,6 +114,7 @@ static inline void lighting_chain(int dots)
 {
     hl_context *cl = ctx_of(HL_BACKEND_OPENCL), *ref = ctx_of(HL_BACKEND_REFERENCE);
     hl_transport *t = NULL;
+    int gpu = -1; /* the relighters' shape (HL_DEVICE_SHAPE: the test's ctest name says which) */
     uint32_t walks[2] = {0, 0}; /* ranges walked by tile, by column */
     uint64_t words[2] = {0, 0}; /* the tile walk's words: without and with testing the bits */
     /* the selection reads the lighting only: one transport's geometry will
@@ -141,6 +142,20 @@ static inline void lighting_chain(int dots)
         HL_CHECK(hl_cl_light_create(cl, g, lg, t, alb, &l) == HL_OK, "%s", hl_context_last_error(cl));
         HL_CHECK(l && hl_cl_light_one_albedo(l) == !scheme, "scheme %d: one albedo for all %d", scheme,
                  l ? hl_cl_light_one_albedo(l) : -1);
+        if (l) {
+            gpu = hl_cl_light_gpu_shape(l);
+            const char *want = getenv("HL_DEVICE_SHAPE");
+            if (want && (!strcmp(want, "gpu") || !strcmp(want, "cpu")))
+                HL_CHECK(gpu == !strcmp(want, "gpu"), "HL_DEVICE_SHAPE=%s, but the relighter runs the %s shape", want,
+                         gpu ? "GPU" : "CPU");
+            printf("%s shape: the selection as %s, the dot products over %u ranges\n", gpu ? "GPU" : "CPU",
+                   hl_cl_light_select_as_group(l) ? "one work-group" : "one work-item", hl_cl_light_ranges(l));
+            /* the GPU shape's own kernels ran: the selection as a group
+               (PoCL takes its 256 work-items), and more than one range of
+               512 positions, the last one short */
+            if (gpu) HL_CHECK(hl_cl_light_select_as_group(l) && hl_cl_light_ranges(l) > 1 && V % 512 != 0,
+                              "the GPU shape's group selection and several ranges, the last one short");
+        }
         const char *pass = getenv("HL_TEST_SUM_TILES");
         if (pass && l) {
             /* the tile walk's passes made short: every range takes several */
@@ -214,7 +229,10 @@ static inline void lighting_chain(int dots)
     /* both of the kernel's walks were compared with the twin: the first
        transport's tiles are full enough for the tile walk, the second
        (48 terms a vertex) mostly takes the column walk */
-    if (dots) {
+    if (dots && gpu == 1) {
+        /* one walk, a work-item a position: nothing to count */
+        HL_CHECK(walks[0] == 0, "the GPU shape takes no tile walk");
+    } else if (dots) {
         printf("ranges walked by tile: %u, by column: %u\n", walks[0], walks[1]);
         HL_CHECK(walks[0] > 0 && walks[1] > 0, "both walks of the dot products tested");
         printf("tile walk words: %llu where every slot holds every tile, %llu testing the bits\n",

@@ -4,3 +4,4 @@
 # input. The lights come from the shared maps (skipped where missing).
 hl_test_exe(test_dyn_irradiance ${CMAKE_CURRENT_LIST_DIR}/test_dyn_irradiance.c)
 hl_test_cases(test_dyn_irradiance dyn_irradiance twin exact bad_input)
+hl_test_cases_gpu_shape(test_dyn_irradiance dyn_irradiance twin)

@@ -4,3 +4,4 @@
 # holding them (hl_relighter_create_from_file).
 hl_test_exe(test_parts ${CMAKE_CURRENT_LIST_DIR}/test_parts.c)
 hl_test_cases(test_parts parts quarter refused from_file resident rows both)
+hl_test_cases_gpu_shape(test_parts parts quarter refused from_file resident rows both)

@@ -3,7 +3,10 @@
 # device: PoCL), and the renderer (reference backend).
 hl_test_exe(test_select ${CMAKE_CURRENT_LIST_DIR}/test_select.c)
 hl_test_cases(test_select select twin)
+hl_test_cases_gpu_shape(test_select select twin)
 hl_test_exe(test_relight ${CMAKE_CURRENT_LIST_DIR}/test_relight.c)
 hl_test_cases(test_relight relight twin twin_passes relighter into furnace orientation extreme negative)
+# twin_passes is the CPU shape's alone (its tile walk's passes)
+hl_test_cases_gpu_shape(test_relight relight twin relighter into furnace orientation extreme negative)
 hl_test_exe(test_render ${CMAKE_CURRENT_LIST_DIR}/test_render.c)
 hl_test_cases(test_render render constant_colour barycentric background explicit_camera bad_args)

@@ -25,3 +25,4 @@ hl_test_cases(test_cube cube transform taps rows constant halfspace bad)
 # (test_sh_pipeline.c).
 hl_test_exe(test_sh_pipeline ${CMAKE_CURRENT_LIST_DIR}/test_sh_pipeline.c)
 hl_test_cases(test_sh_pipeline sh_pipeline kernel constant cl_ref bench bad)
+hl_test_cases_gpu_shape(test_sh_pipeline sh_pipeline cl_ref)

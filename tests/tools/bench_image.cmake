@@ -7,3 +7,8 @@ foreach(c image capture bad_options)
     ENVIRONMENT "HL_BIN=$<TARGET_FILE:haarlight>;HL_TMP=${CMAKE_CURRENT_BINARY_DIR}/tmp;HL_REPO_DATA=${CMAKE_SOURCE_DIR}/data"
     TIMEOUT 600)
 endforeach()
+# bench in the GPU shape (HL_DEVICE_SHAPE=gpu): its probe and dot products
+add_test(NAME hl.bench_image.image.gpu_shape COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/test_bench_image.sh image)
+set_tests_properties(hl.bench_image.image.gpu_shape PROPERTIES
+  ENVIRONMENT "HL_DEVICE_SHAPE=gpu;HL_BIN=$<TARGET_FILE:haarlight>;HL_TMP=${CMAKE_CURRENT_BINARY_DIR}/tmp;HL_REPO_DATA=${CMAKE_SOURCE_DIR}/data"
+  TIMEOUT 600)
