@@ -79,7 +79,8 @@ static const char *const usage_bench =
     "                       at M = 200 with every body turned a further half degree about\n"
     "                       +Y each time (a new capture each change), an unchanged frame,\n"
     "                       and the capture alone against the dot products alone\n"
-    "  --device cl:P:D      OpenCL device\n"
+    "  --device cl:P:D      OpenCL device (default: the first, or HL_OPENCL_DEVICE=P:D;\n"
+    "                       HL_DEVICE_SHAPE=cpu|gpu forces the kernels' shape)\n"
     "  --device-memory SIZE most device memory to use, e.g. 512M (default: the device's;\n"
     "                       also HL_DEVICE_MEMORY)\n";
 

@@ -79,7 +79,8 @@ static const char *const usage_bd =
     "                       where the speed goal is stated; relight-dynamic's default is 128)\n"
     "  --reps R             timed frames per PRT and dynamic row (default 5, 1 to 100)\n"
     "  --traced-reps R      timed frames per traced row (default 3, 1 to 100)\n"
-    "  --device cl|ref|cl:P:D   the device both methods run on (default: OpenCL's first)\n"
+    "  --device cl|ref|cl:P:D   the device both methods run on (default: OpenCL's first, or\n"
+    "                       HL_OPENCL_DEVICE=P:D; HL_DEVICE_SHAPE=cpu|gpu forces the shape)\n"
     "  --device-memory SIZE most device memory to use, e.g. 512M\n";
 
 typedef struct bd_opts {

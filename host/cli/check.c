@@ -29,7 +29,8 @@ static const char *const usage_check =
     "                     or unweighted\n"
     "  --rotate DEG       environment rotation (default 0)\n"
     "  --vertices K       precompute stages on K vertices spread over the mesh (default 64)\n"
-    "  --device cl:P:D    OpenCL device to check (default: the first)\n"
+    "  --device cl:P:D    OpenCL device to check (default: the first, or\n"
+    "                     HL_OPENCL_DEVICE=P:D; HL_DEVICE_SHAPE=cpu|gpu forces the shape)\n"
     "  --device-memory SIZE  most device memory to use, e.g. 512M (default: the device's;\n"
     "                     also HL_DEVICE_MEMORY)\n";
 

@@ -122,7 +122,9 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
     "                       camera (default: frames the object automatically; --eye\n"   \
     "                       alone looks at the object's centre)\n"
 #define CLI_USAGE_RUNNING                                                                 \
-    "  --device cl|ref|cl:P:D   OpenCL device (default: first), or the plain-C reference\n" \
+    "  --device cl|ref|cl:P:D   OpenCL device (default: the first, or HL_OPENCL_DEVICE=P:D),\n" \
+    "                       or the plain-C reference; HL_DEVICE_SHAPE=cpu|gpu forces the\n" \
+    "                       kernels' shape (default: the device's type)\n" \
     "  --device-memory SIZE most device memory to use, e.g. 512M or 2G (default: the\n"   \
     "                       device's; also HL_DEVICE_MEMORY); a job needing more is refused\n" \
     "  --threads T          host threads (rendering, reference)\n"                       \

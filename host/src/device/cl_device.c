@@ -84,8 +84,21 @@ hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t
     cl_platform_id plats[16];
     if (np > 16) np = 16;
     clGetPlatformIDs(np, plats, NULL);
+    /* no device named: HL_OPENCL_DEVICE=P:D names one (tests/gpu.sh runs
+       the suite on a device of its choice so), else the first */
+    const char *pick = getenv("HL_OPENCL_DEVICE"), *from = "";
+    if (platform < 0 && device < 0 && pick && *pick) {
+        from = " (named by HL_OPENCL_DEVICE)";
+        int p = -1, d = -1;
+        char tail;
+        if (sscanf(pick, "%d:%d%c", &p, &d, &tail) != 2 || p < 0 || d < 0)
+            return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "HL_OPENCL_DEVICE=%s: expected P:D, as `haarlight devices` lists them", pick);
+        platform = p;
+        device = d;
+    }
     if (platform >= (int)np)
-        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "OpenCL: platform %d does not exist (%u found; see `haarlight devices`)", platform, np);
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "OpenCL: platform %d%s does not exist (%u found; see `haarlight devices`)",
+                       platform, from, np);
     struct hl_cl *cl = calloc(1, sizeof *cl);
     if (!cl) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
     ctx->cl = cl;
@@ -100,7 +113,8 @@ hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t
         int want = device >= 0 ? device : 0;
         if (want >= (int)nd) {
             if (platform >= 0)
-                return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "OpenCL: device %d does not exist on platform %u (%u found)", device, p, nd);
+                return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "OpenCL: device %d does not exist on platform %u%s (%u found)",
+                               device, p, from, nd);
             continue;
         }
         cl->platform = plats[p];
