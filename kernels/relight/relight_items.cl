@@ -13,7 +13,7 @@
  * reads its lane's half of the entry: the 16 lanes of a tile read one
  * 32-byte entry together. Each term is added with one fused multiply-add
  * a colour in ascending slot order, as the twin adds it (a tile that
- * lacks a slot adds nothing, as relight.cl's entry 0 adds exact zeros),
+ * lacks a slot reads entry 0, as relight.cl does, and adds exact zeros),
  * then the sums are scaled back by 2^e and times the albedo, clamped as
  * relight.cl clamps them (hl_colour_out).
  *
@@ -61,10 +61,14 @@ kernel void hl_relight_items(global const uint *col, global const uint *col_star
         }
         barrier(CLK_LOCAL_MEM_FENCE);
         if (!valid) continue;
+        /* a tile that lacks the slot reads entry 0 (all zero), so that no
+           load waits on a branch and the unrolled loads are in flight
+           together: one at a time, each waited for, 200 slots would cost
+           200 memory latencies a work-item */
+#pragma unroll 8
         for (uint j = 0; j < n; j++) {
             const uint bits = sbits[j];
-            if (!((bits >> tile) & 1u)) continue;
-            const uint e = sbase[j] + popcount(bits & below);
+            const uint e = (bits >> tile) & 1u ? sbase[j] + popcount(bits & below) : 0u;
             const float d = vload_half(lane, (global const half *)(col + (size_t)e * (HL_TILE / 2u)));
             const float4 l = sl[j];
             sr = fma(d, l.x, sr);
