@@ -183,10 +183,17 @@ static hl_result stage_depths(hl_csm *c, const float *depth, uint32_t K)
 
 #define SETARG(k, i, v) CL_TRY(ctx, clSetKernelArg(k, i, sizeof(v), &(v)), "clSetKernelArg")
 
+/* Work-items in groups of local, or (local 0) of the shape's size: 64 in
+ * the CPU shape too, never left to the runtime. Given no size, PoCL picks
+ * one that divides the count, and compiles the kernel anew for each size
+ * it has not seen: the receivers' count differs from light to light and
+ * mesh to mesh, and a new mesh's first frame spent 5 to 20 s compiling.
+ * The kernels return past their count. */
 static hl_result launch(hl_context *ctx, cl_kernel k, size_t global, size_t local, const char *what)
 {
-    CL_TRY(ctx, clEnqueueNDRangeKernel(ctx->cl->queue, k, 1, NULL, &global, local ? &local : NULL, 0, NULL, NULL),
-           what);
+    if (!local) local = ctx->cl->gpu_shape ? ctx->cl->wg : 64;
+    global = (global + local - 1) / local * local;
+    CL_TRY(ctx, clEnqueueNDRangeKernel(ctx->cl->queue, k, 1, NULL, &global, &local, 0, NULL, NULL), what);
     return HL_OK;
 }
 
