@@ -5,6 +5,9 @@
  * csm_basis.twin    the kernel against the twin on random and structured
  *                   maps (needs an OpenCL device: PoCL), and the twin's
  *                   rotation recurrence against double sin and cos.
+ * csm_basis.shapes  the whole build (planes, means, phases, tables) in the
+ *                   GPU shape (csm_basis_items.cl, csm_sat_items.cl) equals
+ *                   the CPU shape's on the same device bit for bit.
  * csm_basis.series  the expanded test f(d, z) from the twin's planes
  *                   against the step [z >= d] over a grid of d, z in
  *                   [0, 1]: DYNAMIC.md's period 2 fails at |z - d| = 1, the
@@ -12,7 +15,10 @@
  *                   the best of a few; ringing with and without damping.
  * Depends on: csm.h, hl_test.h.
  */
+#define _POSIX_C_SOURCE 200809L /* setenv */
 #include <float.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "csm.h"
 #include "hl_test.h"
@@ -179,8 +185,51 @@ static void case_series(void)
     }
 }
 
+/* The build of K maps in one shape (HL_DEVICE_SHAPE), every light's
+ * tables, means and phases read back into out (K (P R^2 + P + 4 R^2)
+ * floats). */
+static int build_in_shape(const char *shape, const float *z, uint32_t R, uint32_t M, uint32_t Mb, uint32_t K, float *out)
+{
+    setenv("HL_DEVICE_SHAPE", shape, 1);
+    hl_context *ctx = hl_test_cl_context(0);
+    unsetenv("HL_DEVICE_SHAPE");
+    if (!ctx) return 0;
+    printf("%s\n", hl_context_device_name(ctx));
+    hl_csm *c = NULL;
+    const size_t P = hl_csm_planes(M, Mb), R2 = (size_t)R * R, per = P * R2 + P + 4 * R2;
+    int ok = hl_csm_create(ctx, R, M, Mb, K, &c) == HL_OK && hl_csm_build(c, z, K) == HL_OK;
+    for (uint32_t k = 0; ok && k < K; k++) {
+        float *o = out + k * per;
+        ok = hl_csm_read_planes(c, k, o, o + P * R2, o + P * R2 + P) == HL_OK;
+    }
+    if (!ok) fprintf(stderr, "%s\n", hl_context_last_error(ctx));
+    hl_csm_destroy(c);
+    hl_context_destroy(ctx);
+    return ok;
+}
+
+static void case_shapes(void)
+{
+    static const uint32_t Rs[] = {48, 256}, Ms[][2] = {{16, 16}, {8, 4}};
+    for (int a = 0; a < 2; a++) {
+        const uint32_t R = Rs[a], M = Ms[a][0], Mb = Ms[a][1], K = 3;
+        const size_t R2 = (size_t)R * R, n = K * (hl_csm_planes(M, Mb) * R2 + hl_csm_planes(M, Mb) + 4 * R2);
+        float *z = malloc(K * R2 * 4), *cpu = malloc(n * 4), *gpu = malloc(n * 4);
+        for (uint32_t k = 0; k < K; k++) make_map(z + k * R2, R, (int)k);
+        int ok = build_in_shape("cpu", z, R, M, Mb, K, cpu) && build_in_shape("gpu", z, R, M, Mb, K, gpu);
+        HL_CHECK(ok, "the builds");
+        size_t diff = 0;
+        for (size_t i = 0; ok && i < n; i++) diff += memcmp(cpu + i, gpu + i, 4) != 0;
+        printf("R = %u, M = %u, Mb = %u, %u maps: %zu floats, GPU shape against CPU shape\n", R, M, Mb, K, n);
+        hl_check_error("floats that differ (tolerance 0: bit for bit)", ok ? (double)diff : 1e30, 0.0);
+        free(z);
+        free(cpu);
+        free(gpu);
+    }
+}
+
 int main(int argc, char **argv)
 {
-    static const hl_test_case cases[] = {{"twin", case_twin}, {"series", case_series}, {NULL, NULL}};
+    static const hl_test_case cases[] = {{"twin", case_twin}, {"shapes", case_shapes}, {"series", case_series}, {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

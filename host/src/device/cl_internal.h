@@ -47,7 +47,7 @@ struct hl_cl {
        device; used counts the buffers made through hl_cl_make_buf. */
     cl_ulong limit, used;
     int limit_set; /* the limit came from the caller, not the device */
-    /* The shape of the launches (docs/PERFORMANCE.md, "Device shapes"):
+    /* The shape of the launches (docs/DEVICES.md):
        chosen from the device's type, or forced (HL_DEVICE_SHAPE), so that
        PoCL runs the GPU shape's kernels in the tests too.
        CPU shape: each work-item walks its own long chunk (a row, a range

@@ -12,6 +12,10 @@
 #include "cl_internal.h"
 #include "csm.h"
 
+/* planes a group of the GPU shape's scan takes (csm_sat_items.cl): 16
+ * lanes x 16 planes, groups of 256 */
+#define HL_CSM_SAT_CHUNK 16u
+
 /* floats of the eval kernel's parameter block (csm_eval.cl: prm) */
 #define CSM_PRM_FLOATS (11 + 2 * HL_CSM_M_MAX)
 
@@ -24,6 +28,7 @@ struct hl_csm {
     float *img, *rowsum, *mean, *zsc;
     /* OpenCL */
     cl_kernel kb, km, ks, ke;
+    cl_kernel kbt, krs, kss; /* the GPU shape's basis, row sums and scan (csm_*_items.cl) */
     cl_mem depth_d, img_d, rowsum_d, mean_d, zsc_d, prm_d, uvd_d, out_d;
     size_t io_cap; /* receivers the uvd and out buffers hold */
     float *out_h;  /* 2 per receiver, read back */
@@ -75,8 +80,8 @@ void hl_csm_destroy(hl_csm *c)
         if (cl->queue) clFinish(cl->queue);
         cl_mem *all[] = {&c->depth_d, &c->img_d, &c->rowsum_d, &c->mean_d, &c->zsc_d, &c->prm_d, &c->uvd_d, &c->out_d};
         for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(cl, all[i]);
-        cl_kernel ks[] = {c->kb, c->km, c->ks, c->ke};
-        for (size_t i = 0; i < 4; i++)
+        cl_kernel ks[] = {c->kb, c->km, c->ks, c->ke, c->kbt, c->krs, c->kss};
+        for (size_t i = 0; i < sizeof ks / sizeof ks[0]; i++)
             if (ks[i]) clReleaseKernel(ks[i]);
     }
     hl_free_big(c->img);
@@ -94,9 +99,10 @@ static hl_result create_device(hl_csm *c)
     hl_context *ctx = c->ctx;
     struct hl_cl *cl = ctx->cl;
     cl_int e;
-    const char *names[4] = {"hl_csm_basis", "hl_csm_sat_mean", "hl_csm_sat_scan", "hl_csm_eval"};
-    cl_kernel *ks[4] = {&c->kb, &c->km, &c->ks, &c->ke};
-    for (int i = 0; i < 4; i++) {
+    const char *names[7] = {"hl_csm_basis", "hl_csm_sat_mean", "hl_csm_sat_scan", "hl_csm_eval",
+                            "hl_csm_basis_texels", "hl_csm_basis_rowsums", "hl_csm_sat_scan_items"};
+    cl_kernel *ks[7] = {&c->kb, &c->km, &c->ks, &c->ke, &c->kbt, &c->krs, &c->kss};
+    for (int i = 0; i < 7; i++) {
         *ks[i] = clCreateKernel(cl->program, names[i], &e);
         CL_TRY(ctx, e, names[i]);
     }
@@ -205,20 +211,42 @@ static hl_result build_device(hl_csm *c, uint32_t K, int upto)
     cl_float c1 = (float)(HL_PI / HL_CSM_HALF_PERIOD);
     CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->depth_d, CL_FALSE, 0, (size_t)K * R * R * 4, c->stage, 0, NULL, NULL),
            "shadow-map upload");
-    SETARG(c->kb, 0, c->depth_d); SETARG(c->kb, 1, R); SETARG(c->kb, 2, M); SETARG(c->kb, 3, Mb);
-    SETARG(c->kb, 4, c1); SETARG(c->kb, 5, nrows); SETARG(c->kb, 6, c->img_d); SETARG(c->kb, 7, c->rowsum_d);
-    SETARG(c->kb, 8, c->zsc_d);
-    TRY(launch(ctx, c->kb, nrows, 0, "hl_csm_basis"));
+    const int gpu = cl->gpu_shape;
+    if (gpu) { /* a work-item a texel, then a work-item a row and plane */
+        cl_uint nt = K * R * R, nrs = nrows * c->P, P = c->P;
+        SETARG(c->kbt, 0, c->depth_d); SETARG(c->kbt, 1, R); SETARG(c->kbt, 2, M); SETARG(c->kbt, 3, Mb);
+        SETARG(c->kbt, 4, c1); SETARG(c->kbt, 5, nt); SETARG(c->kbt, 6, c->img_d); SETARG(c->kbt, 7, c->zsc_d);
+        TRY(launch(ctx, c->kbt, nt, 0, "hl_csm_basis_texels"));
+        SETARG(c->krs, 0, c->img_d); SETARG(c->krs, 1, R); SETARG(c->krs, 2, P); SETARG(c->krs, 3, nrs);
+        SETARG(c->krs, 4, c->rowsum_d);
+        TRY(launch(ctx, c->krs, nrs, 0, "hl_csm_basis_rowsums"));
+    } else {
+        SETARG(c->kb, 0, c->depth_d); SETARG(c->kb, 1, R); SETARG(c->kb, 2, M); SETARG(c->kb, 3, Mb);
+        SETARG(c->kb, 4, c1); SETARG(c->kb, 5, nrows); SETARG(c->kb, 6, c->img_d); SETARG(c->kb, 7, c->rowsum_d);
+        SETARG(c->kb, 8, c->zsc_d);
+        TRY(launch(ctx, c->kb, nrows, 0, "hl_csm_basis"));
+    }
     SETARG(c->km, 0, c->rowsum_d); SETARG(c->km, 1, R); SETARG(c->km, 2, np); SETARG(c->km, 3, c->mean_d);
     TRY(launch(ctx, c->km, np, 0, "hl_csm_sat_mean"));
     /* rows (minus the mean), then columns; planes interleaved by texel */
     cl_uint P = c->P;
+    /* the GPU shape: a group a line and HL_CSM_SAT_CHUNK planes, a
+       work-item a lane and plane (csm_sat_items.cl) */
+    const cl_uint chunk = HL_CSM_SAT_CHUNK, nchunks = (P + chunk - 1) / chunk;
     for (cl_uint pass = 0; (int)pass < upto - 1; pass++) {
         cl_uint step = pass ? R * P : P, line_step = pass ? P : R * P, sub = pass ? 0 : 1;
-        SETARG(c->ks, 0, c->img_d); SETARG(c->ks, 1, c->mean_d); SETARG(c->ks, 2, R); SETARG(c->ks, 3, P);
-        SETARG(c->ks, 4, step); SETARG(c->ks, 5, line_step); SETARG(c->ks, 6, sub);
-        CL_TRY(ctx, clSetKernelArg(c->ks, 7, 2 * HL_CSM_SCAN_LANES * P * sizeof(float), NULL), "clSetKernelArg");
-        TRY(launch(ctx, c->ks, (size_t)K * R * HL_CSM_SCAN_LANES, HL_CSM_SCAN_LANES, "hl_csm_sat_scan"));
+        cl_kernel k = gpu ? c->kss : c->ks;
+        SETARG(k, 0, c->img_d); SETARG(k, 1, c->mean_d); SETARG(k, 2, R); SETARG(k, 3, P);
+        SETARG(k, 4, step); SETARG(k, 5, line_step); SETARG(k, 6, sub);
+        if (gpu) {
+            SETARG(k, 7, chunk);
+            CL_TRY(ctx, clSetKernelArg(k, 8, 2 * HL_CSM_SCAN_LANES * chunk * sizeof(float), NULL), "clSetKernelArg");
+            const size_t group = (size_t)HL_CSM_SCAN_LANES * chunk;
+            TRY(launch(ctx, k, (size_t)K * R * nchunks * group, group, "hl_csm_sat_scan_items"));
+        } else {
+            CL_TRY(ctx, clSetKernelArg(k, 7, 2 * HL_CSM_SCAN_LANES * P * sizeof(float), NULL), "clSetKernelArg");
+            TRY(launch(ctx, k, (size_t)K * R * HL_CSM_SCAN_LANES, HL_CSM_SCAN_LANES, "hl_csm_sat_scan"));
+        }
     }
     CL_TRY(ctx, clFinish(cl->queue), "shadow-map build");
     return HL_OK;
