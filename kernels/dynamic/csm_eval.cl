@@ -181,23 +181,22 @@ static void hl_csm_phases(float ph, uint n, float *cs, float *sn)
     }
 }
 
-__kernel void hl_csm_eval(__global const float *sats, __global const float *means, __global const float *zscs,
-                          uint light, uint R, uint M, uint Mb, __constant float *prm, __global const float *uvd, uint n,
-                          __global float *out)
+/* Receiver (cx, cy, dt) of light `light` with parameters prm into
+ * o[0] = V, o[1] = z_avg (-1: nothing in front). */
+static void hl_csm_eval_one(__global const float *sats, __global const float *means, __global const float *zscs,
+                            uint light, uint R, uint M, uint Mb, __constant float *prm, float cx, float cy, float dt,
+                            float *o)
 {
-    size_t r = get_global_id(0);
-    if (r >= n) return;
     uint P = 2 * M + 2 * Mb + 1;
     __global const float *sat = sats + (size_t)light * P * R * R, *mean = means + (size_t)light * P;
     __global const float *zsc = zscs + (size_t)light * R * R * 4;
     float zmin = prm[0], su = prm[1], sv = prm[2], bias = prm[3], eps = prm[4], wmin = prm[5];
     float la = prm[6], lb = prm[7], c1 = prm[8], dh = prm[41], bias_b = prm[42];
     __constant float *coef = prm + 9, *coefb = prm + 25;
-    float cx = uvd[3 * r], cy = uvd[3 * r + 1], dt = uvd[3 * r + 2];
     float d = fmin(dt, 1.0f); /* beyond the far plane: on it, for the series */
     float db = d - bias;
     /* nothing in the map is nearer than the receiver: lit */
-    if (!(d > zmin)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }
+    if (!(d > zmin)) { o[0] = 1.0f; o[1] = -1.0f; return; }
     float fR = (float)R;
     /* phases c_k d' for the filter (bias 1/M) and the search (1/Mb: its
      * band is as wide as its order makes it) */
@@ -207,13 +206,44 @@ __kernel void hl_csm_eval(__global const float *sats, __global const float *mean
     float ws = dt - zmin, sr[2];
     hl_csm_search(sat, mean, zsc, R, M, Mb, cx, cy, clamp(ws * su, wmin, fR), clamp(ws * sv, wmin, fR), dh, coefb, csb,
                   snb, sr);
-    if (!(sr[0] >= eps)) { out[2 * r] = 1.0f; out[2 * r + 1] = -1.0f; return; }
+    if (!(sr[0] >= eps)) { o[0] = 1.0f; o[1] = -1.0f; return; }
     float za = clamp(sr[1] / sr[0], zmin, d);
     float wp = dt - za;
     float V = hl_csm_filter(sat, mean, zsc, R, M, Mb, cx, cy, clamp(wp * su, wmin, fR), clamp(wp * sv, wmin, fR), dh,
                             coef, cs, sn);
     V = clamp(V, 0.0f, 1.0f);
     float pw = 1.0f + la * exp(-lb * wp);
-    out[2 * r] = V > 0.0f ? pow(V, pw) : 0.0f;
-    out[2 * r + 1] = za;
+    o[0] = V > 0.0f ? pow(V, pw) : 0.0f;
+    o[1] = za;
+}
+
+__kernel void hl_csm_eval(__global const float *sats, __global const float *means, __global const float *zscs,
+                          uint light, uint R, uint M, uint Mb, __constant float *prm, __global const float *uvd, uint n,
+                          __global float *out)
+{
+    size_t r = get_global_id(0);
+    if (r >= n) return;
+    float o[2];
+    hl_csm_eval_one(sats, means, zscs, light, R, M, Mb, prm, uvd[3 * r], uvd[3 * r + 1], uvd[3 * r + 2], o);
+    out[2 * r] = o[0];
+    out[2 * r + 1] = o[1];
+}
+
+/* Several lights of the build at once: receiver r belongs to entry
+ * which[r] of the batch, light lights[which[r]] with the parameters at
+ * prms + which[r] * nprm; the same values as hl_csm_eval light by light,
+ * in one launch (csm.c, hl_csm_visibility_batch). */
+__kernel void hl_csm_eval_batch(__global const float *sats, __global const float *means, __global const float *zscs,
+                                uint R, uint M, uint Mb, __constant float *prms, uint nprm,
+                                __global const uint *lights, __global const uint *which, __global const float *uvd,
+                                uint n, __global float *out)
+{
+    size_t r = get_global_id(0);
+    if (r >= n) return;
+    const uint j = which[r];
+    float o[2];
+    hl_csm_eval_one(sats, means, zscs, lights[j], R, M, Mb, prms + (size_t)j * nprm, uvd[3 * r], uvd[3 * r + 1],
+                    uvd[3 * r + 2], o);
+    out[2 * r] = o[0];
+    out[2 * r + 1] = o[1];
 }

@@ -14,6 +14,11 @@
  *                     the map is lit.
  * csm_eval.contact    receivers just behind the blocker: dark with the
  *                     leak exponent, leaking without; B chosen here.
+ * csm_eval.batch      several lights in one call (hl_csm_visibility_batch),
+ *                     each with its own frame, half-extent and receivers,
+ *                     one light with none, equal those light by light bit
+ *                     for bit, also cut into calls of 2 lights
+ *                     (HL_TEST_CSM_BATCH) and on the reference backend.
  * csm_eval.bad_input  orders, sizes, NaN depths and receivers, frames; a
  *                     batch beyond the device memory limit.
  * timing              not a ctest case (it asserts nothing): build time per
@@ -22,7 +27,10 @@
  *                     "timing"), or the reference backend ("timing ref").
  * Depends on: csm.h, hl_test.h.
  */
+#define _POSIX_C_SOURCE 200809L /* setenv */
 #include <float.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "csm.h"
 #include "hl_test.h"
@@ -98,6 +106,70 @@ static void case_twin(void)
     free(z); free(uvd); free(V); free(za); free(Vr); free(sat); free(mean); free(t4);
     hl_csm_destroy(c);
     hl_csm_destroy(cr);
+    hl_context_destroy(ctx);
+    hl_context_destroy(ref);
+}
+
+/* 5 lights' maps in one build, visibility of each light alone and of all
+ * in one batch (each its own frame, half-extent and receivers; light 3
+ * with none): the same floats. */
+static int batch_matches(hl_context *ctx, const char *what)
+{
+    enum { K = 5 };
+    const uint32_t R = 64, M = 16, Mb = 8, counts[K] = {700, 1, 1200, 0, 333};
+    const size_t R2 = (size_t)R * R;
+    hl_csm *c = NULL;
+    if (hl_csm_create(ctx, R, M, Mb, K, &c) != HL_OK) {
+        HL_CHECK(0, "%s", hl_context_last_error(ctx));
+        return 0;
+    }
+    uint32_t start[K + 1] = {0}, ks[K];
+    float theta[K];
+    hl_shadow_frame fr[K];
+    const hl_shadow_frame *fp[K];
+    for (uint32_t j = 0; j < K; j++) {
+        start[j + 1] = start[j] + counts[j];
+        ks[j] = (j * 3) % K; /* the batch takes the build's lights out of order */
+        theta[j] = 0.01f + 0.03f * (float)j;
+        fr[j] = frame_of(R);
+        fr[j].width = 8.0f + (float)j;
+        fp[j] = &fr[j];
+    }
+    const uint32_t n = start[K];
+    float *z = malloc(K * R2 * 4), *uvd = malloc(n * 12), *Va = malloc(n * 4), *Vb = malloc(n * 4);
+    float *za = malloc(n * 4), *zb = malloc(n * 4);
+    for (uint32_t k = 0; k < K; k++) square_map(z + k * R2, R, 10 + 3 * k, 40 + 2 * k, 0.2f + 0.1f * (float)k, 1.0f);
+    for (uint32_t i = 0; i < n; i++) {
+        uvd[3 * i] = (float)(hl_rng_unit() * (R + 8) - 4);
+        uvd[3 * i + 1] = (float)(hl_rng_unit() * (R + 8) - 4);
+        uvd[3 * i + 2] = (float)hl_rng_unit();
+    }
+    int ok = hl_csm_build(c, z, K) == HL_OK;
+    for (uint32_t j = 0; ok && j < K; j++)
+        ok = hl_csm_visibility(c, ks[j], theta[j], fp[j], uvd + 3 * (size_t)start[j], counts[j], Va + start[j],
+                               za + start[j]) == HL_OK;
+    ok = ok && hl_csm_visibility_batch(c, K, ks, theta, fp, uvd, start, Vb, zb) == HL_OK;
+    HL_CHECK(ok, "%s: %s", what, hl_context_last_error(ctx));
+    size_t diff = 0;
+    for (uint32_t i = 0; ok && i < n; i++) diff += memcmp(Va + i, Vb + i, 4) != 0 || memcmp(za + i, zb + i, 4) != 0;
+    printf("%s: %u lights, %u receivers, batch against light by light\n", what, K, n);
+    hl_check_error("receivers whose V or z_avg differ (tolerance 0: bit for bit)", ok ? (double)diff : 1e30, 0.0);
+    free(z); free(uvd); free(Va); free(Vb); free(za); free(zb);
+    hl_csm_destroy(c);
+    return ok;
+}
+
+static void case_batch(void)
+{
+    hl_context *ctx = hl_test_cl_context(0), *ref = hl_test_ref_context(1);
+    if (!ctx || !ref) { HL_CHECK(0, "no context"); return; }
+    batch_matches(ctx, "one launch");
+    /* the device's parameter blocks hold 2 lights at a time (read when the
+       module is made): 3 launches */
+    setenv("HL_TEST_CSM_BATCH", "2", 1);
+    batch_matches(ctx, "2 lights a launch");
+    unsetenv("HL_TEST_CSM_BATCH");
+    batch_matches(ref, "reference backend");
     hl_context_destroy(ctx);
     hl_context_destroy(ref);
 }
@@ -436,7 +508,7 @@ static void case_edge(void)
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {{"twin", case_twin}, {"plane", case_plane}, {"edge", case_edge}, {"contact", case_contact},
-                                         {"bad_input", case_bad_input}, {NULL, NULL}};
+                                         {"batch", case_batch}, {"bad_input", case_bad_input}, {NULL, NULL}};
     if (argc >= 2 && strcmp(argv[1], "timing") == 0) {
         run_timing(argc >= 3 && strcmp(argv[2], "ref") == 0);
         return 0;

@@ -29,9 +29,12 @@ struct hl_csm {
     /* OpenCL */
     cl_kernel kb, km, ks, ke;
     cl_kernel kbt, krs, kss; /* the GPU shape's basis, row sums and scan (csm_*_items.cl) */
-    cl_mem depth_d, img_d, rowsum_d, mean_d, zsc_d, prm_d, uvd_d, out_d;
-    size_t io_cap; /* receivers the uvd and out buffers hold */
-    float *out_h;  /* 2 per receiver, read back */
+    cl_kernel keb;           /* the evaluation of several lights (hl_csm_eval_batch) */
+    cl_mem depth_d, img_d, rowsum_d, mean_d, zsc_d, prm_d, uvd_d, out_d, which_d, lights_d;
+    uint32_t prm_cap; /* lights whose parameters prm_d holds (within the device's constant memory) */
+    size_t io_cap;    /* receivers the uvd, out and which buffers hold */
+    float *out_h;     /* 2 per receiver, read back */
+    uint32_t *which_h; /* each receiver's entry of the batch */
 };
 
 size_t hl_csm_bytes_per_light(uint32_t R, uint32_t M, uint32_t Mb)
@@ -78,9 +81,10 @@ void hl_csm_destroy(hl_csm *c)
     struct hl_cl *cl = c->ctx->cl;
     if (cl) {
         if (cl->queue) clFinish(cl->queue);
-        cl_mem *all[] = {&c->depth_d, &c->img_d, &c->rowsum_d, &c->mean_d, &c->zsc_d, &c->prm_d, &c->uvd_d, &c->out_d};
+        cl_mem *all[] = {&c->depth_d, &c->img_d, &c->rowsum_d, &c->mean_d, &c->zsc_d,
+                         &c->prm_d,   &c->uvd_d, &c->out_d,    &c->which_d, &c->lights_d};
         for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(cl, all[i]);
-        cl_kernel ks[] = {c->kb, c->km, c->ks, c->ke, c->kbt, c->krs, c->kss};
+        cl_kernel ks[] = {c->kb, c->km, c->ks, c->ke, c->kbt, c->krs, c->kss, c->keb};
         for (size_t i = 0; i < sizeof ks / sizeof ks[0]; i++)
             if (ks[i]) clReleaseKernel(ks[i]);
     }
@@ -91,6 +95,7 @@ void hl_csm_destroy(hl_csm *c)
     hl_free_big(c->zsc);
     free(c->zmin);
     free(c->out_h);
+    free(c->which_h);
     free(c);
 }
 
@@ -99,10 +104,10 @@ static hl_result create_device(hl_csm *c)
     hl_context *ctx = c->ctx;
     struct hl_cl *cl = ctx->cl;
     cl_int e;
-    const char *names[7] = {"hl_csm_basis", "hl_csm_sat_mean", "hl_csm_sat_scan", "hl_csm_eval",
-                            "hl_csm_basis_texels", "hl_csm_basis_rowsums", "hl_csm_sat_scan_items"};
-    cl_kernel *ks[7] = {&c->kb, &c->km, &c->ks, &c->ke, &c->kbt, &c->krs, &c->kss};
-    for (int i = 0; i < 7; i++) {
+    const char *names[8] = {"hl_csm_basis",        "hl_csm_sat_mean",      "hl_csm_sat_scan",       "hl_csm_eval",
+                            "hl_csm_basis_texels", "hl_csm_basis_rowsums", "hl_csm_sat_scan_items", "hl_csm_eval_batch"};
+    cl_kernel *ks[8] = {&c->kb, &c->km, &c->ks, &c->ke, &c->kbt, &c->krs, &c->kss, &c->keb};
+    for (int i = 0; i < 8; i++) {
         *ks[i] = clCreateKernel(cl->program, names[i], &e);
         CL_TRY(ctx, e, names[i]);
     }
@@ -112,7 +117,18 @@ static hl_result create_device(hl_csm *c)
     TRY(hl_cl_make_buf(ctx, &c->rowsum_d, CL_MEM_READ_WRITE, K * P * c->R * 4, NULL, "CSM row sums"));
     TRY(hl_cl_make_buf(ctx, &c->mean_d, CL_MEM_READ_WRITE, K * P * 4, NULL, "CSM plane means"));
     TRY(hl_cl_make_buf(ctx, &c->zsc_d, CL_MEM_READ_WRITE, K * R2 * 16, NULL, "CSM texel phases"));
-    TRY(hl_cl_make_buf(ctx, &c->prm_d, CL_MEM_READ_ONLY, CSM_PRM_FLOATS * 4, NULL, "CSM parameters"));
+    /* the batch's parameters live in constant memory (64 KB at least):
+       as many lights as it holds, and the batch's at most */
+    cl_ulong cmax = 65536;
+    clGetDeviceInfo(cl->device, CL_DEVICE_MAX_CONSTANT_BUFFER_SIZE, sizeof cmax, &cmax, NULL);
+    uint64_t fit = cmax / (CSM_PRM_FLOATS * 4);
+    c->prm_cap = fit < 1 ? 1u : fit < K ? (uint32_t)fit : (uint32_t)K;
+    /* tests: fewer lights a launch, so that a small batch takes several */
+    const char *t = getenv("HL_TEST_CSM_BATCH");
+    if (t && strtoul(t, NULL, 10) > 0 && strtoul(t, NULL, 10) < c->prm_cap) c->prm_cap = (uint32_t)strtoul(t, NULL, 10);
+    TRY(hl_cl_make_buf(ctx, &c->prm_d, CL_MEM_READ_ONLY, (size_t)c->prm_cap * CSM_PRM_FLOATS * 4, NULL,
+                       "CSM parameters"));
+    TRY(hl_cl_make_buf(ctx, &c->lights_d, CL_MEM_READ_ONLY, (size_t)c->prm_cap * 4, NULL, "CSM batch lights"));
     return HL_OK;
 }
 
@@ -337,69 +353,130 @@ static hl_result check_frame(hl_csm *c, float theta, const hl_shadow_frame *f)
     return HL_OK;
 }
 
-static hl_result eval_device(hl_csm *c, uint32_t k, const hl_csm_eval_params *p, const float *uvd, uint32_t n)
+/* The parameter block of csm_eval.cl (prm) from p. */
+static void pack_params(const hl_csm_eval_params *p, float *prm)
 {
-    hl_context *ctx = c->ctx;
-    struct hl_cl *cl = ctx->cl;
-    if (n > c->io_cap) {
-        hl_cl_release_buf(cl, &c->uvd_d);
-        hl_cl_release_buf(cl, &c->out_d);
-        free(c->out_h);
-        c->io_cap = 0;
-        c->out_h = hl_malloc(ctx, (size_t)n * 8, "shadow-map visibility");
-        if (!c->out_h) return HL_ERR_OUT_OF_MEMORY;
-        TRY(hl_cl_make_buf(ctx, &c->uvd_d, CL_MEM_READ_ONLY, (size_t)n * 12, NULL, "CSM receivers"));
-        TRY(hl_cl_make_buf(ctx, &c->out_d, CL_MEM_WRITE_ONLY, (size_t)n * 8, NULL, "CSM visibility"));
-        c->io_cap = n;
-    }
-    float prm[CSM_PRM_FLOATS] = {p->zmin, p->su, p->sv, p->bias, p->eps, p->wmin, p->leak_a, p->leak_b, p->c1};
+    const float head[9] = {p->zmin, p->su, p->sv, p->bias, p->eps, p->wmin, p->leak_a, p->leak_b, p->c1};
+    memcpy(prm, head, sizeof head);
     memcpy(prm + 9, p->coef, sizeof p->coef);
     memcpy(prm + 9 + HL_CSM_M_MAX, p->coefb, sizeof p->coefb);
     prm[9 + 2 * HL_CSM_M_MAX] = p->direct_half;
     prm[10 + 2 * HL_CSM_M_MAX] = p->bias_b;
-    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->prm_d, CL_FALSE, 0, sizeof prm, prm, 0, NULL, NULL), "upload");
-    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->uvd_d, CL_FALSE, 0, (size_t)n * 12, uvd, 0, NULL, NULL), "upload");
-    cl_uint light = k, R = c->R, M = c->M, Mb = c->Mb, nn = n;
-    SETARG(c->ke, 0, c->img_d); SETARG(c->ke, 1, c->mean_d); SETARG(c->ke, 2, c->zsc_d); SETARG(c->ke, 3, light);
-    SETARG(c->ke, 4, R); SETARG(c->ke, 5, M); SETARG(c->ke, 6, Mb); SETARG(c->ke, 7, c->prm_d);
-    SETARG(c->ke, 8, c->uvd_d); SETARG(c->ke, 9, nn); SETARG(c->ke, 10, c->out_d);
-    TRY(launch(ctx, c->ke, n, 0, "hl_csm_eval"));
-    CL_TRY(ctx, clEnqueueReadBuffer(cl->queue, c->out_d, CL_TRUE, 0, (size_t)n * 8, c->out_h, 0, NULL, NULL),
-           "read-back");
+}
+
+/* Room for n receivers in the device's batch buffers and their host sides. */
+static hl_result io_room(hl_csm *c, size_t n)
+{
+    if (n <= c->io_cap) return HL_OK;
+    hl_context *ctx = c->ctx;
+    struct hl_cl *cl = ctx->cl;
+    hl_cl_release_buf(cl, &c->uvd_d);
+    hl_cl_release_buf(cl, &c->out_d);
+    hl_cl_release_buf(cl, &c->which_d);
+    free(c->out_h);
+    free(c->which_h);
+    c->which_h = NULL;
+    c->io_cap = 0;
+    c->out_h = hl_malloc(ctx, n * 8, "shadow-map visibility");
+    if (!c->out_h) return HL_ERR_OUT_OF_MEMORY;
+    c->which_h = hl_malloc(ctx, n * 4, "shadow-map receivers' lights");
+    if (!c->which_h) return HL_ERR_OUT_OF_MEMORY;
+    TRY(hl_cl_make_buf(ctx, &c->uvd_d, CL_MEM_READ_ONLY, n * 12, NULL, "CSM receivers"));
+    TRY(hl_cl_make_buf(ctx, &c->out_d, CL_MEM_WRITE_ONLY, n * 8, NULL, "CSM visibility"));
+    TRY(hl_cl_make_buf(ctx, &c->which_d, CL_MEM_READ_ONLY, n * 4, NULL, "CSM receivers' lights"));
+    c->io_cap = n;
     return HL_OK;
+}
+
+/* Entries j0 .. j1 - 1 of a batch (at most prm_cap; prm: their parameter
+ * blocks) on the device: one upload of each array, one launch, one
+ * read-back into out_h (2 floats a receiver, from start[j0]). */
+static hl_result eval_device(hl_csm *c, uint32_t j0, uint32_t j1, const uint32_t *ks, const float *prm,
+                             const float *uvd, const uint32_t *start)
+{
+    hl_context *ctx = c->ctx;
+    struct hl_cl *cl = ctx->cl;
+    const size_t r0 = start[j0], n = (size_t)start[j1] - r0, nl = j1 - j0;
+    TRY(io_room(c, n));
+    for (uint32_t j = j0; j < j1; j++)
+        for (size_t r = start[j]; r < start[j + 1]; r++) c->which_h[r - r0] = j - j0;
+    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->prm_d, CL_FALSE, 0, nl * CSM_PRM_FLOATS * 4, prm + j0 * CSM_PRM_FLOATS,
+                                     0, NULL, NULL), "upload");
+    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->lights_d, CL_FALSE, 0, nl * 4, ks + j0, 0, NULL, NULL), "upload");
+    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->which_d, CL_FALSE, 0, n * 4, c->which_h, 0, NULL, NULL), "upload");
+    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->uvd_d, CL_FALSE, 0, n * 12, uvd + 3 * r0, 0, NULL, NULL), "upload");
+    cl_uint R = c->R, M = c->M, Mb = c->Mb, nprm = CSM_PRM_FLOATS, nn = (cl_uint)n;
+    SETARG(c->keb, 0, c->img_d); SETARG(c->keb, 1, c->mean_d); SETARG(c->keb, 2, c->zsc_d); SETARG(c->keb, 3, R);
+    SETARG(c->keb, 4, M); SETARG(c->keb, 5, Mb); SETARG(c->keb, 6, c->prm_d); SETARG(c->keb, 7, nprm);
+    SETARG(c->keb, 8, c->lights_d); SETARG(c->keb, 9, c->which_d); SETARG(c->keb, 10, c->uvd_d); SETARG(c->keb, 11, nn);
+    SETARG(c->keb, 12, c->out_d);
+    TRY(launch(ctx, c->keb, n, 0, "hl_csm_eval_batch"));
+    CL_TRY(ctx, clEnqueueReadBuffer(cl->queue, c->out_d, CL_TRUE, 0, n * 8, c->out_h, 0, NULL, NULL), "read-back");
+    return HL_OK;
+}
+
+hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, const float *thetas,
+                                  const hl_shadow_frame *const *frames, const float *uvd, const uint32_t *start, float *V,
+                                  float *zavg)
+{
+    if (!c) return HL_ERR_INVALID_ARGUMENT;
+    if (nl == 0) return HL_OK;
+    if (!ks || !thetas || !frames || !start)
+        return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: no batch arrays");
+    for (uint32_t j = 0; j < nl; j++) {
+        if (ks[j] >= c->K)
+            return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
+                           "convolution shadow maps: light %u is not in the last build (%u lights)", ks[j], c->K);
+        if (start[j + 1] < start[j])
+            return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: the batch's receiver counts fall");
+        TRY(check_frame(c, thetas[j], frames[j]));
+    }
+    const size_t n = (size_t)start[nl] - start[0];
+    if (n == 0) return HL_OK;
+    if (!uvd || !V) return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: no receiver arrays");
+    for (size_t i = 3 * (size_t)start[0]; i < 3 * (size_t)start[nl]; i++)
+        if (!isfinite(uvd[i]))
+            return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
+                           "convolution shadow maps: receiver %zu has a non-finite coordinate (%g)", i / 3, (double)uvd[i]);
+    hl_csm_eval_params *p = hl_malloc(c->ctx, nl * sizeof *p, "shadow-map parameters");
+    float *prm = p ? hl_malloc(c->ctx, (size_t)nl * CSM_PRM_FLOATS * 4, "shadow-map parameters") : NULL;
+    if (!prm) {
+        free(p);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    for (uint32_t j = 0; j < nl; j++) {
+        const hl_shadow_frame *f = frames[j];
+        double t = tan((double)thetas[j]) * f->depth_range * c->R;
+        hl_csm_params(&p[j], c->R, c->M, c->Mb, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
+        pack_params(&p[j], prm + (size_t)j * CSM_PRM_FLOATS);
+    }
+    hl_result r = HL_OK;
+    for (uint32_t j0 = 0; j0 < nl && r == HL_OK; j0 += c->ctx->cl ? c->prm_cap : nl) {
+        const uint32_t j1 = c->ctx->cl && nl - j0 > c->prm_cap ? j0 + c->prm_cap : nl;
+        if (c->ctx->cl) r = eval_device(c, j0, j1, ks, prm, uvd, start);
+        for (uint32_t j = j0; j < j1 && r == HL_OK; j++) {
+            const size_t lp = (size_t)ks[j] * c->P, R2 = (size_t)c->R * c->R;
+            for (size_t i = start[j]; i < start[j + 1]; i++) {
+                float o[2];
+                const float *oi = o;
+                if (c->ctx->cl) oi = c->out_h + 2 * (i - start[j0]);
+                else hl_ref_csm_eval(c->img + lp * R2, c->mean + lp, c->zsc + 4 * (size_t)ks[j] * R2, &p[j], uvd + 3 * i, o);
+                V[i] = oi[0];
+                if (zavg) zavg[i] = oi[1];
+            }
+        }
+    }
+    free(prm);
+    free(p);
+    return r;
 }
 
 hl_result hl_csm_visibility(hl_csm *c, uint32_t k, float theta, const hl_shadow_frame *f, const float *uvd, uint32_t n,
                             float *V, float *zavg)
 {
     if (!c) return HL_ERR_INVALID_ARGUMENT;
-    if (k >= c->K)
-        return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
-                       "convolution shadow maps: light %u is not in the last build (%u lights)", k, c->K);
-    TRY(check_frame(c, theta, f));
-    if (n == 0) return HL_OK;
-    if (!uvd || !V) return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: no receiver arrays");
-    for (size_t i = 0; i < 3 * (size_t)n; i++)
-        if (!isfinite(uvd[i]))
-            return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
-                           "convolution shadow maps: receiver %zu has a non-finite coordinate (%g)", i / 3,
-                           (double)uvd[i]);
-    double t = tan((double)theta) * f->depth_range * c->R;
-    hl_csm_eval_params p;
-    hl_csm_params(&p, c->R, c->M, c->Mb, c->zmin[k], (float)(t / f->width), (float)(t / f->height));
-    float o[2];
-    if (c->ctx->cl) TRY(eval_device(c, k, &p, uvd, n));
-    const size_t lp = (size_t)k * c->P;
-    for (uint32_t i = 0; i < n; i++) {
-        const float *oi = o;
-        if (c->ctx->cl) oi = c->out_h + 2 * (size_t)i;
-        else
-            hl_ref_csm_eval(c->img + lp * c->R * c->R, c->mean + lp, c->zsc + 4 * (size_t)k * c->R * c->R, &p,
-                            uvd + 3 * (size_t)i, o);
-        V[i] = oi[0];
-        if (zavg) zavg[i] = oi[1];
-    }
-    return HL_OK;
+    const uint32_t start[2] = {0, n};
+    return hl_csm_visibility_batch(c, 1, &k, &theta, &f, uvd, start, V, zavg);
 }
 
 void hl_csm_project(const hl_shadow_frame *f, const float *pos, uint32_t n, float *uvd)

@@ -154,6 +154,17 @@ void hl_csm_sizes(const hl_csm *c, uint32_t *R, uint32_t *M, uint32_t *Mb, uint3
 hl_result hl_csm_visibility(hl_csm *c, uint32_t k, float theta, const hl_shadow_frame *f, const float *uvd, uint32_t n,
                             float *V, float *zavg);
 
+/* Several lights of the last build at once: entry j (of nl) is light
+ * ks[j], half-extent thetas[j], frame frames[j], at receivers start[j] ..
+ * start[j + 1] - 1 (start: nl + 1 of them, rising) of uvd, V and zavg
+ * (may be NULL), each indexed by the receiver as uvd is. The same values
+ * as hl_csm_visibility light by light, but on the device one upload, one
+ * launch and one read-back for all of them (a frame's round trips were
+ * one a light). */
+hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, const float *thetas,
+                                  const hl_shadow_frame *const *frames, const float *uvd, const uint32_t *start, float *V,
+                                  float *zavg);
+
 /* World positions (3 floats each) to (u, v, d) in f: u, v in texels, d in
  * normalised depth (unclamped). */
 void hl_csm_project(const hl_shadow_frame *f, const float *pos, uint32_t n, float *uvd);

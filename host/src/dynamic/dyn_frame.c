@@ -32,8 +32,15 @@ struct hl_frame_state {
     float (*dirs)[3];          /* Kb */
     float *wpos, *wnrm, *acc;  /* 3 N each */
     float *E;                  /* 3 N per kept light */
-    float *cpos, *uvd, *V;     /* compacted receivers of one light */
-    uint32_t *idx;             /* N */
+    /* the compacted receivers of a group of a batch's lights, one light's
+       after another (hl_csm_visibility_batch); room for group lights of
+       N receivers each */
+    uint32_t group;
+    float *cpos, *uvd, *V;     /* 3, 3, 1 a receiver */
+    uint32_t *idx;             /* its vertex */
+    uint32_t *gstart, *gks;    /* group + 1, group: each light's first receiver, its batch map */
+    float *gtheta;             /* group: each light's filter half-extent */
+    const hl_shadow_frame **gframe; /* group */
     uint32_t *shadow_list;     /* max_lights */
     hl_dyn_irr *irr;           /* the irradiance kernel, its tables of */
     uint64_t irr_serial;       /* this split (hl_light_split.serial) */
@@ -73,6 +80,7 @@ void hl_frame_state_destroy(hl_frame_state *st)
     free(st->frames); free(st->dirs);
     free(st->wpos); free(st->wnrm); free(st->acc); hl_free_big(st->E);
     free(st->cpos); free(st->uvd); free(st->V); free(st->idx); free(st->shadow_list);
+    free(st->gstart); free(st->gks); free(st->gtheta); free(st->gframe);
     hl_dyn_irr_destroy(st->irr);
     free(st->any);
     free(st);
@@ -144,12 +152,18 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->dirs = malloc(st->Kb * sizeof *st->dirs);
     st->wpos = malloc(n3 * 4), st->wnrm = malloc(n3 * 4), st->acc = malloc(n3 * 4);
     st->E = hl_alloc_big(ctx, max_lights * n3 * 4, "the lights' irradiance at the vertices");
-    st->cpos = malloc(n3 * 4), st->uvd = malloc(n3 * 4), st->V = malloc((size_t)N * 4);
-    st->idx = malloc((size_t)N * 4);
+    st->group = (uint32_t)(HL_FRAME_GROUP_RECEIVERS / N > 1 ? HL_FRAME_GROUP_RECEIVERS / N : 1);
+    if (st->group > st->Kb) st->group = st->Kb;
+    const size_t gn = (size_t)st->group * N;
+    st->cpos = malloc(3 * gn * 4), st->uvd = malloc(3 * gn * 4), st->V = malloc(gn * 4);
+    st->idx = malloc(gn * 4);
+    st->gstart = malloc(((size_t)st->group + 1) * 4), st->gks = malloc((size_t)st->group * 4);
+    st->gtheta = malloc((size_t)st->group * 4), st->gframe = malloc((size_t)st->group * sizeof *st->gframe);
     st->shadow_list = malloc(max_lights * sizeof *st->shadow_list);
     st->any = malloc(max_lights ? max_lights : 1);
     if (!st->vstart || !st->nverts || !st->xf || !st->depth || !st->frames || !st->dirs || !st->wpos || !st->wnrm ||
-        !st->acc || !st->E || !st->cpos || !st->uvd || !st->V || !st->idx || !st->shadow_list || !st->any) {
+        !st->acc || !st->E || !st->cpos || !st->uvd || !st->V || !st->idx || !st->shadow_list || !st->any ||
+        !st->gstart || !st->gks || !st->gtheta || !st->gframe) {
         hl_frame_state_destroy(st);
         return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the dynamic frame (%u vertices, %u lights)",
                        (uint32_t)N, max_lights);
@@ -275,8 +289,11 @@ static int flat_hit(const hl_flat_body *fb, const float q[3], float sr, const fl
 }
 
 static void flat_occlusion(hl_frame_state *st, const hl_shadow_frame *f, const hl_light_split *split, uint32_t k,
-                           uint32_t n)
+                           size_t base, uint32_t n)
 {
+    const float *cpos = st->cpos + 3 * base;
+    const uint32_t *idx = st->idx + base;
+    float *V = st->V + base;
     const hl_area_light *L = &split->lights[k];
     const uint32_t F = split->F;
     float *blk = st->blk;
@@ -289,8 +306,8 @@ static void flat_occlusion(hl_frame_state *st, const hl_shadow_frame *f, const h
         float sl = fb.n[0] * L->dir[0] + fb.n[1] * L->dir[1] + fb.n[2] * L->dir[2];
         float sin_ext = L->extent < 0.5f * (float)HL_PI ? sinf(L->extent) : 2.0f;
         for (uint32_t i = 0; i < n; i++) {
-            if (st->idx[i] >= st->vstart[o] && st->idx[i] < st->vstart[o] + st->nverts[o]) continue;
-            const float *x = st->cpos + 3 * (size_t)i, *nv = st->wnrm + 3 * (size_t)st->idx[i];
+            if (idx[i] >= st->vstart[o] && idx[i] < st->vstart[o] + st->nverts[o]) continue;
+            const float *x = cpos + 3 * (size_t)i, *nv = st->wnrm + 3 * (size_t)idx[i];
             float q[3] = {x[0] - fb.p[0], x[1] - fb.p[1], x[2] - fb.p[2]};
             float sr = fb.n[0] * q[0] + fb.n[1] * q[1] + fb.n[2] * q[2];
             /* on the plane, or the light's whole cone on its side */
@@ -304,7 +321,7 @@ static void flat_occlusion(hl_frame_state *st, const hl_shadow_frame *f, const h
                 uint32_t cx = c & 1 ? L->x1 - 1 : L->x0, cy = c & 2 ? L->y1 - 1 : L->y0;
                 corners_in = flat_hit(&fb, q, sr, split->texel_dir + 3 * ((size_t)L->face * F * F + (size_t)cy * F + cx));
             }
-            if (corners_in) { st->V[i] = 0.0f; continue; }
+            if (corners_in) { V[i] = 0.0f; continue; }
             float all = 0.0f, open = 0.0f;
             for (uint32_t j = 0; j < nblk; j++) {
                 const float *m = blk + 6 * (size_t)j;
@@ -313,26 +330,31 @@ static void flat_occlusion(hl_frame_state *st, const hl_shadow_frame *f, const h
                 all += e;
                 if (!flat_hit(&fb, q, sr, m + 3)) open += e;
             }
-            if (all > 0.0f) st->V[i] *= open / all;
+            if (all > 0.0f) V[i] *= open / all;
         }
     }
 }
 
-/* Visibility of batch light kb (split light k) at the receivers it
- * reaches, added to acc as V E. */
-static hl_result shade_light(hl_frame_state *st, const hl_light_split *split, uint32_t kb, uint32_t k)
+/* The receivers batch light kb (split light k) reaches, compacted from
+ * place base of the group's arrays: their positions (cpos), vertices
+ * (idx) and coordinates in its map, moved towards the light by the
+ * receiver-plane bias (uvd); its filter half-extent and frame into
+ * group entry j. Returns how many. */
+static uint32_t prepare_light(hl_frame_state *st, const hl_light_split *split, uint32_t kb, uint32_t k, size_t base,
+                              uint32_t j)
 {
     const float *E = st->E + (size_t)k * 3 * st->N;
-    uint32_t n = 0;
+    float *cpos = st->cpos + 3 * base, *uvd = st->uvd + 3 * base;
+    uint32_t *idx = st->idx + base, n = 0;
     for (uint32_t v = 0; v < st->N; v++) {
         const float *e = E + 3 * (size_t)v;
         if (e[0] > 0.0f || e[1] > 0.0f || e[2] > 0.0f) {
-            memcpy(st->cpos + 3 * (size_t)n, st->wpos + 3 * (size_t)v, 3 * sizeof(float));
-            st->idx[n++] = v;
+            memcpy(cpos + 3 * (size_t)n, st->wpos + 3 * (size_t)v, 3 * sizeof(float));
+            idx[n++] = v;
         }
     }
     const hl_shadow_frame *f = &st->frames[kb];
-    hl_csm_project(f, st->cpos, n, st->uvd);
+    hl_csm_project(f, cpos, n, uvd);
     /* the filter's width follows how the light's energy spreads, not the
        cone that holds its rectangle (DYNAMIC.md, section 5) */
     float theta = split->lights[k].spread;
@@ -344,17 +366,50 @@ static hl_result shade_light(hl_frame_state *st, const hl_light_split *split, ui
     /* a receiver of a body left out of this map never meets its own
        surface there: no plane bias (the receivers go in vertex order) */
     for (uint32_t i = 0, b = 0; i < n; i++) {
-        while (b + 1 < st->nobj && st->idx[i] >= st->vstart[b + 1]) b++;
+        while (b + 1 < st->nobj && idx[i] >= st->vstart[b + 1]) b++;
         if (b < 32 && (f->skip_mask >> b & 1u)) continue;
-        float *d = st->uvd + 3 * (size_t)i + 2;
-        *d = fmaxf(*d - plane_bias(f, st->wnrm + 3 * (size_t)st->idx[i], split->lights[k].dir, *d, zmin, tan_t), 0.0f);
+        float *d = uvd + 3 * (size_t)i + 2;
+        *d = fmaxf(*d - plane_bias(f, st->wnrm + 3 * (size_t)idx[i], split->lights[k].dir, *d, zmin, tan_t), 0.0f);
     }
-    hl_result r = hl_csm_visibility(st->csm, kb, theta, f, st->uvd, n, st->V, NULL);
-    if (r != HL_OK) return r;
-    if (f->skip_mask) flat_occlusion(st, f, split, k, n);
+    st->gks[j] = kb;
+    st->gtheta[j] = theta;
+    st->gframe[j] = f;
+    return n;
+}
+
+/* Group entry j's visibility (batch light kb, split light k; its n
+ * receivers from place base), with the flat bodies left out of its map,
+ * added to acc as V E. */
+static void finish_light(hl_frame_state *st, const hl_light_split *split, uint32_t kb, uint32_t k, size_t base,
+                         uint32_t n)
+{
+    const float *E = st->E + (size_t)k * 3 * st->N;
+    const hl_shadow_frame *f = &st->frames[kb];
+    if (f->skip_mask) flat_occlusion(st, f, split, k, base, n);
+    const uint32_t *idx = st->idx + base;
+    const float *V = st->V + base;
     for (uint32_t i = 0; i < n; i++) {
-        size_t v = st->idx[i];
-        for (int c = 0; c < 3; c++) st->acc[3 * v + (size_t)c] += st->V[i] * E[3 * v + (size_t)c];
+        size_t v = idx[i];
+        for (int c = 0; c < 3; c++) st->acc[3 * v + (size_t)c] += V[i] * E[3 * v + (size_t)c];
+    }
+}
+
+/* The K lights of the batch built last (split lights list[0 .. K - 1]):
+ * their receivers prepared, their visibility in groups of st->group
+ * lights (one call of hl_csm_visibility_batch each: on the device one
+ * launch and one read-back), added to acc. */
+static hl_result shade_batch(hl_frame_state *st, const hl_light_split *split, const uint32_t *list, uint32_t K)
+{
+    for (uint32_t i0 = 0; i0 < K; i0 += st->group) {
+        const uint32_t nl = K - i0 < st->group ? K - i0 : st->group;
+        st->gstart[0] = 0;
+        for (uint32_t j = 0; j < nl; j++)
+            st->gstart[j + 1] = st->gstart[j] + prepare_light(st, split, i0 + j, list[i0 + j], st->gstart[j], j);
+        hl_result r = hl_csm_visibility_batch(st->csm, nl, st->gks, st->gtheta, st->gframe, st->uvd, st->gstart, st->V,
+                                              NULL);
+        if (r != HL_OK) return r;
+        for (uint32_t j = 0; j < nl; j++)
+            finish_light(st, split, i0 + j, list[i0 + j], st->gstart[j], st->gstart[j + 1] - st->gstart[j]);
     }
     return HL_OK;
 }
@@ -411,7 +466,7 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
         t1 = hl_now(), fs.t_shadow_maps += t1 - t, t = t1;
         if (r == HL_OK) r = hl_csm_build(st->csm, st->depth, K);
         t1 = hl_now(), fs.t_csm_build += t1 - t, t = t1;
-        for (uint32_t i = 0; i < K && r == HL_OK; i++) r = shade_light(st, split, i, st->shadow_list[b0 + i]);
+        if (r == HL_OK) r = shade_batch(st, split, st->shadow_list + b0, K);
         fs.t_csm_eval += hl_now() - t;
         fs.batches++;
     }

@@ -68,6 +68,12 @@
  * (under 11 degrees at F = 32), far below the lights' own size. */
 #define HL_FRAME_FLAT_BLOCKS 8u
 
+/* Receivers (summed over lights) whose visibility one call of
+ * hl_csm_visibility_batch takes at most, beyond one light's: the host
+ * arrays of a group (32 bytes a receiver, 64 MiB here) hold so many, and
+ * a batch's lights go in as many groups as that takes. */
+#define HL_FRAME_GROUP_RECEIVERS (1u << 21)
+
 typedef struct hl_frame_settings {
     uint32_t R;           /* shadow map size; 0: HL_SHADOW_DEFAULT_R (128) */
     uint32_t M;           /* CSM order, 4..16; 0: HL_CSM_M_DEFAULT (16) */
