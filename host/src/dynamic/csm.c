@@ -478,19 +478,3 @@ hl_result hl_csm_visibility(hl_csm *c, uint32_t k, float theta, const hl_shadow_
     const uint32_t start[2] = {0, n};
     return hl_csm_visibility_batch(c, 1, &k, &theta, &f, uvd, start, V, zavg);
 }
-
-void hl_csm_project(const hl_shadow_frame *f, const float *pos, uint32_t n, float *uvd)
-{
-    for (uint32_t i = 0; i < n; i++) {
-        double q[3], a = 0, b = 0, d = 0;
-        for (int j = 0; j < 3; j++) q[j] = (double)pos[3 * i + j] - f->origin[j];
-        for (int j = 0; j < 3; j++) {
-            a += q[j] * f->right[j];
-            b += q[j] * f->up[j];
-            d += q[j] * f->toward_far[j];
-        }
-        uvd[3 * i] = (float)(a / f->width * f->R);
-        uvd[3 * i + 1] = (float)(b / f->height * f->R);
-        uvd[3 * i + 2] = (float)(d / f->depth_range);
-    }
-}

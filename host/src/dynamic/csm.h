@@ -144,7 +144,7 @@ void hl_csm_sizes(const hl_csm *c, uint32_t *R, uint32_t *M, uint32_t *Mb, uint3
 
 /* Visibility of light k (< K of the last build) at n receivers: uvd holds
  * 3 floats each (texel coordinates u, v, continuous, texel (i, j) covering
- * [i, i+1) x [j, j+1), and normalised depth d, as hl_csm_project gives).
+ * [i, i+1) x [j, j+1), and normalised depth d, as hl_dyn_receiver gives).
  * theta: the light's angular half-extent (radians, [0, pi/2)); f its
  * frame (width, height, depth_range; f->R must equal the module's R).
  * A receiver outside the map is taken at the map's nearest edge; depths
@@ -165,9 +165,6 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
                                   const hl_shadow_frame *const *frames, const float *uvd, const uint32_t *start, float *V,
                                   float *zavg);
 
-/* World positions (3 floats each) to (u, v, d) in f: u, v in texels, d in
- * normalised depth (unclamped). */
-void hl_csm_project(const hl_shadow_frame *f, const float *pos, uint32_t n, float *uvd);
 
 /* ---- twins (kernels/dynamic/csm_*.cl), one work-item each ---- */
 

@@ -45,7 +45,13 @@ struct hl_frame_state {
     hl_dyn_irr *irr;           /* the irradiance kernel, its tables of */
     uint64_t irr_serial;       /* this split (hl_light_split.serial) */
     uint8_t *any;              /* max_lights: some receiver gets light */
-    float blk[6 * HL_FRAME_FLAT_BLOCKS * HL_FRAME_FLAT_BLOCKS]; /* light_blocks */
+    uint32_t *body;            /* N: each receiver's body */
+    /* the packs the shared formulas read (hl_shared.h): per group light
+       its map (HL_DYN_LF) and, for the flat bodies, its blocks
+       (HL_DYN_FL); per flat rectangle left out of maps its plane
+       (HL_DYN_FB), nflat of them, bodies flat_body */
+    float *lf, *fl, *fb;
+    uint32_t nflat, *flat_body;
 };
 
 /* Linear Rec.709 luminance, as area_lights.c ranks its lights by. */
@@ -81,6 +87,7 @@ void hl_frame_state_destroy(hl_frame_state *st)
     free(st->wpos); free(st->wnrm); free(st->acc); hl_free_big(st->E);
     free(st->cpos); free(st->uvd); free(st->V); free(st->idx); free(st->shadow_list);
     free(st->gstart); free(st->gks); free(st->gtheta); free(st->gframe);
+    free(st->body); free(st->lf); free(st->fl); free(st->fb); free(st->flat_body);
     hl_dyn_irr_destroy(st->irr);
     free(st->any);
     free(st);
@@ -159,11 +166,15 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->idx = malloc(gn * 4);
     st->gstart = malloc(((size_t)st->group + 1) * 4), st->gks = malloc((size_t)st->group * 4);
     st->gtheta = malloc((size_t)st->group * 4), st->gframe = malloc((size_t)st->group * sizeof *st->gframe);
+    st->body = malloc((size_t)N * 4);
+    st->lf = malloc((size_t)st->group * HL_DYN_LF * 4), st->fl = malloc((size_t)st->group * HL_DYN_FL * 4);
+    st->fb = malloc((size_t)nobj * HL_DYN_FB * 4), st->flat_body = malloc((size_t)nobj * 4);
     st->shadow_list = malloc(max_lights * sizeof *st->shadow_list);
     st->any = malloc(max_lights ? max_lights : 1);
     if (!st->vstart || !st->nverts || !st->xf || !st->depth || !st->frames || !st->dirs || !st->wpos || !st->wnrm ||
         !st->acc || !st->E || !st->cpos || !st->uvd || !st->V || !st->idx || !st->shadow_list || !st->any ||
-        !st->gstart || !st->gks || !st->gtheta || !st->gframe) {
+        !st->gstart || !st->gks || !st->gtheta || !st->gframe || !st->body || !st->lf || !st->fl || !st->fb ||
+        !st->flat_body) {
         hl_frame_state_destroy(st);
         return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the dynamic frame (%u vertices, %u lights)",
                        (uint32_t)N, max_lights);
@@ -173,6 +184,7 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
         st->vstart[b] = at;
         st->nverts[b] = objects[b].nverts;
         memcpy(st->xf + 12 * (size_t)b, objects[b].xf, 12 * sizeof(float));
+        for (uint32_t v = 0; v < objects[b].nverts; v++) st->body[at + v] = b;
         at += objects[b].nverts;
     }
     *out = st;
@@ -216,47 +228,22 @@ static hl_result irradiance(hl_frame_state *st, const hl_dyn_object *objects, co
     return HL_OK;
 }
 
-/* Receiver-plane bias (Isidoro 2006, for filtered shadow maps): the
- * filter reads a box of half-width up to the blocker search's,
- * (d - zmin) tan(theta) in depth units, here capped at
- * HL_FRAME_BIAS_CAP, plus HL_FRAME_BIAS_TEXELS; over that box the
- * receiver's own tangent plane comes nearer the light by up to
- * (|n.right| + |n.up|) / (n.l) times the half-width, and those texels
- * would be taken for blockers. So the receiver is moved that much towards
- * the light. Receivers of a body left out of the map (a flat ground,
- * frame.skip_mask) get none: their surface is not in it. The bias grows as 1 / (n.l) as a
- * light grazes the surface while E_k shrinks as n.l, so what the bias
- * loses (a blocker nearer than the bias is not seen: the contact leak)
- * carries little energy at grazing angles. */
-static float plane_bias(const hl_shadow_frame *f, const float n[3], const float l[3], float d, float zmin, float tan_t)
-{
-    float nl = n[0] * l[0] + n[1] * l[1] + n[2] * l[2];
-    if (!(nl > 0.0f)) return 0.0f; /* E_k = 0 there: never evaluated */
-    float nr = fabsf(n[0] * f->right[0] + n[1] * f->right[1] + n[2] * f->right[2]);
-    float nu = fabsf(n[0] * f->up[0] + n[1] * f->up[1] + n[2] * f->up[2]);
-    float texel = fmaxf(f->width, f->height) / (float)f->R / f->depth_range;
-    float half = fminf(fmaxf(d - zmin, 0.0f) * tan_t, HL_FRAME_BIAS_CAP) + HL_FRAME_BIAS_TEXELS * texel;
-    return (nr + nu) / nl * half;
-}
-
-/* The flat bodies left out of map f (shadow_map.h) that lie between the
- * light and a receiver: V times the share of the light's irradiance at
- * the receiver whose rays miss the body, block by block of the light's
- * texels (light_blocks: each block's luminance moment against the
- * receiver's normal, its ray along the moment, the body its extent in
- * its plane). Exact up to the blocks' size, with no depth bias, so the
- * underside of a body resting on the ground is dark to the contact,
- * while rays that pass beyond the ground's edge still arrive. A
- * receiver on the plane itself is not behind it. */
-/* The light in at most HL_FRAME_FLAT_BLOCKS^2 blocks of texels, 6 floats
- * each: the block's luminance moment (n . it is the block's irradiance
- * where the block is above n's horizon) and its unit direction (the
- * moment's). Returns the count. */
-static uint32_t light_blocks(const hl_light_split *split, const hl_area_light *L, float *blk)
+/* The light's blocks for the flat bodies' occlusion into its pack (hl_shared.h, HL_DYN_FL):
+ * its texels in at most HL_FRAME_FLAT_BLOCKS^2 blocks, each block's
+ * luminance moment and its unit direction; with the light's direction,
+ * the sine of its extent and its corner texels' directions. */
+static void pack_flat_light(const hl_light_split *split, const hl_area_light *L, float *fl)
 {
     const uint32_t F = split->F, w = L->x1 - L->x0, h = L->y1 - L->y0;
     const uint32_t bx = w < HL_FRAME_FLAT_BLOCKS ? w : HL_FRAME_FLAT_BLOCKS;
     const uint32_t by = h < HL_FRAME_FLAT_BLOCKS ? h : HL_FRAME_FLAT_BLOCKS;
+    memset(fl, 0, HL_DYN_FL * sizeof *fl);
+    memcpy(fl, L->dir, 3 * sizeof *fl);
+    fl[3] = L->extent < 0.5f * (float)HL_PI ? sinf(L->extent) : 2.0f;
+    for (int c = 0; c < 4; c++) {
+        uint32_t cx = c & 1 ? L->x1 - 1 : L->x0, cy = c & 2 ? L->y1 - 1 : L->y0;
+        memcpy(fl + 4 + 3 * c, split->texel_dir + 3 * ((size_t)L->face * F * F + (size_t)cy * F + cx), 3 * sizeof *fl);
+    }
     uint32_t n = 0;
     for (uint32_t j = 0; j < by; j++)
         for (uint32_t i = 0; i < bx; i++) {
@@ -269,82 +256,80 @@ static uint32_t light_blocks(const hl_light_split *split, const hl_area_light *L
                 }
             double len = sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
             if (!(len > 0.0)) continue;
-            float *b = blk + 6 * (size_t)n++;
+            float *b = fl + 20 + 6 * (size_t)n++;
             for (int k = 0; k < 3; k++) b[k] = (float)m[k], b[3 + k] = (float)(m[k] / len);
         }
-    return n;
+    memcpy(fl + 16, &n, 4);
 }
 
-/* Whether the ray from the receiver (q: its offset from the plane's
- * point, sr = n . q) along unit w meets the flat body's extent. */
-static int flat_hit(const hl_flat_body *fb, const float q[3], float sr, const float *w)
+/* The flat rectangles that maps may leave out (shadow_map.h), at their
+ * current transforms, into st->fb and st->flat_body (hl_shared.h,
+ * HL_DYN_FB): a flat body that does not fill its extent is only left out
+ * for lights on the others' side, where it takes nothing. */
+static void pack_flat_bodies(hl_frame_state *st)
 {
-    float sw = fb->n[0] * w[0] + fb->n[1] * w[1] + fb->n[2] * w[2];
-    if (!(sr * sw < 0.0f)) return 0; /* the ray leaves the plane behind */
-    float tt = -sr / sw;
-    float h[3] = {q[0] + tt * w[0], q[1] + tt * w[1], q[2] + tt * w[2]};
-    float a = h[0] * fb->u[0] + h[1] * fb->u[1] + h[2] * fb->u[2];
-    float b = h[0] * fb->v[0] + h[1] * fb->v[1] + h[2] * fb->v[2];
-    return a >= fb->lo[0] && a <= fb->hi[0] && b >= fb->lo[1] && b <= fb->hi[1];
+    st->nflat = 0;
+    for (uint32_t o = 0; o < st->nobj && o < 32; o++) {
+        hl_flat_body f;
+        if (!hl_shadow_maps_flat(st->sm, o, &f) || !f.rect) continue;
+        float *b = st->fb + (size_t)st->nflat * HL_DYN_FB;
+        memset(b, 0, HL_DYN_FB * sizeof *b);
+        memcpy(b, f.n, 12), memcpy(b + 3, f.p, 12), memcpy(b + 6, f.u, 12), memcpy(b + 9, f.v, 12);
+        b[12] = f.lo[0], b[13] = f.lo[1], b[14] = f.hi[0], b[15] = f.hi[1];
+        memcpy(b + 16, &st->vstart[o], 4);
+        memcpy(b + 17, &st->nverts[o], 4);
+        st->flat_body[st->nflat++] = o;
+    }
 }
 
-static void flat_occlusion(hl_frame_state *st, const hl_shadow_frame *f, const hl_light_split *split, uint32_t k,
-                           size_t base, uint32_t n)
+/* Batch light kb's map as its receivers read it (hl_shared.h, HL_DYN_LF),
+ * with the filter's half-extent theta. */
+static void pack_map(const hl_frame_state *st, uint32_t kb, const float dir[3], float theta, float *lf)
 {
-    const float *cpos = st->cpos + 3 * base;
+    const hl_shadow_frame *f = &st->frames[kb];
+    memset(lf, 0, HL_DYN_LF * sizeof *lf);
+    hl_shadow_frame_pack(f, lf);
+    lf[16] = tanf(theta);
+    lf[17] = fmaxf(f->width, f->height) / (float)f->R / f->depth_range;
+    memcpy(lf + 18, dir, 3 * sizeof *lf);
+}
+
+/* The filter's half-extent of split light k: it follows how the light's
+ * energy spreads, not the cone that holds its rectangle (DYNAMIC.md,
+ * section 5). */
+static float filter_theta(const hl_light_split *split, uint32_t k)
+{
+    float theta = split->lights[k].spread;
+    if (!(theta >= 0.0f)) theta = 0.0f;
+    return theta > HL_FRAME_MAX_THETA ? HL_FRAME_MAX_THETA : theta;
+}
+
+/* The flat rectangles out of group entry j's map, in body order, on its
+ * n receivers from place base (hl_dyn_flat_one). */
+static void flat_occlusion(hl_frame_state *st, uint32_t j, size_t base, uint32_t n)
+{
+    const hl_shadow_frame *f = st->gframe[j];
+    const float *cpos = st->cpos + 3 * base, *fl = st->fl + (size_t)j * HL_DYN_FL;
     const uint32_t *idx = st->idx + base;
     float *V = st->V + base;
-    const hl_area_light *L = &split->lights[k];
-    const uint32_t F = split->F;
-    float *blk = st->blk;
-    uint32_t nblk = light_blocks(split, L, blk);
-    for (uint32_t o = 0; o < st->nobj && o < 32; o++) {
-        hl_flat_body fb;
-        /* a flat body that does not fill its extent is only left out for
-           lights on the others' side (shadow_map.h): nothing to take */
-        if (!(f->skip_mask >> o & 1u) || !hl_shadow_maps_flat(st->sm, o, &fb) || !fb.rect) continue;
-        float sl = fb.n[0] * L->dir[0] + fb.n[1] * L->dir[1] + fb.n[2] * L->dir[2];
-        float sin_ext = L->extent < 0.5f * (float)HL_PI ? sinf(L->extent) : 2.0f;
-        for (uint32_t i = 0; i < n; i++) {
-            if (idx[i] >= st->vstart[o] && idx[i] < st->vstart[o] + st->nverts[o]) continue;
-            const float *x = cpos + 3 * (size_t)i, *nv = st->wnrm + 3 * (size_t)idx[i];
-            float q[3] = {x[0] - fb.p[0], x[1] - fb.p[1], x[2] - fb.p[2]};
-            float sr = fb.n[0] * q[0] + fb.n[1] * q[1] + fb.n[2] * q[2];
-            /* on the plane, or the light's whole cone on its side */
-            if (sr == 0.0f || (sr * sl > 0.0f && fabsf(sl) >= sin_ext)) continue;
-            /* the rays of the four corner texels all meet the body: so do
-               those of every texel between (their directions lie in the
-               corners' convex hull, and so do their hits in the plane,
-               as does the body's extent) */
-            int corners_in = 1;
-            for (int c = 0; c < 4 && corners_in; c++) {
-                uint32_t cx = c & 1 ? L->x1 - 1 : L->x0, cy = c & 2 ? L->y1 - 1 : L->y0;
-                corners_in = flat_hit(&fb, q, sr, split->texel_dir + 3 * ((size_t)L->face * F * F + (size_t)cy * F + cx));
-            }
-            if (corners_in) { V[i] = 0.0f; continue; }
-            float all = 0.0f, open = 0.0f;
-            for (uint32_t j = 0; j < nblk; j++) {
-                const float *m = blk + 6 * (size_t)j;
-                float e = nv[0] * m[0] + nv[1] * m[1] + nv[2] * m[2];
-                if (!(e > 0.0f)) continue;
-                all += e;
-                if (!flat_hit(&fb, q, sr, m + 3)) open += e;
-            }
-            if (all > 0.0f) V[i] *= open / all;
-        }
+    for (uint32_t b = 0; b < st->nflat; b++) {
+        if (!(f->skip_mask >> st->flat_body[b] & 1u)) continue;
+        const float *fb = st->fb + (size_t)b * HL_DYN_FB;
+        for (uint32_t i = 0; i < n; i++)
+            V[i] = hl_dyn_flat_one(fl, fb, cpos + 3 * (size_t)i, st->wnrm + 3 * (size_t)idx[i], idx[i], V[i]);
     }
 }
 
 /* The receivers batch light kb (split light k) reaches, compacted from
  * place base of the group's arrays: their positions (cpos), vertices
  * (idx) and coordinates in its map, moved towards the light by the
- * receiver-plane bias (uvd); its filter half-extent and frame into
- * group entry j. Returns how many. */
+ * receiver-plane bias (uvd, hl_dyn_receiver); its packs, filter
+ * half-extent and frame into group entry j. Returns how many. */
 static uint32_t prepare_light(hl_frame_state *st, const hl_light_split *split, uint32_t kb, uint32_t k, size_t base,
                               uint32_t j)
 {
     const float *E = st->E + (size_t)k * 3 * st->N;
-    float *cpos = st->cpos + 3 * base, *uvd = st->uvd + 3 * base;
+    float *cpos = st->cpos + 3 * base, *uvd = st->uvd + 3 * base, *lf = st->lf + (size_t)j * HL_DYN_LF;
     uint32_t *idx = st->idx + base, n = 0;
     for (uint32_t v = 0; v < st->N; v++) {
         const float *e = E + 3 * (size_t)v;
@@ -353,39 +338,27 @@ static uint32_t prepare_light(hl_frame_state *st, const hl_light_split *split, u
             idx[n++] = v;
         }
     }
-    const hl_shadow_frame *f = &st->frames[kb];
-    hl_csm_project(f, cpos, n, uvd);
-    /* the filter's width follows how the light's energy spreads, not the
-       cone that holds its rectangle (DYNAMIC.md, section 5) */
-    float theta = split->lights[k].spread;
-    if (!(theta >= 0.0f)) theta = 0.0f;
-    if (theta > HL_FRAME_MAX_THETA) theta = HL_FRAME_MAX_THETA;
-    const float *map = st->depth + (size_t)kb * st->R * st->R, tan_t = tanf(theta);
+    const float theta = filter_theta(split, k);
+    pack_map(st, kb, split->lights[k].dir, theta, lf);
+    if (st->nflat) pack_flat_light(split, &split->lights[k], st->fl + (size_t)j * HL_DYN_FL);
+    const float *map = st->depth + (size_t)kb * st->R * st->R;
     float zmin = 1.0f;
     for (size_t i = 0; i < (size_t)st->R * st->R; i++) zmin = fminf(zmin, map[i]);
-    /* a receiver of a body left out of this map never meets its own
-       surface there: no plane bias (the receivers go in vertex order) */
-    for (uint32_t i = 0, b = 0; i < n; i++) {
-        while (b + 1 < st->nobj && idx[i] >= st->vstart[b + 1]) b++;
-        if (b < 32 && (f->skip_mask >> b & 1u)) continue;
-        float *d = uvd + 3 * (size_t)i + 2;
-        *d = fmaxf(*d - plane_bias(f, st->wnrm + 3 * (size_t)idx[i], split->lights[k].dir, *d, zmin, tan_t), 0.0f);
-    }
+    for (uint32_t i = 0; i < n; i++)
+        hl_dyn_receiver(lf, zmin, cpos + 3 * (size_t)i, st->wnrm + 3 * (size_t)idx[i], st->body[idx[i]],
+                        uvd + 3 * (size_t)i);
     st->gks[j] = kb;
     st->gtheta[j] = theta;
-    st->gframe[j] = f;
+    st->gframe[j] = &st->frames[kb];
     return n;
 }
 
-/* Group entry j's visibility (batch light kb, split light k; its n
- * receivers from place base), with the flat bodies left out of its map,
- * added to acc as V E. */
-static void finish_light(hl_frame_state *st, const hl_light_split *split, uint32_t kb, uint32_t k, size_t base,
-                         uint32_t n)
+/* Group entry j's visibility (split light k; its n receivers from place
+ * base), with the flat bodies left out of its map, added to acc as V E. */
+static void finish_light(hl_frame_state *st, uint32_t j, uint32_t k, size_t base, uint32_t n)
 {
     const float *E = st->E + (size_t)k * 3 * st->N;
-    const hl_shadow_frame *f = &st->frames[kb];
-    if (f->skip_mask) flat_occlusion(st, f, split, k, base, n);
+    if (st->gframe[j]->skip_mask) flat_occlusion(st, j, base, n);
     const uint32_t *idx = st->idx + base;
     const float *V = st->V + base;
     for (uint32_t i = 0; i < n; i++) {
@@ -409,7 +382,7 @@ static hl_result shade_batch(hl_frame_state *st, const hl_light_split *split, co
                                               NULL);
         if (r != HL_OK) return r;
         for (uint32_t j = 0; j < nl; j++)
-            finish_light(st, split, i0 + j, list[i0 + j], st->gstart[j], st->gstart[j + 1] - st->gstart[j]);
+            finish_light(st, j, list[i0 + j], st->gstart[j], st->gstart[j + 1] - st->gstart[j]);
     }
     return HL_OK;
 }
@@ -457,6 +430,7 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
         r = hl_shadow_maps_set_transform(st->sm, b, objects[b].xf);
         if (r == HL_OK) memcpy(old, objects[b].xf, 12 * sizeof(float));
     }
+    pack_flat_bodies(st);
     fs.t_shadow_maps += hl_now() - t;
     for (uint32_t b0 = 0; b0 < nshadow && r == HL_OK; b0 += st->Kb) {
         uint32_t K = nshadow - b0 < st->Kb ? nshadow - b0 : st->Kb;

@@ -44,29 +44,9 @@
  * 54.7 degrees, so this only guards against a malformed light. */
 #define HL_FRAME_MAX_THETA 1.5f
 
-/* Texels added to the filter's half-width in the receiver-plane bias
- * (dyn_frame.c, plane_bias): csm.h's smallest half-width (0.5) plus one
- * for the box's rounding to whole texels. */
-#define HL_FRAME_BIAS_TEXELS 1.5f
-/* The most of the blocker-search half-width (normalised depth) that the
- * receiver-plane bias covers. The whole width, (d - zmin) tan(theta),
- * reaches half the depth range under a wide light and pushes a receiver
- * past its own blockers: the bunny leaked 11 to 18% of its light. A flat
- * ground, the body that needed the whole width, is out of the maps it
- * cannot shadow (shadow_map.h), so what remains to cover is a body's own
- * curved or flat surface across a short stretch of the filter. On the
- * bunny with its ground under studio.exr (test_dyn_reference accuracy):
- * no cap 11.8% at rest and 9.0% moved, 0.05: 10.5% and 6.5%, 0.02: 10.0%
- * and 6.2%, 0: 9.7% and 6.4%. 0.02 keeps a little cover for flat faces
- * of bodies that are not flat as a whole (a box) at the same error. */
-#define HL_FRAME_BIAS_CAP 0.02f
-
-/* Blocks a side that a light is cut into for the occlusion by flat
- * bodies (dyn_frame.c, flat_occlusion): a 32 x 32 texel light becomes
- * 8 x 8 blocks of 4 x 4 texels, so a receiver costs at most 64 ray-plane
- * tests a light. The shadow of a ground edge is as soft as a block
- * (under 11 degrees at F = 32), far below the lights' own size. */
-#define HL_FRAME_FLAT_BLOCKS 8u
+/* HL_FRAME_BIAS_TEXELS, HL_FRAME_BIAS_CAP and HL_FRAME_FLAT_BLOCKS, shared
+ * with the kernels, are in hl_shared.h beside the formulas that use them
+ * (hl_dyn_receiver, hl_dyn_flat_one). */
 
 /* Receivers (summed over lights) whose visibility one call of
  * hl_csm_visibility_batch takes at most, beyond one light's: the host
