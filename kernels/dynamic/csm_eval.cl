@@ -181,16 +181,17 @@ static void hl_csm_phases(float ph, uint n, float *cs, float *sn)
     }
 }
 
-/* Receiver (cx, cy, dt) of light `light` with parameters prm into
- * o[0] = V, o[1] = z_avg (-1: nothing in front). */
+/* Receiver (cx, cy, dt) of light `light` with parameters prm and the
+ * map's nearest depth zmin (prm[0] unread) into o[0] = V, o[1] = z_avg
+ * (-1: nothing in front). */
 static void hl_csm_eval_one(__global const float *sats, __global const float *means, __global const float *zscs,
-                            uint light, uint R, uint M, uint Mb, __constant float *prm, float cx, float cy, float dt,
-                            float *o)
+                            uint light, uint R, uint M, uint Mb, float zmin, __constant float *prm, float cx, float cy,
+                            float dt, float *o)
 {
     uint P = 2 * M + 2 * Mb + 1;
     __global const float *sat = sats + (size_t)light * P * R * R, *mean = means + (size_t)light * P;
     __global const float *zsc = zscs + (size_t)light * R * R * 4;
-    float zmin = prm[0], su = prm[1], sv = prm[2], bias = prm[3], eps = prm[4], wmin = prm[5];
+    float su = prm[1], sv = prm[2], bias = prm[3], eps = prm[4], wmin = prm[5];
     float la = prm[6], lb = prm[7], c1 = prm[8], dh = prm[41], bias_b = prm[42];
     __constant float *coef = prm + 9, *coefb = prm + 25;
     float d = fmin(dt, 1.0f); /* beyond the far plane: on it, for the series */
@@ -224,7 +225,7 @@ __kernel void hl_csm_eval(__global const float *sats, __global const float *mean
     size_t r = get_global_id(0);
     if (r >= n) return;
     float o[2];
-    hl_csm_eval_one(sats, means, zscs, light, R, M, Mb, prm, uvd[3 * r], uvd[3 * r + 1], uvd[3 * r + 2], o);
+    hl_csm_eval_one(sats, means, zscs, light, R, M, Mb, prm[0], prm, uvd[3 * r], uvd[3 * r + 1], uvd[3 * r + 2], o);
     out[2 * r] = o[0];
     out[2 * r + 1] = o[1];
 }
@@ -242,8 +243,45 @@ __kernel void hl_csm_eval_batch(__global const float *sats, __global const float
     if (r >= n) return;
     const uint j = which[r];
     float o[2];
-    hl_csm_eval_one(sats, means, zscs, lights[j], R, M, Mb, prms + (size_t)j * nprm, uvd[3 * r], uvd[3 * r + 1],
-                    uvd[3 * r + 2], o);
+    __constant float *prm = prms + (size_t)j * nprm;
+    hl_csm_eval_one(sats, means, zscs, lights[j], R, M, Mb, prm[0], prm, uvd[3 * r], uvd[3 * r + 1], uvd[3 * r + 2], o);
     out[2 * r] = o[0];
     out[2 * r + 1] = o[1];
+}
+
+/* The device frame's evaluation (host/src/dynamic/dyn_frame.c): entries
+ * j0 .. j0 + nl - 1 of a group at every one of N receivers, work-item
+ * (j - j0) N + v reading the group's place j N + v of uvd and V; uvd as
+ * hl_dyn_prepare leaves it (u = NaN: the light does not reach the
+ * receiver, passed by); entry j's parameters and build light at j - j0
+ * of prms and lights, the map's nearest depth from zmins (hl_csm_zmin)
+ * rather than prm[0]; V only, left on the device. */
+__kernel void hl_csm_eval_grid(__global const float *sats, __global const float *means, __global const float *zscs,
+                               uint R, uint M, uint Mb, __constant float *prms, uint nprm, __global const uint *lights,
+                               __global const float *zmins, __global const float *uvd, uint N, uint j0, uint nl,
+                               __global float *V)
+{
+    const size_t id = get_global_id(0), at = (size_t)j0 * N + id;
+    if (id >= (size_t)nl * N || isnan(uvd[3 * at])) return;
+    const uint jj = (uint)(id / N), light = lights[jj];
+    float o[2];
+    hl_csm_eval_one(sats, means, zscs, light, R, M, Mb, zmins[light], prms + (size_t)jj * nprm, uvd[3 * at],
+                    uvd[3 * at + 1], uvd[3 * at + 2], o);
+    V[at] = o[0];
+}
+
+/* Each of K maps' nearest depth (below 1, the empty texel's, or 1): one
+ * group a map, a minimum in any order being the same. */
+__kernel void hl_csm_zmin(__global const float *depth, uint R2, __global float *zmin, __local float *part)
+{
+    const uint k = (uint)get_group_id(0), l = (uint)get_local_id(0), L = (uint)get_local_size(0);
+    __global const float *map = depth + (size_t)k * R2;
+    float m = 1.0f;
+    for (uint i = l; i < R2; i += L) m = fmin(m, map[i]);
+    part[l] = m;
+    for (uint h = L / 2; h > 0; h /= 2) {
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (l < h) part[l] = fmin(part[l], part[l + h]);
+    }
+    if (l == 0) zmin[k] = part[0];
 }

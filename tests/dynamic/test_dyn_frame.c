@@ -9,6 +9,12 @@
  *                        and its centroid follows the bunny's offset.
  * dyn_frame.twin         the frame on the OpenCL context against the
  *                        reference context.
+ * dyn_frame.device       the device frame (kernels/dynamic/dyn_shade.cl)
+ *                        against its twin, the host's receivers on the same
+ *                        device (HL_TEST_DYN_FRAME=host): the bunny on its
+ *                        ground at rest and moved, batches of 5 lights in
+ *                        groups of 2 (HL_TEST_FRAME_GROUP), negligible
+ *                        lights, the ground out of the maps: bit for bit.
  * dyn_frame.bad_input    every output finite and >= 0; bad settings and
  *                        mismatched frames refused.
  * dyn_frame.api          the public hl_dynamic_* functions: bodies, moves
@@ -25,7 +31,10 @@
  * Depends on: dyn_frame.h, scene.h, area_lights.h, hl_test.h,
  * scene_gen.h, HL_REPO_DATA (bunny_lowres.obj), HL_BIN.
  */
+#define _POSIX_C_SOURCE 200809L /* setenv */
 #include <float.h>
+#include <stdlib.h>
+#include <string.h>
 #include <sys/wait.h>
 
 #include "dyn_frame.h"
@@ -436,6 +445,71 @@ static void case_twin(void)
     hl_context_destroy(ref);
 }
 
+/* The bunny's two frames (at rest, then lifted and moved) on a new frame
+ * state: batches of 5 lights at R = 64, lights under 2% of the energy
+ * negligible; out[f] gets frame f's colours, both bodies. */
+static int device_frames(hl_context *ctx, bunny_scene *b, const hl_light_split *s, float *out[2], hl_frame_stats *fs)
+{
+    hl_frame_settings set = {.R = 64, .M = 16, .min_share = 0.02f, .budget = (uint64_t)6 << 20};
+    hl_frame_state *st = NULL;
+    int ok = hl_frame_state_create(ctx, b->obj, 2, s->count, &set, &st) == HL_OK;
+    const hl_dyn_object rest = b->obj[0];
+    for (int f = 0; ok && f < 2; f++) {
+        if (f) b->obj[0].xf[3] += 0.7f, b->obj[0].xf[7] += 0.4f; /* lifted and pushed along x, world units */
+        ok = hl_frame_render(st, b->obj, 2, b->alb, s, b->rgb, &fs[f]) == HL_OK;
+        for (int k = 0; ok && k < 2; k++)
+            memcpy(out[f] + (k ? 3 * (size_t)b->obj[0].nverts : 0), b->rgb[k], (size_t)b->obj[k].nverts * 12);
+    }
+    b->obj[0] = rest;
+    HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+    hl_frame_state_destroy(st);
+    return ok;
+}
+
+static void case_device(void)
+{
+    hl_context *ctx = hl_test_cl_context(2);
+    if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
+    /* bright below the horizon (the ground hides it from the bunny: the
+       flat bodies' occlusion) with a small sun above */
+    enum { W = 128, H = 64 };
+    float *px = malloc((size_t)W * H * 12);
+    for (size_t i = 0; i < (size_t)W * H; i++)
+        for (int c = 0; c < 3; c++) px[3 * i + c] = i / W >= H / 2 ? 1.0f : (i % W == 20 && i / W == 12) ? 400.0f : 0.2f;
+    hl_env *env = NULL;
+    HL_CHECK(hl_env_create(ctx, W, H, px, &env, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    free(px);
+    bunny_scene b;
+    hl_light_split *s = env && bunny_open(ctx, &b) ? split_of(ctx, env, 32) : NULL;
+    if (s) {
+        const size_t n = 3 * ((size_t)b.obj[0].nverts + b.obj[1].nverts);
+        float *dev[2] = {malloc(n * 4), malloc(n * 4)}, *host[2] = {malloc(n * 4), malloc(n * 4)};
+        hl_frame_stats fd[2], fh[2];
+        setenv("HL_TEST_FRAME_GROUP", "2", 1);
+        int ok = device_frames(ctx, &b, s, dev, fd);
+        setenv("HL_TEST_DYN_FRAME", "host", 1);
+        ok = ok && device_frames(ctx, &b, s, host, fh);
+        unsetenv("HL_TEST_DYN_FRAME");
+        unsetenv("HL_TEST_FRAME_GROUP");
+        for (int f = 0; ok && f < 2; f++) {
+            size_t diff = 0;
+            double top = 0;
+            for (size_t i = 0; i < n; i++) diff += memcmp(dev[f] + i, host[f] + i, 4) != 0, top = fmax(top, dev[f][i]);
+            printf("%s frame: %u lights shadowed in %u batches of %u, %u negligible; device %.1f ms, host %.1f ms; "
+                   "brightest %.3g\n", f ? "moved" : "rest", fd[f].shadowed, fd[f].batches, fd[f].batch_lights,
+                   fd[f].skipped_negligible, 1e3 * fd[f].t_total, 1e3 * fh[f].t_total, top);
+            HL_CHECK(fd[f].batches > 1 && fd[f].skipped_negligible > 0 && top > 0,
+                     "the scene must take several batches and leave lights negligible");
+            hl_check_error("colour floats that differ, device frame vs host (tolerance 0: bit for bit)", (double)diff, 0.0);
+        }
+        for (int f = 0; f < 2; f++) free(dev[f]), free(host[f]);
+        bunny_close(&b);
+    }
+    hl_light_split_destroy(s);
+    hl_env_destroy(env);
+    hl_context_destroy(ctx);
+}
+
 /* ------------------------------------------------------------ bad input */
 
 #define EXPECT_FAIL(call, what)                                                    \
@@ -811,7 +885,7 @@ int main(int argc, char **argv)
         return 0;
     }
     static const hl_test_case cases[] = {{"unshadowed", case_unshadowed}, {"motion", case_motion}, {"below", case_below},
-                                         {"twin", case_twin},             {"bad_input", case_bad_input},
+                                         {"twin", case_twin}, {"device", case_device}, {"bad_input", case_bad_input},
                                          {"api", case_api},               {"cli", case_cli},
                                          {"file", case_file},
                                          {NULL, NULL}};

@@ -30,7 +30,8 @@ struct hl_csm {
     cl_kernel kb, km, ks, ke;
     cl_kernel kbt, krs, kss; /* the GPU shape's basis, row sums and scan (csm_*_items.cl) */
     cl_kernel keb;           /* the evaluation of several lights (hl_csm_eval_batch) */
-    cl_mem depth_d, img_d, rowsum_d, mean_d, zsc_d, prm_d, uvd_d, out_d, which_d, lights_d;
+    cl_kernel keg, kz;       /* the device frame's evaluation, the maps' nearest depths */
+    cl_mem depth_d, img_d, rowsum_d, mean_d, zsc_d, prm_d, uvd_d, out_d, which_d, lights_d, zmin_d;
     uint32_t prm_cap; /* lights whose parameters prm_d holds (within the device's constant memory) */
     size_t io_cap;    /* receivers the uvd, out and which buffers hold */
     float *out_h;     /* 2 per receiver, read back */
@@ -81,10 +82,10 @@ void hl_csm_destroy(hl_csm *c)
     struct hl_cl *cl = c->ctx->cl;
     if (cl) {
         if (cl->queue) clFinish(cl->queue);
-        cl_mem *all[] = {&c->depth_d, &c->img_d, &c->rowsum_d, &c->mean_d, &c->zsc_d,
-                         &c->prm_d,   &c->uvd_d, &c->out_d,    &c->which_d, &c->lights_d};
+        cl_mem *all[] = {&c->depth_d, &c->img_d,   &c->rowsum_d, &c->mean_d,   &c->zsc_d, &c->prm_d,
+                         &c->uvd_d,   &c->out_d,   &c->which_d,  &c->lights_d, &c->zmin_d};
         for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(cl, all[i]);
-        cl_kernel ks[] = {c->kb, c->km, c->ks, c->ke, c->kbt, c->krs, c->kss, c->keb};
+        cl_kernel ks[] = {c->kb, c->km, c->ks, c->ke, c->kbt, c->krs, c->kss, c->keb, c->keg, c->kz};
         for (size_t i = 0; i < sizeof ks / sizeof ks[0]; i++)
             if (ks[i]) clReleaseKernel(ks[i]);
     }
@@ -104,10 +105,11 @@ static hl_result create_device(hl_csm *c)
     hl_context *ctx = c->ctx;
     struct hl_cl *cl = ctx->cl;
     cl_int e;
-    const char *names[8] = {"hl_csm_basis",        "hl_csm_sat_mean",      "hl_csm_sat_scan",       "hl_csm_eval",
-                            "hl_csm_basis_texels", "hl_csm_basis_rowsums", "hl_csm_sat_scan_items", "hl_csm_eval_batch"};
-    cl_kernel *ks[8] = {&c->kb, &c->km, &c->ks, &c->ke, &c->kbt, &c->krs, &c->kss, &c->keb};
-    for (int i = 0; i < 8; i++) {
+    const char *names[10] = {"hl_csm_basis",        "hl_csm_sat_mean",      "hl_csm_sat_scan",       "hl_csm_eval",
+                             "hl_csm_basis_texels", "hl_csm_basis_rowsums", "hl_csm_sat_scan_items", "hl_csm_eval_batch",
+                             "hl_csm_eval_grid",    "hl_csm_zmin"};
+    cl_kernel *ks[10] = {&c->kb, &c->km, &c->ks, &c->ke, &c->kbt, &c->krs, &c->kss, &c->keb, &c->keg, &c->kz};
+    for (int i = 0; i < 10; i++) {
         *ks[i] = clCreateKernel(cl->program, names[i], &e);
         CL_TRY(ctx, e, names[i]);
     }
@@ -117,6 +119,7 @@ static hl_result create_device(hl_csm *c)
     TRY(hl_cl_make_buf(ctx, &c->rowsum_d, CL_MEM_READ_WRITE, K * P * c->R * 4, NULL, "CSM row sums"));
     TRY(hl_cl_make_buf(ctx, &c->mean_d, CL_MEM_READ_WRITE, K * P * 4, NULL, "CSM plane means"));
     TRY(hl_cl_make_buf(ctx, &c->zsc_d, CL_MEM_READ_WRITE, K * R2 * 16, NULL, "CSM texel phases"));
+    TRY(hl_cl_make_buf(ctx, &c->zmin_d, CL_MEM_READ_WRITE, K * 4, NULL, "CSM nearest depths"));
     /* the batch's parameters live in constant memory (64 KB at least):
        as many lights as it holds, and the batch's at most */
     cl_ulong cmax = 65536;
@@ -219,25 +222,31 @@ static hl_result launch(hl_context *ctx, cl_kernel k, size_t global, size_t loca
     return HL_OK;
 }
 
-static hl_result build_device(hl_csm *c, uint32_t K, int upto)
+/* The build on the device from the staged maps (depth NULL: uploaded
+ * into depth_d), or from maps already in device memory. */
+static hl_result build_device(hl_csm *c, uint32_t K, int upto, cl_mem depth)
 {
     hl_context *ctx = c->ctx;
     struct hl_cl *cl = ctx->cl;
     cl_uint R = c->R, M = c->M, Mb = c->Mb, nrows = K * c->R, np = K * c->P;
     cl_float c1 = (float)(HL_PI / HL_CSM_HALF_PERIOD);
-    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->depth_d, CL_FALSE, 0, (size_t)K * R * R * 4, c->stage, 0, NULL, NULL),
-           "shadow-map upload");
+    if (!depth) {
+        CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->depth_d, CL_FALSE, 0, (size_t)K * R * R * 4, c->stage, 0, NULL,
+                                         NULL),
+               "shadow-map upload");
+        depth = c->depth_d;
+    }
     const int gpu = cl->gpu_shape;
     if (gpu) { /* a work-item a texel, then a work-item a row and plane */
         cl_uint nt = K * R * R, nrs = nrows * c->P, P = c->P;
-        SETARG(c->kbt, 0, c->depth_d); SETARG(c->kbt, 1, R); SETARG(c->kbt, 2, M); SETARG(c->kbt, 3, Mb);
+        SETARG(c->kbt, 0, depth); SETARG(c->kbt, 1, R); SETARG(c->kbt, 2, M); SETARG(c->kbt, 3, Mb);
         SETARG(c->kbt, 4, c1); SETARG(c->kbt, 5, nt); SETARG(c->kbt, 6, c->img_d); SETARG(c->kbt, 7, c->zsc_d);
         TRY(launch(ctx, c->kbt, nt, 0, "hl_csm_basis_texels"));
         SETARG(c->krs, 0, c->img_d); SETARG(c->krs, 1, R); SETARG(c->krs, 2, P); SETARG(c->krs, 3, nrs);
         SETARG(c->krs, 4, c->rowsum_d);
         TRY(launch(ctx, c->krs, nrs, 0, "hl_csm_basis_rowsums"));
     } else {
-        SETARG(c->kb, 0, c->depth_d); SETARG(c->kb, 1, R); SETARG(c->kb, 2, M); SETARG(c->kb, 3, Mb);
+        SETARG(c->kb, 0, depth); SETARG(c->kb, 1, R); SETARG(c->kb, 2, M); SETARG(c->kb, 3, Mb);
         SETARG(c->kb, 4, c1); SETARG(c->kb, 5, nrows); SETARG(c->kb, 6, c->img_d); SETARG(c->kb, 7, c->rowsum_d);
         SETARG(c->kb, 8, c->zsc_d);
         TRY(launch(ctx, c->kb, nrows, 0, "hl_csm_basis"));
@@ -301,8 +310,36 @@ hl_result hl_csm_build_upto(hl_csm *c, const float *depth, uint32_t K, int upto)
                        depth ? "given" : "no depth array", c->K_max);
     c->K = 0;
     TRY(stage_depths(c, depth, K));
-    if (c->ctx->cl) TRY(build_device(c, K, upto));
+    if (c->ctx->cl) TRY(build_device(c, K, upto, NULL));
     else build_ref(c, K, upto);
+    c->K = K;
+    return HL_OK;
+}
+
+/* Work-items a group of hl_csm_zmin: a power of two. */
+#define HL_CSM_ZMIN_GROUP 256u
+
+hl_result hl_csm_build_on_device(hl_csm *c, void *depth, uint32_t K)
+{
+    if (!c) return HL_ERR_INVALID_ARGUMENT;
+    hl_context *ctx = c->ctx;
+    if (!ctx->cl || !depth || K == 0 || K > c->K_max)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: a device build of %u maps (%s); the batch holds 1..%u",
+                       K, ctx->cl ? "" : "no OpenCL device", c->K_max);
+    c->K = 0;
+    cl_mem d = depth;
+    /* each map's nearest depth, on the device for hl_csm_eval_grid and
+       here for hl_csm_visibility */
+    cl_uint R2 = c->R * c->R;
+    size_t local = 1;
+    while (local * 2 <= HL_CSM_ZMIN_GROUP && local * 2 <= ctx->cl->max_wg) local *= 2;
+    size_t global = (size_t)K * local;
+    SETARG(c->kz, 0, d); SETARG(c->kz, 1, R2); SETARG(c->kz, 2, c->zmin_d);
+    CL_TRY(ctx, clSetKernelArg(c->kz, 3, local * sizeof(float), NULL), "clSetKernelArg");
+    CL_TRY(ctx, clEnqueueNDRangeKernel(ctx->cl->queue, c->kz, 1, NULL, &global, &local, 0, NULL, NULL), "hl_csm_zmin");
+    CL_TRY(ctx, clEnqueueReadBuffer(ctx->cl->queue, c->zmin_d, CL_FALSE, 0, (size_t)K * 4, c->zmin, 0, NULL, NULL),
+           "read-back");
+    TRY(build_device(c, K, HL_CSM_UPTO_ALL, d)); /* its finish waits for the read-back too */
     c->K = K;
     return HL_OK;
 }
@@ -469,6 +506,45 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
     free(prm);
     free(p);
     return r;
+}
+
+void *hl_csm_zmin_buffer(const hl_csm *c) { return c->zmin_d; }
+
+hl_result hl_csm_eval_grid(hl_csm *c, uint32_t nl, const uint32_t *ks, const float *thetas,
+                           const hl_shadow_frame *const *frames, void *uvd, uint32_t N, void *V)
+{
+    if (!c) return HL_ERR_INVALID_ARGUMENT;
+    hl_context *ctx = c->ctx;
+    if (!ctx->cl || !uvd || !V || !ks || !thetas || !frames)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: a device evaluation without its arrays");
+    float prm[CSM_PRM_FLOATS * 64];
+    for (uint32_t j0 = 0; j0 < nl; j0 += c->prm_cap < 64 ? c->prm_cap : 64) {
+        const uint32_t cap = c->prm_cap < 64 ? c->prm_cap : 64, n = nl - j0 < cap ? nl - j0 : cap;
+        for (uint32_t j = j0; j < j0 + n; j++) {
+            if (ks[j] >= c->K)
+                return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                               "convolution shadow maps: light %u is not in the last build (%u lights)", ks[j], c->K);
+            TRY(check_frame(c, thetas[j], frames[j]));
+            const hl_shadow_frame *f = frames[j];
+            double t = tan((double)thetas[j]) * f->depth_range * c->R;
+            hl_csm_eval_params p;
+            hl_csm_params(&p, c->R, c->M, c->Mb, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
+            pack_params(&p, prm + (size_t)(j - j0) * CSM_PRM_FLOATS);
+        }
+        /* written before the next chunk's: the host arrays are reused */
+        CL_TRY(ctx, clEnqueueWriteBuffer(ctx->cl->queue, c->prm_d, CL_TRUE, 0, (size_t)n * CSM_PRM_FLOATS * 4, prm, 0, NULL,
+                                         NULL), "upload");
+        CL_TRY(ctx, clEnqueueWriteBuffer(ctx->cl->queue, c->lights_d, CL_TRUE, 0, (size_t)n * 4, ks + j0, 0, NULL, NULL),
+               "upload");
+        cl_uint R = c->R, M = c->M, Mb = c->Mb, nprm = CSM_PRM_FLOATS, nn = N, jj = j0, cnt = n;
+        cl_mem u = uvd, v = V;
+        SETARG(c->keg, 0, c->img_d); SETARG(c->keg, 1, c->mean_d); SETARG(c->keg, 2, c->zsc_d); SETARG(c->keg, 3, R);
+        SETARG(c->keg, 4, M); SETARG(c->keg, 5, Mb); SETARG(c->keg, 6, c->prm_d); SETARG(c->keg, 7, nprm);
+        SETARG(c->keg, 8, c->lights_d); SETARG(c->keg, 9, c->zmin_d); SETARG(c->keg, 10, u); SETARG(c->keg, 11, nn);
+        SETARG(c->keg, 12, jj); SETARG(c->keg, 13, cnt); SETARG(c->keg, 14, v);
+        TRY(launch(ctx, c->keg, (size_t)n * N, 0, "hl_csm_eval_grid"));
+    }
+    return HL_OK;
 }
 
 hl_result hl_csm_visibility(hl_csm *c, uint32_t k, float theta, const hl_shadow_frame *f, const float *uvd, uint32_t n,

@@ -166,6 +166,23 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
                                   float *zavg);
 
 
+/* On an OpenCL context, hl_csm_build of maps already in device memory
+ * (depth, a cl_mem of K R^2 floats, as hl_shadow_maps_render leaves them
+ * with no host array: depths in [0, 1], not checked again); each map's
+ * nearest depth is found on the device (hl_csm_zmin) and kept there too. */
+hl_result hl_csm_build_on_device(hl_csm *c, void *depth, uint32_t K);
+/* The device frame's evaluation (dyn_frame.c): entries 0 .. nl - 1 of a
+ * group, entry j light ks[j] of the last build with half-extent thetas[j]
+ * and frame frames[j], each at N receivers: uvd and V are cl_mems of
+ * nl N 3 and nl N floats, entry j's receiver v at j N + v, as
+ * hl_dyn_prepare leaves uvd (u = NaN: not reached, V not written).
+ * Enqueued, not waited for. */
+hl_result hl_csm_eval_grid(hl_csm *c, uint32_t nl, const uint32_t *ks, const float *thetas,
+                           const hl_shadow_frame *const *frames, void *uvd, uint32_t N, void *V);
+/* The device buffer (a cl_mem) of each map's nearest depth, K floats, as
+ * the last hl_csm_build_on_device found them. */
+void *hl_csm_zmin_buffer(const hl_csm *c);
+
 /* ---- twins (kernels/dynamic/csm_*.cl), one work-item each ---- */
 
 /* Eval parameters of one light, computed on the host for both sides. */

@@ -302,19 +302,23 @@ static hl_result grow(hl_dyn_irr *m, uint32_t N)
         hl_cl_release_buf(cl, &m->amb_d);
         m->cap_n = 0;
         TRY(hl_cl_make_buf(ctx, &m->n_d, CL_MEM_READ_ONLY, (size_t)N * 12, NULL, "irradiance normals"));
-        TRY(hl_cl_make_buf(ctx, &m->amb_d, CL_MEM_WRITE_ONLY, (size_t)N * 12, NULL, "irradiance ambient"));
+        /* read and written by the device frame's sums (dyn_shade.cl) */
+        TRY(hl_cl_make_buf(ctx, &m->amb_d, CL_MEM_READ_WRITE, (size_t)N * 12, NULL, "irradiance ambient"));
         m->cap_n = N;
     }
     if (ne > m->cap_e) {
         hl_cl_release_buf(cl, &m->E_d);
         m->cap_e = 0;
-        TRY(hl_cl_make_buf(ctx, &m->E_d, CL_MEM_WRITE_ONLY, ne * 4, NULL, "the lights' irradiance"));
+        TRY(hl_cl_make_buf(ctx, &m->E_d, CL_MEM_READ_WRITE, ne * 4, NULL, "the lights' irradiance"));
         m->cap_e = ne;
     }
     return HL_OK;
 }
 
-static hl_result run_device(hl_dyn_irr *m, const float *normals, uint32_t N, float *E, float *ambient, uint8_t *any)
+/* keep: E and the ambient (both computed) stay on the device, only any
+ * comes back (hl_dyn_irr_run_kept). */
+static hl_result run_device(hl_dyn_irr *m, const float *normals, uint32_t N, float *E, float *ambient, uint8_t *any,
+                            int keep)
 {
     hl_context *ctx = m->ctx;
     cl_command_queue q = ctx->cl->queue;
@@ -332,7 +336,7 @@ static hl_result run_device(hl_dyn_irr *m, const float *normals, uint32_t N, flo
         size_t global[2] = {((size_t)N + HL_DYN_IRR_WG - 1) / HL_DYN_IRR_WG * HL_DYN_IRR_WG, K};
         CL_TRY(ctx, clEnqueueNDRangeKernel(q, m->kl, 2, NULL, global, local, 0, NULL, NULL), "hl_dyn_irr_lights");
     }
-    if (ambient) {
+    if (ambient || keep) {
         SETARG(m->ka, 0, m->sh_d); SETARG(m->ka, 1, m->n_d); SETARG(m->ka, 2, n); SETARG(m->ka, 3, m->amb_d);
         size_t local = HL_DYN_IRR_WG, global = ((size_t)N + HL_DYN_IRR_WG - 1) / HL_DYN_IRR_WG * HL_DYN_IRR_WG;
         CL_TRY(ctx, clEnqueueNDRangeKernel(q, m->ka, 1, NULL, &global, &local, 0, NULL, NULL), "hl_dyn_irr_ambient");
@@ -340,10 +344,11 @@ static hl_result run_device(hl_dyn_irr *m, const float *normals, uint32_t N, flo
     /* the kernels alone, for hl_dyn_irr_times (one more wait, ~0.1 ms) */
     CL_TRY(ctx, clFinish(q), "the irradiance kernels");
     m->t_compute = hl_now() - t0;
-    if (ambient)
+    if (ambient && !keep)
         CL_TRY(ctx, clEnqueueReadBuffer(q, m->amb_d, CL_FALSE, 0, (size_t)N * 12, ambient, 0, NULL, NULL), "read-back");
     if (K > 0) {
-        CL_TRY(ctx, clEnqueueReadBuffer(q, m->E_d, CL_FALSE, 0, (size_t)K * N * 12, E, 0, NULL, NULL), "read-back");
+        if (!keep)
+            CL_TRY(ctx, clEnqueueReadBuffer(q, m->E_d, CL_FALSE, 0, (size_t)K * N * 12, E, 0, NULL, NULL), "read-back");
         CL_TRY(ctx, clEnqueueReadBuffer(q, m->any_d, CL_FALSE, 0, (size_t)K * 4, m->any_h, 0, NULL, NULL), "read-back");
     }
     CL_TRY(ctx, clFinish(q), "the irradiance kernels");
@@ -403,16 +408,17 @@ static hl_result run_ref(hl_dyn_irr *m, const float *normals, uint32_t N, float 
     return HL_OK;
 }
 
-hl_result hl_dyn_irr_run(hl_dyn_irr *m, const float *normals, uint32_t N, float *E, float *ambient, uint8_t *any)
+static hl_result run(hl_dyn_irr *m, const float *normals, uint32_t N, float *E, float *ambient, uint8_t *any, int keep)
 {
     if (!m) return HL_ERR_INVALID_ARGUMENT;
     hl_context *ctx = m->ctx;
     const uint32_t K = m->t.K;
     if (!m->t.lf) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic irradiance: no light split (the last failed)");
+    if (keep && !ctx->cl) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic irradiance: no device to keep it on");
     if (any) memset(any, 0, K);
     m->t_compute = m->t_total = 0.0;
     if (N == 0) return HL_OK;
-    if (!normals || (K > 0 && !E))
+    if (!normals || (K > 0 && !E && !keep))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic irradiance: no %s array for %u receivers",
                        normals ? "irradiance" : "normal", N);
     if ((uint64_t)K * N * 3 > SIZE_MAX / 4)
@@ -423,9 +429,25 @@ hl_result hl_dyn_irr_run(hl_dyn_irr *m, const float *normals, uint32_t N, float 
                            "dynamic irradiance: receiver %zu's normal has a non-finite component (%g)", i / 3,
                            (double)normals[i]);
     const double t0 = hl_now();
-    hl_result r = ctx->cl ? run_device(m, normals, N, E, ambient, any) : run_ref(m, normals, N, E, ambient, any);
+    hl_result r = ctx->cl ? run_device(m, normals, N, E, ambient, any, keep) : run_ref(m, normals, N, E, ambient, any);
     m->t_total = hl_now() - t0;
     return r;
+}
+
+hl_result hl_dyn_irr_run(hl_dyn_irr *m, const float *normals, uint32_t N, float *E, float *ambient, uint8_t *any)
+{
+    return run(m, normals, N, E, ambient, any, 0);
+}
+
+hl_result hl_dyn_irr_run_kept(hl_dyn_irr *m, const float *normals, uint32_t N, uint8_t *any)
+{
+    return run(m, normals, N, NULL, NULL, any, 1);
+}
+
+void hl_dyn_irr_device_bufs(const hl_dyn_irr *m, void **E, void **ambient)
+{
+    *E = m->E_d;
+    *ambient = m->amb_d;
 }
 
 void hl_dyn_irr_times(const hl_dyn_irr *m, double *compute, double *total)

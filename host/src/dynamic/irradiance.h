@@ -85,6 +85,11 @@ hl_result hl_dyn_irr_set_split(hl_dyn_irr *m, const hl_light_split *split);
  * N = 0 is allowed (any all 0). A normal with a non-finite component is
  * refused (HL_ERR_INVALID_ARGUMENT naming the receiver). */
 hl_result hl_dyn_irr_run(hl_dyn_irr *m, const float *normals, uint32_t N, float *E, float *ambient, uint8_t *any);
+/* On an OpenCL context: hl_dyn_irr_run with E and the ambient both
+ * computed and left in device memory (hl_dyn_irr_device_bufs: cl_mems,
+ * the layouts above, valid until the next run), any read back. */
+hl_result hl_dyn_irr_run_kept(hl_dyn_irr *m, const float *normals, uint32_t N, uint8_t *any);
+void hl_dyn_irr_device_bufs(const hl_dyn_irr *m, void **E, void **ambient);
 /* Seconds of the last run (0 for N = 0): the kernels alone (the twins on the
  * reference backend), and all of it with the transfers and checks. */
 void hl_dyn_irr_times(const hl_dyn_irr *m, double *compute, double *total);

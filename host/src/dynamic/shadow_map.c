@@ -566,10 +566,15 @@ static hl_result render_device(hl_shadow_maps *sm, uint32_t K, float *depth)
     SARG(6, per); SARG(7, sm->ddepth);
 #undef SARG
     CL_TRY(ctx, clEnqueueNDRangeKernel(cl->queue, k, 2, NULL, global, local, 0, NULL, NULL), "hl_shadow_raster");
-    CL_TRY(ctx, clEnqueueReadBuffer(cl->queue, sm->ddepth, CL_TRUE, 0, K * mapbytes, depth, 0, NULL, NULL),
-           "read-back of the shadow maps");
+    if (depth)
+        CL_TRY(ctx, clEnqueueReadBuffer(cl->queue, sm->ddepth, CL_TRUE, 0, K * mapbytes, depth, 0, NULL, NULL),
+               "read-back of the shadow maps");
+    else /* left on the device (hl_shadow_maps_device_depth); waited for, for the frame's stage times */
+        CL_TRY(ctx, clFinish(cl->queue), "the shadow maps");
     return HL_OK;
 }
+
+void *hl_shadow_maps_device_depth(const hl_shadow_maps *sm) { return sm->ddepth; }
 
 typedef struct twin_job {
     hl_shadow_maps *sm;
@@ -627,7 +632,9 @@ hl_result hl_shadow_maps_render(hl_shadow_maps *sm, const float (*dirs)[3], uint
                                 hl_shadow_frame *frames)
 {
     hl_context *ctx = sm->ctx;
-    if (!dirs || !depth || !K)
+    /* no depth array: the maps stay on the device, where they are made there */
+    const int on_device = ctx->cl && sm->method == HL_SHADOW_RASTER;
+    if (!dirs || (!depth && !on_device) || !K)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "shadow maps: %s", !K ? "no lights" : "no directions or no depth array");
     if ((uint64_t)K * sm->R * sm->R > SIZE_MAX / 8)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "shadow maps: %u maps of %u^2 texels do not fit in memory", K, sm->R);

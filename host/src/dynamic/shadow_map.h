@@ -54,7 +54,9 @@ hl_result hl_shadow_maps_set_transform(hl_shadow_maps *sm, uint32_t object, cons
 /* Renders K maps into depth (K R R floats, map k at k R R, row j of map k
  * at k R R + j R: rows go along `up`, columns along `right`). dirs: unit
  * light directions (towards the light). frames (K, may be NULL) gets each
- * map's frame. */
+ * map's frame. depth may be NULL where the rasteriser runs on an OpenCL
+ * device: the maps then stay in its memory (hl_shadow_maps_device_depth)
+ * until the next render. */
 hl_result hl_shadow_maps_render(hl_shadow_maps *sm, const float (*dirs)[3], uint32_t K, float *depth,
                                 hl_shadow_frame *frames);
 
@@ -89,8 +91,9 @@ typedef struct hl_flat_body {
 /* 1 and *fb when body o is flat (all its vertices on one plane), else 0. */
 int hl_shadow_maps_flat(const hl_shadow_maps *sm, uint32_t o, hl_flat_body *fb);
 
-/* A variant leaving the maps in a device buffer for the convolution stage
- * (no read-back) is not written yet. */
+/* The device buffer (a cl_mem) of the last render's maps, laid out as
+ * depth above; NULL before the first render on a device. */
+void *hl_shadow_maps_device_depth(const hl_shadow_maps *sm);
 
 void hl_shadow_maps_destroy(hl_shadow_maps *sm);
 
