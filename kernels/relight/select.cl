@@ -83,13 +83,5 @@ kernel void hl_select(global const float *L, uint ncoef, global const float *wei
     hl_select_fold(et);
     hl_select_fold(ek);
     hl_select_fold(ed);
-    hl_select_result s;
-    s.energy_total = et[0];
-    s.energy_kept = ek[0];
-    s.kept = kept;
-    s.blocks_used = used;
-    s.energy_dropped = ed[0];
-    s.energy_exp = eb;
-    s.pad_[0] = s.pad_[1] = 0u;
-    *res = s;
+    *res = hl_select_result_of(et[0], ek[0], ed[0], kept, used, eb);
 }

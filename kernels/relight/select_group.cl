@@ -161,14 +161,6 @@ void hl_select_group(global const float *L, uint ncoef, global const float *weig
     scan_excl(buf, k, nused, &blocks);
     if (k == 0u) {
         kept_list[0] = kept;
-        hl_select_result s;
-        s.energy_total = et[0];
-        s.energy_kept = ek[0];
-        s.kept = kept;
-        s.blocks_used = blocks;
-        s.energy_dropped = ed[0];
-        s.energy_exp = eb;
-        s.pad_[0] = s.pad_[1] = 0u;
-        *res = s;
+        *res = hl_select_result_of(et[0], ek[0], ed[0], kept, blocks, eb);
     }
 }

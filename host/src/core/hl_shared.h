@@ -253,6 +253,22 @@ HL_INLINE void hl_select_fold(float *e)
         for (HL_U32 k = 0; k < h; k++) e[k] += e[k + h];
 }
 
+/* The selection's result from its sums and counts (select.cl and
+ * select_group.cl write it alike). */
+HL_INLINE hl_select_result hl_select_result_of(float total, float kept_energy, float dropped, HL_U32 kept,
+                                               HL_U32 blocks, HL_U32 exp_biased)
+{
+    hl_select_result s;
+    s.energy_total = total;
+    s.energy_kept = kept_energy;
+    s.kept = kept;
+    s.blocks_used = blocks;
+    s.energy_dropped = dropped;
+    s.energy_exp = exp_biased;
+    s.pad_[0] = s.pad_[1] = 0u;
+    return s;
+}
+
 /* Luminance of linear Rec.709 RGB. */
 HL_INLINE float hl_luminance(float r, float g, float b)
 {
