@@ -10,7 +10,9 @@
 #
 # A device is cl:P:D, optionally /cpu or /gpu to force the kernels' shape.
 # Writes $GPU_OUT/report.md (default gpu-report/) and each step's log beside
-# it. Env: HL_BIN (default build/haarlight), HL_BUILD (the CTest build folder,
+# it (7 files at most). Env: GPU_WORK (a folder to keep the transports and
+# bench outputs in; default a temporary one), HL_BIN (default
+# build/haarlight), HL_BUILD (the CTest build folder,
 # default build), HL_SHARED_DATA (default ../shared/data), GPU_PARTS (the steps,
 # default "crosscheck suite bunny dragon dynamic"), GPU_ROUNDS (bench runs a
 # device and mesh, default 3). Exit status 1 when the crosscheck or the suite
@@ -28,14 +30,17 @@ rounds="${GPU_ROUNDS:-3}"
 mkdir -p "$out" || exit 2
 out="$(cd "$out" && pwd)"
 rep="$out/report.md"
-work="$out/work"
-mkdir -p "$work"
+# transports and bench folders in a scratch folder (GPU_WORK keeps them):
+# $GPU_OUT gets the report and its logs only, 7 files
+if [ -n "${GPU_WORK:-}" ]; then work="$GPU_WORK"; mkdir -p "$work" || exit 2
+else work="$(mktemp -d)"; trap 'rm -rf "$work"' EXIT; fi
 [ -x "$bin" ] || { echo "gpu.sh: $bin: no haarlight binary (set HL_BIN)" >&2; exit 2; }
 for d in "$dev" ${other:+"$other"}; do
   [[ "$d" =~ ^cl:[0-9]+:[0-9]+(/(cpu|gpu))?$ ]] || { echo "gpu.sh: $d: expected cl:P:D, cl:P:D/cpu or cl:P:D/gpu" >&2; exit 2; }
 done
 has() { [[ " $parts " == *" $1 "* ]]; }
-say() { echo "gpu.sh: $*" >&2; }
+t_start=$(date +%s)
+say() { echo "gpu.sh: $(($(date +%s) - t_start)) s: $*" >&2; }
 
 # run SPEC CMD ARGS...: haarlight CMD on SPEC's device, in its shape if one is named
 run() {
@@ -166,5 +171,7 @@ if has dynamic; then
   done
 fi
 
+echo >>"$rep"
+echo "The whole report took $(($(date +%s) - t_start)) s." >>"$rep"
 cat "$rep"
 exit "$status"
