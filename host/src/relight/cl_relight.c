@@ -210,7 +210,8 @@ size_t hl_cl_light_items_group(const hl_cl_light *l)
 
 uint32_t hl_cl_light_range_groups(const hl_cl_light *l)
 {
-    return l->cl->gpu_shape ? (uint32_t)((size_t)l->range_tiles * HL_TILE / hl_cl_light_items_group(l)) : 1u;
+    if (!l->cl->gpu_shape || !l->range_tiles) return 1u; /* no columns cut yet */
+    return (uint32_t)((size_t)l->range_tiles * HL_TILE / hl_cl_light_items_group(l));
 }
 
 /* items work-items, in groups of the shape's size: one for select.cl,
