@@ -67,8 +67,12 @@ static size_t kernel_group(const struct hl_cl *cl, cl_kernel k, size_t cap)
  * HL_SELECT_LANES (reqd_work_group_size) and its 6 KB of local memory. */
 static void group_sizes(struct hl_cl *cl)
 {
-    cl->haar_wg = kernel_group(cl, cl->k[K_HAAR_GROUP], 256);
-    cl->items_wg = kernel_group(cl, cl->k[K_RELIGHT_ITEMS], 256);
+    /* tests: smaller groups, as a device with fewer registers a work-item
+       would allow (HL_TEST_GROUP_CAP, a power of two) */
+    const char *t = getenv("HL_TEST_GROUP_CAP");
+    const size_t cap = t && strtoul(t, NULL, 10) > 0 && strtoul(t, NULL, 10) < 256 ? strtoul(t, NULL, 10) : 256;
+    cl->haar_wg = kernel_group(cl, cl->k[K_HAAR_GROUP], cap);
+    cl->items_wg = kernel_group(cl, cl->k[K_RELIGHT_ITEMS], cap);
     cl->select_group = cl->gpu_shape && kernel_group(cl, cl->k[K_SELECT_GROUP], HL_SELECT_LANES) == HL_SELECT_LANES &&
                        cl->local_mem >= 8192;
 }
