@@ -61,6 +61,7 @@ int vw_dyn_opt(viewer *v, int argc, char **argv, int *i, const char *usage)
     const char *a = argv[*i], *val = NULL;
     if (!strcmp(a, "--dynamic")) return y->on = 1;
     if (!strcmp(a, "--ground")) return y->ground = 1;
+    if (!strcmp(a, "--rest-pose")) return y->rest_pose = 1;
     if (!strcmp(a, "--play")) return y->play = 1;
     static const char *const with_value[] = {"--hlt", "--lights", "--order", "--shadow-res", "--time",
                                              "--move", "--drag", NULL};
@@ -188,8 +189,9 @@ int vw_dyn_load(viewer *v, int *rc)
         return 0;
     }
     v->t_path = hlt;
+    const int flags = (y->ground ? HL_DYNAMIC_GROUND : 0) | (y->rest_pose ? HL_DYNAMIC_REST_POSE : 0);
     hl_result r = scene_is_hlt ? hl_dynamic_create_from_mesh(v->ctx, v->t->mesh, 0, &y->desc, &y->d)
-                               : hl_dynamic_create_from_file(v->ctx, v->scene, y->ground, &y->desc, &y->d);
+                               : hl_dynamic_create_from_file(v->ctx, v->scene, flags, &y->desc, &y->d);
     if (r != HL_OK) {
         cli_fail(v->ctx, r);
         return 0;

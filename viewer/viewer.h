@@ -117,6 +117,7 @@ typedef struct vw_dyn {
     int on;                 /* --dynamic given */
     const char *hlt;        /* --hlt: the transport for frames at rest */
     int ground;             /* --ground */
+    int rest_pose;          /* --rest-pose */
     uint32_t lights;        /* --lights K */
     hl_dynamic_desc desc;   /* --shadow-res, --order */
     float time0;            /* --time */

@@ -19,7 +19,6 @@
 #include "cli.h"
 #include "haarlight.h"
 #include "haarlight_tools.h"
-#include "haarlight_tools.h"
 #ifdef HL_HAVE_VIEWER
 #include "viewer.h"
 #endif
@@ -362,8 +361,18 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
 static hl_result load_scene(hl_context *ctx, pre_opts *o, hl_mesh **mesh)
 {
     hl_mesh_stats ms;
-    hl_result r = hl_mesh_load(ctx, o->mesh, &o->ld, mesh, &ms);
+    uint32_t motion[3];
+    hl_result r = hl_tools_mesh_load(ctx, o->mesh, &o->ld, mesh, &ms, motion);
     if (r != HL_OK) return r;
+    /* the pose baked, said even with -q: a transport of an animated file
+       is of one pose, not of its motion */
+    if (motion[0] || motion[1] || motion[2])
+        fprintf(stderr,
+                "precompute: %s has %u animation%s%s%s: the transport is of its rest pose, the nodes as stored%s%s "
+                "(relight-dynamic follows a rigid animation)\n",
+                o->mesh, motion[0], motion[0] == 1 ? "" : "s", motion[1] ? ", skinned meshes" : "",
+                motion[2] ? ", morph targets" : "", motion[1] ? ", skinned meshes in their bind pose" : "",
+                motion[2] ? ", morph targets at their base" : "");
     if (!o->cd.quiet) {
         fprintf(stderr, "mesh %s: %u vertices, %u triangles", o->mesh, (*mesh)->vertex_count, (*mesh)->triangle_count);
         if (ms.merged_vertices)

@@ -28,9 +28,10 @@ static const char *const usage_dyn =
     "2008), with no precompute: the environment is split into area lights, the K\n"
     "strongest each get a shadow map filtered as a convolution shadow map of order M,\n"
     "the rest are folded into one unshadowed spherical-harmonic term, and every vertex\n"
-    "is shaded diffusely. Without --ground every node of the file that holds triangles\n"
-    "is a body, moving by the file's first animation. OUT by extension: .ply, .glb,\n"
-    ".exr or .png, as `haarlight relight`.\n"
+    "is shaded diffusely. Every node of the file that holds triangles is a body,\n"
+    "moving by the file's first animation (one that is not rigid, skinned or morphing,\n"
+    "is refused: --rest-pose). OUT by extension: .ply, .glb, .exr or .png, as\n"
+    "`haarlight relight`.\n"
     "\n"
     "Limits: the visibility approximates the exact one (smooth shadow test, filter\n"
     "width from the average blocker depth and the light's spread). On the bunny with\n"
@@ -45,8 +46,12 @@ static const char *const usage_dyn =
     "per vertex.\n"
     "\n"
     "scene:\n"
-    "  --ground             load the file as one mesh and put a ground plane under it\n"
-    "                       (body \"ground\"; the mesh is body \"object\")\n"
+    "  --ground             a ground plane under the object (body \"ground\"). A file with\n"
+    "                       an animation keeps its bodies and motion, the ground under\n"
+    "                       the whole motion; any other is loaded as one mesh, body\n"
+    "                       \"object\", as `precompute --ground` loads it\n"
+    "  --rest-pose          the file's animation not followed: its nodes as stored, skinned\n"
+    "                       meshes in their bind pose, morph targets at their base\n"
     "  --time T             seconds into the animation (default 0; clamped to its keys)\n"
     "  --move BODY:X,Y,Z    translate the body named BODY (world units), repeatable\n"
     "lighting:\n"
@@ -79,7 +84,7 @@ static const char *const usage_dyn =
 
 typedef struct dyn_opts {
     const char *scene, *env, *out;
-    int ground, sky, ply8, no_bg;
+    int ground, rest_pose, sky, ply8, no_bg;
     int reference; /* 0: the frame; 1: exact; 2: K lights traced */
     float time, threshold;
     uint32_t lights, R, M, nmoves;
@@ -120,6 +125,7 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
     else if (!strcmp(a, "--env")) d->env = v;
     else if (!strcmp(a, "--sky")) d->sky = 1;
     else if (!strcmp(a, "--ground")) d->ground = 1;
+    else if (!strcmp(a, "--rest-pose")) d->rest_pose = 1;
     else if (!strcmp(a, "--ply8")) d->ply8 = 1;
     else if (!strcmp(a, "--no-background")) d->no_bg = 1;
     else if (!strcmp(a, "--time")) {
@@ -228,7 +234,8 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
     hl_dynamic_lights li;
     hl_dynamic_stats st;
     int rc = 0;
-    hl_result r = hl_dynamic_create_from_file(ctx, d->scene, d->ground, &desc, &dy);
+    const int flags = (d->ground ? HL_DYNAMIC_GROUND : 0) | (d->rest_pose ? HL_DYNAMIC_REST_POSE : 0);
+    hl_result r = hl_dynamic_create_from_file(ctx, d->scene, flags, &desc, &dy);
     for (uint32_t m = 0; r == HL_OK && m < d->nmoves; m++) {
         if (hl_dynamic_move(dy, d->move_name[m], d->move[m]) != HL_OK) {
             fprintf(stderr, "haarlight: --move: %s\n", hl_context_last_error(ctx));

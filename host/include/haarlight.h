@@ -689,10 +689,22 @@ typedef struct hl_dynamic_desc {
  * desc may be NULL. */
 HL_API hl_result hl_dynamic_create_from_mesh(hl_context *ctx, const hl_mesh *mesh, int ground,
                                              const hl_dynamic_desc *desc, hl_dynamic **out);
-/* A dynamic scene from a file: without ground, every node of the file
- * that holds triangles is a rigid body, named as in the file, moving by
- * the file's first node animation; with ground, the file is loaded as one
- * mesh (hl_mesh_load) and given a ground, as hl_dynamic_create_from_mesh. */
+/* hl_dynamic_create_from_file's flags (its `ground` argument, where 1,
+ * HL_DYNAMIC_GROUND, asks for a ground, as it always has). */
+#define HL_DYNAMIC_GROUND 1
+#define HL_DYNAMIC_REST_POSE 2 /* the file's animation not followed: its nodes
+                                  as stored, skinned meshes in their bind
+                                  pose, morph targets at their base */
+/* A dynamic scene from a file: every node of the file that holds
+ * triangles is a rigid body, named as in the file, moving by the file's
+ * first node animation (an animation that is not rigid is refused, the
+ * message naming HL_DYNAMIC_REST_POSE); with HL_DYNAMIC_REST_POSE, still,
+ * the nodes as stored. With HL_DYNAMIC_GROUND, body "ground" besides: a
+ * file that has an animation (and no HL_DYNAMIC_REST_POSE) keeps its
+ * bodies and animation, the ground lying under their whole motion
+ * (hl_mesh_add_ground's rule on their bounds over the animation); any
+ * other file is loaded as one mesh (hl_mesh_load) and given a ground, as
+ * hl_dynamic_create_from_mesh, body "object" and "ground". */
 HL_API hl_result hl_dynamic_create_from_file(hl_context *ctx, const char *path, int ground,
                                              const hl_dynamic_desc *desc, hl_dynamic **out);
 HL_API void hl_dynamic_destroy(hl_dynamic *d);

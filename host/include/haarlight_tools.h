@@ -35,6 +35,13 @@ hl_result hl_tools_fail(hl_context *ctx, hl_result code, const char *fmt, ...)
 /* The library's monotonic wall clock, in seconds. */
 double hl_tools_now(void);
 
+/* hl_mesh_load, and what of the file's motion the mesh leaves behind
+ * (it holds the nodes as stored, skinned meshes in their bind pose, morph
+ * targets at their base): motion[0] the file's animations, [1] its
+ * skinned meshes, [2] its meshes with morph targets (zeros on failure). */
+hl_result hl_tools_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
+                             hl_mesh_stats *stats, uint32_t motion[3]);
+
 /* Luminance of linear Rec.709 RGB, in float exactly as the library and
  * its kernels compute it. */
 float hl_tools_luminance(float r, float g, float b);

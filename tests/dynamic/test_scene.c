@@ -15,12 +15,20 @@
  * scene.bad      skin, morph target, no mesh, NaN keys, changing scale,
  *                rotation under an uneven scale, bad times and transforms,
  *                hostile files: each refused with a message naming it.
+ * scene.ground   an animated file with a ground (hl_dynamic_create_from_file,
+ *                HL_DYNAMIC_GROUND) keeps its bodies and animation, the
+ *                ground under the whole motion; a skinned one is refused
+ *                naming --rest-pose and loads with HL_DYNAMIC_REST_POSE; a
+ *                still one is one body "object" and "ground"; `precompute`
+ *                says which pose it baked.
  *
  * Depends on: haarlight_core, scene.h, scene_gen.h, hl_test.h, HL_TMP,
  * HL_REPO_DATA.
  */
 #include <float.h>
 #include <math.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "hl_test.h"
 #include "scene.h"
@@ -531,6 +539,108 @@ static void expect_load(hl_context *ctx, const sg_scene *sc, const char *name, h
     hl_dyn_scene_destroy(s);
 }
 
+/* The lowest y and the x, z extent of the bodies but the last at time t
+ * (world positions from each body's xf). */
+static void moving_bounds(hl_dyn_scene *s, double t, double lo[3], double hi[3])
+{
+    const uint32_t nb = hl_dyn_scene_body_count(s);
+    hl_dyn_object *o = calloc(nb, sizeof *o);
+    if (!o || hl_dyn_scene_at(s, t, o) != HL_OK) { HL_CHECK(0, "scene at %g", t); free(o); return; }
+    for (uint32_t b = 0; b + 1 < nb; b++)
+        for (uint32_t v = 0; v < o[b].nverts; v++)
+            for (int i = 0; i < 3; i++) {
+                const float *x = o[b].xf + 4 * i, *p = o[b].pos + 3 * (size_t)v;
+                double w = (double)x[0] * p[0] + (double)x[1] * p[1] + (double)x[2] * p[2] + x[3];
+                lo[i] = fmin(lo[i], w), hi[i] = fmax(hi[i], w);
+            }
+    free(o);
+}
+
+static void case_ground(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    sg_scene sc;
+    main_scene(&sc);
+    sc.node[0].mesh = SG_NONE; /* no floor of the file's own: the moving Cube and Lid */
+    const char *path = hl_test_tmp_path("scene_ground.gltf");
+    HL_CHECK(sg_write_gltf(path, &sc) == 0, "cannot write %s", path);
+    /* the scene with its ground, as hl_dynamic_create_from_file makes it */
+    hl_dyn_scene *s = NULL;
+    HL_CHECK(hl_dyn_scene_load(ctx, path, &s) == HL_OK && hl_dyn_scene_add_ground(s, NULL) == HL_OK, "%s",
+             hl_context_last_error(ctx));
+    if (s) {
+        const uint32_t nb = hl_dyn_scene_body_count(s);
+        HL_CHECK(nb == 3 && !strcmp(hl_dyn_scene_body_name(s, nb - 1), "ground"), "%u bodies, the last \"%s\"", nb,
+                 hl_dyn_scene_body_name(s, nb - 1));
+        double t0 = 0, t1 = 0;
+        hl_dyn_scene_animation(s, &t0, &t1);
+        /* the ground at the motion's lowest point and around its whole
+           footprint, at the 64 times it was sized at and between them */
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (int k = 0; k < 127; k++) moving_bounds(s, t0 + (t1 - t0) * k / 126.0, lo, hi);
+        hl_dyn_object *o = calloc(nb, sizeof *o);
+        hl_dyn_scene_at(s, t0, o);
+        const hl_dyn_object *g = &o[nb - 1];
+        double glo[3] = {INFINITY, INFINITY, INFINITY}, ghi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (uint32_t v = 0; v < g->nverts; v++)
+            for (int i = 0; i < 3; i++) glo[i] = fmin(glo[i], g->pos[3 * v + i]), ghi[i] = fmax(ghi[i], g->pos[3 * v + i]);
+        printf("motion over %g..%g s: x %.3f..%.3f, y from %.3f, z %.3f..%.3f; ground x %.3f..%.3f, y %.3f, z %.3f..%.3f\n",
+               t0, t1, lo[0], hi[0], lo[1], lo[2], hi[2], glo[0], ghi[0], glo[1], glo[2], ghi[2]);
+        HL_CHECK(t1 > t0, "the animation was kept");
+        hl_check_error("ground height against the motion's lowest point", fabs(glo[1] - lo[1]), 1e-5);
+        HL_CHECK(glo[0] < lo[0] && ghi[0] > hi[0] && glo[2] < lo[2] && ghi[2] > hi[2],
+                 "the ground covers the footprint of the whole motion");
+        HL_CHECK(g->xf[0] == 1.0f && g->xf[5] == 1.0f && g->xf[10] == 1.0f && g->xf[3] == 0.0f && g->xf[7] == 0.0f,
+                 "the ground stays where it was made");
+        free(o);
+        hl_dyn_scene_destroy(s);
+    }
+    /* the public API: the animated file keeps its bodies, a still one is
+       one mesh "object" with its ground */
+    hl_dynamic *d = NULL;
+    HL_CHECK(hl_dynamic_create_from_file(ctx, path, HL_DYNAMIC_GROUND, NULL, &d) == HL_OK, "%s", hl_context_last_error(ctx));
+    double a = 0, b = 0;
+    hl_dynamic_time_range(d, &a, &b);
+    HL_CHECK(d && hl_dynamic_body_count(d) == 3 && b > a, "animated with ground: %u bodies, time %g..%g",
+             hl_dynamic_body_count(d), a, b);
+    hl_dynamic_destroy(d);
+    d = NULL;
+    HL_CHECK(hl_dynamic_create_from_file(ctx, path, HL_DYNAMIC_GROUND | HL_DYNAMIC_REST_POSE, NULL, &d) == HL_OK, "%s",
+             hl_context_last_error(ctx));
+    HL_CHECK(d && hl_dynamic_body_count(d) == 2 && !strcmp(hl_dynamic_body_name(d, 0), "object"),
+             "rest pose with ground: one mesh and its ground");
+    hl_dynamic_destroy(d);
+    d = NULL;
+    /* skinned: refused naming the option, loaded with it */
+    main_scene(&sc);
+    sc.skin = 2;
+    const char *skin = hl_test_tmp_path("scene_ground_skin.gltf");
+    HL_CHECK(sg_write_gltf(skin, &sc) == 0, "cannot write %s", skin);
+    hl_result r = hl_dynamic_create_from_file(ctx, skin, HL_DYNAMIC_GROUND, NULL, &d);
+    printf("skinned, with ground: %s\n", hl_context_last_error(ctx));
+    HL_CHECK(r == HL_ERR_MESH && strstr(hl_context_last_error(ctx), "--rest-pose"), "the refusal names --rest-pose");
+    hl_dynamic_destroy(d);
+    d = NULL;
+    HL_CHECK(hl_dynamic_create_from_file(ctx, skin, HL_DYNAMIC_REST_POSE, NULL, &d) == HL_OK, "%s",
+             hl_context_last_error(ctx));
+    hl_dynamic_destroy(d);
+    /* precompute says which pose it baked */
+    char cmd[4096], out[1024] = "";
+    const char *err = hl_test_tmp_path("scene_ground_precompute.txt");
+    snprintf(cmd, sizeof cmd, "'%s' precompute '%s' -C 8 -N 8 -q -o '%s.hlt' 2>'%s'", hl_test_env("HL_BIN", "haarlight"),
+             path, path, err);
+    HL_CHECK(system(cmd) == 0, "failed: %s", cmd);
+    FILE *f = fopen(err, "r");
+    if (f) {
+        size_t n = fread(out, 1, sizeof out - 1, f);
+        out[n] = 0;
+        fclose(f);
+    }
+    printf("precompute said: %s", out);
+    HL_CHECK(strstr(out, "1 animation") && strstr(out, "rest pose"), "precompute names the pose it baked");
+    hl_context_destroy(ctx);
+}
+
 static void write_raw(const char *path, const void *p, size_t n)
 {
     FILE *f = fopen(path, "wb");
@@ -639,7 +749,7 @@ int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"load", case_load}, {"anim", case_anim}, {"rigid", case_rigid},
-        {"builtin", case_builtin}, {"bad", case_bad}, {NULL, NULL},
+        {"builtin", case_builtin}, {"bad", case_bad}, {"ground", case_ground}, {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);
 }

@@ -86,4 +86,16 @@ hl_result hl_mesh_build_(hl_context *ctx, const char *name, uint32_t vertex_coun
                          uint32_t triangle_count, const uint32_t *indices,
                          const hl_mesh_load_desc *desc, hl_mesh **out, hl_mesh_stats *stats);
 
+/* What of a file's motion a mesh load leaves behind (hl_mesh_load bakes
+ * the nodes as stored, skinned meshes in their bind pose, morph targets
+ * at their base): its animations, and its meshes with bones or morph
+ * targets. */
+typedef struct hl_mesh_motion {
+    uint32_t animations, skinned, morphing;
+} hl_mesh_motion;
+/* mesh_import.c: hl_mesh_load, and the file's motion into *motion (zeros
+ * on failure). */
+hl_result hl_mesh_load_motion_(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
+                               hl_mesh_stats *stats, hl_mesh_motion *motion);
+
 #endif

@@ -134,16 +134,31 @@ hl_result hl_dynamic_create_from_file(hl_context *ctx, const char *path, int gro
 {
     if (!out || !path) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_dynamic_create_from_file: a NULL argument");
     *out = NULL;
-    if (ground) {
+    const int flags = ground, rest = (flags & HL_DYNAMIC_REST_POSE) != 0;
+    if (flags & ~(HL_DYNAMIC_GROUND | HL_DYNAMIC_REST_POSE))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_dynamic_create_from_file: unknown flags 0x%x", (unsigned)flags);
+    hl_result r = HL_OK;
+    if (flags & HL_DYNAMIC_GROUND) {
+        /* a still file: one mesh and its ground, as the transport of the
+           same file has them (a viewer's --hlt pairs the two) */
         hl_mesh *m = NULL;
-        hl_result r = hl_mesh_load(ctx, path, NULL, &m, NULL);
-        if (r == HL_OK) r = hl_dynamic_create_from_mesh(ctx, m, 1, desc, out);
+        hl_mesh_motion mo;
+        r = hl_mesh_load_motion_(ctx, path, NULL, &m, NULL, &mo);
+        if (r == HL_OK && (rest || mo.animations == 0)) r = hl_dynamic_create_from_mesh(ctx, m, 1, desc, out);
         hl_mesh_destroy(m);
+        if (r != HL_OK || *out) return r;
+    }
+    hl_dyn_scene_desc sd = {0};
+    sd.animation = rest ? HL_DYN_NO_ANIMATION : 0;
+    hl_dyn_scene *s = NULL;
+    r = hl_dyn_scene_load_desc(ctx, path, &sd, &s);
+    /* an animated file keeps its bodies and motion over its ground */
+    if (r == HL_OK && (flags & HL_DYNAMIC_GROUND)) r = hl_dyn_scene_add_ground(s, NULL);
+    if (r != HL_OK) {
+        hl_dyn_scene_destroy(s);
         return r;
     }
-    hl_dyn_scene *s = NULL;
-    hl_result r = hl_dyn_scene_load(ctx, path, &s);
-    return r == HL_OK ? dynamic_init(ctx, s, desc, out) : r;
+    return dynamic_init(ctx, s, desc, out);
 }
 
 uint32_t hl_dynamic_body_count(const hl_dynamic *d) { return d ? d->nb : 0; }

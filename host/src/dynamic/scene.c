@@ -297,8 +297,8 @@ static hl_result count_meshes(hl_dyn_scene *s, const struct aiScene *as, const s
         const struct aiMesh *am = as->mMeshes[an->mMeshes[i]];
         if (s->anim_name && am->mNumBones)
             return hl_fail(s->ctx, HL_ERR_MESH,
-                           "%s: node \"%s\": the animation is not rigid: its mesh \"%s\" is skinned (%u bones); "
-                           "without the animation (HL_DYN_NO_ANIMATION) it loads in its bind pose",
+                           "%s: node \"%s\": the animation is not rigid: its mesh \"%s\" is skinned (%u bones), "
+                           "which is not followed" HL_DYN_REST_POSE_HINT,
                            s->name, an->mName.data, am->mName.data, am->mNumBones);
         m->nv += am->mNumVertices;
         for (unsigned f = 0; f < am->mNumFaces; f++) {
@@ -588,6 +588,83 @@ hl_result hl_dyn_scene_from_mesh(hl_context *ctx, const hl_mesh *mesh, const hl_
     }
     *out = s;
     return HL_OK;
+}
+
+/* Times at which a moving scene's bounds are taken for its ground: the
+ * animation's ends and evenly between (a key between two samples moves a
+ * body less than a 63rd of its range). */
+#define HL_DYN_GROUND_SAMPLES 64u
+
+hl_result hl_dyn_scene_add_ground(hl_dyn_scene *s, const hl_ground_desc *desc)
+{
+    if (!s) return HL_ERR_INVALID_ARGUMENT;
+    hl_context *ctx = s->ctx;
+    /* the bodies' world bounds over the whole animation (the program's
+       transforms included), and their mean albedo */
+    double t0 = 0.0, t1 = 0.0;
+    const int moving = hl_dyn_scene_animation(s, &t0, &t1) != NULL && t1 > t0;
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t i = 0; i < (moving ? HL_DYN_GROUND_SAMPLES : 1u); i++) {
+        float l[3], h[3];
+        const double t = moving ? t0 + (t1 - t0) * i / (HL_DYN_GROUND_SAMPLES - 1u) : t0;
+        hl_result rb = hl_dyn_scene_bounds(s, t, l, h);
+        if (rb != HL_OK) return rb;
+        for (int k = 0; k < 3; k++) lo[k] = fminf(lo[k], l[k]), hi[k] = fmaxf(hi[k], h[k]);
+    }
+    double mean[3] = {0, 0, 0};
+    uint64_t nv = 0;
+    for (uint32_t b = 0; b < s->nbodies; b++)
+        for (uint32_t v = 0; v < s->bodies[b].nverts; v++, nv++)
+            for (int k = 0; k < 3; k++) mean[k] += s->bodies[b].albedo ? s->bodies[b].albedo[3 * (size_t)v + k] : HL_DEFAULT_ALBEDO;
+    /* hl_mesh_add_ground on the two corners of those bounds, each with the
+       mean albedo: the ground it would put under the whole motion */
+    float pos[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]}, nrm[6] = {0, 1, 0, 0, 1, 0}, alb[6];
+    for (int k = 0; k < 3; k++) alb[k] = alb[3 + k] = nv ? (float)(mean[k] / (double)nv) : HL_DEFAULT_ALBEDO;
+    hl_mesh tmp = {2, 0, 2, NULL, NULL, NULL, NULL};
+    tmp.positions = hl_malloc(ctx, sizeof pos, "ground work");
+    tmp.normals = hl_malloc(ctx, sizeof nrm, "ground work");
+    tmp.albedo = hl_malloc(ctx, sizeof alb, "ground work");
+    tmp.indices = hl_malloc(ctx, 3 * sizeof(uint32_t), "ground work");
+    hl_result r = tmp.positions && tmp.normals && tmp.albedo && tmp.indices ? HL_OK : HL_ERR_OUT_OF_MEMORY;
+    if (r == HL_OK) {
+        memcpy(tmp.positions, pos, sizeof pos);
+        memcpy(tmp.normals, nrm, sizeof nrm);
+        memcpy(tmp.albedo, alb, sizeof alb);
+        r = hl_mesh_add_ground(ctx, &tmp, desc);
+    }
+    /* a root node of its own whose world transform is the identity: the
+       scene's up turn, applied to every root, undone by its rest */
+    dyn_node *nodes = r == HL_OK ? realloc(s->nodes, ((size_t)s->nnodes + 1) * sizeof *nodes) : NULL;
+    if (nodes) s->nodes = nodes;
+    dyn_body *bodies = nodes ? realloc(s->bodies, ((size_t)s->nbodies + 1) * sizeof *bodies) : NULL;
+    if (bodies) s->bodies = bodies;
+    double *world = bodies ? realloc(s->world, ((size_t)s->nnodes + 1) * 12 * sizeof *world) : NULL;
+    if (world) s->world = world;
+    if (r == HL_OK && !world) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the ground");
+    if (r == HL_OK) {
+        dyn_node *n = &s->nodes[s->nnodes];
+        memset(n, 0, sizeof *n);
+        dyn_body *b = &s->bodies[s->nbodies];
+        memset(b, 0, sizeof *b);
+        n->parent = -1;
+        n->body = (int32_t)s->nbodies;
+        set_identity(n->rest);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) n->rest[4 * i + j] = s->up[3 * j + i]; /* the turn's inverse, its transpose */
+        n->rest_q[0] = 1.0;
+        n->scale[0] = n->scale[1] = n->scale[2] = 1.0;
+        b->node = s->nnodes;
+        set_identity(b->P);
+        for (int i = 0; i < 9; i++) b->kinv[i] = i % 4 == 0 ? 1.0 : 0.0;
+        n->name = dup_str(ctx, "ground");
+        r = n->name ? copy_part(ctx, &tmp, tmp.object_vertex_count, tmp.vertex_count, b) : HL_ERR_OUT_OF_MEMORY;
+        s->nnodes++, s->nbodies++; /* destroyed with the scene either way */
+    }
+    free(tmp.positions);
+    free(tmp.normals);
+    free(tmp.albedo);
+    free(tmp.indices);
+    return r;
 }
 
 hl_result hl_dyn_scene_from_triangles(hl_context *ctx, const char *name, const char *body_name,

@@ -31,7 +31,8 @@
  *   world = P world_anim(t), and the nodes under the body's node move
  *   with it.
  * Refused: bones (skinning) or mesh/morph channels with an animation
- * (a skinned file loads in its bind pose with HL_DYN_NO_ANIMATION),
+ * (a skinned file loads in its bind pose with HL_DYN_NO_ANIMATION; each
+ * refusal says so, HL_DYN_REST_POSE_HINT),
  * scaling keys that change over time, a rotating node under a
  * non-uniformly scaled one (that shears), non-finite keys or node
  * transforms, key times that go backwards, a scene without triangles.
@@ -55,6 +56,12 @@ typedef struct hl_dyn_scene hl_dyn_scene;
 
 /* desc.animation: the rest pose, no animation. */
 #define HL_DYN_NO_ANIMATION (-1)
+/* What every refusal of an animation that cannot be followed ends with:
+ * the option that loads the file without it. */
+#define HL_DYN_REST_POSE_HINT                                                                                          \
+    "; --rest-pose (HL_DYNAMIC_REST_POSE) loads the file without its animation: its nodes as stored, skinned "     \
+    "meshes in their bind pose, morph targets at their base"
+
 
 /* hl_dyn_scene_desc fields and defaults (all zero: the defaults):
  *   mesh            per body, as hl_mesh_load: albedo where the file has
@@ -140,6 +147,11 @@ hl_result hl_dyn_scene_at(hl_dyn_scene *scene, double t, hl_dyn_object *out);
 
 /* The world bounding box of every body's vertices at time t. */
 hl_result hl_dyn_scene_bounds(hl_dyn_scene *scene, double t, float lo[3], float hi[3]);
+/* Appends body "ground" (a root node of its own, still): the plane
+ * hl_mesh_add_ground (desc may be NULL) would put under the bodies' world
+ * bounds over the whole animation (64 times from its start to its end;
+ * once without one), with their mean albedo. */
+hl_result hl_dyn_scene_add_ground(hl_dyn_scene *scene, const hl_ground_desc *desc);
 
 /* The program's transform P of a body (row-major 3x4 like
  * hl_dyn_object.xf): finite and rigid (|R^T R - I| and |det R - 1| within

@@ -503,7 +503,7 @@ static hl_result load_channel(hl_dyn_scene *s, dyn_node *n, const struct aiNodeA
             if (fabs(v[i] - n->scale[i]) > DYN_SCALE_TOL * fabs(n->scale[i]))
                 r = hl_fail(ctx, HL_ERR_MESH,
                             "%s: node \"%s\": the animation is not rigid: its scaling keys change over time "
-                            "((%g, %g, %g) at key 0, (%g, %g, %g) at key %u)",
+                            "((%g, %g, %g) at key 0, (%g, %g, %g) at key %u)" HL_DYN_REST_POSE_HINT,
                             s->name, n->name, n->scale[0], n->scale[1], n->scale[2], v[0], v[1], v[2], k);
     }
     for (uint32_t k = 0; k < ch->npos && r == HL_OK; k++) {
@@ -527,7 +527,7 @@ static hl_result load_animation(hl_dyn_scene *s, const struct aiAnimation *a)
     if (a->mNumMeshChannels || a->mNumMorphMeshChannels)
         return hl_fail(ctx, HL_ERR_MESH,
                        "%s: animation \"%s\" is not rigid: it has %u mesh and %u morph-target channels (only whole "
-                       "nodes may move)", s->name, a->mName.data, a->mNumMeshChannels, a->mNumMorphMeshChannels);
+                       "nodes may move)" HL_DYN_REST_POSE_HINT, s->name, a->mName.data, a->mNumMeshChannels, a->mNumMorphMeshChannels);
     double tps = a->mTicksPerSecond;
     if (tps == 0.0) tps = DYN_DEFAULT_TICKS_PER_SECOND;
     if (!(tps > 0.0) || !isfinite(tps))
@@ -626,7 +626,8 @@ hl_result hl_dyn_check_rigid_(hl_dyn_scene *s)
             while (s->nodes[q].parent >= 0 && uneven[s->nodes[q].parent]) q = s->nodes[q].parent;
             r = hl_fail(s->ctx, HL_ERR_MESH,
                         "%s: node \"%s\": the animation is not rigid: the node rotates under node \"%s\", which "
-                        "scales unevenly, so the geometry below it shears", s->name, n->name, s->nodes[q].name);
+                        "scales unevenly, so the geometry below it shears" HL_DYN_REST_POSE_HINT, s->name, n->name,
+                        s->nodes[q].name);
         }
     }
     free(below);

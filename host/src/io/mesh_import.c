@@ -150,7 +150,7 @@ static void copy_scene(const struct aiScene *s, float *pos, float *nrm, float *c
 }
 
 static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh_load_desc *desc,
-                             hl_mesh **out, hl_mesh_stats *stats)
+                             hl_mesh **out, hl_mesh_stats *stats, hl_mesh_motion *motion)
 {
     const char *path = src->path;
     /* The safe order of calls with assimp 5.2's C API:
@@ -178,6 +178,13 @@ static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh
         return assimp_failure(ctx, path, msg);
     }
     hl_result r = hl_raw_scene_problem_(ctx, path, s);
+    if (r == HL_OK && motion) { /* what the baked pose leaves behind */
+        motion->animations = s->mNumAnimations;
+        for (unsigned m = 0; m < s->mNumMeshes; m++) {
+            motion->skinned += s->mMeshes[m]->mNumBones > 0;
+            motion->morphing += s->mMeshes[m]->mNumAnimMeshes > 0;
+        }
+    }
     aiReleaseImport(s);
     if (r != HL_OK) return r;
     s = import_scene(src, aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_PreTransformVertices);
@@ -241,7 +248,7 @@ done:
  * put through the file guards under the name NAME.EXT (they go by the
  * extension), and imported with EXT as the hint. */
 static hl_result load_gz(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
-                         hl_mesh_stats *stats)
+                         hl_mesh_stats *stats, hl_mesh_motion *motion)
 {
     size_t n = strlen(path) - 3; /* without ".gz" */
     char inner[4096], ext[GZ_MAX_EXT + 2];
@@ -271,7 +278,7 @@ static hl_result load_gz(hl_context *ctx, const char *path, const hl_mesh_load_d
     }
     if (r == HL_OK) {
         mesh_src src = {.path = path, .data = data, .size = size, .hint = ext + 1};
-        r = load_assimp(ctx, &src, desc, out, stats);
+        r = load_assimp(ctx, &src, desc, out, stats, motion);
     }
     free(data);
     return r;
@@ -282,18 +289,32 @@ static hl_result load_gz(hl_context *ctx, const char *path, const hl_mesh_load_d
 hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc,
                        hl_mesh **out, hl_mesh_stats *stats)
 {
+    return hl_mesh_load_motion_(ctx, path, desc, out, stats, NULL);
+}
+
+hl_result hl_mesh_load_motion_(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
+                               hl_mesh_stats *stats, hl_mesh_motion *motion)
+{
     if (out) *out = NULL;
     if (stats) memset(stats, 0, sizeof *stats);
+    if (motion) memset(motion, 0, sizeof *motion);
     if (!path || !out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_mesh_load: path and out are required");
-    if (hl_gz_is_gz_name(path)) return load_gz(ctx, path, desc, out, stats);
+    hl_result r;
+    if (hl_gz_is_gz_name(path)) {
+        r = load_gz(ctx, path, desc, out, stats, motion);
+        if (r != HL_OK && motion) memset(motion, 0, sizeof *motion);
+        return r;
+    }
     FILE *f = NULL;
     size_t size = 0;
-    hl_result r = open_checked(ctx, path, &f, &size);
+    r = open_checked(ctx, path, &f, &size);
     if (r != HL_OK) return r;
     char msg[160];
     int bad = hl_assimp_file_problem_(path, f, size, msg, sizeof msg);
     fclose(f);
     if (bad) return hl_fail(ctx, HL_ERR_FORMAT, "%s: %s", path, msg);
     mesh_src src = {.path = path};
-    return load_assimp(ctx, &src, desc, out, stats);
+    r = load_assimp(ctx, &src, desc, out, stats, motion);
+    if (r != HL_OK && motion) memset(motion, 0, sizeof *motion);
+    return r;
 }
