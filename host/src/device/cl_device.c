@@ -36,14 +36,20 @@ const char *hl_cl_err_name(cl_int e)
  * one, else a CPU device gets the CPU shape and any other the GPU shape.
  * The GPU shape's work-groups: 64 work-items (two warps of 32, one
  * wavefront of 64), or the device's largest group where that is less. */
+static int shape_is_gpu(cl_device_type type, int *forced)
+{
+    const char *v = getenv("HL_DEVICE_SHAPE");
+    *forced = v && (!strcmp(v, "cpu") || !strcmp(v, "gpu"));
+    return *forced ? !strcmp(v, "gpu") : !(type & CL_DEVICE_TYPE_CPU);
+}
+
 static hl_result choose_shape(hl_context *ctx, struct hl_cl *cl, cl_device_type type)
 {
     const char *v = getenv("HL_DEVICE_SHAPE");
     if (v && *v && strcmp(v, "auto") != 0 && strcmp(v, "cpu") != 0 && strcmp(v, "gpu") != 0)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "HL_DEVICE_SHAPE=%s: expected cpu, gpu or auto", v);
-    if (v && !strcmp(v, "cpu")) cl->gpu_shape = 0;
-    else if (v && !strcmp(v, "gpu")) cl->gpu_shape = 1;
-    else cl->gpu_shape = !(type & CL_DEVICE_TYPE_CPU);
+    int forced;
+    cl->gpu_shape = shape_is_gpu(type, &forced);
     cl->wg = cl->gpu_shape ? (cl->max_wg < 64 ? cl->max_wg : 64) : 1;
     return HL_OK;
 }
@@ -228,9 +234,8 @@ hl_result hl_list_devices(void *file, char *err, size_t err_size)
             fprintf(f, "  device %u: %s [%s] %s, %u compute units, %.1f GiB%s   (--device cl:%u:%u)\n", d, dn,
                     type & CL_DEVICE_TYPE_GPU ? "GPU" : type & CL_DEVICE_TYPE_CPU ? "CPU" : "other", dv, cu,
                     (double)mem / (1024.0 * 1024.0 * 1024.0), strstr(ext, "cl_khr_gl_sharing") ? ", GL sharing" : "", p, d);
-            const char *v = getenv("HL_DEVICE_SHAPE");
-            const int forced = v && (!strcmp(v, "cpu") || !strcmp(v, "gpu"));
-            const int gpu = forced ? !strcmp(v, "gpu") : !(type & CL_DEVICE_TYPE_CPU);
+            int forced;
+            const int gpu = shape_is_gpu(type, &forced);
             fprintf(f, "            work-groups up to %zu, %.0f KiB local memory; runs in the %s shape%s\n", wg,
                     (double)lmem / 1024.0, gpu ? "GPU" : "CPU", forced ? " (HL_DEVICE_SHAPE)" : "");
         }

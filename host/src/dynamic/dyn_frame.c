@@ -218,22 +218,27 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->vstart = malloc(nobj * sizeof *st->vstart);
     st->nverts = malloc(nobj * sizeof *st->nverts);
     st->xf = malloc(nobj * 12 * sizeof *st->xf);
-    st->depth = hl_alloc_big(ctx, st->Kb * RR * sizeof(float), "the shadow maps of a batch");
+    /* the maps and E_k on the host only where the host takes the
+       receivers; the device frame keeps them on the device */
+    st->on_device = frame_on_device(ctx);
+    if (!st->on_device) {
+        st->depth = hl_alloc_big(ctx, st->Kb * RR * sizeof(float), "the shadow maps of a batch");
+        st->E = hl_alloc_big(ctx, max_lights * n3 * 4, "the lights' irradiance at the vertices");
+    }
     st->frames = malloc(st->Kb * sizeof *st->frames);
     st->dirs = malloc(st->Kb * sizeof *st->dirs);
     st->wpos = malloc(n3 * 4), st->wnrm = malloc(n3 * 4), st->acc = malloc(n3 * 4);
-    /* E_k on the host, where the receivers are taken there */
-    st->on_device = frame_on_device(ctx);
-    st->E = st->on_device ? NULL : hl_alloc_big(ctx, max_lights * n3 * 4, "the lights' irradiance at the vertices");
     st->group = (uint32_t)(HL_FRAME_GROUP_RECEIVERS / N > 1 ? HL_FRAME_GROUP_RECEIVERS / N : 1);
     if (st->group > st->Kb) st->group = st->Kb;
     /* tests: fewer lights a group, so that a small scene takes several */
     const char *tg = getenv("HL_TEST_FRAME_GROUP");
     if (tg && strtoul(tg, NULL, 10) > 0 && strtoul(tg, NULL, 10) < st->group) st->group = (uint32_t)strtoul(tg, NULL, 10);
-    const size_t gn = (size_t)st->group * N;
-    st->cpos = malloc(3 * gn * 4), st->uvd = malloc(3 * gn * 4), st->V = malloc(gn * 4);
-    st->idx = malloc(gn * 4);
-    st->gstart = malloc(((size_t)st->group + 1) * 4), st->gks = malloc((size_t)st->group * 4);
+    if (!st->on_device) { /* the host's receivers */
+        const size_t gn = (size_t)st->group * N;
+        st->cpos = malloc(3 * gn * 4), st->uvd = malloc(3 * gn * 4), st->V = malloc(gn * 4);
+        st->idx = malloc(gn * 4), st->gstart = malloc(((size_t)st->group + 1) * 4);
+    }
+    st->gks = malloc((size_t)st->group * 4);
     st->gtheta = malloc((size_t)st->group * 4), st->gframe = malloc((size_t)st->group * sizeof *st->gframe);
     st->body = malloc((size_t)N * 4);
     st->lf = malloc((size_t)st->group * HL_DYN_LF * 4), st->fl = malloc((size_t)st->group * HL_DYN_FL * 4);
@@ -241,9 +246,9 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->list = malloc((size_t)max_lights * 4);
     st->shadow_list = malloc(max_lights * sizeof *st->shadow_list);
     st->any = malloc(max_lights ? max_lights : 1);
-    if (!st->vstart || !st->nverts || !st->xf || !st->depth || !st->frames || !st->dirs || !st->wpos || !st->wnrm ||
-        !st->acc || (!st->E && !st->on_device) || !st->cpos || !st->uvd || !st->V || !st->idx || !st->shadow_list || !st->any ||
-        !st->gstart || !st->gks || !st->gtheta || !st->gframe || !st->body || !st->lf || !st->fl || !st->fb ||
+    if (!st->vstart || !st->nverts || !st->xf || !st->frames || !st->dirs || !st->wpos || !st->wnrm || !st->acc ||
+        (!st->on_device && (!st->depth || !st->E || !st->cpos || !st->uvd || !st->V || !st->idx || !st->gstart)) ||
+        !st->shadow_list || !st->any || !st->gks || !st->gtheta || !st->gframe || !st->body || !st->lf || !st->fl || !st->fb ||
         !st->flat_body || !st->list) {
         hl_frame_state_destroy(st);
         return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the dynamic frame (%u vertices, %u lights)",
@@ -408,6 +413,17 @@ static float filter_theta(const hl_light_split *split, uint32_t k)
     return theta > HL_FRAME_MAX_THETA ? HL_FRAME_MAX_THETA : theta;
 }
 
+/* Group entry j is batch map kb of split light k: its filter half-extent,
+ * frame and packs (its blocks only where there are flat bodies). */
+static void pack_entry(hl_frame_state *st, const hl_light_split *split, uint32_t j, uint32_t kb, uint32_t k)
+{
+    st->gks[j] = kb;
+    st->gtheta[j] = filter_theta(split, k);
+    st->gframe[j] = &st->frames[kb];
+    pack_map(st, kb, split->lights[k].dir, st->gtheta[j], st->lf + (size_t)j * HL_DYN_LF);
+    if (st->nflat) pack_flat_light(split, &split->lights[k], st->fl + (size_t)j * HL_DYN_FL);
+}
+
 /* The flat rectangles out of group entry j's map, in body order, on its
  * n receivers from place base (hl_dyn_flat_one). */
 static void flat_occlusion(hl_frame_state *st, uint32_t j, size_t base, uint32_t n)
@@ -442,18 +458,13 @@ static uint32_t prepare_light(hl_frame_state *st, const hl_light_split *split, u
             idx[n++] = v;
         }
     }
-    const float theta = filter_theta(split, k);
-    pack_map(st, kb, split->lights[k].dir, theta, lf);
-    if (st->nflat) pack_flat_light(split, &split->lights[k], st->fl + (size_t)j * HL_DYN_FL);
+    pack_entry(st, split, j, kb, k);
     const float *map = st->depth + (size_t)kb * st->R * st->R;
     float zmin = 1.0f;
     for (size_t i = 0; i < (size_t)st->R * st->R; i++) zmin = fminf(zmin, map[i]);
     for (uint32_t i = 0; i < n; i++)
         hl_dyn_receiver(lf, zmin, cpos + 3 * (size_t)i, st->wnrm + 3 * (size_t)idx[i], st->body[idx[i]],
                         uvd + 3 * (size_t)i);
-    st->gks[j] = kb;
-    st->gtheta[j] = theta;
-    st->gframe[j] = &st->frames[kb];
     return n;
 }
 
@@ -505,14 +516,7 @@ static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *sp
     const cl_uint N = st->N, nflat = st->nflat;
     for (uint32_t i0 = 0; i0 < K; i0 += st->group) {
         const cl_uint nl = K - i0 < st->group ? K - i0 : st->group;
-        for (uint32_t j = 0; j < nl; j++) {
-            const uint32_t kb = i0 + j, k = list[kb];
-            st->gks[j] = kb;
-            st->gtheta[j] = filter_theta(split, k);
-            st->gframe[j] = &st->frames[kb];
-            pack_map(st, kb, split->lights[k].dir, st->gtheta[j], st->lf + (size_t)j * HL_DYN_LF);
-            if (nflat) pack_flat_light(split, &split->lights[k], st->fl + (size_t)j * HL_DYN_FL);
-        }
+        for (uint32_t j = 0; j < nl; j++) pack_entry(st, split, j, i0 + j, list[i0 + j]);
         /* blocking: the next group rewrites these host arrays */
         CL_TRY(ctx, clEnqueueWriteBuffer(q, st->lf_d, CL_TRUE, 0, (size_t)nl * HL_DYN_LF * 4, st->lf, 0, NULL, NULL), "upload");
         if (nflat)

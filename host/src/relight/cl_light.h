@@ -35,7 +35,7 @@ struct hl_cl_light {
     const float *Bmap;                              /* B mapped for reading (NULL: not mapped) */
     cl_mem ord, klist;                              /* vertex at each position; kept slots */
     void *host[4];                                  /* CPU devices: their memory */
-    uint32_t nranges, *range_start;                 /* vertices of each work-item (CPU shape) */
+    uint32_t nranges, *range_start;                 /* each range's first position (a work-item's in the CPU shape) */
     uint32_t range_tiles;                           /* GPU shape: tiles a range (the last may have fewer) */
     uint32_t tstride;                               /* words of 32 tiles in the largest range */
     uint64_t col_entries;                           /* tile entries in all columns */
