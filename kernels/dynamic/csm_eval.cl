@@ -1,5 +1,5 @@
 /* csm_eval.cl - convolution shadow map visibility, one receiver of one
- * light per work-item (Annen et al. 2008): a blocker search over a box of
+ * light per work-item (hl_csm_eval_one; Annen et al. 2008): a blocker search over a box of
  * half-width (d - z_near) tan(theta), the average blocker depth z_avg from
  * the z-weighted planes, a box of half-width (d - z_avg) tan(theta) for
  * the filtered test, then V^p against contact leaks. Boxes read the
@@ -218,22 +218,10 @@ static void hl_csm_eval_one(__global const float *sats, __global const float *me
     o[1] = za;
 }
 
-__kernel void hl_csm_eval(__global const float *sats, __global const float *means, __global const float *zscs,
-                          uint light, uint R, uint M, uint Mb, __constant float *prm, __global const float *uvd, uint n,
-                          __global float *out)
-{
-    size_t r = get_global_id(0);
-    if (r >= n) return;
-    float o[2];
-    hl_csm_eval_one(sats, means, zscs, light, R, M, Mb, prm[0], prm, uvd[3 * r], uvd[3 * r + 1], uvd[3 * r + 2], o);
-    out[2 * r] = o[0];
-    out[2 * r + 1] = o[1];
-}
-
-/* Several lights of the build at once: receiver r belongs to entry
- * which[r] of the batch, light lights[which[r]] with the parameters at
- * prms + which[r] * nprm; the same values as hl_csm_eval light by light,
- * in one launch (csm.c, hl_csm_visibility_batch). */
+/* Lights of the build in one launch (csm.c, hl_csm_visibility_batch,
+ * which a single light's visibility is a batch of one): receiver r
+ * belongs to entry which[r] of the batch, light lights[which[r]] with
+ * the parameters at prms + which[r] * nprm. */
 __kernel void hl_csm_eval_batch(__global const float *sats, __global const float *means, __global const float *zscs,
                                 uint R, uint M, uint Mb, __constant float *prms, uint nprm,
                                 __global const uint *lights, __global const uint *which, __global const float *uvd,

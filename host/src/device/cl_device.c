@@ -83,6 +83,14 @@ static void group_sizes(struct hl_cl *cl)
                        cl->local_mem >= 8192;
 }
 
+hl_result hl_cl_launch(hl_context *ctx, cl_kernel k, size_t n, size_t local, const char *what)
+{
+    if (!local) local = ctx->cl->gpu_shape ? ctx->cl->wg : 64;
+    size_t global = (n + local - 1) / local * local;
+    CL_TRY(ctx, clEnqueueNDRangeKernel(ctx->cl->queue, k, 1, NULL, &global, &local, 0, NULL, NULL), what);
+    return HL_OK;
+}
+
 hl_result hl_cl_create(hl_context *ctx, int platform, int device, const intptr_t *properties,
                        uint64_t device_memory)
 {

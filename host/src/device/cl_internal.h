@@ -71,6 +71,14 @@ struct hl_cl {
     cl_uint units; /* compute units (cores on a CPU device) */
 };
 
+/* Enqueues kernel k over n work-items in groups of local, or (local 0)
+ * of the shape's size, 64 in the CPU shape too: never a size left to the
+ * runtime. Given none, PoCL picks one that divides n and compiles the
+ * kernel anew for each size it has not seen, and n follows the mesh (a new
+ * mesh's first dynamic frame spent 5 to 20 s compiling). n is rounded up
+ * to whole groups: the kernel returns past its count. */
+hl_result hl_cl_launch(hl_context *ctx, cl_kernel k, size_t n, size_t local, const char *what);
+
 /* The name of an OpenCL error code, for messages. */
 const char *hl_cl_err_name(cl_int e);
 

@@ -27,7 +27,7 @@ struct hl_csm {
     /* reference backend */
     float *img, *rowsum, *mean, *zsc;
     /* OpenCL */
-    cl_kernel kb, km, ks, ke;
+    cl_kernel kb, km, ks;
     cl_kernel kbt, krs, kss; /* the GPU shape's basis, row sums and scan (csm_*_items.cl) */
     cl_kernel keb;           /* the evaluation of several lights (hl_csm_eval_batch) */
     cl_kernel keg, kz;       /* the device frame's evaluation, the maps' nearest depths */
@@ -85,7 +85,7 @@ void hl_csm_destroy(hl_csm *c)
         cl_mem *all[] = {&c->depth_d, &c->img_d,   &c->rowsum_d, &c->mean_d,   &c->zsc_d, &c->prm_d,
                          &c->uvd_d,   &c->out_d,   &c->which_d,  &c->lights_d, &c->zmin_d};
         for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(cl, all[i]);
-        cl_kernel ks[] = {c->kb, c->km, c->ks, c->ke, c->kbt, c->krs, c->kss, c->keb, c->keg, c->kz};
+        cl_kernel ks[] = {c->kb, c->km, c->ks, c->kbt, c->krs, c->kss, c->keb, c->keg, c->kz};
         for (size_t i = 0; i < sizeof ks / sizeof ks[0]; i++)
             if (ks[i]) clReleaseKernel(ks[i]);
     }
@@ -105,11 +105,11 @@ static hl_result create_device(hl_csm *c)
     hl_context *ctx = c->ctx;
     struct hl_cl *cl = ctx->cl;
     cl_int e;
-    const char *names[10] = {"hl_csm_basis",        "hl_csm_sat_mean",      "hl_csm_sat_scan",       "hl_csm_eval",
-                             "hl_csm_basis_texels", "hl_csm_basis_rowsums", "hl_csm_sat_scan_items", "hl_csm_eval_batch",
-                             "hl_csm_eval_grid",    "hl_csm_zmin"};
-    cl_kernel *ks[10] = {&c->kb, &c->km, &c->ks, &c->ke, &c->kbt, &c->krs, &c->kss, &c->keb, &c->keg, &c->kz};
-    for (int i = 0; i < 10; i++) {
+    const char *names[9] = {"hl_csm_basis",         "hl_csm_sat_mean",       "hl_csm_sat_scan",
+                            "hl_csm_basis_texels",  "hl_csm_basis_rowsums",  "hl_csm_sat_scan_items",
+                            "hl_csm_eval_batch",    "hl_csm_eval_grid",      "hl_csm_zmin"};
+    cl_kernel *ks[9] = {&c->kb, &c->km, &c->ks, &c->kbt, &c->krs, &c->kss, &c->keb, &c->keg, &c->kz};
+    for (int i = 0; i < 9; i++) {
         *ks[i] = clCreateKernel(cl->program, names[i], &e);
         CL_TRY(ctx, e, names[i]);
     }
@@ -208,19 +208,6 @@ static hl_result stage_depths(hl_csm *c, const float *depth, uint32_t K)
 
 #define SETARG(k, i, v) CL_TRY(ctx, clSetKernelArg(k, i, sizeof(v), &(v)), "clSetKernelArg")
 
-/* Work-items in groups of local, or (local 0) of the shape's size: 64 in
- * the CPU shape too, never left to the runtime. Given no size, PoCL picks
- * one that divides the count, and compiles the kernel anew for each size
- * it has not seen: the receivers' count differs from light to light and
- * mesh to mesh, and a new mesh's first frame spent 5 to 20 s compiling.
- * The kernels return past their count. */
-static hl_result launch(hl_context *ctx, cl_kernel k, size_t global, size_t local, const char *what)
-{
-    if (!local) local = ctx->cl->gpu_shape ? ctx->cl->wg : 64;
-    global = (global + local - 1) / local * local;
-    CL_TRY(ctx, clEnqueueNDRangeKernel(ctx->cl->queue, k, 1, NULL, &global, &local, 0, NULL, NULL), what);
-    return HL_OK;
-}
 
 /* The build on the device from the staged maps (depth NULL: uploaded
  * into depth_d), or from maps already in device memory. */
@@ -241,18 +228,18 @@ static hl_result build_device(hl_csm *c, uint32_t K, int upto, cl_mem depth)
         cl_uint nt = K * R * R, nrs = nrows * c->P, P = c->P;
         SETARG(c->kbt, 0, depth); SETARG(c->kbt, 1, R); SETARG(c->kbt, 2, M); SETARG(c->kbt, 3, Mb);
         SETARG(c->kbt, 4, c1); SETARG(c->kbt, 5, nt); SETARG(c->kbt, 6, c->img_d); SETARG(c->kbt, 7, c->zsc_d);
-        TRY(launch(ctx, c->kbt, nt, 0, "hl_csm_basis_texels"));
+        TRY(hl_cl_launch(ctx, c->kbt, nt, 0, "hl_csm_basis_texels"));
         SETARG(c->krs, 0, c->img_d); SETARG(c->krs, 1, R); SETARG(c->krs, 2, P); SETARG(c->krs, 3, nrs);
         SETARG(c->krs, 4, c->rowsum_d);
-        TRY(launch(ctx, c->krs, nrs, 0, "hl_csm_basis_rowsums"));
+        TRY(hl_cl_launch(ctx, c->krs, nrs, 0, "hl_csm_basis_rowsums"));
     } else {
         SETARG(c->kb, 0, depth); SETARG(c->kb, 1, R); SETARG(c->kb, 2, M); SETARG(c->kb, 3, Mb);
         SETARG(c->kb, 4, c1); SETARG(c->kb, 5, nrows); SETARG(c->kb, 6, c->img_d); SETARG(c->kb, 7, c->rowsum_d);
         SETARG(c->kb, 8, c->zsc_d);
-        TRY(launch(ctx, c->kb, nrows, 0, "hl_csm_basis"));
+        TRY(hl_cl_launch(ctx, c->kb, nrows, 0, "hl_csm_basis"));
     }
     SETARG(c->km, 0, c->rowsum_d); SETARG(c->km, 1, R); SETARG(c->km, 2, np); SETARG(c->km, 3, c->mean_d);
-    TRY(launch(ctx, c->km, np, 0, "hl_csm_sat_mean"));
+    TRY(hl_cl_launch(ctx, c->km, np, 0, "hl_csm_sat_mean"));
     /* rows (minus the mean), then columns; planes interleaved by texel */
     cl_uint P = c->P;
     /* the GPU shape: a group a line and HL_CSM_SAT_CHUNK planes, a
@@ -267,10 +254,10 @@ static hl_result build_device(hl_csm *c, uint32_t K, int upto, cl_mem depth)
             SETARG(k, 7, chunk);
             CL_TRY(ctx, clSetKernelArg(k, 8, 2 * HL_CSM_SCAN_LANES * chunk * sizeof(float), NULL), "clSetKernelArg");
             const size_t group = (size_t)HL_CSM_SCAN_LANES * chunk;
-            TRY(launch(ctx, k, (size_t)K * R * nchunks * group, group, "hl_csm_sat_scan_items"));
+            TRY(hl_cl_launch(ctx, k, (size_t)K * R * nchunks * group, group, "hl_csm_sat_scan_items"));
         } else {
             CL_TRY(ctx, clSetKernelArg(k, 7, 2 * HL_CSM_SCAN_LANES * P * sizeof(float), NULL), "clSetKernelArg");
-            TRY(launch(ctx, k, (size_t)K * R * HL_CSM_SCAN_LANES, HL_CSM_SCAN_LANES, "hl_csm_sat_scan"));
+            TRY(hl_cl_launch(ctx, k, (size_t)K * R * HL_CSM_SCAN_LANES, HL_CSM_SCAN_LANES, "hl_csm_sat_scan"));
         }
     }
     CL_TRY(ctx, clFinish(cl->queue), "shadow-map build");
@@ -447,7 +434,7 @@ static hl_result eval_device(hl_csm *c, uint32_t j0, uint32_t j1, const uint32_t
     SETARG(c->keb, 4, M); SETARG(c->keb, 5, Mb); SETARG(c->keb, 6, c->prm_d); SETARG(c->keb, 7, nprm);
     SETARG(c->keb, 8, c->lights_d); SETARG(c->keb, 9, c->which_d); SETARG(c->keb, 10, c->uvd_d); SETARG(c->keb, 11, nn);
     SETARG(c->keb, 12, c->out_d);
-    TRY(launch(ctx, c->keb, n, 0, "hl_csm_eval_batch"));
+    TRY(hl_cl_launch(ctx, c->keb, n, 0, "hl_csm_eval_batch"));
     CL_TRY(ctx, clEnqueueReadBuffer(cl->queue, c->out_d, CL_TRUE, 0, n * 8, c->out_h, 0, NULL, NULL), "read-back");
     return HL_OK;
 }
@@ -542,7 +529,7 @@ hl_result hl_csm_eval_grid(hl_csm *c, uint32_t nl, const uint32_t *ks, const flo
         SETARG(c->keg, 4, M); SETARG(c->keg, 5, Mb); SETARG(c->keg, 6, c->prm_d); SETARG(c->keg, 7, nprm);
         SETARG(c->keg, 8, c->lights_d); SETARG(c->keg, 9, c->zmin_d); SETARG(c->keg, 10, u); SETARG(c->keg, 11, nn);
         SETARG(c->keg, 12, jj); SETARG(c->keg, 13, cnt); SETARG(c->keg, 14, v);
-        TRY(launch(ctx, c->keg, (size_t)n * N, 0, "hl_csm_eval_grid"));
+        TRY(hl_cl_launch(ctx, c->keg, (size_t)n * N, 0, "hl_csm_eval_grid"));
     }
     return HL_OK;
 }

@@ -215,7 +215,7 @@ float hl_ref_csm_sat_mean(const float *rowsum, uint32_t R);
  * base[i * step], minus `sub` first (0 for the column pass), in
  * HL_CSM_SCAN_LANES runs and a tree over the runs' sums. */
 void hl_ref_csm_sat_scan(float *base, size_t step, uint32_t R, float sub);
-/* hl_csm_eval: one receiver (u, v, d) against one light's tables, means
+/* hl_csm_eval_one (csm_eval.cl): one receiver (u, v, d) against one light's tables, means
  * and texels' (z, sin(c1 z), cos(c1 z), 0) (zsc); out[0] = V, out[1] =
  * z_avg or -1. */
 void hl_ref_csm_eval(const float *sat, const float *mean, const float *zsc, const hl_csm_eval_params *p,

@@ -272,14 +272,6 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
 
 #define FARG(k, i, v) CL_TRY(ctx, clSetKernelArg(k, i, sizeof(v), &(v)), "clSetKernelArg")
 
-/* n work-items of a device-frame kernel, in groups of 64 (the shape's
- * size in the GPU shape), never a size left to the runtime. */
-static hl_result frame_launch(hl_context *ctx, cl_kernel k, size_t n)
-{
-    size_t local = ctx->cl->gpu_shape ? ctx->cl->wg : 64, global = (n + local - 1) / local * local;
-    CL_TRY(ctx, clEnqueueNDRangeKernel(ctx->cl->queue, k, 1, NULL, &global, &local, 0, NULL, NULL), "the dynamic frame");
-    return HL_OK;
-}
 
 /* Stage "irradiance": receivers to world, ambient into acc, each kept
  * light's E_k; lights below every horizon skipped, negligible ones added
@@ -331,7 +323,7 @@ static hl_result irradiance(hl_frame_state *st, const hl_dyn_object *objects, co
         CL_TRY(ctx, clEnqueueWriteBuffer(q, st->list_d, CL_TRUE, 0, (size_t)nneg * 4, st->list, 0, NULL, NULL), "upload");
         FARG(st->kadd, 0, Em); FARG(st->kadd, 1, st->list_d); FARG(st->kadd, 2, n); FARG(st->kadd, 3, nn);
         FARG(st->kadd, 4, am);
-        TRY(frame_launch(ctx, st->kadd, N));
+        TRY(hl_cl_launch(ctx, st->kadd, N, 0, "hl_dyn_add_lights"));
     }
     CL_TRY(ctx, clFinish(q), "the irradiance");
     return HL_OK;
@@ -530,18 +522,18 @@ static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *sp
         FARG(st->kprep, 4, nl); FARG(st->kprep, 5, st->wpos_d); FARG(st->kprep, 6, st->wnrm_d);
         FARG(st->kprep, 7, st->body_d); FARG(st->kprep, 8, st->lf_d); FARG(st->kprep, 9, zmin);
         FARG(st->kprep, 10, st->uvd_d);
-        TRY(frame_launch(ctx, st->kprep, (size_t)nl * N));
+        TRY(hl_cl_launch(ctx, st->kprep, (size_t)nl * N, 0, "hl_dyn_prepare"));
         TRY(hl_csm_eval_grid(st->csm, nl, st->gks, st->gtheta, st->gframe, st->uvd_d, N, st->V_d));
         if (nflat) {
             FARG(st->kflat, 0, st->uvd_d); FARG(st->kflat, 1, N); FARG(st->kflat, 2, nl); FARG(st->kflat, 3, st->lf_d);
             FARG(st->kflat, 4, st->fl_d); FARG(st->kflat, 5, st->fb_d); FARG(st->kflat, 6, st->flatb_d);
             FARG(st->kflat, 7, nflat); FARG(st->kflat, 8, st->wpos_d); FARG(st->kflat, 9, st->wnrm_d);
             FARG(st->kflat, 10, st->V_d);
-            TRY(frame_launch(ctx, st->kflat, (size_t)nl * N));
+            TRY(hl_cl_launch(ctx, st->kflat, (size_t)nl * N, 0, "hl_dyn_flat"));
         }
         FARG(st->kacc, 0, st->uvd_d); FARG(st->kacc, 1, st->V_d); FARG(st->kacc, 2, Em); FARG(st->kacc, 3, st->ks_d);
         FARG(st->kacc, 4, N); FARG(st->kacc, 5, nl); FARG(st->kacc, 6, am);
-        TRY(frame_launch(ctx, st->kacc, N));
+        TRY(hl_cl_launch(ctx, st->kacc, N, 0, "hl_dyn_accumulate"));
     }
     CL_TRY(ctx, clFinish(q), "the shadow maps' evaluation");
     return HL_OK;
