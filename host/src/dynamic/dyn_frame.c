@@ -57,7 +57,7 @@ struct hl_frame_state {
        shadow maps from the rasteriser to the evaluation */
     int on_device;
     cl_kernel kprep, kflat, kacc, kadd;
-    cl_mem wpos_d, wnrm_d, body_d, lf_d, fl_d, fb_d, flatb_d, uvd_d, V_d, ks_d, kbs_d, list_d;
+    cl_mem wpos_d, body_d, lf_d, fl_d, fb_d, flatb_d, uvd_d, V_d, ks_d, kbs_d, list_d;
     uint32_t *list; /* max_lights: the negligible lights, or a group's split lights */
 };
 
@@ -87,7 +87,7 @@ static void release_device(hl_frame_state *st)
 {
     struct hl_cl *cl = st->ctx->cl;
     if (!cl) return;
-    cl_mem *all[] = {&st->wpos_d, &st->wnrm_d, &st->body_d, &st->lf_d, &st->fl_d,   &st->fb_d,
+    cl_mem *all[] = {&st->wpos_d, &st->body_d, &st->lf_d, &st->fl_d,   &st->fb_d,
                      &st->flatb_d, &st->uvd_d, &st->V_d,    &st->ks_d, &st->kbs_d, &st->list_d};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(cl, all[i]);
     cl_kernel ks[] = {st->kprep, st->kflat, st->kacc, st->kadd};
@@ -163,7 +163,6 @@ static hl_result create_device(hl_frame_state *st)
     const size_t N = st->N, g = st->group, n3 = 3 * N * 4;
 #define DB(m, fl, bytes, init, what) TRY(hl_cl_make_buf(ctx, &st->m, fl, bytes, init, what))
     DB(wpos_d, CL_MEM_READ_ONLY, n3, NULL, "the receivers' positions");
-    DB(wnrm_d, CL_MEM_READ_ONLY, n3, NULL, "the receivers' normals");
     DB(body_d, CL_MEM_READ_ONLY, N * 4, st->body, "the receivers' bodies");
     DB(lf_d, CL_MEM_READ_ONLY, g * HL_DYN_LF * 4, NULL, "the lights' maps");
     DB(fl_d, CL_MEM_READ_ONLY, g * HL_DYN_FL * 4, NULL, "the lights' blocks");
@@ -309,15 +308,15 @@ static hl_result irradiance(hl_frame_state *st, const hl_dyn_object *objects, co
     }
     *count = nshadow;
     if (!st->on_device) return HL_OK;
-    /* the receivers for the later stages, and the negligible lights added
+    /* the receivers' positions for the later stages (their normals are
+       the irradiance's), and the negligible lights added
        to the sums (the ambient) as the host adds them */
     hl_context *ctx = st->ctx;
     cl_command_queue q = ctx->cl->queue;
     CL_TRY(ctx, clEnqueueWriteBuffer(q, st->wpos_d, CL_FALSE, 0, (size_t)N * 12, st->wpos, 0, NULL, NULL), "upload");
-    CL_TRY(ctx, clEnqueueWriteBuffer(q, st->wnrm_d, CL_FALSE, 0, (size_t)N * 12, st->wnrm, 0, NULL, NULL), "upload");
     if (nneg) {
         void *E, *acc;
-        hl_dyn_irr_device_bufs(st->irr, &E, &acc);
+        hl_dyn_irr_device_bufs(st->irr, &E, &acc, NULL);
         cl_mem Em = E, am = acc;
         cl_uint n = nneg, nn = N;
         CL_TRY(ctx, clEnqueueWriteBuffer(q, st->list_d, CL_TRUE, 0, (size_t)nneg * 4, st->list, 0, NULL, NULL), "upload");
@@ -502,9 +501,9 @@ static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *sp
 {
     hl_context *ctx = st->ctx;
     cl_command_queue q = ctx->cl->queue;
-    void *E, *acc;
-    hl_dyn_irr_device_bufs(st->irr, &E, &acc);
-    cl_mem Em = E, am = acc;
+    void *E, *acc, *nrm;
+    hl_dyn_irr_device_bufs(st->irr, &E, &acc, &nrm); /* the normals as the irradiance took them */
+    cl_mem Em = E, am = acc, wnrm = nrm;
     const cl_uint N = st->N, nflat = st->nflat;
     for (uint32_t i0 = 0; i0 < K; i0 += st->group) {
         const cl_uint nl = K - i0 < st->group ? K - i0 : st->group;
@@ -519,7 +518,7 @@ static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *sp
         void *zm = hl_csm_zmin_buffer(st->csm);
         cl_mem zmin = zm;
         FARG(st->kprep, 0, Em); FARG(st->kprep, 1, st->ks_d); FARG(st->kprep, 2, st->kbs_d); FARG(st->kprep, 3, N);
-        FARG(st->kprep, 4, nl); FARG(st->kprep, 5, st->wpos_d); FARG(st->kprep, 6, st->wnrm_d);
+        FARG(st->kprep, 4, nl); FARG(st->kprep, 5, st->wpos_d); FARG(st->kprep, 6, wnrm);
         FARG(st->kprep, 7, st->body_d); FARG(st->kprep, 8, st->lf_d); FARG(st->kprep, 9, zmin);
         FARG(st->kprep, 10, st->uvd_d);
         TRY(hl_cl_launch(ctx, st->kprep, (size_t)nl * N, 0, "hl_dyn_prepare"));
@@ -527,7 +526,7 @@ static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *sp
         if (nflat) {
             FARG(st->kflat, 0, st->uvd_d); FARG(st->kflat, 1, N); FARG(st->kflat, 2, nl); FARG(st->kflat, 3, st->lf_d);
             FARG(st->kflat, 4, st->fl_d); FARG(st->kflat, 5, st->fb_d); FARG(st->kflat, 6, st->flatb_d);
-            FARG(st->kflat, 7, nflat); FARG(st->kflat, 8, st->wpos_d); FARG(st->kflat, 9, st->wnrm_d);
+            FARG(st->kflat, 7, nflat); FARG(st->kflat, 8, st->wpos_d); FARG(st->kflat, 9, wnrm);
             FARG(st->kflat, 10, st->V_d);
             TRY(hl_cl_launch(ctx, st->kflat, (size_t)nl * N, 0, "hl_dyn_flat"));
         }
@@ -609,7 +608,7 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
     }
     if (r == HL_OK && st->on_device) { /* the sums, once */
         void *E, *acc;
-        hl_dyn_irr_device_bufs(st->irr, &E, &acc);
+        hl_dyn_irr_device_bufs(st->irr, &E, &acc, NULL);
         r = hl_cl_buffer_read(st->ctx, acc, (size_t)st->N * 12, st->acc);
     }
     if (r != HL_OK) return r;

@@ -444,10 +444,11 @@ hl_result hl_dyn_irr_run_kept(hl_dyn_irr *m, const float *normals, uint32_t N, u
     return run(m, normals, N, NULL, NULL, any, 1);
 }
 
-void hl_dyn_irr_device_bufs(const hl_dyn_irr *m, void **E, void **ambient)
+void hl_dyn_irr_device_bufs(const hl_dyn_irr *m, void **E, void **ambient, void **normals)
 {
     *E = m->E_d;
     *ambient = m->amb_d;
+    if (normals) *normals = m->n_d;
 }
 
 void hl_dyn_irr_times(const hl_dyn_irr *m, double *compute, double *total)

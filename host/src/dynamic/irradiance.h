@@ -87,9 +87,10 @@ hl_result hl_dyn_irr_set_split(hl_dyn_irr *m, const hl_light_split *split);
 hl_result hl_dyn_irr_run(hl_dyn_irr *m, const float *normals, uint32_t N, float *E, float *ambient, uint8_t *any);
 /* On an OpenCL context: hl_dyn_irr_run with E and the ambient both
  * computed and left in device memory (hl_dyn_irr_device_bufs: cl_mems,
- * the layouts above, valid until the next run), any read back. */
+ * the layouts above, valid until the next run; normals: the run's
+ * normals as uploaded, 3 floats each, may be NULL), any read back. */
 hl_result hl_dyn_irr_run_kept(hl_dyn_irr *m, const float *normals, uint32_t N, uint8_t *any);
-void hl_dyn_irr_device_bufs(const hl_dyn_irr *m, void **E, void **ambient);
+void hl_dyn_irr_device_bufs(const hl_dyn_irr *m, void **E, void **ambient, void **normals);
 /* Seconds of the last run (0 for N = 0): the kernels alone (the twins on the
  * reference backend), and all of it with the transfers and checks. */
 void hl_dyn_irr_times(const hl_dyn_irr *m, double *compute, double *total);
