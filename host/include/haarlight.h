@@ -149,7 +149,12 @@ typedef struct hl_mesh {
 } hl_mesh;
 
 /* hl_mesh_load_desc fields and defaults:
- *   albedo        {0,0,0}: 0.8 grey; used when the file has no vertex colours
+ *   albedo        {0,0,0}: 0.8 grey; used where the file gives none: no
+ *                 material base colour or texture, no vertex colours.
+ *                 A file's albedo is its material's base-colour factor
+ *                 times its base-colour texture (averaged around each
+ *                 vertex, in linear light) times its vertex colours
+ *                 (docs/MATERIALS.md)
  *   up_axis       0 or 'y': file is +Y up; 'z': file is +Z up (rotated so
  *                 that +Z becomes +Y)
  *   keep_winding  0: a closed mesh whose winding points inward is flipped;
@@ -169,7 +174,7 @@ typedef struct hl_mesh_stats {
     uint32_t unreferenced_vertices;
     uint32_t degenerate_triangles;/* dropped: repeated index or zero area */
     int had_normals;              /* 1 if the file's normals were used */
-    int had_colors;               /* 1 if albedo came from vertex colours */
+    int had_colors;               /* 1 if vertex colours went into the albedo */
     int flipped;                  /* 1 if the winding was reversed */
 } hl_mesh_stats;
 

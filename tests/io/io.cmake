@@ -34,3 +34,8 @@ hl_test_exe(test_gltf_out ${CMAKE_CURRENT_LIST_DIR}/test_gltf_out.c)
 hl_test_cases(test_gltf_out gltf_out roundtrip bad blender)
 hl_test_exe(test_ply_out ${CMAKE_CURRENT_LIST_DIR}/test_ply_out.c)
 hl_test_cases(test_ply_out ply_out roundtrip atomic)
+# Albedo from a file's materials (host/src/io/material.c): base-colour
+# factors, vertex colours, textures averaged per vertex, the dynamic
+# scenes, and bad textures and factors.
+hl_test_exe(test_material ${CMAKE_CURRENT_LIST_DIR}/test_material.c)
+hl_test_cases(test_material material factor colors texture dynamic bad)

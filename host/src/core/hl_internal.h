@@ -80,10 +80,13 @@ hl_result hl_publish_tmp(hl_context *ctx, const char *tmp, const char *path, hl_
 
 /* mesh.c: validates raw arrays (name appears in errors), welds equal
  * positions, drops degenerate triangles and unreferenced vertices, computes
- * missing normals, orients closed meshes. colors may be NULL. */
+ * missing normals, orients closed meshes. colors may be NULL. corner_tex
+ * (NULL, or 9 floats a triangle: a texture's average around each corner,
+ * io/material.h) multiplies into the colours, averaged over the corners
+ * that meet at each welded vertex, weighted by their triangles' areas. */
 hl_result hl_mesh_build_(hl_context *ctx, const char *name, uint32_t vertex_count,
                          const float *positions, const float *normals, const float *colors,
-                         uint32_t triangle_count, const uint32_t *indices,
+                         const float *corner_tex, uint32_t triangle_count, const uint32_t *indices,
                          const hl_mesh_load_desc *desc, hl_mesh **out, hl_mesh_stats *stats);
 
 /* What of a file's motion a mesh load leaves behind (hl_mesh_load bakes

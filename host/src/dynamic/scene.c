@@ -25,6 +25,7 @@
 #include <assimp/scene.h>
 
 #include "assimp_guard.h"
+#include "material.h"
 #include "mesh_ops.h"
 #include "scene.h"
 
@@ -246,10 +247,12 @@ static uint32_t count_nodes(const struct aiNode *root, hl_context *ctx, int *oom
 /* Node k's meshes merged: positions baked with K (normals with K^-T,
  * winding reversed where K mirrors), then the shared builder. */
 typedef struct merged {
-    float *pos, *nrm, *col;
+    float *pos, *nrm, *col, *tex;
     uint32_t *idx;
     uint64_t nv, nt, skipped;
-    int normals, colors;
+    int normals, colors, textured;
+    const hl_materials *mats; /* the albedo's sources (material.h) */
+    float fallback[3];
 } merged;
 
 static void merge_meshes(const struct aiScene *as, const struct aiNode *an, const double K[9], merged *m)
@@ -270,11 +273,7 @@ static void merge_meshes(const struct aiScene *as, const struct aiNode *an, cons
                 for (int r = 0; r < 3; r++) /* (K^-1)^T n */
                     m->nrm[3 * (base + v) + r] = (float)(kinv[r] * n[0] + kinv[3 + r] * n[1] + kinv[6 + r] * n[2]);
             }
-            if (m->colors) {
-                m->col[3 * (base + v)] = am->mColors[0][v].r;
-                m->col[3 * (base + v) + 1] = am->mColors[0][v].g;
-                m->col[3 * (base + v) + 2] = am->mColors[0][v].b;
-            }
+            if (m->colors) hl_material_vertex_base_(m->mats, am, v, m->fallback, m->col + 3 * (base + v));
         }
         for (unsigned f = 0; f < am->mNumFaces; f++) {
             const struct aiFace *af = &am->mFaces[f];
@@ -284,6 +283,12 @@ static void merge_meshes(const struct aiScene *as, const struct aiNode *an, cons
                 uint64_t ix = af->mIndices[c] < am->mNumVertices ? base + af->mIndices[c] : UINT32_MAX;
                 m->idx[3 * t + (size_t)(mirror && c ? 3 - c : c)] = (uint32_t)(ix > UINT32_MAX ? UINT32_MAX : ix);
             }
+            if (m->textured) {
+                float tx[9];
+                hl_material_face_tex_(m->mats, am, af, tx);
+                for (int c = 0; c < 3; c++) /* the corners as idx has them */
+                    memcpy(m->tex + 9 * t + 3 * (size_t)(mirror && c ? 3 - c : c), tx + 3 * c, 3 * sizeof(float));
+            }
             t++;
         }
         base += am->mNumVertices;
@@ -292,7 +297,8 @@ static void merge_meshes(const struct aiScene *as, const struct aiNode *an, cons
 
 static hl_result count_meshes(hl_dyn_scene *s, const struct aiScene *as, const struct aiNode *an, merged *m)
 {
-    m->normals = m->colors = an->mNumMeshes > 0;
+    m->normals = an->mNumMeshes > 0;
+    m->colors = m->textured = 0;
     for (unsigned i = 0; i < an->mNumMeshes; i++) {
         const struct aiMesh *am = as->mMeshes[an->mMeshes[i]];
         if (s->anim_name && am->mNumBones)
@@ -306,7 +312,9 @@ static hl_result count_meshes(hl_dyn_scene *s, const struct aiScene *as, const s
             else m->skipped++;
         }
         if (!am->mNormals) m->normals = 0;
-        if (!am->mColors[0]) m->colors = 0;
+        const hl_material *h = am->mMaterialIndex < m->mats->count ? &m->mats->mat[am->mMaterialIndex] : NULL;
+        if (am->mColors[0] || (h && h->given)) m->colors = 1;
+        if (h && h->tex >= 0 && am->mTextureCoords[h->uv]) m->textured = 1;
     }
     if (m->nv > UINT32_MAX || m->nt > UINT32_MAX)
         return hl_fail(s->ctx, HL_ERR_MESH, "%s: node \"%s\": %llu vertices and %llu triangles exceed the 2^32 limit",
@@ -351,11 +359,13 @@ static hl_result keep_body(hl_dyn_scene *s, const struct aiScene *as, const stru
 
 /* Node k becomes the next body if its meshes hold triangles. */
 static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const struct aiNode *an, uint32_t k,
-                           const hl_mesh_load_desc *desc, int keep)
+                           const hl_mesh_load_desc *desc, int keep, const hl_materials *mats, const float fallback[3])
 {
     hl_context *ctx = s->ctx;
     merged m;
     memset(&m, 0, sizeof m);
+    m.mats = mats;
+    memcpy(m.fallback, fallback, sizeof m.fallback);
     hl_result r = count_meshes(s, as, an, &m);
     if (r != HL_OK || an->mNumMeshes == 0) return r;
     if (m.nt == 0) {
@@ -374,15 +384,17 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
     if (!hl_dyn_polar_(L, Q, K) || !hl_dyn_inv3_(K, kinv))
         return hl_fail(ctx, HL_ERR_MESH, "%s: node \"%s\": its world transform is singular (a zero scale)", s->name,
                        an->mName.data);
-    if (keep) m.normals = m.colors = 0;
+    if (keep) m.normals = m.colors = m.textured = 0;
     m.pos = hl_malloc(ctx, (size_t)m.nv * 3 * sizeof(float), "vertex positions");
     m.nrm = m.normals ? hl_malloc(ctx, (size_t)m.nv * 3 * sizeof(float), "vertex normals") : NULL;
     m.col = m.colors ? hl_malloc(ctx, (size_t)m.nv * 3 * sizeof(float), "vertex colours") : NULL;
+    m.tex = m.textured ? hl_malloc(ctx, (size_t)m.nt * 9 * sizeof(float), "texture averages") : NULL;
     m.idx = hl_malloc(ctx, (size_t)m.nt * 3 * sizeof(uint32_t), "triangle indices");
     size_t nlen = strlen(s->name) + strlen(an->mName.data) + 16;
     char *name = hl_malloc(ctx, nlen, "a name");
     hl_mesh *mesh = NULL;
-    if (!m.pos || !m.idx || (m.normals && !m.nrm) || (m.colors && !m.col) || !name) r = HL_ERR_OUT_OF_MEMORY;
+    if (!m.pos || !m.idx || (m.normals && !m.nrm) || (m.colors && !m.col) || (m.textured && !m.tex) || !name)
+        r = HL_ERR_OUT_OF_MEMORY;
     if (r == HL_OK) {
         snprintf(name, nlen, "%s (node \"%s\")", s->name, an->mName.data);
         merge_meshes(as, an, K, &m);
@@ -395,7 +407,8 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
             s->nbodies++; /* even on failure, so that destroy frees its arrays */
             if (r == HL_OK) s->nodes[k].body = (int32_t)(s->nbodies - 1);
         } else
-            r = hl_mesh_build_(ctx, name, (uint32_t)m.nv, m.pos, m.nrm, m.col, (uint32_t)m.nt, m.idx, desc, &mesh, NULL);
+            r = hl_mesh_build_(ctx, name, (uint32_t)m.nv, m.pos, m.nrm, m.col, m.tex, (uint32_t)m.nt, m.idx, desc, &mesh,
+                               NULL);
     }
     if (r == HL_OK && !keep) {
         s->nodes[k].body = (int32_t)s->nbodies;
@@ -404,6 +417,7 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
     free(m.pos);
     free(m.nrm);
     free(m.col);
+    free(m.tex);
     free(m.idx);
     free(name);
     return r;
@@ -471,7 +485,15 @@ hl_result hl_dyn_scene_load_desc(hl_context *ctx, const char *path, const hl_dyn
     hl_mesh_load_desc md = d.mesh;
     md.up_axis = 0; /* the turn is the scene's, applied to the root */
     if (r == HL_OK && d.keep_triangles) r = read_emission(s, as);
-    for (uint32_t k = 0; k < nn && r == HL_OK; k++) r = make_body(s, as, src[k], k, &md, d.keep_triangles);
+    hl_materials mats;
+    memset(&mats, 0, sizeof mats);
+    float fallback[3] = {0, 0, 0};
+    if (r == HL_OK && !d.keep_triangles) r = hl_mesh_resolve_albedo_(ctx, path, md.albedo, HL_DEFAULT_ALBEDO, fallback);
+    if (r == HL_OK && !d.keep_triangles) r = hl_materials_read_(ctx, path, as, &mats);
+    if (r == HL_OK) hl_materials_note_(ctx, path, &mats);
+    for (uint32_t k = 0; k < nn && r == HL_OK; k++)
+        r = make_body(s, as, src[k], k, &md, d.keep_triangles, &mats, fallback);
+    hl_materials_free_(&mats);
     if (r == HL_OK && s->nbodies == 0)
         r = hl_fail(ctx, HL_ERR_MESH, "%s: no node of the scene holds a triangle: no geometry to move", path);
     free(src);

@@ -64,8 +64,8 @@ typedef struct hl_dyn_scene hl_dyn_scene;
 
 
 /* hl_dyn_scene_desc fields and defaults (all zero: the defaults):
- *   mesh            per body, as hl_mesh_load: albedo where the file has
- *                   no vertex colours, up axis ('z' turns the whole scene
+ *   mesh            per body, as hl_mesh_load: albedo where the file gives
+ *                   none (io/material.h), up axis ('z' turns the whole scene
  *                   so that +Z becomes +Y), keep_winding
  *   animation       0: the first (the rest pose if the file has none);
  *                   k: the k-th (counting from 0); HL_DYN_NO_ANIMATION

@@ -40,6 +40,7 @@ typedef struct mesh_build {
     /* the caller's arrays (normals and colors may be NULL) */
     uint32_t vertex_count, triangle_count;
     const float *positions, *normals, *colors;
+    const float *corner_tex;        /* 9 floats a triangle, or NULL */
     const uint32_t *indices;
     int up_z, keep_winding;
     float const_albedo[3];
@@ -47,6 +48,7 @@ typedef struct mesh_build {
     float *pos, *nrm;               /* the caller's, in the engine's frame (nrm NULL without normals) */
     uint32_t *remap, *rep;          /* weld: remap[v] = welded id, rep[w] = first vertex of id w */
     uint32_t *tri, *newid;          /* kept triangles (welded ids), compaction of the welded ids */
+    uint32_t *orig;                 /* with corner_tex: each kept triangle's input number */
     uint32_t welded, used;          /* welded ids; those the kept triangles reference */
     size_t kept;                    /* triangles kept */
     double lo[3], hi[3];            /* bounding box of the referenced geometry */
@@ -61,6 +63,7 @@ static void build_free(mesh_build *b)
     free(b->rep);
     free(b->tri);
     free(b->newid);
+    free(b->orig);
 }
 
 /* Options and arrays: everything that can refuse the input before any
@@ -176,6 +179,8 @@ static hl_result build_drop_degenerate(mesh_build *b)
 
     uint32_t *tri = b->tri = hl_malloc(b->ctx, nt * 3 * sizeof(uint32_t), "triangle indices");
     if (!tri) return HL_ERR_OUT_OF_MEMORY;
+    if (b->corner_tex && !(b->orig = hl_malloc(b->ctx, nt * sizeof(uint32_t), "triangle numbers")))
+        return HL_ERR_OUT_OF_MEMORY;
     size_t kept = 0;
     for (size_t t = 0; t < nt; t++) {
         uint32_t a = remap[indices[3 * t]], c1 = remap[indices[3 * t + 1]], c2 = remap[indices[3 * t + 2]];
@@ -186,6 +191,7 @@ static hl_result build_drop_degenerate(mesh_build *b)
         tri[3 * kept] = a;
         tri[3 * kept + 1] = c1;
         tri[3 * kept + 2] = c2;
+        if (b->orig) b->orig[kept] = (uint32_t)t;
         kept++;
     }
     b->kept = kept;
@@ -240,13 +246,33 @@ static hl_mesh *build_mesh(mesh_build *b)
         return NULL;
     }
     memcpy(mesh->indices, b->tri, kept * 3 * sizeof(uint32_t));
-    for (size_t v = 0; v < used; v++) {
+    for (size_t v = 0; v < used; v++)
         memcpy(mesh->positions + 3 * v, b->pos + 3 * (size_t)b->rep[v], 3 * sizeof(float));
+    double *tex = NULL; /* with corner_tex: per vertex, sum of area x texture, then the area */
+    if (b->corner_tex && !(tex = hl_calloc(ctx, used, 4 * sizeof(double), "the texture averages"))) {
+        hl_mesh_destroy(mesh);
+        return NULL;
+    }
+    for (size_t t = 0; tex && t < kept; t++) {
+        const uint32_t *c = b->tri + 3 * t;
+        double n[3];
+        hl_tri_cross(mesh->positions + 3 * (size_t)c[0], mesh->positions + 3 * (size_t)c[1],
+                     mesh->positions + 3 * (size_t)c[2], n);
+        const double area = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        const float *ct = b->corner_tex + 9 * (size_t)b->orig[t];
         for (int k = 0; k < 3; k++) {
-            float a = b->colors ? b->colors[3 * (size_t)b->rep[v] + k] : b->const_albedo[k];
-            mesh->albedo[3 * v + k] = a < 0.0f ? 0.0f : (a > 1.0f ? 1.0f : a);
+            double *a = tex + 4 * (size_t)c[k];
+            for (int q = 0; q < 3; q++) a[q] += area * ct[3 * k + q];
+            a[3] += area;
         }
     }
+    for (size_t v = 0; v < used; v++)
+        for (int k = 0; k < 3; k++) {
+            float a = b->colors ? b->colors[3 * (size_t)b->rep[v] + k] : b->const_albedo[k];
+            if (tex && tex[4 * v + 3] > 0.0) a *= (float)(tex[4 * v + k] / tex[4 * v + 3]);
+            mesh->albedo[3 * v + k] = a < 0.0f ? 0.0f : (a > 1.0f ? 1.0f : a);
+        }
+    free(tex);
     return mesh;
 }
 
@@ -313,7 +339,7 @@ static hl_result build_normals(mesh_build *b, hl_mesh *mesh)
  * arrays. */
 hl_result hl_mesh_build_(hl_context *ctx, const char *name, uint32_t vertex_count,
                          const float *positions, const float *normals, const float *colors,
-                         uint32_t triangle_count, const uint32_t *indices,
+                         const float *corner_tex, uint32_t triangle_count, const uint32_t *indices,
                          const hl_mesh_load_desc *desc, hl_mesh **out, hl_mesh_stats *stats)
 {
     hl_mesh_load_desc d;
@@ -332,6 +358,7 @@ hl_result hl_mesh_build_(hl_context *ctx, const char *name, uint32_t vertex_coun
     b.positions = positions;
     b.normals = normals;
     b.colors = colors;
+    b.corner_tex = corner_tex;
     b.indices = indices;
     hl_result r = build_validate(&b, &d);
     if (r != HL_OK) return r;
@@ -370,7 +397,7 @@ hl_result hl_mesh_create(hl_context *ctx, uint32_t vertex_count, const float *po
     if (out) *out = NULL;
     if ((vertex_count && !positions) || (triangle_count && !indices))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "<memory>: positions or indices are NULL");
-    return hl_mesh_build_(ctx, "<memory>", vertex_count, positions, normals, albedo, triangle_count,
+    return hl_mesh_build_(ctx, "<memory>", vertex_count, positions, normals, albedo, NULL, triangle_count,
                           indices, NULL, out, NULL);
 }
 

@@ -32,6 +32,8 @@
 #include "assimp_guard.h"
 #include "gz_read.h"
 #include "hl_internal.h"
+#include "material.h"
+#include "mesh_ops.h"
 
 /* Where the importer reads from: the file itself, or its bytes in memory
  * (a decompressed .gz) with the format's extension as assimp's hint. path
@@ -107,10 +109,12 @@ static hl_result assimp_failure(hl_context *ctx, const char *path, const char *m
 }
 
 /* Copies the post-processed scene's meshes, one after the other, into
- * pos (and nrm, col where not NULL) and its triangles into idx; other
- * faces (points, lines) are left out. The arrays hold the totals that
- * load_assimp counted. */
-static void copy_scene(const struct aiScene *s, float *pos, float *nrm, float *col, uint32_t *idx)
+ * pos (and nrm, col, tex where not NULL) and its triangles into idx; other
+ * faces (points, lines) are left out. col gets each vertex's albedo base
+ * and tex each triangle's texture averages (material.h). The arrays hold
+ * the totals that load_assimp counted. */
+static void copy_scene(const struct aiScene *s, const hl_materials *mats, const float fallback[3], float *pos,
+                       float *nrm, float *col, float *tex, uint32_t *idx)
 {
     size_t base = 0, t = 0;
     for (unsigned m = 0; m < s->mNumMeshes; m++) {
@@ -126,13 +130,7 @@ static void copy_scene(const struct aiScene *s, float *pos, float *nrm, float *c
                 n[1] = (float)am->mNormals[v].y;
                 n[2] = (float)am->mNormals[v].z;
             }
-            if (col) {
-                /* Colours are taken as linear reflectance and clamped. */
-                float *c = col + 3 * (base + v);
-                const float rgb[3] = {(float)am->mColors[0][v].r, (float)am->mColors[0][v].g,
-                                      (float)am->mColors[0][v].b};
-                for (int k = 0; k < 3; k++) c[k] = rgb[k] < 0.0f ? 0.0f : (rgb[k] > 1.0f ? 1.0f : rgb[k]);
-            }
+            if (col) hl_material_vertex_base_(mats, am, v, fallback, col + 3 * (base + v));
         }
         for (unsigned f = 0; f < am->mNumFaces; f++) {
             const struct aiFace *af = &am->mFaces[f];
@@ -143,6 +141,7 @@ static void copy_scene(const struct aiScene *s, float *pos, float *nrm, float *c
                 uint64_t i = af->mIndices[k] < am->mNumVertices ? base + af->mIndices[k] : UINT32_MAX;
                 idx[3 * t + k] = (uint32_t)(i > UINT32_MAX ? UINT32_MAX : i);
             }
+            if (tex) hl_material_face_tex_(mats, am, af, tex + 9 * t);
             t++;
         }
         base += am->mNumVertices;
@@ -194,7 +193,16 @@ static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh
         return assimp_failure(ctx, path, msg);
     }
     uint64_t nv = 0, nt = 0, skipped = 0;
-    int all_normals = s->mNumMeshes > 0, all_colors = s->mNumMeshes > 0;
+    int all_normals = s->mNumMeshes > 0;
+    hl_materials mats;
+    memset(&mats, 0, sizeof mats);
+    r = hl_materials_read_(ctx, path, s, &mats);
+    if (r != HL_OK) {
+        aiReleaseImport(s);
+        return r;
+    }
+    const int colors = hl_materials_any_given_(&mats, s), textured = hl_materials_textured_(&mats, s);
+    const int any_colors = hl_materials_any_colors_(s);
     for (unsigned m = 0; m < s->mNumMeshes; m++) {
         const struct aiMesh *am = s->mMeshes[m];
         nv += am->mNumVertices;
@@ -203,9 +211,8 @@ static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh
             else skipped++;
         }
         if (!am->mNormals) all_normals = 0;
-        if (!am->mColors[0]) all_colors = 0;
     }
-    float *pos = NULL, *nrm = NULL, *col = NULL;
+    float *pos = NULL, *nrm = NULL, *col = NULL, *tex = NULL;
     uint32_t *idx = NULL;
     if (s->mNumMeshes == 0) {
         r = hl_fail(ctx, HL_ERR_FORMAT, "%s: the file holds no mesh", path);
@@ -219,21 +226,30 @@ static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh
     skipped_note(ctx, path, skipped);
     pos = hl_malloc(ctx, (size_t)nv * 3 * sizeof(float), "vertex positions");
     nrm = all_normals ? hl_malloc(ctx, (size_t)nv * 3 * sizeof(float), "vertex normals") : NULL;
-    col = all_colors ? hl_malloc(ctx, (size_t)nv * 3 * sizeof(float), "vertex colours") : NULL;
+    col = colors ? hl_malloc(ctx, (size_t)nv * 3 * sizeof(float), "vertex albedo") : NULL;
+    tex = textured ? hl_malloc(ctx, (size_t)nt * 9 * sizeof(float), "texture averages") : NULL;
     idx = hl_malloc(ctx, (size_t)nt * 3 * sizeof(uint32_t), "triangle indices");
-    if (!pos || !idx || (all_normals && !nrm) || (all_colors && !col)) {
+    float fallback[3];
+    r = hl_mesh_resolve_albedo_(ctx, path, desc ? desc->albedo : (const float[3]){0, 0, 0}, HL_DEFAULT_ALBEDO,
+                                fallback);
+    if (r != HL_OK) goto done;
+    if (!pos || !idx || (all_normals && !nrm) || (colors && !col) || (textured && !tex)) {
         r = HL_ERR_OUT_OF_MEMORY;
         goto done;
     }
-    copy_scene(s, pos, nrm, col, idx);
+    copy_scene(s, &mats, fallback, pos, nrm, col, tex, idx);
     aiReleaseImport(s);
     s = NULL;
-    r = hl_mesh_build_(ctx, path, (uint32_t)nv, pos, nrm, col, (uint32_t)nt, idx, desc, out, stats);
+    hl_materials_note_(ctx, path, &mats);
+    r = hl_mesh_build_(ctx, path, (uint32_t)nv, pos, nrm, col, tex, (uint32_t)nt, idx, desc, out, stats);
+    if (r == HL_OK && stats) stats->had_colors = any_colors;
 done:
     if (s) aiReleaseImport(s);
+    hl_materials_free_(&mats);
     free(pos);
     free(nrm);
     free(col);
+    free(tex);
     free(idx);
     return r;
 }
