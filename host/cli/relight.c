@@ -38,13 +38,20 @@ static const char *const usage_relight =
     "  --ply8               PLY with tone-mapped 8-bit colours instead of linear floats\n"
     CLI_USAGE_CAMERA
     "  --no-background      black instead of the environment behind the object\n"
+    "  --textures MODEL     images keep MODEL's base-colour textures sharp: each pixel is\n"
+    "                       the texture's albedo there times the irradiance interpolated\n"
+    "                       from the vertices. MODEL is the file SCENE.hlt was precomputed\n"
+    "                       from (checked triangle for triangle)\n"
+    "  --keep-winding       as given to precompute, for reading MODEL\n"
     "running:\n"
     CLI_USAGE_RUNNING;
 
 int cmd_relight(int argc, char **argv)
 {
     const char *usage = usage_relight;
-    const char *scene = NULL, *env_path = NULL, *out = NULL;
+    const char *scene = NULL, *env_path = NULL, *out = NULL, *textures = NULL;
+    hl_mesh_load_desc md;
+    memset(&md, 0, sizeof md);
     cli_scene_opts o;
     cli_scene_opts_init(&o);
     o.accept_surroundings = 1;
@@ -55,11 +62,12 @@ int cmd_relight(int argc, char **argv)
         if (k < 0) return -k;
         if (k) continue;
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { fputs(usage, stdout); return 0; }
-        else if (!strcmp(a, "-o") || !strcmp(a, "--output") || !strcmp(a, "--env")) {
+        else if (!strcmp(a, "-o") || !strcmp(a, "--output") || !strcmp(a, "--env") || !strcmp(a, "--textures")) {
             if (i + 1 >= argc) return usage_error(usage, "option %s needs a value", a);
             if (!strcmp(a, "--env")) env_path = argv[++i];
+            else if (!strcmp(a, "--textures")) textures = argv[++i];
             else out = argv[++i];
-        } else if (!strcmp(a, "--sky")) want_sky = 1;
+        } else if (!strcmp(a, "--keep-winding")) md.keep_winding = 1; else if (!strcmp(a, "--sky")) want_sky = 1;
         else if (!strcmp(a, "--ply8")) ply8 = 1;
         else if (!strcmp(a, "--no-background")) no_bg = 1;
         else if (a[0] == '-' && a[1]) return usage_error(usage, "unknown option %s", a);
@@ -80,6 +88,8 @@ int cmd_relight(int argc, char **argv)
     int is_ply = !strcasecmp(ext, ".ply"), is_glb = !strcasecmp(ext, ".glb"),
         is_img = !strcasecmp(ext, ".exr") || !strcasecmp(ext, ".png");
     if (!is_ply && !is_glb && !is_img) return usage_error(usage, "output %s: expected a .ply, .glb, .exr or .png name", out);
+    if (textures && !is_img) return usage_error(usage, "--textures: for images (.png, .exr) only, not %s", out);
+    if (md.keep_winding && !textures) return usage_error(usage, "%s", "--keep-winding goes with --textures");
 
     hl_context *ctx = cli_context(&cd);
     if (!ctx) return 1;
@@ -88,6 +98,7 @@ int cmd_relight(int argc, char **argv)
     hl_relighter *rl = NULL;
     hl_image *img = NULL;
     hl_surroundings *surr = NULL;
+    hl_surface *surface = NULL;
     float *rgb = NULL;
     hl_relight_stats st;
     const double t_load = hl_tools_now();
@@ -98,6 +109,10 @@ int cmd_relight(int argc, char **argv)
     if (r == HL_OK && use_env)
         r = env_path ? cli_env_load(ctx, env_path, o.layout, &env, cd.quiet) : hl_env_create_sky(ctx, &o.sky, &env);
     if (r == HL_OK) r = cli_surroundings_load(ctx, &o, &surr, cd.quiet);
+    if (r == HL_OK && textures) r = hl_surface_load(ctx, textures, &md, t->mesh, &surface);
+    if (r == HL_OK && textures && !cd.quiet)
+        fprintf(stderr, "textures: %u from %s%s\n", hl_surface_texture_count(surface), textures,
+                hl_surface_texture_count(surface) ? "" : " (it has none: the picture shows the vertex colours)");
     const double t_rl = hl_tools_now();
     /* one lighting change: the rows as loaded, no column layout (or, for
        a transport too big for one device buffer, the columns built from
@@ -140,7 +155,8 @@ int cmd_relight(int argc, char **argv)
     if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, t->mesh, rgb, out, ply8, exposure);
     if (r == HL_OK && is_glb) r = hl_mesh_save_glb(ctx, t->mesh, rgb, out, exposure);
     if (r == HL_OK && is_img) r = cli_camera_complete(ctx, t->mesh, &o);
-    if (r == HL_OK && is_img) r = hl_render(ctx, t->mesh, rgb, no_bg ? NULL : env, rd.rotate_deg, &o.cam, &img);
+    if (r == HL_OK && is_img)
+        r = hl_render_surface(ctx, t->mesh, rgb, surface, no_bg ? NULL : env, rd.rotate_deg, &o.cam, &img);
     if (r == HL_OK && is_img) r = hl_image_save(ctx, img, out, exposure);
     if (r == HL_OK && !cd.quiet) fprintf(stderr, "wrote %s\n", out);
     int rc = r == HL_OK ? 0 : cli_fail(ctx, r);
@@ -148,6 +164,7 @@ int cmd_relight(int argc, char **argv)
     hl_image_destroy(img);
     hl_relighter_destroy(rl);
     hl_surroundings_destroy(surr);
+    hl_surface_destroy(surface);
     hl_env_destroy(env);
     hl_transport_destroy(t);
     cli_unwatch();

@@ -260,7 +260,21 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
         if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, mesh, rgb, d->out, d->ply8, exposure);
         if (r == HL_OK && is_glb) r = hl_mesh_save_glb(ctx, mesh, rgb, d->out, exposure);
         if (r == HL_OK && is_img) r = cli_camera_complete(ctx, mesh, o);
-        if (r == HL_OK && is_img) r = hl_render(ctx, mesh, rgb, d->no_bg ? NULL : env, o->rd.rotate_deg, &o->cam, &img);
+        /* a file loaded as one mesh keeps its textures sharp in pictures;
+           one moved body by body (an animation) shows per-vertex albedo */
+        hl_surface *surface = NULL;
+        if (r == HL_OK && is_img) {
+            int quiet = o->cd.quiet;
+            hl_context_set_quiet(ctx, 1);
+            if (hl_surface_load(ctx, d->scene, NULL, mesh, &surface) != HL_OK && !quiet)
+                fprintf(stderr, "textures: none in the picture (%s)\n", hl_context_last_error(ctx));
+            else if (!quiet && hl_surface_texture_count(surface))
+                fprintf(stderr, "textures: %u, per pixel\n", hl_surface_texture_count(surface));
+            hl_context_set_quiet(ctx, quiet);
+        }
+        if (r == HL_OK && is_img)
+            r = hl_render_surface(ctx, mesh, rgb, surface, d->no_bg ? NULL : env, o->rd.rotate_deg, &o->cam, &img);
+        hl_surface_destroy(surface);
         if (r == HL_OK && is_img) r = hl_image_save(ctx, img, d->out, exposure);
         if (r == HL_OK && !o->cd.quiet) fprintf(stderr, "wrote %s\n", d->out);
         rc = r == HL_OK ? 0 : cli_fail(ctx, r);

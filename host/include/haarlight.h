@@ -128,6 +128,9 @@ HL_API hl_backend hl_context_backend(const hl_context *ctx);
  * "cl_khr_gl_sharing"); 0 otherwise and on the reference backend. */
 HL_API int hl_context_device_has_extension(const hl_context *ctx, const char *name);
 HL_API int hl_context_threads(const hl_context *ctx);
+/* Turns the context's notes and progress on stderr off (1) or on (0). */
+HL_API void hl_context_set_quiet(hl_context *ctx, int quiet);
+HL_API int hl_context_quiet(const hl_context *ctx);
 
 /* Prints the OpenCL platforms and devices to the given FILE* (void* to keep
  * stdio out of this header). Works without a context. */
@@ -195,7 +198,8 @@ HL_API hl_result hl_mesh_create(hl_context *ctx, uint32_t vertex_count,
  *   resolution    0: 96 quads along the longer side
  *   margin        0: the plane extends 0.75 x the footprint's larger
  *                 extent beyond the footprint on every side
- *   albedo        {0,0,0}: same as the object's mean albedo
+ *   albedo        {0,0,0}: grey, the object's mean albedo (over its
+ *                 vertices and the three channels)
  */
 typedef struct hl_ground_desc {
     uint32_t resolution;
@@ -614,6 +618,33 @@ typedef struct hl_camera_desc {
 HL_API hl_result hl_render(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
                     const hl_env *background, float rotate_deg, const hl_camera_desc *camera,
                     hl_image **out);
+
+/* A mesh's textured surface: the base-colour textures of the file the
+ * mesh was loaded from, and each triangle's texture coordinates, so that
+ * pictures shade each pixel with the texture's albedo there
+ * (docs/MATERIALS.md). */
+typedef struct hl_surface hl_surface;
+
+/* Loads path again with desc (as the mesh was loaded or precomputed: the
+ * same keep_winding) and keeps its textured surface. mesh's object (its
+ * vertices and triangles before any ground) must have the file's mesh's
+ * triangles, corner for corner, wherever they lie: otherwise
+ * HL_ERR_INVALID_ARGUMENT naming path. A
+ * file without textures gives a surface without any
+ * (hl_surface_texture_count 0), which pictures the vertex colours. */
+HL_API hl_result hl_surface_load(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc,
+                                 const hl_mesh *mesh, hl_surface **out);
+HL_API uint32_t hl_surface_texture_count(const hl_surface *surface);
+HL_API void hl_surface_destroy(hl_surface *surface);
+
+/* hl_render with a textured surface (NULL: exactly hl_render): a pixel
+ * of a textured triangle shows the albedo there (the base colour times
+ * the texture at the pixel's texture coordinates) times the irradiance
+ * interpolated from the vertices (vertex_rgb over the vertex's albedo).
+ * Other triangles, and the ground, show the interpolated colours. */
+HL_API hl_result hl_render_surface(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
+                                   const hl_surface *surface, const hl_env *background, float rotate_deg,
+                                   const hl_camera_desc *camera, hl_image **out);
 
 /* Writes the mesh as binary PLY with per-vertex colours: float red, green,
  * blue (linear radiance) by default, or 8-bit tone-mapped uchar colours

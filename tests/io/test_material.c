@@ -13,6 +13,9 @@
  *             over its neighbourhood, against this file's own fine
  *             integration of the texture (bilinear, repeating, sRGB
  *             decoded); the quadrants land where the UVs put them.
+ *   render    a picture with the textured surface shows the factor times
+ *             the texture at each pixel's UV; a surface for another mesh
+ *             is refused.
  *   dynamic   the dynamic method's scene from the same file holds the same
  *             albedo at the same positions.
  *   bad       a missing texture, a corrupt one, one of absurd size, and a
@@ -333,6 +336,79 @@ static void case_texture(void)
     hl_context_destroy(ctx);
 }
 
+/* ---------------------------------------------------------------- render */
+
+/* A textured quad seen from above: each pixel that hits it shows the
+ * factor times the texture at the hit's UV (the colours given are the
+ * albedo itself: irradiance 1), from the test's own ray-plane
+ * intersection and lookup; another mesh is refused by hl_surface_load. */
+static void case_render(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    hl_image *img = NULL;
+    hl_image_create(ctx, TEX, TEX, &img);
+    for (int y = 0; y < TEX; y++)
+        for (int x = 0; x < TEX; x++)
+            for (int k = 0; k < 3; k++)
+                img->rgb[3 * ((size_t)y * TEX + x) + k] = (float)srgb_decode(0.1 + 0.8 * ((x * 7 + y * 3 + k * 5) % 11) / 10.0);
+    HL_CHECK(hl_image_save(ctx, img, hl_test_tmp_path("material_render.png"), 0.0f) == HL_OK, "png");
+    float pos[12];
+    quad_at(0, 0, pos);
+    prim pr = {4, 2, pos, quad_uv, NULL, quad_idx, 0};
+    const char *path = hl_test_tmp_path("material_render.gltf");
+    write_gltf(path, &pr, 1,
+               "{\"name\":\"r\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,1,0.75,1],"
+               "\"baseColorTexture\":{\"index\":0}}}",
+               "{\"uri\":\"material_render.png\"}", 1);
+    hl_mesh *m = load(ctx, path, 0.0f);
+    hl_surface *su = NULL;
+    hl_result r = m ? hl_surface_load(ctx, path, NULL, m, &su) : HL_ERR_MESH;
+    HL_CHECK(r == HL_OK && hl_surface_texture_count(su) == 1, "surface: %s", hl_context_last_error(ctx));
+    if (su) {
+        hl_camera_desc cd = {.width = 64, .height = 64, .fov_deg = 30, .eye = {0.5f, 3, -0.5f},
+                             .target = {0.5f, 0, -0.5f}, .up = {0, 0, -1}};
+        hl_image *pic = NULL;
+        r = hl_render_surface(ctx, m, m->albedo, su, NULL, 0.0f, &cd, &pic);
+        HL_CHECK(r == HL_OK, "render: %s", hl_context_last_error(ctx));
+        hl_camera_view cv;
+        hl_camera_query_view(ctx, m, &cd, &cv);
+        double worst = 0.0;
+        int inside = 0;
+        for (uint32_t y = 0; pic && y < cv.height; y++)
+            for (uint32_t x = 0; x < cv.width; x++) {
+                double sx = 2.0 * (x + 0.5) / cv.width - 1.0, sy = 1.0 - 2.0 * (y + 0.5) / cv.height, d[3];
+                for (int k = 0; k < 3; k++) d[k] = cv.forward[k] + sx * cv.tan_half_x * cv.right[k] + sy * cv.tan_half_y * cv.up[k];
+                double t = -cv.eye[1] / d[1], hx = cv.eye[0] + t * d[0], hz = cv.eye[2] + t * d[2];
+                double u = hx, v = -hz; /* quad_at's corners (x, -z) carry UVs (x, -z) */
+                if (u < 0.01 || u > 0.99 || v < 0.01 || v > 0.99) continue;
+                double want[3];
+                lookup(img, u, v, want);
+                const double factor[3] = {0.5, 1.0, 0.75};
+                for (int k = 0; k < 3; k++)
+                    worst = fmax(worst, fabs(pic->rgb[3 * ((size_t)y * cv.width + x) + k] - factor[k] * want[k]));
+                inside++;
+            }
+        HL_CHECK(inside > 1000, "only %d pixels on the quad", inside);
+        hl_check_error("textured pixels against the factor x the texture at their UV", worst, 1e-5);
+        hl_image_destroy(pic);
+        /* another mesh */
+        float other[12];
+        quad_at(0, 0.25f, other);
+        hl_mesh *o = NULL;
+        hl_mesh_create(ctx, 4, other, NULL, NULL, 2, quad_idx, &o);
+        hl_surface *bad = NULL;
+        r = hl_surface_load(ctx, path, NULL, o, &bad);
+        HL_CHECK(r == HL_ERR_INVALID_ARGUMENT && !bad && strstr(hl_context_last_error(ctx), path),
+                 "a surface for another mesh: %d %s", (int)r, hl_context_last_error(ctx));
+        printf("refused as expected: %s\n", hl_context_last_error(ctx));
+        hl_mesh_destroy(o);
+    }
+    hl_surface_destroy(su);
+    hl_mesh_destroy(m);
+    hl_image_destroy(img);
+    hl_context_destroy(ctx);
+}
+
 /* ---------------------------------------------------------------- dynamic */
 
 static void case_dynamic(void)
@@ -467,6 +543,7 @@ static void case_bad(void)
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {{"factor", case_factor},   {"colors", case_colors}, {"texture", case_texture},
-                                         {"dynamic", case_dynamic}, {"bad", case_bad},       {NULL, NULL}};
+                                         {"dynamic", case_dynamic}, {"bad", case_bad},       {"render", case_render},
+                                         {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

@@ -164,4 +164,14 @@ int hl_parse_bytes(const char *s, uint64_t *out)
 const char *hl_context_last_error(const hl_context *ctx) { return ctx ? ctx->err : ""; }
 const char *hl_context_device_name(const hl_context *ctx) { return ctx ? ctx->device_name : ""; }
 hl_backend hl_context_backend(const hl_context *ctx) { return ctx ? ctx->backend : HL_BACKEND_DEFAULT; }
+void hl_context_set_quiet(hl_context *ctx, int quiet)
+{
+    if (ctx) ctx->quiet = quiet != 0;
+}
+
+int hl_context_quiet(const hl_context *ctx)
+{
+    return ctx ? ctx->quiet : 1;
+}
+
 int hl_context_threads(const hl_context *ctx) { return ctx ? ctx->threads : 1; }

@@ -78,15 +78,25 @@ int hl_sync_fd(int fd);
  * failure, which names path. */
 hl_result hl_publish_tmp(hl_context *ctx, const char *tmp, const char *path, hl_result r);
 
+/* What hl_mesh_build_ may take and give besides the arrays:
+ *   corner_tex  NULL, or 9 floats a triangle: a texture's average around
+ *               each corner (io/material.h), multiplied into the colours
+ *               after averaging over the corners that meet at each welded
+ *               vertex, weighted by their triangles' areas;
+ *   tri_origin  NULL, or room for triangle_count numbers: triangle t of
+ *               the mesh (before any flip of the winding, which swaps
+ *               corners 1 and 2) was input triangle tri_origin[t]. */
+typedef struct hl_mesh_extra {
+    const float *corner_tex;
+    uint32_t *tri_origin;
+} hl_mesh_extra;
+
 /* mesh.c: validates raw arrays (name appears in errors), welds equal
  * positions, drops degenerate triangles and unreferenced vertices, computes
- * missing normals, orients closed meshes. colors may be NULL. corner_tex
- * (NULL, or 9 floats a triangle: a texture's average around each corner,
- * io/material.h) multiplies into the colours, averaged over the corners
- * that meet at each welded vertex, weighted by their triangles' areas. */
+ * missing normals, orients closed meshes. colors and extra may be NULL. */
 hl_result hl_mesh_build_(hl_context *ctx, const char *name, uint32_t vertex_count,
                          const float *positions, const float *normals, const float *colors,
-                         const float *corner_tex, uint32_t triangle_count, const uint32_t *indices,
+                         const hl_mesh_extra *extra, uint32_t triangle_count, const uint32_t *indices,
                          const hl_mesh_load_desc *desc, hl_mesh **out, hl_mesh_stats *stats);
 
 /* What of a file's motion a mesh load leaves behind (hl_mesh_load bakes
@@ -100,5 +110,8 @@ typedef struct hl_mesh_motion {
  * on failure). */
 hl_result hl_mesh_load_motion_(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
                                hl_mesh_stats *stats, hl_mesh_motion *motion);
+/* The same, and with surf the mesh's textured surface (io/material.h). */
+hl_result hl_mesh_load_surface_(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
+                                hl_mesh_stats *stats, hl_mesh_motion *motion, hl_surface **surf);
 
 #endif

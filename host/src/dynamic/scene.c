@@ -407,7 +407,7 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
             s->nbodies++; /* even on failure, so that destroy frees its arrays */
             if (r == HL_OK) s->nodes[k].body = (int32_t)(s->nbodies - 1);
         } else
-            r = hl_mesh_build_(ctx, name, (uint32_t)m.nv, m.pos, m.nrm, m.col, m.tex, (uint32_t)m.nt, m.idx, desc, &mesh,
+            r = hl_mesh_build_(ctx, name, (uint32_t)m.nv, m.pos, m.nrm, m.col, &(hl_mesh_extra){m.tex, NULL}, (uint32_t)m.nt, m.idx, desc, &mesh,
                                NULL);
     }
     if (r == HL_OK && !keep) {

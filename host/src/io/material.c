@@ -221,6 +221,11 @@ static void warn_unused(hl_context *ctx, const char *path, const struct aiScene 
                         const char *mat_name)
 {
     if (ctx && ctx->quiet) return;
+    /* one file often serves several kinds (roughness and metalness):
+       each missing file is named once */
+    enum { SEEN = 16 };
+    struct aiString seen[SEEN];
+    int nseen = 0;
     for (int type = aiTextureType_NONE + 1; type <= AI_TEXTURE_TYPE_MAX; type++) {
         if (type == aiTextureType_DIFFUSE || type == aiTextureType_BASE_COLOR) continue;
         unsigned n = aiGetMaterialTextureCount(mat, (enum aiTextureType)type);
@@ -232,6 +237,10 @@ static void warn_unused(hl_context *ctx, const char *path, const struct aiScene 
             char file[4096];
             if (embedded(s, p.data) || p.data[0] == '*') continue;
             if (texture_path(path, p.data, file, sizeof file) && access(file, R_OK) == 0) continue;
+            int dup = 0;
+            for (int i = 0; i < nseen && !dup; i++) dup = strcmp(seen[i].data, p.data) == 0;
+            if (dup) continue;
+            if (nseen < SEEN) seen[nseen++] = p;
             fprintf(stderr,
                     "haarlight: %s: material \"%s\": warning: %s texture \"%s\" not found; the engine does not use "
                     "it\n",

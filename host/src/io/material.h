@@ -58,6 +58,19 @@ typedef struct hl_materials {
     uint32_t uv_missing; /* textured meshes without the texture's UVs (warned) */
 } hl_materials;
 
+/* A mesh's textured surface, for pictures that keep the texture sharp
+ * (haarlight.h, hl_surface_load): per triangle of the mesh's object, in
+ * the mesh's order and winding, the texture's UVs at its corners, its
+ * texture (-1: none) and its base (factor x vertex colour) at each
+ * corner. Owns the materials and their textures. */
+struct hl_surface {
+    uint32_t triangle_count;
+    float *uv;   /* 6 a triangle */
+    int32_t *tex;
+    float *base; /* 9 a triangle */
+    hl_materials mats;
+};
+
 /* Reads the materials the scene's meshes use and decodes their base-colour
  * textures (external files relative to path's folder, or embedded).
  * Errors name path, the material and the texture: a base-colour texture

@@ -41,6 +41,7 @@ typedef struct mesh_build {
     uint32_t vertex_count, triangle_count;
     const float *positions, *normals, *colors;
     const float *corner_tex;        /* 9 floats a triangle, or NULL */
+    uint32_t *tri_origin;           /* the caller's, or NULL: b->orig is copied there */
     const uint32_t *indices;
     int up_z, keep_winding;
     float const_albedo[3];
@@ -48,7 +49,7 @@ typedef struct mesh_build {
     float *pos, *nrm;               /* the caller's, in the engine's frame (nrm NULL without normals) */
     uint32_t *remap, *rep;          /* weld: remap[v] = welded id, rep[w] = first vertex of id w */
     uint32_t *tri, *newid;          /* kept triangles (welded ids), compaction of the welded ids */
-    uint32_t *orig;                 /* with corner_tex: each kept triangle's input number */
+    uint32_t *orig;                 /* with corner_tex or tri_origin: each kept triangle's input number */
     uint32_t welded, used;          /* welded ids; those the kept triangles reference */
     size_t kept;                    /* triangles kept */
     double lo[3], hi[3];            /* bounding box of the referenced geometry */
@@ -179,7 +180,7 @@ static hl_result build_drop_degenerate(mesh_build *b)
 
     uint32_t *tri = b->tri = hl_malloc(b->ctx, nt * 3 * sizeof(uint32_t), "triangle indices");
     if (!tri) return HL_ERR_OUT_OF_MEMORY;
-    if (b->corner_tex && !(b->orig = hl_malloc(b->ctx, nt * sizeof(uint32_t), "triangle numbers")))
+    if ((b->corner_tex || b->tri_origin) && !(b->orig = hl_malloc(b->ctx, nt * sizeof(uint32_t), "triangle numbers")))
         return HL_ERR_OUT_OF_MEMORY;
     size_t kept = 0;
     for (size_t t = 0; t < nt; t++) {
@@ -339,7 +340,7 @@ static hl_result build_normals(mesh_build *b, hl_mesh *mesh)
  * arrays. */
 hl_result hl_mesh_build_(hl_context *ctx, const char *name, uint32_t vertex_count,
                          const float *positions, const float *normals, const float *colors,
-                         const float *corner_tex, uint32_t triangle_count, const uint32_t *indices,
+                         const hl_mesh_extra *extra, uint32_t triangle_count, const uint32_t *indices,
                          const hl_mesh_load_desc *desc, hl_mesh **out, hl_mesh_stats *stats)
 {
     hl_mesh_load_desc d;
@@ -358,7 +359,8 @@ hl_result hl_mesh_build_(hl_context *ctx, const char *name, uint32_t vertex_coun
     b.positions = positions;
     b.normals = normals;
     b.colors = colors;
-    b.corner_tex = corner_tex;
+    b.corner_tex = extra ? extra->corner_tex : NULL;
+    b.tri_origin = extra ? extra->tri_origin : NULL;
     b.indices = indices;
     hl_result r = build_validate(&b, &d);
     if (r != HL_OK) return r;
@@ -378,6 +380,7 @@ hl_result hl_mesh_build_(hl_context *ctx, const char *name, uint32_t vertex_coun
             r = mesh && build_orient(&b, mesh) ? build_normals(&b, mesh) : HL_ERR_OUT_OF_MEMORY;
         }
     }
+    if (r == HL_OK && b.tri_origin) memcpy(b.tri_origin, b.orig, b.kept * sizeof(uint32_t));
     build_free(&b);
     if (r != HL_OK) {
         hl_mesh_destroy(mesh);

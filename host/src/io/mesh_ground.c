@@ -49,7 +49,10 @@ hl_result hl_mesh_add_ground(hl_context *ctx, hl_mesh *mesh, const hl_ground_des
             mean[k] += mesh->albedo ? mesh->albedo[3 * v + k] : HL_DEFAULT_ALBEDO;
         }
     float albedo[3];
-    float fallback[3] = {(float)(mean[0] / nv), (float)(mean[1] / nv), (float)(mean[2] / nv)};
+    /* a neutral grey: a coloured or textured object does not tint its
+       ground; a grey object's ground is its own grey, to the bit */
+    const float grey = (float)((mean[0] + mean[1] + mean[2]) / (3.0 * (double)nv));
+    float fallback[3] = {grey, grey, grey};
     if (d.albedo[0] == 0.0f && d.albedo[1] == 0.0f && d.albedo[2] == 0.0f) {
         memcpy(albedo, fallback, sizeof albedo);
     } else {

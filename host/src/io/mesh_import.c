@@ -113,8 +113,24 @@ static hl_result assimp_failure(hl_context *ctx, const char *path, const char *m
  * faces (points, lines) are left out. col gets each vertex's albedo base
  * and tex each triangle's texture averages (material.h). The arrays hold
  * the totals that load_assimp counted. */
+static void surface_face(const hl_materials *mats, const struct aiMesh *am, const struct aiFace *af,
+                         const float fallback[3], hl_surface *su, size_t t)
+{
+    const hl_material *h = am->mMaterialIndex < mats->count ? &mats->mat[am->mMaterialIndex] : NULL;
+    const int textured = h && h->tex >= 0 && am->mTextureCoords[h->uv];
+    su->tex[t] = textured ? h->tex : -1;
+    for (int c = 0; c < 3; c++) {
+        unsigned i = af->mIndices[c] < am->mNumVertices ? af->mIndices[c] : 0; /* else refused by the builder */
+        su->uv[6 * t + 2 * (size_t)c] = textured ? (float)am->mTextureCoords[h->uv][i].x : 0.0f;
+        su->uv[6 * t + 2 * (size_t)c + 1] = textured ? (float)am->mTextureCoords[h->uv][i].y : 0.0f;
+        hl_material_vertex_base_(mats, am, i, fallback, su->base + 9 * t + 3 * (size_t)c);
+    }
+}
+
+/* With a surface wanted, su gets each input triangle's UVs, texture and
+ * corner bases (struct hl_surface's layout, by input triangle). */
 static void copy_scene(const struct aiScene *s, const hl_materials *mats, const float fallback[3], float *pos,
-                       float *nrm, float *col, float *tex, uint32_t *idx)
+                       float *nrm, float *col, float *tex, uint32_t *idx, hl_surface *su)
 {
     size_t base = 0, t = 0;
     for (unsigned m = 0; m < s->mNumMeshes; m++) {
@@ -142,14 +158,46 @@ static void copy_scene(const struct aiScene *s, const hl_materials *mats, const 
                 idx[3 * t + k] = (uint32_t)(i > UINT32_MAX ? UINT32_MAX : i);
             }
             if (tex) hl_material_face_tex_(mats, am, af, tex + 9 * t);
+            if (su) surface_face(mats, am, af, fallback, su, t);
             t++;
         }
         base += am->mNumVertices;
     }
 }
 
+/* The surface of the built mesh from the input triangles' (in, by input
+ * triangle) and the builder's origins; takes in's materials. */
+static hl_result surface_finish(hl_context *ctx, hl_surface *in, const uint32_t *origin, const hl_mesh *mesh,
+                                int flipped, hl_surface **out)
+{
+    hl_surface *su = hl_calloc(ctx, 1, sizeof *su, "the surface");
+    if (!su) return HL_ERR_OUT_OF_MEMORY;
+    size_t nt = mesh->triangle_count;
+    su->triangle_count = mesh->triangle_count;
+    su->uv = hl_malloc(ctx, nt * 6 * sizeof(float), "the surface's UVs");
+    su->tex = hl_malloc(ctx, nt * sizeof(int32_t), "the surface's textures");
+    su->base = hl_malloc(ctx, nt * 9 * sizeof(float), "the surface's colours");
+    if (!su->uv || !su->tex || !su->base) {
+        hl_surface_destroy(su);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    for (size_t t = 0; t < nt; t++) {
+        size_t o = origin[t];
+        su->tex[t] = in->tex[o];
+        for (int c = 0; c < 3; c++) {
+            int from = flipped && c ? 3 - c : c; /* a flip swapped corners 1 and 2 */
+            memcpy(su->uv + 6 * t + 2 * (size_t)c, in->uv + 6 * o + 2 * (size_t)from, 2 * sizeof(float));
+            memcpy(su->base + 9 * t + 3 * (size_t)c, in->base + 9 * o + 3 * (size_t)from, 3 * sizeof(float));
+        }
+    }
+    su->mats = in->mats;
+    memset(&in->mats, 0, sizeof in->mats);
+    *out = su;
+    return HL_OK;
+}
+
 static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh_load_desc *desc,
-                             hl_mesh **out, hl_mesh_stats *stats, hl_mesh_motion *motion)
+                             hl_mesh **out, hl_mesh_stats *stats, hl_mesh_motion *motion, hl_surface **surf)
 {
     const char *path = src->path;
     /* The safe order of calls with assimp 5.2's C API:
@@ -213,7 +261,9 @@ static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh
         if (!am->mNormals) all_normals = 0;
     }
     float *pos = NULL, *nrm = NULL, *col = NULL, *tex = NULL;
-    uint32_t *idx = NULL;
+    uint32_t *idx = NULL, *origin = NULL;
+    hl_surface in; /* with surf: by input triangle */
+    memset(&in, 0, sizeof in);
     if (s->mNumMeshes == 0) {
         r = hl_fail(ctx, HL_ERR_FORMAT, "%s: the file holds no mesh", path);
         goto done;
@@ -233,19 +283,45 @@ static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh
     r = hl_mesh_resolve_albedo_(ctx, path, desc ? desc->albedo : (const float[3]){0, 0, 0}, HL_DEFAULT_ALBEDO,
                                 fallback);
     if (r != HL_OK) goto done;
-    if (!pos || !idx || (all_normals && !nrm) || (colors && !col) || (textured && !tex)) {
+    if (surf) {
+        in.uv = hl_malloc(ctx, (size_t)nt * 6 * sizeof(float), "the surface's UVs");
+        in.tex = hl_malloc(ctx, (size_t)nt * sizeof(int32_t), "the surface's textures");
+        in.base = hl_malloc(ctx, (size_t)nt * 9 * sizeof(float), "the surface's colours");
+        origin = hl_malloc(ctx, (size_t)nt * sizeof(uint32_t), "triangle origins");
+    }
+    if (!pos || !idx || (all_normals && !nrm) || (colors && !col) || (textured && !tex) ||
+        (surf && (!in.uv || !in.tex || !in.base || !origin))) {
         r = HL_ERR_OUT_OF_MEMORY;
         goto done;
     }
-    copy_scene(s, &mats, fallback, pos, nrm, col, tex, idx);
+    copy_scene(s, &mats, fallback, pos, nrm, col, tex, idx, surf ? &in : NULL);
     aiReleaseImport(s);
     s = NULL;
     hl_materials_note_(ctx, path, &mats);
-    r = hl_mesh_build_(ctx, path, (uint32_t)nv, pos, nrm, col, tex, (uint32_t)nt, idx, desc, out, stats);
-    if (r == HL_OK && stats) stats->had_colors = any_colors;
+    hl_mesh_stats st;
+    r = hl_mesh_build_(ctx, path, (uint32_t)nv, pos, nrm, col, &(hl_mesh_extra){tex, origin}, (uint32_t)nt, idx, desc,
+                       out, &st);
+    if (r == HL_OK) {
+        st.had_colors = any_colors;
+        if (stats) *stats = st;
+    }
+    if (r == HL_OK && surf) {
+        in.mats = mats;
+        memset(&mats, 0, sizeof mats);
+        r = surface_finish(ctx, &in, origin, *out, st.flipped, surf);
+        if (r != HL_OK) {
+            hl_mesh_destroy(*out);
+            *out = NULL;
+        }
+    }
 done:
     if (s) aiReleaseImport(s);
     hl_materials_free_(&mats);
+    hl_materials_free_(&in.mats);
+    free(in.uv);
+    free(in.tex);
+    free(in.base);
+    free(origin);
     free(pos);
     free(nrm);
     free(col);
@@ -264,7 +340,7 @@ done:
  * put through the file guards under the name NAME.EXT (they go by the
  * extension), and imported with EXT as the hint. */
 static hl_result load_gz(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
-                         hl_mesh_stats *stats, hl_mesh_motion *motion)
+                         hl_mesh_stats *stats, hl_mesh_motion *motion, hl_surface **surf)
 {
     size_t n = strlen(path) - 3; /* without ".gz" */
     char inner[4096], ext[GZ_MAX_EXT + 2];
@@ -294,7 +370,7 @@ static hl_result load_gz(hl_context *ctx, const char *path, const hl_mesh_load_d
     }
     if (r == HL_OK) {
         mesh_src src = {.path = path, .data = data, .size = size, .hint = ext + 1};
-        r = load_assimp(ctx, &src, desc, out, stats, motion);
+        r = load_assimp(ctx, &src, desc, out, stats, motion, surf);
     }
     free(data);
     return r;
@@ -311,13 +387,20 @@ hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_des
 hl_result hl_mesh_load_motion_(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
                                hl_mesh_stats *stats, hl_mesh_motion *motion)
 {
+    return hl_mesh_load_surface_(ctx, path, desc, out, stats, motion, NULL);
+}
+
+hl_result hl_mesh_load_surface_(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
+                                hl_mesh_stats *stats, hl_mesh_motion *motion, hl_surface **surf)
+{
+    if (surf) *surf = NULL;
     if (out) *out = NULL;
     if (stats) memset(stats, 0, sizeof *stats);
     if (motion) memset(motion, 0, sizeof *motion);
     if (!path || !out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_mesh_load: path and out are required");
     hl_result r;
     if (hl_gz_is_gz_name(path)) {
-        r = load_gz(ctx, path, desc, out, stats, motion);
+        r = load_gz(ctx, path, desc, out, stats, motion, surf);
         if (r != HL_OK && motion) memset(motion, 0, sizeof *motion);
         return r;
     }
@@ -330,7 +413,7 @@ hl_result hl_mesh_load_motion_(hl_context *ctx, const char *path, const hl_mesh_
     fclose(f);
     if (bad) return hl_fail(ctx, HL_ERR_FORMAT, "%s: %s", path, msg);
     mesh_src src = {.path = path};
-    r = load_assimp(ctx, &src, desc, out, stats, motion);
+    r = load_assimp(ctx, &src, desc, out, stats, motion, surf);
     if (r != HL_OK && motion) memset(motion, 0, sizeof *motion);
     return r;
 }

@@ -7,7 +7,12 @@
  * a miss shows the environment (or black). With eye and target both zero
  * the camera frames the object (the ground plane excluded) by itself.
  *
- * Dependencies: hl_internal.h (errors, allocation), rays.h (Embree scene
+ * With a textured surface (hl_render_surface), a pixel of a textured
+ * triangle shows the texture's albedo there times the interpolated
+ * irradiance instead.
+ *
+ * Dependencies: hl_internal.h (errors, allocation), material.h (the
+ * surface and its sampler), rays.h (Embree scene
  * and primary rays), the environment and image functions of haarlight.h,
  * libc, libm.
  */
@@ -17,6 +22,7 @@
 #include <string.h>
 
 #include "hl_internal.h"
+#include "material.h"
 #include "rays.h"
 
 /* Defaults listed in haarlight.h above hl_camera_desc. */
@@ -212,15 +218,50 @@ static hl_result check_inputs(hl_context *ctx, const hl_mesh *mesh, const float 
     return HL_OK;
 }
 
+/* A pixel on a textured triangle t at barycentrics (u, v): the albedo
+ * there times the irradiance interpolated from the vertices. A vertex
+ * whose albedo is zero in a channel gives no irradiance in it (its colour
+ * there is zero whatever the light). */
+static void shade_textured(const hl_mesh *mesh, const float *vertex_rgb, const hl_surface *su, uint32_t t, float u,
+                           float v, float px[3])
+{
+    const uint32_t *tri = mesh->indices + 3 * (size_t)t;
+    const float l[3] = {1.0f - u - v, u, v};
+    float tc[2] = {0, 0}, base[3] = {0, 0, 0}, irr[3] = {0, 0, 0}, tex[3];
+    for (int c = 0; c < 3; c++) {
+        tc[0] += l[c] * su->uv[6 * (size_t)t + 2 * (size_t)c];
+        tc[1] += l[c] * su->uv[6 * (size_t)t + 2 * (size_t)c + 1];
+        for (int k = 0; k < 3; k++) {
+            base[k] += l[c] * su->base[9 * (size_t)t + 3 * (size_t)c + (size_t)k];
+            const float a = mesh->albedo[3 * (size_t)tri[c] + (size_t)k];
+            if (a > 1e-6f) irr[k] += l[c] * vertex_rgb[3 * (size_t)tri[c] + (size_t)k] / a;
+        }
+    }
+    hl_texture_sample_(&su->mats.tex[su->tex[t]], tc[0], tc[1], tex);
+    for (int k = 0; k < 3; k++) {
+        const float x = base[k] * tex[k] * irr[k];
+        px[k] = x > 0.0f ? x : 0.0f; /* rounding of 1 - u - v must not make light negative */
+    }
+}
+
 hl_result hl_render(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
                     const hl_env *background, float rotate_deg, const hl_camera_desc *camera,
                     hl_image **out)
+{
+    return hl_render_surface(ctx, mesh, vertex_rgb, NULL, background, rotate_deg, camera, out);
+}
+
+hl_result hl_render_surface(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb, const hl_surface *surface,
+                            const hl_env *background, float rotate_deg, const hl_camera_desc *camera, hl_image **out)
 {
     if (out) *out = NULL;
     if (!ctx) return HL_ERR_INVALID_ARGUMENT;
     if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "render: no output image pointer given");
     hl_result r = check_inputs(ctx, mesh, vertex_rgb, background, rotate_deg);
     if (r != HL_OK) return r;
+    if (surface && (surface->triangle_count > mesh->triangle_count || !mesh->albedo))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "render: the textured surface (%u triangles) is not this mesh's (%u)",
+                       surface->triangle_count, mesh->triangle_count);
     cam c;
     memset(&c, 0, sizeof c);
     r = setup_camera(ctx, mesh, camera, &c);
@@ -270,6 +311,10 @@ hl_result hl_render(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rg
                 } else {
                     px[0] = px[1] = px[2] = 0.0f;
                 }
+                continue;
+            }
+            if (surface && prim[i] < surface->triangle_count && surface->tex[prim[i]] >= 0) {
+                shade_textured(mesh, vertex_rgb, surface, prim[i], bu[i], bv[i], px);
                 continue;
             }
             const uint32_t *tri = mesh->indices + 3 * (size_t)prim[i];
