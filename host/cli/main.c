@@ -59,6 +59,9 @@ static const char *const usage_precompute =
     "                       texture, no vertex colours (default 0.8)\n"
     "  --up y|z             the file's up axis (default y)\n"
     "  --keep-winding       never flip an inward-facing closed mesh\n"
+    "  --time T             an animated file posed at T seconds of its (rigid) animation,\n"
+    "                       as relight-dynamic --time T shows it (default: the rest pose,\n"
+    "                       the nodes as stored)\n"
     "sampling:\n"
     "  -C, --cube C         cubemap face resolution (default 64)\n"
     "  -N, --para N         paraboloid map resolution, power of two 8..256 (default 64)\n"
@@ -148,6 +151,8 @@ void cli_unwatch(void)
 typedef struct pre_opts {
     const char *mesh, *out;
     int ground;
+    int time_set;
+    double time; /* --time T */
     hl_ground_desc gd;
     hl_mesh_load_desc ld;
     hl_precompute_desc pd;
@@ -185,7 +190,14 @@ static int pre_mesh_opt(int argc, char **argv, int *ip, const char *usage, pre_o
     int i = *ip;
     const char *a = argv[i], *v = NULL;
     if (!strcmp(a, "--ground")) o->ground = 1;
-    else if (!strcmp(a, "--ground-res")) {
+    else if (!strcmp(a, "--time")) {
+        NEED_ARG();
+        float t;
+        if (!parse_float(v, &t) || !isfinite(t) || t < 0.0f)
+            return usage_error(usage, "--time %s: expected seconds, finite and >= 0", v);
+        o->time = t;
+        o->time_set = 1;
+    } else if (!strcmp(a, "--ground-res")) {
         NEED_ARG();
         if (!parse_u32(v, &o->gd.resolution) || o->gd.resolution < 1 || o->gd.resolution > 4096)
             return usage_error(usage, "--ground-res %s: expected 1 to 4096", v);
@@ -363,8 +375,24 @@ static hl_result load_scene(hl_context *ctx, pre_opts *o, hl_mesh **mesh)
 {
     hl_mesh_stats ms;
     uint32_t motion[3];
-    hl_result r = hl_tools_mesh_load(ctx, o->mesh, &o->ld, mesh, &ms, motion);
-    if (r != HL_OK) return r;
+    if (o->time_set) {
+        char anim[256];
+        hl_result r = hl_tools_mesh_load_at(ctx, o->mesh, &o->ld, o->time, mesh, anim, sizeof anim);
+        if (r != HL_OK) {
+            fprintf(stderr, "precompute: without --time, the file's rest pose is baked (the nodes as stored)\n");
+            return r;
+        }
+        fprintf(stderr, "precompute: %s posed at %g s of its animation%s%s%s: %u vertices, %u triangles\n", o->mesh,
+                o->time, anim[0] ? " \"" : " (unnamed)", anim, anim[0] ? "\"" : "", (*mesh)->vertex_count,
+                (*mesh)->triangle_count);
+        memset(motion, 0, sizeof motion);
+        memset(&ms, 0, sizeof ms);
+        ms.had_normals = 1;
+    } else {
+        hl_result r = hl_tools_mesh_load(ctx, o->mesh, &o->ld, mesh, &ms, motion);
+        if (r != HL_OK) return r;
+    }
+    hl_result r = HL_OK;
     /* the pose baked, said even with -q: a transport of an animated file
        is of one pose, not of its motion */
     if (motion[0] || motion[1] || motion[2])

@@ -41,6 +41,13 @@ double hl_tools_now(void);
  * skinned meshes, [2] its meshes with morph targets (zeros on failure). */
 hl_result hl_tools_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
                              hl_mesh_stats *stats, uint32_t motion[3]);
+/* The file posed at t seconds of its first (rigid) animation, its bodies
+ * merged into one mesh (welded again, their albedo kept), for a
+ * precompute of that pose; the animation's name into anim. A file
+ * without an animation, or whose animation is not rigid, is refused,
+ * naming the file. */
+hl_result hl_tools_mesh_load_at(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, double t,
+                                hl_mesh **out, char *anim, size_t anim_size);
 
 /* Luminance of linear Rec.709 RGB, in float exactly as the library and
  * its kernels compute it. */

@@ -30,6 +30,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "haarlight_tools.h"
 #include "hl_test.h"
 #include "scene.h"
 #include "scene_gen.h"
@@ -556,6 +557,54 @@ static void moving_bounds(hl_dyn_scene *s, double t, double lo[3], double hi[3])
     free(o);
 }
 
+/* precompute --time T: hl_tools_mesh_load_at poses the file at T, its
+ * bodies merged: the mesh's bounds are the scene's bounds at T, at two
+ * times that differ; a still file is refused. */
+static void case_posed(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    sg_scene sc;
+    main_scene(&sc);
+    const char *path = hl_test_tmp_path("scene_posed.gltf");
+    HL_CHECK(sg_write_gltf(path, &sc) == 0, "cannot write %s", path);
+    hl_dyn_scene *s = NULL;
+    HL_CHECK(hl_dyn_scene_load(ctx, path, &s) == HL_OK, "%s", hl_context_last_error(ctx));
+    const double times[2] = {0.75, 2.25};
+    double worst = 0.0;
+    float moved = 0.0f, prev_hi[3] = {0, 0, 0};
+    for (int k = 0; s && k < 2; k++) {
+        hl_mesh *m = NULL;
+        char anim[64];
+        hl_result r = hl_tools_mesh_load_at(ctx, path, NULL, times[k], &m, anim, sizeof anim);
+        HL_CHECK(r == HL_OK, "posed at %g: %s", times[k], hl_context_last_error(ctx));
+        if (!m) continue;
+        float lo[3], hi[3], mlo[3] = {INFINITY, INFINITY, INFINITY}, mhi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        hl_dyn_scene_bounds(s, times[k], lo, hi);
+        for (uint32_t v = 0; v < m->vertex_count; v++)
+            for (int i = 0; i < 3; i++)
+                mlo[i] = fminf(mlo[i], m->positions[3 * v + i]), mhi[i] = fmaxf(mhi[i], m->positions[3 * v + i]);
+        for (int i = 0; i < 3; i++) worst = fmax(worst, fmax(fabs(mlo[i] - lo[i]), fabs(mhi[i] - hi[i])));
+        if (k) for (int i = 0; i < 3; i++) moved = fmaxf(moved, fabsf(mhi[i] - prev_hi[i])); /* the floor stays */
+        memcpy(prev_hi, mhi, sizeof mhi);
+        hl_mesh_destroy(m);
+    }
+    hl_check_error("posed mesh's bounds against the scene's at the same time", worst, 1e-5);
+    HL_CHECK(moved > 0.5f, "the two poses differ by %g only", (double)moved);
+    hl_dyn_scene_destroy(s);
+    /* a still file has nothing to pose */
+    sc.node[1].kt.n = sc.node[2].kt.n = sc.node[2].kr.n = sc.node[3].kr.n = 0;
+    const char *still = hl_test_tmp_path("scene_still.gltf");
+    HL_CHECK(sg_write_gltf(still, &sc) == 0, "cannot write %s", still);
+    hl_mesh *m = NULL;
+    char anim[64];
+    hl_result r = hl_tools_mesh_load_at(ctx, still, NULL, 1.0, &m, anim, sizeof anim);
+    HL_CHECK(r == HL_ERR_INVALID_ARGUMENT && !m && strstr(hl_context_last_error(ctx), still), "still file: %d %s",
+             (int)r, hl_context_last_error(ctx));
+    printf("refused as expected: %s\n", hl_context_last_error(ctx));
+    hl_mesh_destroy(m);
+    hl_context_destroy(ctx);
+}
+
 static void case_ground(void)
 {
     hl_context *ctx = hl_test_ref_context(1);
@@ -749,7 +798,7 @@ int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"load", case_load}, {"anim", case_anim}, {"rigid", case_rigid},
-        {"builtin", case_builtin}, {"bad", case_bad}, {"ground", case_ground}, {NULL, NULL},
+        {"builtin", case_builtin}, {"bad", case_bad}, {"ground", case_ground}, {"posed", case_posed}, {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);
 }
