@@ -6,6 +6,8 @@
  *              Lambert's exact B at three scales (the old default must fail
  *              there), and no acne on planes and boxes far from the origin,
  *              turned or not.
+ * rays.step    a receiver at the foot of a box's face (a concave edge of
+ *              faces that share no vertex): B = 1/2, not 0.
  *
  * Depends on: haarlight_core (reference backend only; no OpenCL device),
  * tests/common/maths_util.h.
@@ -412,10 +414,75 @@ static void case_ray_offset(void)
     hl_context_destroy(ctx);
 }
 
+/* A receiver at the foot of a step: a ground vertex (normal +Y) on the
+ * bottom edge of a closed box's +X face, the box over x < 0. The face and
+ * the ground share no vertex (their normals differ, as at the truck's
+ * door recess and window trim), and the offset along +Y runs in the
+ * face's plane, so every ray met the face at t = 0 and B was 0. The box
+ * hides exactly the half of the hemisphere with x < 0 (a ray into it is
+ * inside the box at once and leaves through its far side): B = 1/2, at
+ * three scales, as built and turned 37 degrees about (1, 2, 3), through
+ * the offset rays and the rays from the vertex itself. */
+static void case_ray_step(void)
+{
+    hl_context *ctx = make_ctx();
+    char what[256];
+    const uint32_t R = 64, S = 4;
+    hl_geom *g = make_geom(ctx, R, R);
+    float *L = xmalloc((size_t)g->ncoef * sizeof *L), *WL = xmalloc((size_t)g->ncoef * sizeof *WL);
+    unit_light(g, L);
+    haar_of(g, L, WL);
+    const double tol = 0.01, exact = 0.5, Lz = 2.0;
+    mesh_build *b = xcalloc(1, sizeof *b);
+    const uint32_t rv = mb_vertex(b, 0, 0, 0, 0, 1, 0);
+    const double A[4][3] = {{0, 0, -Lz}, {0, 0, Lz}, {2, 0, Lz}, {2, 0, -Lz}};
+    uint32_t a[4];
+    for (int k = 0; k < 4; k++) a[k] = mb_vertex(b, A[k][0], A[k][1], A[k][2], 0, 1, 0);
+    mb_tri(b, rv, a[1], a[2]);
+    mb_tri(b, rv, a[2], a[3]);
+    mb_tri(b, rv, a[3], a[0]);
+    mb_box(b, (const double[3]){-1.0, 0.0, -1.0}, (const double[3]){0.0, 0.3, 1.0});
+    double turn[9];
+    {
+        double ax[3] = {1, 2, 3}, an = 37.0 * PI / 180.0, c = cos(an), s1 = sin(an);
+        normalize3(ax);
+        const double x = ax[0], y = ax[1], z = ax[2];
+        const double R9[9] = {c + x * x * (1 - c),     x * y * (1 - c) - z * s1, x * z * (1 - c) + y * s1,
+                              y * x * (1 - c) + z * s1, c + y * y * (1 - c),     y * z * (1 - c) - x * s1,
+                              z * x * (1 - c) - y * s1, z * y * (1 - c) + x * s1, c + z * z * (1 - c)};
+        memcpy(turn, R9, sizeof turn);
+    }
+    static const double scales[3] = {1e-3, 1.0, 1e4};
+    for (int is = 0; is < 3; is++)
+        for (int t = 0; t < 2; t++) {
+            const double *rot = t ? turn : NULL;
+            hl_mesh *m = mb_mesh(ctx, b, scales[is], rot);
+            hl_rt *rt = NULL;
+            if (hl_rt_create_filtered(ctx, m, &rt) != HL_OK) exit(1);
+            const uint32_t v = find_vertex(m, (const double[3]){0, 0, 0}, (const double[3]){0, 1, 0}, scales[is], rot);
+            const double B = vertex_B(ctx, rt, g, m, v, S, 0.0f, L, WL), B_own = vertex_B_own(ctx, rt, m, v);
+            printf("ray step%s x %g: exact B %.6f; robust offset B %.6f, error %+.3g; from the vertex itself B %.6f, "
+                   "error %+.3g\n", rot ? " (turned)" : "", scales[is], exact, B, B - exact, B_own, B_own - exact);
+            snprintf(what, sizeof what, "ray step%s x %g: robust offset |B - exact|", rot ? " (turned)" : "", scales[is]);
+            hl_check_error(what, fabs(B - exact), tol);
+            snprintf(what, sizeof what, "ray step%s x %g: from the vertex itself |B - exact|", rot ? " (turned)" : "",
+                     scales[is]);
+            hl_check_error(what, fabs(B_own - exact), tol);
+            hl_rt_destroy(rt);
+            hl_mesh_destroy(m);
+        }
+    free(b);
+    free(L);
+    free(WL);
+    hl_geom_destroy(g);
+    hl_context_destroy(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"offset", case_ray_offset},
+        {"step", case_ray_step},
         {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);

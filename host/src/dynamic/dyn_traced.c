@@ -48,6 +48,7 @@ typedef struct traced_job {
     uint8_t *live;    /* per slot: above the horizon */
     uint32_t *first;  /* per chunk vertex + 1: its first packed ray */
     float *org, *dir; /* 3 per packed ray */
+    float *tnear;     /* per packed ray: the origin's offset (rays.c) */
     uint8_t *occ;     /* per packed ray */
     phase ph;
     atomic_uint next;
@@ -138,7 +139,8 @@ static hl_result light_tables(traced_job *j)
 }
 
 /* The live slots of chunk vertex i packed from j->first[i], their origins
- * at rays.c's robust offset along the normal. */
+ * at rays.c's robust offset along the normal and their tnear the offset
+ * (the directions are unit). */
 static void vertex_pack(traced_job *j, uint32_t i)
 {
     const uint32_t v = j->v0 + i, ns = j->K * j->S;
@@ -153,6 +155,7 @@ static void vertex_pack(traced_job *j, uint32_t i)
         if (!live[t]) continue;
         memcpy(j->org + 3 * at, o, sizeof o);
         memcpy(j->dir + 3 * at, d + 3 * (size_t)t, 3 * sizeof(float));
+        j->tnear[at] = off;
         at++;
     }
 }
@@ -216,8 +219,9 @@ static hl_result chunks(traced_job *j, hl_dyn_traced_stats *st)
     j->first = hl_malloc(j->ctx, ((size_t)chunk + 1) * 4, "the traced method's ray starts");
     j->org = hl_malloc(j->ctx, slots * 12, "the traced method's ray origins");
     j->dir = hl_malloc(j->ctx, slots * 12, "the traced method's ray directions");
+    j->tnear = hl_malloc(j->ctx, slots * 4, "the traced method's ray starts along the rays");
     j->occ = hl_malloc(j->ctx, slots + 1, "the traced method's occlusion");
-    hl_result r = j->sdir && j->live && j->first && j->org && j->dir && j->occ ? HL_OK : HL_ERR_OUT_OF_MEMORY;
+    hl_result r = j->sdir && j->live && j->first && j->org && j->dir && j->tnear && j->occ ? HL_OK : HL_ERR_OUT_OF_MEMORY;
     for (uint32_t v0 = 0; r == HL_OK && v0 < nv; v0 += chunk) {
         j->v0 = v0, j->cnt = nv - v0 < chunk ? nv - v0 : chunk;
         double t0 = hl_now();
@@ -228,12 +232,12 @@ static hl_result chunks(traced_job *j, hl_dyn_traced_stats *st)
         const uint32_t nrays = j->first[j->cnt];
         st->rays_cast += nrays, st->rays_below += (uint64_t)j->cnt * ns - nrays;
         double t1 = hl_now();
-        r = nrays ? hl_rt_trace_occluded(j->rt, nrays, j->org, j->dir, j->occ) : HL_OK;
+        r = nrays ? hl_rt_trace_occluded(j->rt, nrays, j->org, j->dir, j->tnear, j->occ) : HL_OK;
         double t2 = hl_now();
         if (r == HL_OK) run_phase(j, PHASE_SHADE);
         st->t_rays += t1 - t0, st->t_trace += t2 - t1, st->t_shade += hl_now() - t2;
     }
-    free(j->sdir); free(j->live); free(j->first); free(j->org); free(j->dir); free(j->occ);
+    free(j->sdir); free(j->live); free(j->first); free(j->org); free(j->dir); free(j->tnear); free(j->occ);
     return r;
 }
 

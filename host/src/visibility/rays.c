@@ -36,7 +36,17 @@
  * of real contacts and creases (a fixed fraction of the bounding-box
  * diagonal let origins pass through nearby geometry). 2^-16 is 256 units
  * in the last place of the coordinate; hl.rays.offset measures
- * the choice. */
+ * the choice.
+ *
+ * The same length is each ray's tnear (whatever the offset, robust or
+ * given): a surface that meets the vertex (a wall rising from a concave
+ * edge, a trim's side standing on a panel, faces of other, unwelded
+ * vertices at the same point) contains the offset origin, since the
+ * offset runs along it, and every ray would meet it at t = 0, so that a
+ * vertex at the foot of a step came out wholly black. Hits nearer than
+ * the offset are the vertex's own neighbourhood, which the offset exists
+ * to step over, not blockers it can resolve; a ray that enters a closed
+ * solid there still meets the solid's far side. */
 #define HL_ROBUST_SHIFT 16
 
 struct hl_rt {
@@ -185,7 +195,8 @@ static void flush_packet(vis_job *job, packet *pk, struct RTCIntersectContext *i
 }
 
 /* Lanes' constant fields are set once; per vertex only the origin, per
- * ray only the direction, tfar and valid change (Embree writes only tfar). */
+ * ray only the direction, tnear, tfar and valid change (Embree writes
+ * only tfar). */
 static void packet_init(packet *pk)
 {
     memset(pk, 0, sizeof *pk);
@@ -214,9 +225,9 @@ static void trace_vertex(vis_job *job, uint32_t v, packet *pk, const float *off)
     const hl_geom *g = job->g;
     const uint32_t C = g->C, S = job->S;
     const float *p = job->mesh->positions + 3 * (size_t)v, *n = job->mesh->normals + 3 * (size_t)v;
-    const float d = job->offset > 0.0f ? job->offset : job->rt->robust[v];
-    const float o[3] = {hl_rt_origin_coord(p[0], n[0], d), hl_rt_origin_coord(p[1], n[1], d),
-                        hl_rt_origin_coord(p[2], n[2], d)};
+    const float dist = job->offset > 0.0f ? job->offset : job->rt->robust[v];
+    const float o[3] = {hl_rt_origin_coord(p[0], n[0], dist), hl_rt_origin_coord(p[1], n[1], dist),
+                        hl_rt_origin_coord(p[2], n[2], dist)};
     const float margin = -HL_HORIZON_MARGIN / (float)C;
     uint8_t *row = job->vis ? job->vis + (size_t)(v - job->first) * g->ncube : NULL;
     if (row) memset(row, 0, g->ncube);
@@ -259,6 +270,9 @@ static void trace_vertex(vis_job *job, uint32_t v, packet *pk, const float *off)
                 pk->ray.dir_x[i] = dir[0];
                 pk->ray.dir_y[i] = dir[1];
                 pk->ray.dir_z[i] = dir[2];
+                /* hits nearer than the offset are ignored (the robust
+                   offset's comment); supersampled directions are not unit */
+                pk->ray.tnear[i] = S == 1 ? dist : dist / sqrtf(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
                 pk->ray.tfar[i] = INFINITY;
                 pk->valid[i] = -1;
                 pk->texel[i] = c;
@@ -400,7 +414,7 @@ typedef struct primary_job {
     uint32_t *prim;
     float *u, *v;
     uint8_t *occluded; /* set: occlusion queries instead of closest hits */
-    float tnear;
+    const float *tnear; /* occlusion queries: per ray, or NULL for 0 */
     atomic_uint next;
 } primary_job;
 
@@ -422,7 +436,7 @@ static void *primary_worker(void *arg)
             ray.dir_x = j->dir[3 * (size_t)i];
             ray.dir_y = j->dir[3 * (size_t)i + 1];
             ray.dir_z = j->dir[3 * (size_t)i + 2];
-            ray.tnear = j->tnear;
+            ray.tnear = j->tnear ? j->tnear[i] : 0.0f;
             ray.tfar = INFINITY;
             ray.mask = 0xffffffffu;
             rtcOccluded1(j->rt->scene, &ic, &ray);
@@ -460,9 +474,10 @@ hl_result hl_rt_trace_primary(hl_rt *rt, uint32_t count, const float *org, const
     return HL_OK;
 }
 
-hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, const float *dir, uint8_t *occluded)
+hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, const float *dir, const float *tnear,
+                               uint8_t *occluded)
 {
-    primary_job j = {.rt = rt, .count = count, .org = org, .dir = dir, .occluded = occluded};
+    primary_job j = {.rt = rt, .count = count, .org = org, .dir = dir, .occluded = occluded, .tnear = tnear};
     atomic_init(&j.next, 0u);
     hl_run_threads(rt->ctx->threads, primary_worker, &j);
     if (rt->err[0]) return hl_fail(rt->ctx, HL_ERR_EMBREE, "Embree: %s", rt->err);
@@ -481,7 +496,10 @@ typedef struct own_filter {
 
 /* A ray that starts exactly on a vertex meets the vertex's own triangles
  * only at t = 0 (it leaves their plane at once), so those hits are
- * dropped and every other one counts. */
+ * dropped and every other one counts from the robust offset's distance
+ * on (its tnear): nearer, other surfaces through the vertex (a wall on a
+ * concave edge, unwelded vertices' faces) are met at t = 0 by every ray,
+ * as in hl_rt_visibility. */
 static void skip_own_triangles(const struct RTCFilterFunctionNArguments *a)
 {
     const own_filter *f = (const own_filter *)(const void *)a->context;
@@ -512,6 +530,7 @@ static void *own_worker(void *arg)
     f.indices = j->rt->mesh->indices;
     f.vertex = j->vertex;
     const float *p = j->rt->mesh->positions + 3 * (size_t)j->vertex;
+    const float tnear = j->rt->robust[j->vertex];
     for (;;) {
         uint32_t i0 = atomic_fetch_add(&j->next, 256u);
         if (i0 >= j->count) break;
@@ -525,6 +544,7 @@ static void *own_worker(void *arg)
             ray.dir_x = j->dir[3 * (size_t)i];
             ray.dir_y = j->dir[3 * (size_t)i + 1];
             ray.dir_z = j->dir[3 * (size_t)i + 2];
+            ray.tnear = tnear / sqrtf(ray.dir_x * ray.dir_x + ray.dir_y * ray.dir_y + ray.dir_z * ray.dir_z);
             ray.tfar = INFINITY;
             ray.mask = 0xffffffffu;
             rtcOccluded1(j->rt->scene, &f.ic, &ray);

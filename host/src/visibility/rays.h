@@ -56,13 +56,17 @@ hl_result hl_rt_trace_primary(hl_rt *rt, uint32_t count, const float *org, const
                               uint32_t *prim, float *u, float *v);
 
 /* Occlusion of `count` rays (3 floats each for origin and direction):
- * occluded[i] = 1 when anything lies along ray i. */
-hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, const float *dir,
+ * occluded[i] = 1 when anything lies along ray i from tnear[i] on (in
+ * units of the direction's length; tnear NULL: from the origin). Rays
+ * from an offset vertex pass the offset, as hl_rt_visibility does. */
+hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, const float *dir, const float *tnear,
                                uint8_t *occluded);
 
 /* Occlusion of `count` rays from vertex `vertex` itself, with no offset:
  * hits on the vertex's own triangles (which such a ray meets only at its
- * origin) are dropped, every other hit counts. An offset-free way to cast
+ * origin) are dropped, every other hit counts from the robust offset's
+ * distance on (the surfaces through the vertex itself are met at t = 0
+ * by every ray: rays.c). An offset-free way to cast
  * rays from a vertex, independent of the precompute's offset (bench's
  * continuous reference). Needs hl_rt_create_filtered. */
 hl_result hl_rt_occluded_from_vertex(hl_rt *rt, uint32_t vertex, uint32_t count, const float *dir,
