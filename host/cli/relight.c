@@ -38,10 +38,11 @@ static const char *const usage_relight =
     "  --ply8               PLY with tone-mapped 8-bit colours instead of linear floats\n"
     CLI_USAGE_CAMERA
     "  --no-background      black instead of the environment behind the object\n"
-    "  --textures MODEL     images keep MODEL's base-colour textures sharp: each pixel is\n"
-    "                       the texture's albedo there times the irradiance interpolated\n"
-    "                       from the vertices. MODEL is the file SCENE.hlt was precomputed\n"
-    "                       from (checked triangle for triangle)\n"
+    "  --textures MODEL     keep MODEL's base-colour textures: in images each pixel is the\n"
+    "                       texture's albedo there times the irradiance interpolated from\n"
+    "                       the vertices; a .glb embeds them, the irradiance in COLOR_0.\n"
+    "                       MODEL is the file SCENE.hlt was precomputed from (checked\n"
+    "                       triangle for triangle)\n"
     "  --keep-winding       as given to precompute, for reading MODEL\n"
     "running:\n"
     CLI_USAGE_RUNNING;
@@ -88,7 +89,8 @@ int cmd_relight(int argc, char **argv)
     int is_ply = !strcasecmp(ext, ".ply"), is_glb = !strcasecmp(ext, ".glb"),
         is_img = !strcasecmp(ext, ".exr") || !strcasecmp(ext, ".png");
     if (!is_ply && !is_glb && !is_img) return usage_error(usage, "output %s: expected a .ply, .glb, .exr or .png name", out);
-    if (textures && !is_img) return usage_error(usage, "--textures: for images (.png, .exr) only, not %s", out);
+    if (textures && !is_img && !is_glb)
+        return usage_error(usage, "--textures: for images (.png, .exr) and .glb only, not %s", out);
     if (md.keep_winding && !textures) return usage_error(usage, "%s", "--keep-winding goes with --textures");
 
     hl_context *ctx = cli_context(&cd);
@@ -153,7 +155,7 @@ int cmd_relight(int argc, char **argv)
         if (!cd.quiet && (ply8 || is_glb || !strcasecmp(ext, ".png"))) fprintf(stderr, "exposure: %+.2f EV (automatic)\n", (double)exposure);
     }
     if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, t->mesh, rgb, out, ply8, exposure);
-    if (r == HL_OK && is_glb) r = hl_mesh_save_glb(ctx, t->mesh, rgb, out, exposure);
+    if (r == HL_OK && is_glb) r = hl_mesh_save_glb_surface(ctx, t->mesh, rgb, surface, out, exposure);
     if (r == HL_OK && is_img) r = cli_camera_complete(ctx, t->mesh, &o);
     if (r == HL_OK && is_img)
         r = hl_render_surface(ctx, t->mesh, rgb, surface, no_bg ? NULL : env, rd.rotate_deg, &o.cam, &img);

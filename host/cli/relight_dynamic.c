@@ -258,12 +258,12 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
         const char *ext = cli_ext_of(d->out);
         int is_ply = !strcasecmp(ext, ".ply"), is_glb = !strcasecmp(ext, ".glb"), is_img = !is_ply && !is_glb;
         if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, mesh, rgb, d->out, d->ply8, exposure);
-        if (r == HL_OK && is_glb) r = hl_mesh_save_glb(ctx, mesh, rgb, d->out, exposure);
-        if (r == HL_OK && is_img) r = cli_camera_complete(ctx, mesh, o);
-        /* a file loaded as one mesh keeps its textures sharp in pictures;
-           one moved body by body (an animation) shows per-vertex albedo */
+
+        /* a file loaded as one mesh keeps its textures (sharp in pictures,
+           embedded in a .glb); one moved body by body (an animation) has
+           per-vertex albedo only */
         hl_surface *surface = NULL;
-        if (r == HL_OK && is_img) {
+        if (r == HL_OK && (is_img || is_glb)) {
             int quiet = o->cd.quiet;
             hl_context_set_quiet(ctx, 1);
             if (hl_surface_load(ctx, d->scene, NULL, mesh, &surface) != HL_OK && !quiet)
@@ -272,6 +272,8 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
                 fprintf(stderr, "textures: %u, per pixel\n", hl_surface_texture_count(surface));
             hl_context_set_quiet(ctx, quiet);
         }
+        if (r == HL_OK && is_glb) r = hl_mesh_save_glb_surface(ctx, mesh, rgb, surface, d->out, exposure);
+        if (r == HL_OK && is_img) r = cli_camera_complete(ctx, mesh, o);
         if (r == HL_OK && is_img)
             r = hl_render_surface(ctx, mesh, rgb, surface, d->no_bg ? NULL : env, o->rd.rotate_deg, &o->cam, &img);
         hl_surface_destroy(surface);

@@ -658,6 +658,14 @@ HL_API hl_result hl_mesh_save_ply(hl_context *ctx, const hl_mesh *mesh, const fl
  * [0, 1]). Colours must be finite and >= 0. Atomic. */
 HL_API hl_result hl_mesh_save_glb(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb, const char *path,
                            float exposure_ev);
+/* The same keeping a textured surface's textures (hl_surface_load; NULL:
+ * exactly hl_mesh_save_glb): the textured triangles become primitives
+ * with unlit materials whose base-colour texture is the file's own PNG
+ * or JPEG, embedded, and whose COLOR_0 is the base colour times the
+ * irradiance, so that any glTF viewer's base colour x texture x COLOR_0
+ * is the relit radiance at each pixel (docs/MATERIALS.md). */
+HL_API hl_result hl_mesh_save_glb_surface(hl_context *ctx, const hl_mesh *mesh, const float *vertex_rgb,
+                                          const hl_surface *surface, const char *path, float exposure_ev);
 
 /* ---------------------------------------------------------------- viewer support
  *

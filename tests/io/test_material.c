@@ -16,6 +16,9 @@
  *   render    a picture with the textured surface shows the factor times
  *             the texture at each pixel's UV; a surface for another mesh
  *             is refused.
+ *   glb       .glb output with the surface read back: the texture embedded
+ *             as it was, UVs, unlit materials, COLOR_0 the base colour x
+ *             the irradiance where textured.
  *   dynamic   the dynamic method's scene from the same file holds the same
  *             albedo at the same positions.
  *   bad       a missing texture, a corrupt one, one of absurd size, and a
@@ -30,6 +33,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+
+#include <assimp/cimport.h>
+#include <assimp/material.h>
+#include <assimp/scene.h>
 
 #include "hl_test.h"
 
@@ -409,6 +416,92 @@ static void case_render(void)
     hl_context_destroy(ctx);
 }
 
+/* ---------------------------------------------------------------- glb */
+
+/* A textured quad and an untextured one written as .glb with their
+ * surface, colours twice the albedo (irradiance 2), and read back with
+ * assimp: the texture embedded byte for byte, the textured primitive's
+ * material unlit with it as base colour, its UVs those of the file, its
+ * COLOR_0 the base colour x 2; the other primitive's COLOR_0 the
+ * colours as written. */
+static void case_glb(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    hl_image *img = NULL;
+    hl_image_create(ctx, 8, 8, &img);
+    for (int i = 0; i < 8 * 8 * 3; i++) img->rgb[i] = 0.02f * (float)(i % 37);
+    const char *png = hl_test_tmp_path("material_glb.png");
+    HL_CHECK(hl_image_save(ctx, img, png, 0.0f) == HL_OK, "png");
+    hl_image_destroy(img);
+    float pos[2][12];
+    quad_at(0, 0, pos[0]);
+    quad_at(2, 0, pos[1]);
+    prim pr[2] = {{4, 2, pos[0], quad_uv, NULL, quad_idx, 0}, {4, 2, pos[1], NULL, NULL, quad_idx, 1}};
+    const char *path = hl_test_tmp_path("material_glb.gltf");
+    write_gltf(path, pr, 2,
+               "{\"name\":\"t\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,0.25,1,1],"
+               "\"baseColorTexture\":{\"index\":0}}},"
+               "{\"name\":\"u\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.3,0.6,0.9,1]}}",
+               "{\"uri\":\"material_glb.png\"}", 1);
+    hl_mesh *m = load(ctx, path, 0.0f);
+    hl_surface *su = NULL;
+    if (m) HL_CHECK(hl_surface_load(ctx, path, NULL, m, &su) == HL_OK, "surface: %s", hl_context_last_error(ctx));
+    const char *out = hl_test_tmp_path("material_out.glb");
+    if (su) {
+        float *rgb = malloc((size_t)m->vertex_count * 12);
+        for (uint32_t i = 0; i < 3 * m->vertex_count; i++) rgb[i] = 2.0f * m->albedo[i];
+        HL_CHECK(hl_mesh_save_glb_surface(ctx, m, rgb, su, out, 0.0f) == HL_OK, "save: %s", hl_context_last_error(ctx));
+        const struct aiScene *s = aiImportFile(out, 0);
+        HL_CHECK(s && s->mNumTextures == 1 && s->mNumMeshes == 2, "read back %s: %s", out, s ? "" : aiGetErrorString());
+        if (s && s->mNumTextures == 1 && s->mNumMeshes == 2) {
+            size_t n = 0;
+            uint8_t *bytes = hl_test_read_file(png, &n);
+            const struct aiTexture *t = s->mTextures[0];
+            HL_CHECK(t->mHeight == 0 && t->mWidth == n && bytes && !memcmp(t->pcData, bytes, n),
+                     "the texture is the PNG as it was (%u bytes, %zu in the file)", t->mWidth, n);
+            free(bytes);
+            double uv_err = 0.0, c0_err = 0.0, plain_err = 0.0;
+            int textured = 0;
+            for (unsigned k = 0; k < s->mNumMeshes; k++) {
+                const struct aiMesh *am = s->mMeshes[k];
+                const struct aiMaterial *mat = s->mMaterials[am->mMaterialIndex];
+                int shading = 0;
+                aiGetMaterialIntegerArray(mat, AI_MATKEY_SHADING_MODEL, &shading, NULL);
+                HL_CHECK(shading == aiShadingMode_Unlit, "primitive %u's material is unlit (%d)", k, shading);
+                struct aiString tp;
+                const int has_tex = aiGetMaterialTexture(mat, aiTextureType_BASE_COLOR, 0, &tp, NULL, NULL, NULL, NULL,
+                                                         NULL, NULL) == aiReturn_SUCCESS;
+                HL_CHECK(has_tex == (am->mTextureCoords[0] != NULL), "primitive %u: texture %d, UVs %d", k, has_tex,
+                         am->mTextureCoords[0] != NULL);
+                textured += has_tex;
+                for (unsigned v = 0; v < am->mNumVertices; v++) {
+                    const float x = am->mVertices[v].x, z = am->mVertices[v].z;
+                    if (has_tex) { /* quad_at's corner (x, -z) has UV (x, -z) in glTF's convention */
+                        uv_err = fmax(uv_err, fabs(am->mTextureCoords[0][v].x - x));
+                        uv_err = fmax(uv_err, fabs((1.0f - am->mTextureCoords[0][v].y) - (-z)));
+                        const float want[3] = {1.0f, 0.5f, 2.0f}; /* the factor x 2 */
+                        const float *c = &am->mColors[0][v].r;
+                        for (int ch = 0; ch < 3; ch++) c0_err = fmax(c0_err, fabs(c[ch] - want[ch]));
+                    } else {
+                        const float want[3] = {0.6f, 1.2f, 1.8f};
+                        const float *c = &am->mColors[0][v].r;
+                        for (int ch = 0; ch < 3; ch++) plain_err = fmax(plain_err, fabs(c[ch] - want[ch]));
+                    }
+                }
+            }
+            HL_CHECK(textured == 1, "%d textured primitives, 1 expected", textured);
+            hl_check_error("UVs read back (assimp's convention, v up)", uv_err, 1e-7);
+            hl_check_error("textured COLOR_0 against the base colour x the irradiance", c0_err, 1e-6);
+            hl_check_error("untextured COLOR_0 against the colours written", plain_err, 1e-6);
+        }
+        if (s) aiReleaseImport(s);
+        free(rgb);
+    }
+    hl_surface_destroy(su);
+    hl_mesh_destroy(m);
+    hl_context_destroy(ctx);
+}
+
 /* ---------------------------------------------------------------- dynamic */
 
 static void case_dynamic(void)
@@ -543,7 +636,7 @@ static void case_bad(void)
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {{"factor", case_factor},   {"colors", case_colors}, {"texture", case_texture},
-                                         {"dynamic", case_dynamic}, {"bad", case_bad},       {"render", case_render},
+                                         {"dynamic", case_dynamic}, {"bad", case_bad},       {"render", case_render}, {"glb", case_glb},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

@@ -53,6 +53,7 @@ void hl_materials_free_(hl_materials *m)
     for (uint32_t i = 0; i < m->ntex; i++) {
         free(m->tex[i].name);
         free(m->tex[i].rgb);
+        free(m->tex[i].file);
     }
     free(m->tex);
     free(m->mat);
@@ -153,6 +154,14 @@ static hl_result decode(hl_context *ctx, const char *what, const uint8_t *data, 
     stbi_image_free(px);
     t->w = (uint32_t)w;
     t->h = (uint32_t)h;
+    static const uint8_t png[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'}, jpg[3] = {0xFF, 0xD8, 0xFF};
+    t->format = size >= 8 && !memcmp(data, png, 8) ? "png" : size >= 3 && !memcmp(data, jpg, 3) ? "jpg" : NULL;
+    if (t->format) {
+        t->file = hl_malloc(ctx, size, "a texture file");
+        if (!t->file) return HL_ERR_OUT_OF_MEMORY;
+        memcpy(t->file, data, size);
+        t->file_size = size;
+    }
     return HL_OK;
 }
 
@@ -296,6 +305,8 @@ static hl_result read_material(hl_context *ctx, const char *path, const struct a
     hl_result r = load_texture(ctx, path, s, mat_name, tp.data, &t);
     if (r != HL_OK) {
         free(t.name);
+        free(t.rgb);
+        free(t.file);
         return r;
     }
     m->tex[m->ntex] = t;

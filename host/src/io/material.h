@@ -41,6 +41,12 @@ typedef struct hl_texture {
     char *name;   /* as the material names it, for messages */
     uint32_t w, h;
     uint8_t *rgb; /* w * h * 3 bytes, sRGB-encoded, row 0 at the top */
+    /* the file's own bytes when it is a PNG or a JPEG (glTF's two image
+       formats), so that a .glb written from the mesh can embed it as it
+       was; NULL otherwise */
+    uint8_t *file;
+    size_t file_size;
+    const char *format; /* "png", "jpg" or NULL */
 } hl_texture;
 
 typedef struct hl_material {
