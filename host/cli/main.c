@@ -54,7 +54,10 @@ static const char *const usage_precompute =
     "\n"
     "mesh:\n"
     "  --ground             add a finely tessellated ground plane under the object\n"
-    "  --ground-res R       ground quads along the longer side (default 96)\n"
+    "  --ground-res R       ground quads across its uniform middle (default 96)\n"
+    "  --ground-size S      the ground's side, S x the object's footprint (1 < S <= 129;\n"
+    "                       default: the shadow of the object's top under a sun 15\n"
+    "                       degrees high falls on it, at least 2.5); graded beyond 2.5\n"
     "  --albedo R[,G,B]     albedo where the file gives none: no material colour or\n"
     "                       texture, no vertex colours (default 0.8)\n"
     "  --up y|z             the file's up axis (default y)\n"
@@ -197,6 +200,13 @@ static int pre_mesh_opt(int argc, char **argv, int *ip, const char *usage, pre_o
             return usage_error(usage, "--time %s: expected seconds, finite and >= 0", v);
         o->time = t;
         o->time_set = 1;
+    } else if (!strcmp(a, "--ground-size")) {
+        NEED_ARG();
+        float gs;
+        if (!parse_float(v, &gs) || !(gs > 1.0f) || !(gs <= 129.0f))
+            return usage_error(usage, "--ground-size %s: expected a size above 1 and at most 129 (x the footprint)", v);
+        o->gd.margin = 0.5f * (gs - 1.0f);
+        o->ground = 1;
     } else if (!strcmp(a, "--ground-res")) {
         NEED_ARG();
         if (!parse_u32(v, &o->gd.resolution) || o->gd.resolution < 1 || o->gd.resolution > 4096)

@@ -50,6 +50,8 @@ static const char *const usage_dyn =
     "                       an animation keeps its bodies and motion, the ground under\n"
     "                       the whole motion; any other is loaded as one mesh, body\n"
     "                       \"object\", as `precompute --ground` loads it\n"
+    "  --ground-size S      the ground's side, S x the footprint (1 < S <= 129; default:\n"
+    "                       it holds the shadow of the top under a sun 15 degrees high)\n"
     "  --rest-pose          the file's animation not followed: its nodes as stored, skinned\n"
     "                       meshes in their bind pose, morph targets at their base\n"
     "  --time T             seconds into the animation (default 0; clamped to its keys)\n"
@@ -85,6 +87,7 @@ static const char *const usage_dyn =
 typedef struct dyn_opts {
     const char *scene, *env, *out;
     int ground, rest_pose, sky, ply8, no_bg;
+    float ground_margin; /* --ground-size S: (S - 1) / 2; 0 the default */
     int reference; /* 0: the frame; 1: exact; 2: K lights traced */
     float time, threshold;
     uint32_t lights, R, M, nmoves;
@@ -115,7 +118,7 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
     const char *a = argv[*i], *v = NULL;
     static const char *const with_value[] = {"-o",     "--output",          "--env",        "--time", "--move",
                                              "--lights", "--split-threshold", "--shadow-res", "--order",
-                                             "--reference", NULL};
+                                             "--reference", "--ground-size", NULL};
     for (int k = 0; with_value[k]; k++)
         if (!strcmp(a, with_value[k])) {
             if (*i + 1 >= argc) return -usage_error(usage_dyn, "option %s needs a value", a);
@@ -125,7 +128,13 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
     else if (!strcmp(a, "--env")) d->env = v;
     else if (!strcmp(a, "--sky")) d->sky = 1;
     else if (!strcmp(a, "--ground")) d->ground = 1;
-    else if (!strcmp(a, "--rest-pose")) d->rest_pose = 1;
+    else if (!strcmp(a, "--ground-size")) {
+        float gs;
+        if (!parse_float(v, &gs) || !(gs > 1.0f) || !(gs <= 129.0f))
+            return -usage_error(usage_dyn, "--ground-size %s: expected a size above 1 and at most 129 (x the footprint)", v);
+        d->ground_margin = 0.5f * (gs - 1.0f);
+        d->ground = 1;
+    } else if (!strcmp(a, "--rest-pose")) d->rest_pose = 1;
     else if (!strcmp(a, "--ply8")) d->ply8 = 1;
     else if (!strcmp(a, "--no-background")) d->no_bg = 1;
     else if (!strcmp(a, "--time")) {
@@ -235,7 +244,8 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
     hl_dynamic_stats st;
     int rc = 0;
     const int flags = (d->ground ? HL_DYNAMIC_GROUND : 0) | (d->rest_pose ? HL_DYNAMIC_REST_POSE : 0);
-    hl_result r = hl_dynamic_create_from_file(ctx, d->scene, flags, &desc, &dy);
+    const hl_ground_desc gd = {.margin = d->ground_margin};
+    hl_result r = hl_dynamic_create_from_file_ground(ctx, d->scene, flags, &desc, &gd, &dy);
     for (uint32_t m = 0; r == HL_OK && m < d->nmoves; m++) {
         if (hl_dynamic_move(dy, d->move_name[m], d->move[m]) != HL_OK) {
             fprintf(stderr, "haarlight: --move: %s\n", hl_context_last_error(ctx));

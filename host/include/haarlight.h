@@ -196,8 +196,13 @@ HL_API hl_result hl_mesh_create(hl_context *ctx, uint32_t vertex_count,
 
 /* hl_ground_desc fields and defaults:
  *   resolution    0: 96 quads along the longer side
- *   margin        0: the plane extends 0.75 x the footprint's larger
- *                 extent beyond the footprint on every side
+ *   margin        how far the plane extends beyond the footprint on every
+ *                 side, in units of the footprint's larger extent (at most
+ *                 64). 0: far enough to hold the shadow of the object's
+ *                 top under a light 15 degrees above the horizon (height /
+ *                 tan 15 degrees), and at least 0.75. The grid is uniform
+ *                 out to 0.75 (resolution quads across that square) and
+ *                 graded beyond it, each cell 1.25 x the one before
  *   albedo        {0,0,0}: grey, the object's mean albedo (over its
  *                 vertices and the three channels)
  */
@@ -208,7 +213,7 @@ typedef struct hl_ground_desc {
 } hl_ground_desc;
 
 /* Appends a finely tessellated ground plane, +Y normal, at the mesh's lowest
- * point, sized to its footprint. */
+ * point, sized to its footprint and height. */
 HL_API hl_result hl_mesh_add_ground(hl_context *ctx, hl_mesh *mesh,
                              const hl_ground_desc *desc);
 
@@ -751,6 +756,11 @@ HL_API hl_result hl_dynamic_create_from_mesh(hl_context *ctx, const hl_mesh *mes
  * hl_dynamic_create_from_mesh, body "object" and "ground". */
 HL_API hl_result hl_dynamic_create_from_file(hl_context *ctx, const char *path, int ground,
                                              const hl_dynamic_desc *desc, hl_dynamic **out);
+/* The same with the ground's options (NULL: the defaults) where
+ * HL_DYNAMIC_GROUND asks for one. */
+HL_API hl_result hl_dynamic_create_from_file_ground(hl_context *ctx, const char *path, int ground,
+                                                    const hl_dynamic_desc *desc, const hl_ground_desc *gd,
+                                                    hl_dynamic **out);
 HL_API void hl_dynamic_destroy(hl_dynamic *d);
 
 /* Bodies, their names (NULL out of range) and the animation's time range

@@ -206,7 +206,7 @@ static inline void check_ground(const char *what, hl_mesh *m, uint32_t res, doub
     float diag0 = hl_mesh_query_diagonal(m);
     hl_ground_desc gd = {0};
     gd.resolution = res == 96 ? 0 : res;
-    gd.margin = margin == 0.75 ? 0.0f : (float)margin;
+    gd.margin = (float)margin; /* given: at most 0.75 keeps the grid uniform */
     hl_result r = hl_mesh_add_ground(NULL, m, &gd);
     HL_CHECK(r == HL_OK, "%s: add ground", what);
     if (r != HL_OK) return;
@@ -218,7 +218,7 @@ static inline void check_ground(const char *what, hl_mesh *m, uint32_t res, doub
         const float *n = m->normals + 3 * v;
         nerr = fmax(nerr, fabs(n[0]) + fabs(n[1] - 1.0) + fabs(n[2]));
         yerr = fmax(yerr, fabs(m->positions[3 * v + 1] - lo[1]));
-        for (int k = 0; k < 3; k++) aerr = fmax(aerr, fabs(m->albedo[3 * v + k] - mean[k]));
+        for (int k = 0; k < 3; k++) aerr = fmax(aerr, fabs(m->albedo[3 * v + k] - (mean[0] + mean[1] + mean[2]) / 3.0));
     }
     uint32_t ground_tris = 0;
     for (uint32_t t = 0; t < m->triangle_count; t++) {
@@ -234,7 +234,7 @@ static inline void check_ground(const char *what, hl_mesh *m, uint32_t res, doub
     HL_CHECK(ground_tris == 2 * res * res, "%s: ground triangles %u", what, ground_tris);
     hl_check_error("ground vertex normals == +Y", nerr, 0.0);
     hl_check_error("ground y == mesh min y", yerr, 0.0);
-    hl_check_error("ground albedo == mean object albedo", aerr, 1e-6);
+    hl_check_error("ground albedo == grey at the mean object albedo", aerr, 1e-6);
     hl_check_error("ground triangle geometric normals (1 - n.y)", gerr, 1e-9);
     /* Covers the footprint plus margin x larger extent on every side. */
     float glo[3], ghi[3];
@@ -248,6 +248,50 @@ static inline void check_ground(const char *what, hl_mesh *m, uint32_t res, doub
     HL_CHECK(hl_mesh_query_diagonal(m) > diag0, "%s: diagonal should grow with the ground", what);
     check_sane(what, m);
     HL_CHECK(hl_mesh_add_ground(NULL, m, NULL) == HL_ERR_INVALID_ARGUMENT, "%s: a second ground must be refused", what);
+}
+
+/* The default ground (hl_ground_desc all zero): it reaches the shadow of
+ * the object's top under a light 15 degrees high at every azimuth (and
+ * 0.75 x the extent at least), its middle square (the footprint plus
+ * 0.75 x its extent) is the uniform grid of 96 quads, and beyond it each
+ * cell is at most 1.25 x the one before. */
+static inline void check_ground_default(const char *what, hl_mesh *m)
+{
+    uint32_t ov = m->vertex_count;
+    float lo[3], hi[3];
+    bbox(m, 0, ov, lo, hi);
+    HL_CHECK(hl_mesh_add_ground(NULL, m, NULL) == HL_OK, "%s: add the default ground", what);
+    if (m->vertex_count == ov) return;
+    const double ext = fmax(hi[0] - lo[0], hi[2] - lo[2]), H = hi[1] - lo[1];
+    const double reach = fmax(0.75 * ext, H / tan(15.0 * 3.14159265358979323846 / 180.0));
+    float glo[3], ghi[3];
+    bbox(m, ov, m->vertex_count, glo, ghi);
+    double short_by = fmax(fmax(glo[0] - (lo[0] - reach), (hi[0] + reach) - ghi[0]),
+                           fmax(glo[2] - (lo[2] - reach), (hi[2] + reach) - ghi[2]));
+    printf("%s: height %.4g, extent %.4g: the ground reaches %.4g beyond the footprint (%.4g needed), %u vertices\n", what,
+           H, ext, fmin(fmin(lo[0] - glo[0], ghi[0] - hi[0]), fmin(lo[2] - glo[2], ghi[2] - hi[2])), reach,
+           m->vertex_count - ov);
+    hl_check_error("default ground's shortfall from the 15-degree shadow (relative to extent)", fmax(short_by, 0.0) / ext,
+                   1e-6);
+    /* the grid's x coordinates: the first row of the ground */
+    uint32_t n = 0;
+    while (ov + n < m->vertex_count && m->positions[3 * (size_t)(ov + n) + 2] == m->positions[3 * (size_t)ov + 2]) n++;
+    HL_CHECK((uint64_t)n * n == m->vertex_count - ov, "%s: a square grid of %u x %u", what, n, n);
+    const float *x = m->positions + 3 * (size_t)ov;
+    const double step = ext * 2.5 / 96.0, inner_lo = 0.5 * (lo[0] + hi[0]) - 1.25 * ext;
+    double uni = 0.0, growth = 0.0;
+    for (uint32_t i = 1; i < n; i++) {
+        const double a = x[3 * (i - 1)], b = x[3 * i], w = b - a;
+        if (a >= inner_lo - 1e-6 * ext && b <= inner_lo + 2.5 * ext + 1e-6 * ext) uni = fmax(uni, fabs(w - step) / step);
+        else if (i > 1 && i + 1 < n) { /* outer cells against their inner neighbours */
+            const double prev = b < inner_lo ? x[3 * (i + 1)] - b : a - x[3 * (i - 2)];
+            growth = fmax(growth, w / prev);
+        }
+    }
+    hl_check_error("default ground: the middle square's cells against 2.5 x extent / 96 (relative)", uni, 1e-4);
+    printf("default ground: largest growth from one cell to the next %.4f\n", growth);
+    HL_CHECK(growth <= 1.25 + 1e-3, "%s: cells grow by %g from one to the next (at most 1.25)", what, growth);
+    check_sane(what, m);
 }
 
 #endif

@@ -29,6 +29,17 @@ static void test_ground(void)
     if (m) check_ground("tetrahedron ground 7, margin 0.5", m, 7, 0.5);
     hl_mesh_destroy(m);
     m = NULL;
+    /* the default ground under a tall tetrahedron (8 x as high as wide)
+       and under a flat one (its shadow nearer than 0.75 x its extent) */
+    const float ys[2] = {8.0f, 0.05f};
+    for (int k = 0; k < 2; k++) {
+        float q[12];
+        for (int i = 0; i < 12; i++) q[i] = i % 3 == 1 ? p[i] * ys[k] : p[i];
+        HL_CHECK(hl_mesh_create(ctx, 4, q, NULL, NULL, 4, idx, &m) == HL_OK, "create: %s", hl_context_last_error(ctx));
+        if (m) check_ground_default(k ? "flat tetrahedron" : "tall tetrahedron", m);
+        hl_mesh_destroy(m);
+        m = NULL;
+    }
     HL_CHECK(hl_mesh_create(ctx, 4, p, NULL, NULL, 4, idx, &m) == HL_OK, "create");
     if (m) {
         hl_ground_desc gd = {0};

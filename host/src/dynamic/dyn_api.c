@@ -116,21 +116,34 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
     return HL_OK;
 }
 
-hl_result hl_dynamic_create_from_mesh(hl_context *ctx, const hl_mesh *mesh, int ground, const hl_dynamic_desc *desc,
-                                      hl_dynamic **out)
+/* gd: the ground's options where one is added */
+static hl_result from_mesh(hl_context *ctx, const hl_mesh *mesh, int ground, const hl_ground_desc *gd,
+                           const hl_dynamic_desc *desc, hl_dynamic **out)
 {
     if (!out || !mesh) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_dynamic_create_from_mesh: a NULL argument");
     *out = NULL;
-    hl_ground_desc gd = {0};
+    hl_ground_desc none = {0};
     /* a mesh that carries its ground gives it as a body already */
     int add = ground && mesh->object_vertex_count == mesh->vertex_count;
     hl_dyn_scene *s = NULL;
-    hl_result r = hl_dyn_scene_from_mesh(ctx, mesh, add ? &gd : NULL, &s);
+    hl_result r = hl_dyn_scene_from_mesh(ctx, mesh, add ? (gd ? gd : &none) : NULL, &s);
     return r == HL_OK ? dynamic_init(ctx, s, desc, out) : r;
+}
+
+hl_result hl_dynamic_create_from_mesh(hl_context *ctx, const hl_mesh *mesh, int ground, const hl_dynamic_desc *desc,
+                                      hl_dynamic **out)
+{
+    return from_mesh(ctx, mesh, ground, NULL, desc, out);
 }
 
 hl_result hl_dynamic_create_from_file(hl_context *ctx, const char *path, int ground, const hl_dynamic_desc *desc,
                                       hl_dynamic **out)
+{
+    return hl_dynamic_create_from_file_ground(ctx, path, ground, desc, NULL, out);
+}
+
+hl_result hl_dynamic_create_from_file_ground(hl_context *ctx, const char *path, int ground, const hl_dynamic_desc *desc,
+                                             const hl_ground_desc *gd, hl_dynamic **out)
 {
     if (!out || !path) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_dynamic_create_from_file: a NULL argument");
     *out = NULL;
@@ -144,7 +157,7 @@ hl_result hl_dynamic_create_from_file(hl_context *ctx, const char *path, int gro
         hl_mesh *m = NULL;
         hl_mesh_motion mo;
         r = hl_mesh_load_motion_(ctx, path, NULL, &m, NULL, &mo);
-        if (r == HL_OK && (rest || mo.animations == 0)) r = hl_dynamic_create_from_mesh(ctx, m, 1, desc, out);
+        if (r == HL_OK && (rest || mo.animations == 0)) r = from_mesh(ctx, m, 1, gd, desc, out);
         hl_mesh_destroy(m);
         if (r != HL_OK || *out) return r;
     }
@@ -153,7 +166,7 @@ hl_result hl_dynamic_create_from_file(hl_context *ctx, const char *path, int gro
     hl_dyn_scene *s = NULL;
     r = hl_dyn_scene_load_desc(ctx, path, &sd, &s);
     /* an animated file keeps its bodies and motion over its ground */
-    if (r == HL_OK && (flags & HL_DYNAMIC_GROUND)) r = hl_dyn_scene_add_ground(s, NULL);
+    if (r == HL_OK && (flags & HL_DYNAMIC_GROUND)) r = hl_dyn_scene_add_ground(s, gd);
     if (r != HL_OK) {
         hl_dyn_scene_destroy(s);
         return r;
