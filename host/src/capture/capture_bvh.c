@@ -24,9 +24,15 @@
  * rounded to float and the slabs are computed in float. */
 #define BVH_PAD_REL 1e-5
 #define BVH_PAD_EXT 1e-4
-/* Radians added to a node's cone in the tiles' listing (double on the
- * host): far more than its rounding; a loose node costs only tests. */
-#define BVH_CONE_MARGIN 1e-3
+/* Taken off the cosine a node's cone must reach in the tiles' listing
+ * (double on the host): far more than its rounding; a loose node costs
+ * only tests. */
+#define BVH_COS_MARGIN 1e-9
+
+/* min and max without libm's NaN rules (no NaN reaches here: the scene
+ * was checked finite), which the compiler inlines */
+#define MIN2(a, b) ((a) < (b) ? (a) : (b))
+#define MAX2(a, b) ((a) > (b) ? (a) : (b))
 
 typedef struct builder {
     hl_capture_accel *a;
@@ -57,10 +63,10 @@ static uint32_t build(builder *b, uint32_t lo, uint32_t hi, uint32_t depth)
         const uint32_t i = a->order[e];
         const float *bx = a->box + 6 * (size_t)i, *c = b->cen + 3 * (size_t)i;
         for (int k = 0; k < 3; k++) {
-            nd[k] = fminf(nd[k], bx[k]);
-            nd[4 + k] = fmaxf(nd[4 + k], bx[3 + k]);
-            cmin[k] = fmin(cmin[k], c[k]);
-            cmax[k] = fmax(cmax[k], c[k]);
+            nd[k] = MIN2(nd[k], bx[k]);
+            nd[4 + k] = MAX2(nd[4 + k], bx[3 + k]);
+            cmin[k] = MIN2(cmin[k], c[k]);
+            cmax[k] = MAX2(cmax[k], c[k]);
         }
     }
     uint32_t *ln = a->links + 2 * (size_t)node;
@@ -89,8 +95,8 @@ static uint32_t build(builder *b, uint32_t lo, uint32_t hi, uint32_t depth)
             cnt[k]++;
             const float *bx = a->box + 6 * (size_t)i;
             for (int q = 0; q < 3; q++) {
-                blo[k][q] = fmin(blo[k][q], bx[q]);
-                bhi[k][q] = fmax(bhi[k][q], bx[3 + q]);
+                blo[k][q] = MIN2(blo[k][q], bx[q]);
+                bhi[k][q] = MAX2(bhi[k][q], bx[3 + q]);
             }
         }
         /* right[k]: the bins k+1 and above */
@@ -99,8 +105,8 @@ static uint32_t build(builder *b, uint32_t lo, uint32_t hi, uint32_t depth)
         for (int k = BVH_BINS - 1; k > 0; k--) {
             rc += cnt[k];
             for (int q = 0; q < 3; q++) {
-                rlo[q] = fmin(rlo[q], blo[k][q]);
-                rhi[q] = fmax(rhi[q], bhi[k][q]);
+                rlo[q] = MIN2(rlo[q], blo[k][q]);
+                rhi[q] = MAX2(rhi[q], bhi[k][q]);
             }
             rarea[k - 1] = area_of(rlo, rhi);
             rcnt[k - 1] = rc;
@@ -110,8 +116,8 @@ static uint32_t build(builder *b, uint32_t lo, uint32_t hi, uint32_t depth)
         for (int k = 0; k < BVH_BINS - 1; k++) {
             lc += cnt[k];
             for (int q = 0; q < 3; q++) {
-                llo[q] = fmin(llo[q], blo[k][q]);
-                lhi[q] = fmax(lhi[q], bhi[k][q]);
+                llo[q] = MIN2(llo[q], blo[k][q]);
+                lhi[q] = MAX2(lhi[q], bhi[k][q]);
             }
             if (lc == 0 || rcnt[k] == 0) continue;
             const double cost = lc * area_of(llo, lhi) + rcnt[k] * rarea[k];
@@ -142,9 +148,12 @@ static uint32_t build(builder *b, uint32_t lo, uint32_t hi, uint32_t depth)
     return node;
 }
 
-/* Whether a ray of the cone c (HL_CAPTURE_CONE_FLOATS: unit axis, ...,
- * half-angle in c[7]) can enter node box nd: the cone around the box's
- * bounding sphere meets c, or the sphere holds the origin. */
+/* Whether a ray of the cone c (HL_CAPTURE_CONE_FLOATS: unit axis, the
+ * half-angle's cosine and sine in c[4], c[5]) can enter node box nd: the
+ * cone around the box's bounding sphere meets c, or the sphere holds the
+ * origin. In cosines (both half-angles below a right angle, so the sum
+ * is below pi), in double: far finer than the margins the tile's cone
+ * and the padded boxes already carry. */
 static int node_meets(const float *nd, const float *c)
 {
     double m[3], r2 = 0.0, d2 = 0.0, dot = 0.0;
@@ -155,10 +164,9 @@ static int node_meets(const float *nd, const float *c)
         d2 += m[k] * m[k];
         dot += m[k] * c[k];
     }
-    if (d2 <= r2) return 1;
-    const double d = sqrt(d2), cosang = dot / d;
-    const double ang = acos(cosang > 1.0 ? 1.0 : cosang < -1.0 ? -1.0 : cosang);
-    return ang <= asin(sqrt(r2) / d) + (double)c[7] + BVH_CONE_MARGIN;
+    if (d2 <= r2 || c[4] <= 0.0f) return 1; /* (a cone past a right angle: never pruned) */
+    const double sa = sqrt(r2 / d2), ca = sqrt(1.0 - r2 / d2);
+    return dot / sqrt(d2) >= ca * c[4] - sa * c[5] - BVH_COS_MARGIN;
 }
 
 static int cmp_u32(const void *x, const void *y)
