@@ -21,7 +21,9 @@
  * surroundings.transform  a program transform (a quarter turn and a
  *                         shift) applied after the animation, on a file
  *                         and on arrays; a scaling one and a body out of
- *                         range refused.
+ *                         range refused; the file's placement (shift,
+ *                         scale, turn about +Y) between the animation and
+ *                         P, and bad placements refused naming the value.
  * surroundings.bad        missing and truncated files, negative emission
  *                         (arrays and glTF strength), a NaN corner (file
  *                         and arrays): each refused with the file or arrays
@@ -291,6 +293,33 @@ static void test_transform(void)
         const float scale[12] = {2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0};
         HL_CHECK(hl_surroundings_set_transform(s, 0, scale) == HL_ERR_INVALID_ARGUMENT, "a scaling transform is refused");
         HL_CHECK(hl_surroundings_set_transform(s, 1, QUARTER) == HL_ERR_INVALID_ARGUMENT, "body 1 of 1 is refused");
+        /* the placement (--surroundings-transform): shift + 2.5 Ry(90) x
+           over the animated file, before P, as a root node would be */
+        const float shift[3] = {1, -2, 3};
+        HL_CHECK(hl_surroundings_set_placement(s, shift, 2.5f, 90.0f) == HL_OK, "placement: %s", hl_context_last_error(ctx));
+        const float *p = NULL, *e = NULL;
+        double w = INFINITY;
+        if (hl_surroundings_set_transform(s, 0, QUARTER) == HL_OK && hl_surroundings_triangles(s, &p, &e) == HL_OK) {
+            w = 0.0;
+            for (uint32_t v = 0; v < 6; v++) {
+                const float ax = QUAD[3 * v] + 2.0f, ay = QUAD[3 * v + 1], az = QUAD[3 * v + 2];
+                const float want[3] = {3.0f - 2.5f * ax, -1.0f + 2.5f * ay, -(1.0f + 2.5f * az)};
+                w = fmax(w, max_err(p + 3 * (size_t)v, want, 3));
+            }
+        }
+        hl_check_error("transform: placement after the animation, before P (file, t = 1 s)", w, 10 * POS_TOL);
+        static const struct { float sh, scale, yaw; const char *word; } bad[] = {
+            {0, 0.0f, 0, "scale"}, {0, -1.0f, 0, "scale"}, {0, NAN, 0, "scale"}, {0, INFINITY, 0, "scale"},
+            {NAN, 1.0f, 0, "shift"}, {INFINITY, 1.0f, 0, "shift"}, {0, 1.0f, NAN, "turn"}};
+        for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+            const float sh[3] = {0, bad[k].sh, 0};
+            hl_result r = hl_surroundings_set_placement(s, sh, bad[k].scale, bad[k].yaw);
+            const char *msg = hl_context_last_error(ctx);
+            HL_CHECK(r == HL_ERR_INVALID_ARGUMENT && msg && strstr(msg, bad[k].word),
+                     "placement %g %g %g: not refused for its %s (%s)", (double)bad[k].sh, (double)bad[k].scale,
+                     (double)bad[k].yaw, bad[k].word, msg ? msg : "");
+            printf("transform: placement refused: %s\n", msg ? msg : "");
+        }
         hl_surroundings_destroy(s);
     }
     remove(path);

@@ -222,6 +222,28 @@ hl_result hl_surroundings_set_transform(hl_surroundings *s, uint32_t body, const
     return r;
 }
 
+hl_result hl_surroundings_set_placement(hl_surroundings *s, const float shift[3], float scale, float yaw_deg)
+{
+    if (!s || !shift)
+        return hl_fail(s ? s->ctx : NULL, HL_ERR_INVALID_ARGUMENT, "hl_surroundings_set_placement: surroundings and shift are required");
+    for (int i = 0; i < 3; i++)
+        if (!isfinite(shift[i]))
+            return hl_fail(s->ctx, HL_ERR_INVALID_ARGUMENT, "surroundings placement: shift %g %g %g is not finite",
+                           (double)shift[0], (double)shift[1], (double)shift[2]);
+    if (!(isfinite(scale) && scale > 0.0f))
+        return hl_fail(s->ctx, HL_ERR_INVALID_ARGUMENT, "surroundings placement: scale %g must be a finite number > 0",
+                       (double)scale);
+    if (!isfinite(yaw_deg))
+        return hl_fail(s->ctx, HL_ERR_INVALID_ARGUMENT, "surroundings placement: turn %g degrees is not finite",
+                       (double)yaw_deg);
+    /* x' = shift + scale Ry(yaw) x, Ry turning +X towards -Z as bench's turns do */
+    const double a = (double)yaw_deg * 3.14159265358979323846 / 180.0, c = cos(a) * scale, sn = sin(a) * scale;
+    const double m[12] = {c, 0.0, sn, shift[0], 0.0, scale, 0.0, shift[1], -sn, 0.0, c, shift[2]};
+    hl_result r = hl_dyn_scene_set_placement(s->scene, m);
+    if (r == HL_OK) s->posed = 0;
+    return r;
+}
+
 hl_result hl_surroundings_triangles(hl_surroundings *s, const float **positions, const float **emission)
 {
     if (!s || !positions || !emission)
