@@ -255,6 +255,8 @@ relight_surroundings)
     expect_error "transform_$v" 2 "--surroundings-transform" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --surroundings-transform "$v" -o "$tmp/o.ply"
   done
   expect_error transform_scale_zero 2 "SCALE 0 must be" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --surroundings-transform 0,0,0,0,0 -o "$tmp/o.ply"
+  printf 'v 1e38 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n' >"$tmp/far.obj"
+  expect_error surroundings_far 1 "far.obj: capture: triangle 0" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$tmp/far.obj" -o "$tmp/o.ply"
   expect_error transform_alone 2 "--surroundings-transform needs --surroundings" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings-transform 0,0,0,1,0 -o "$tmp/o.ply"
   ;;
 *) echo "usage: $0 bad_input|bad_options|cl_equals_ref|info|interrupt|opencl_faults|relight|relight_bad|relight_surroundings"; exit 2 ;;

@@ -691,6 +691,8 @@ static void case_bad(void)
     expect_fail(ref, hl_capture_run(c, &sc, L), "NaN corner", "triangle 0");
     s.pos[4] = INFINITY;
     expect_fail(ref, hl_capture_run(c, &sc, L), "infinite corner", "not finite");
+    s.pos[4] = 2e12f;
+    expect_fail(ref, hl_capture_run(c, &sc, L), "a corner too far", "overflow");
     s.pos[4] = 0.5f;
     s.em[3 * 1 + 2] = -1.0f;
     expect_fail(ref, hl_capture_run(c, &sc, L), "negative radiance", "triangle 1");

@@ -96,7 +96,7 @@ hl_result hl_capture_create(hl_context *ctx, uint32_t N, uint32_t S, hl_capture 
     return HL_OK;
 }
 
-static hl_result check_scene(hl_context *ctx, uint32_t ncoef, const hl_capture_scene *s)
+hl_result hl_capture_check(hl_context *ctx, uint32_t ncoef, const hl_capture_scene *s)
 {
     if (!s || !s->positions || !s->emission || s->triangle_count == 0)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "capture: no surroundings (no triangles given)");
@@ -104,9 +104,16 @@ static hl_result check_scene(hl_context *ctx, uint32_t ncoef, const hl_capture_s
         if (!isfinite(s->center[a]))
             return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "capture: the capture point is not finite");
     for (uint32_t i = 0; i < s->triangle_count; i++) {
-        for (int q = 0; q < 9; q++)
-            if (!isfinite(s->positions[9 * (size_t)i + q]))
+        for (int q = 0; q < 9; q++) {
+            const float p = s->positions[9 * (size_t)i + q];
+            if (!isfinite(p))
                 return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "capture: triangle %u has a corner that is not finite", i);
+            if (fabs((double)p - s->center[q % 3]) > HL_CAPTURE_MAX_DIST)
+                return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                               "capture: triangle %u has a corner %g from the capture point along an axis: at most %g "
+                               "(the rays' float products would overflow)",
+                               i, fabs((double)p - s->center[q % 3]), HL_CAPTURE_MAX_DIST);
+        }
         for (int q = 0; q < 3; q++) {
             float e = s->emission[3 * (size_t)i + q];
             if (!isfinite(e) || e < 0.0f)
@@ -412,7 +419,7 @@ static hl_result grow_buf(hl_context *ctx, cl_mem *m, size_t *room, size_t bytes
 static hl_result load_scene(hl_capture *c, const hl_capture_scene *scene)
 {
     hl_context *ctx = c->ctx;
-    hl_result r = check_scene(ctx, c->ncoef, scene);
+    hl_result r = hl_capture_check(ctx, c->ncoef, scene);
     if (r != HL_OK) return r;
     const uint32_t n = scene->triangle_count;
     if (n > c->cap_tris) {

@@ -30,6 +30,10 @@ static inline uint32_t hl_capture_default_s(uint32_t N)
     uint32_t S = N >= HL_CAPTURE_DEFAULT_NS ? 1u : HL_CAPTURE_DEFAULT_NS / N;
     return S > HL_CAPTURE_MAX_S ? HL_CAPTURE_MAX_S : S;
 }
+/* Farthest a corner may lie from the capture point along an axis:
+ * Moller-Trumbore's determinant is a product of three such lengths, and
+ * stays finite in float (3.4e38) below 1e12 each. */
+#define HL_CAPTURE_MAX_DIST 1e12
 /* Candidates a texel lists (HL_CAPTURE_LIST in the kernel, 1 KiB of
  * private memory); a texel whose cone meets more traces its rays through
  * the hierarchy. */
@@ -89,6 +93,9 @@ hl_result hl_capture_create(hl_context *ctx, uint32_t N, uint32_t S, hl_capture 
  * infinite positions or centre, negative or non-finite radiance, no
  * triangles, a bad fallback map. */
 hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L);
+/* hl_capture_run's checks of scene for maps of ncoef texels a plane (the
+ * relighter makes them where it takes the triangles, to name the file). */
+hl_result hl_capture_check(hl_context *ctx, uint32_t ncoef, const hl_capture_scene *scene);
 /* As hl_capture_run on the OpenCL backend, with the maps in device
  * memory (cl_mem of 3 x 2 N^2 floats): the fallback lighting from env_mem
  * (NULL: black; scene->fallback_L must be NULL), the capture into L_mem.

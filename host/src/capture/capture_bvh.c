@@ -79,7 +79,7 @@ static uint32_t build(builder *b, uint32_t lo, uint32_t hi, uint32_t depth)
     double best_cost = INFINITY;
     for (int ax = 0; ax < 3; ax++) {
         const double ext = cmax[ax] - cmin[ax];
-        if (!(ext > 0.0)) continue;
+        if (!(ext > 0.0) || !isfinite(ext)) continue; /* (finite: the bin index below is never NaN) */
         const double scale = BVH_BINS / ext;
         uint32_t cnt[BVH_BINS] = {0};
         double blo[BVH_BINS][3], bhi[BVH_BINS][3];

@@ -183,6 +183,8 @@ hl_result hl_surroundings_create(hl_context *ctx, const float *positions, const 
 
 uint32_t hl_surroundings_triangle_count(const hl_surroundings *s) { return s ? s->ntris : 0; }
 
+const char *hl_surroundings_name_(const hl_surroundings *s) { return s ? s->scene->name : "(no surroundings)"; }
+
 uint32_t hl_surroundings_body_count(const hl_surroundings *s) { return s ? s->nbodies : 0; }
 
 const char *hl_surroundings_body_name(const hl_surroundings *s, uint32_t body)

@@ -19,6 +19,7 @@
 #include <fcntl.h>
 #include <math.h>
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -30,6 +31,7 @@
 #include "haarlight_tools.h"
 #include "lighting.h"
 #include "sh.h"
+#include "surroundings.h"
 #include "transport_layout.h"
 #include "twins.h"
 
@@ -418,6 +420,14 @@ static hl_result take_surroundings(hl_relighter *r)
     r->cscene.emission = r->sur_em;
     r->cscene.triangle_count = n;
     r->env_serial++;
+    /* checked here, where the file can be named (the capture checks again) */
+    res = hl_capture_check(r->ctx, r->g->ncoef, &r->cscene);
+    if (res != HL_OK) {
+        char why[1024];
+        snprintf(why, sizeof why, "%s", hl_context_last_error(r->ctx));
+        r->sur_n = 0; /* not captured: the next run checks again */
+        return hl_fail(r->ctx, res, "%s: %s", hl_surroundings_name_(r->sur), why);
+    }
     return HL_OK;
 }
 
