@@ -5,17 +5,21 @@
  * It shoots S x S stratified rays through the texel's footprint in the
  * (s, t) plane, each weighted by the solid angle it stands for,
  * 4 / (1 + s^2 + t^2)^2 (rays beyond the unit disc are skipped), finds
- * the nearest triangle (Moller-Trumbore, both sides, every triangle in
- * order, the first on a tie) and averages the emitted radiance: the
- * texel's mean radiance, what env2para writes. Rays that hit nothing take
+ * the nearest triangle (Moller-Trumbore, both sides, the lowest index on
+ * a tie: what testing every triangle in order finds) and averages the
+ * emitted radiance: the texel's mean radiance, what env2para writes. Rays that hit nothing take
  * the texel's value of env_L (when have_env), weighted by their share.
  * A texel lists the triangles of its tile's list (made on the host) whose
  * bounding cone meets its cone and whose view (the planes through the
  * capture point and their edges) it does not lie wholly outside of, with
- * a margin. Cost: 2 N^2 texels x (its tile's triangles + S^2 x its own);
- * at worst 2 N^2 S^2 x triangles. It casts no ray where none is
- * listed, or where one listed triangle's view holds the texel's cone with
- * a margin and every other listed one lies behind that triangle's plane
+ * a margin. Cost: 2 N^2 texels x (its tile's triangles + S^2 x its own).
+ * A texel listing more than HL_CAPTURE_LIST, or whose tile lists more
+ * than HL_CAPTURE_SCAN, and a rim sliver's one ray, trace the hierarchy
+ * (hl_capture_trace, hl_shared.h; nodes, links and order from
+ * capture_bvh.c) instead of testing every triangle. It casts no ray
+ * where none is listed, or where one listed triangle's view holds the
+ * texel's cone with a margin and every other listed one lies behind that
+ * triangle's plane
  * (the rays would all hit it first): the same sums, without the rays.
  * Triangles: HL_CAPTURE_F4 float4 each: v0 relative to the capture point,
  * e1 = v1 - v0, e2 = v2 - v0, emitted RGB, the bounding cone (unit axis,
