@@ -245,6 +245,19 @@ relight_surroundings)
   expect_error time_text 2 "--time" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --time soon -o "$tmp/o.ply"
   expect_error time_alone 2 "--time needs --surroundings" "$tmp/o.ply" -- relight "$tmp/s.hlt" --time 1 -o "$tmp/o.ply"
   expect_error surroundings_missing 1 "nosuch.gltf" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$tmp/nosuch.gltf" -o "$tmp/o.ply"
+  # what the capture costs is said; the file's placement moves the lamp
+  grep -q "capture: 44 triangles, .* MiB on the host and .* MiB on the device, .* ms a capture" "$tmp/s0.txt" || fail "no line saying what the capture costs"
+  "$bin" relight "$tmp/s.hlt" --surroundings "$sur" --surroundings-transform 0,0,0,1,180 -o "$tmp/sy.ply" -q || fail "relight --surroundings-transform"
+  cmp -s "$tmp/s0.ply" "$tmp/sy.ply" && fail "the lamp turned half about +Y gave identical colours"
+  "$bin" relight "$tmp/s.hlt" --surroundings "$sur" --surroundings-transform 0,0,0,1,0 -o "$tmp/sI.ply" -q || fail "identity placement"
+  cmp -s "$tmp/s0.ply" "$tmp/sI.ply" || fail "the identity placement changed the colours"
+  for v in 1,2,3 1,2,3,0,0 1,2,3,-2,0 1,nan,3,1,0 1,2,3,inf,0 1,2,3,1,0,7 a,b,c,d,e; do
+    expect_error "transform_$v" 2 "--surroundings-transform" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --surroundings-transform "$v" -o "$tmp/o.ply"
+  done
+  expect_error transform_scale_zero 2 "SCALE 0 must be" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --surroundings-transform 0,0,0,0,0 -o "$tmp/o.ply"
+  printf 'v 1e38 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n' >"$tmp/far.obj"
+  expect_error surroundings_far 1 "far.obj: capture: triangle 0" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$tmp/far.obj" -o "$tmp/o.ply"
+  expect_error transform_alone 2 "--surroundings-transform needs --surroundings" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings-transform 0,0,0,1,0 -o "$tmp/o.ply"
   ;;
 *) echo "usage: $0 bad_input|bad_options|cl_equals_ref|info|interrupt|opencl_faults|relight|relight_bad|relight_surroundings"; exit 2 ;;
 esac

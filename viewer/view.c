@@ -54,7 +54,7 @@ static const char *const usage_view =
     "  --surroundings FILE  light from surroundings: any mesh file assimp reads (glTF, FBX,\n"
     "                       OBJ, ...); emissive materials give light (emissive colour x\n"
     "                       glTF emissive strength), the others are dark and hide what\n"
-    "                       lies behind them; at most 4096 triangles. The relighter\n"
+    "                       lies behind them; any number of triangles. The relighter\n"
     "                       captures them at every lighting change, as seen from ONE\n"
     "                       point, the centre of the object's bounding box (ground left\n"
     "                       out), so surroundings close to a large object light all of\n"
@@ -65,6 +65,7 @@ static const char *const usage_view =
     "                       s hides them) and can be dragged and played (keys below); a\n"
     "                       frame where nothing moved and the environment is the same\n"
     "                       does no lighting work (the HUD says \"lighting: unchanged\")\n"
+    CLI_USAGE_SURROUNDINGS_TRANSFORM
     "  --time T             seconds into the animation of the surroundings, or of\n"
     "                       --dynamic's scene (default 0; held at the first or last key\n"
     "                       outside its range)\n"
@@ -238,6 +239,8 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
         return usage_error(usage, "%s", "--surroundings light a transport through the relighter, not --dynamic's scene");
     if (shared_opt && !v->dy.on && !v->o.surroundings)
         return usage_error(usage, "%s is an option of --surroundings or --dynamic", shared_opt);
+    if (v->o.place_set && !v->o.surroundings)
+        return usage_error(usage, "%s", "--surroundings-transform needs --surroundings");
     if (v->o.time_set && !v->dy.on && !v->o.surroundings)
         return usage_error(usage, "%s", "--time needs --surroundings or --dynamic");
     v->dy.time0 = (float)v->o.time; /* --dynamic's --time is read by the shared parser */

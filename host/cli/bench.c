@@ -79,6 +79,7 @@ static const char *const usage_bench =
     "                       at M = 200 with every body turned a further half degree about\n"
     "                       +Y each time (a new capture each change), an unchanged frame,\n"
     "                       and the capture alone against the dot products alone\n"
+    CLI_USAGE_SURROUNDINGS_TRANSFORM
     "  --device cl:P:D      OpenCL device (default: the first, or HL_OPENCL_DEVICE=P:D;\n"
     "                       HL_DEVICE_SHAPE=cpu|gpu forces the kernels' shape)\n"
     "  --device-memory SIZE most device memory to use, e.g. 512M (default: the device's;\n"
@@ -93,6 +94,8 @@ typedef struct bench_opts {
     uint32_t terms[BENCH_MAX_TERMS], nterms, selects[3], nsel;
     uint32_t K, K2, reps, ref_reps;
     const char *surroundings;
+    float place[5];
+    int place_set;
     int image;
     uint32_t image_frames, image_w, image_h;
     hl_context_desc cd;
@@ -193,6 +196,7 @@ static int parse_bench(int argc, char **argv, bench *b)
         else if (!strcmp(a, "--no-ref-timing")) o->ref_timing = 0;
         else if (!strcmp(a, "--no-banding")) o->banding_on = 0;
         else if (!strcmp(a, "--surroundings")) { NEED(); o->surroundings = v; }
+        else if (!strcmp(a, "--surroundings-transform")) { NEED(); if (!cli_parse_placement(usage, v, o->place)) return 2; o->place_set = 1; }
         else if (!strcmp(a, "--image")) o->image = 1;
         else if (!strcmp(a, "--image-frames")) { NEED(); if (!parse_u32(v, &o->image_frames) || o->image_frames < 1 || o->image_frames > 256) return usage_error(usage, "--image-frames %s: expected 1 to 256", v); }
         else if (!strcmp(a, "--image-size")) { NEED(); if (!cli_parse_size(v, &o->image_w, &o->image_h) || o->image_w < 8 || o->image_h < 8 || o->image_w > 4096 || o->image_h > 4096) return usage_error(usage, "--image-size %s: expected WxH, 8 to 4096 each", v); }
@@ -208,6 +212,7 @@ static int parse_bench(int argc, char **argv, bench *b)
 #undef NEED
     }
     if (!o->nfiles) return usage_error(usage, "%s", "no SCENE.hlt given");
+    if (o->place_set && !o->surroundings) return usage_error(usage, "%s", "--surroundings-transform needs --surroundings");
     if (o->want_sky || o->nenvs == 0) {
         if (o->nenvs == BENCH_MAX_ENVS) return usage_error(usage, "%s", "at most 16 environments");
         b->envs[o->nenvs].name = "sky";
@@ -239,6 +244,7 @@ static hl_result load(bench *b)
     }
     if (r == HL_OK) r = hl_bench_ref_create(b->ref, b->t[0], &b->br);
     if (r == HL_OK && o->surroundings) r = hl_surroundings_load(b->ref, o->surroundings, &b->sur);
+    if (r == HL_OK && o->surroundings && o->place_set) r = hl_surroundings_set_placement(b->sur, o->place, o->place[3], o->place[4]);
     return r;
 }
 

@@ -70,6 +70,9 @@ typedef struct cli_scene_opts {
     const char *surroundings; /* --surroundings FILE, or NULL */
     double time;              /* --time T, seconds (default 0) */
     int time_set;
+    /* --surroundings-transform TX,TY,TZ,SCALE,YAW (checked when parsed) */
+    float place[5];
+    int place_set;
 } cli_scene_opts;
 
 void cli_scene_opts_init(cli_scene_opts *o);
@@ -81,7 +84,11 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
  * centre (the automatic framing's target), --target alone is seen from the
  * automatic framing's offset. Fails like hl_camera_query_view. */
 hl_result cli_camera_complete(hl_context *ctx, const hl_mesh *mesh, cli_scene_opts *o);
-/* Loads o->surroundings (when given) posed at o->time, and (unless quiet)
+/* Parses --surroundings-transform's value into place (shift, scale,
+ * turn about +Y in degrees); 0 after printing the usage error that names
+ * the option and the bad part. */
+int cli_parse_placement(const char *usage, const char *v, float place[5]);
+/* Loads o->surroundings (when given) placed by --surroundings-transform and posed at o->time, and (unless quiet)
  * prints what it holds: triangles, emitting bodies, the animation's range
  * and the time used. *out stays NULL without --surroundings. */
 hl_result cli_surroundings_load(hl_context *ctx, const cli_scene_opts *o, hl_surroundings **out, int quiet);
@@ -104,7 +111,7 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
     "                       (the default), x support area, or x 1\n"
 #define CLI_USAGE_SURROUNDINGS                                                            \
     "  --surroundings FILE  light from surroundings: any mesh file assimp reads (glTF, FBX,\n" \
-    "                       OBJ, ...), at most 4096 triangles; emissive materials give\n" \
+    "                       OBJ, ...), any number of triangles; emissive materials give\n" \
     "                       light (emissive colour x intensity, or x glTF's emissive\n" \
     "                       strength), the others are dark and hide what lies behind\n" \
     "                       them. They are seen from ONE point, the centre of the\n"      \
@@ -114,7 +121,14 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
     "                       if given, else black; --rotate turns only the environment.\n" \
     "                       They light the object but are not drawn in images\n"         \
     "  --time T             seconds into the surroundings' own node animation (default 0;\n" \
-    "                       held at the first or last key outside its range)\n"
+    "                       held at the first or last key outside its range)\n"         \
+    CLI_USAGE_SURROUNDINGS_TRANSFORM
+#define CLI_USAGE_SURROUNDINGS_TRANSFORM                                                  \
+    "  --surroundings-transform TX,TY,TZ,SCALE,YAW\n"                                    \
+    "                       place the surroundings file: scale it uniformly by SCALE\n"  \
+    "                       (> 0), turn it YAW degrees about +Y (+X towards -Z), then\n" \
+    "                       shift it by TX,TY,TZ, as a root node over the file would\n"  \
+    "                       (its animation included; default 0,0,0,1,0)\n"
 #define CLI_USAGE_CAMERA                                                                  \
     "  --size WxH           image size (default 960x720)\n"                              \
     "  --fov DEG            vertical field of view (default 35)\n"                       \

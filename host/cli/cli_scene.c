@@ -49,12 +49,16 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
         "--size", "--fov", "--eye", "--target", "--up", "--device", "--device-memory", "--threads", "--layout", NULL};
     int known = 0;
     for (int k = 0; with_value[k]; k++) known |= !strcmp(a, with_value[k]);
-    int surr = o->accept_surroundings && (!strcmp(a, "--surroundings") || !strcmp(a, "--time"));
+    int surr = o->accept_surroundings &&
+               (!strcmp(a, "--surroundings") || !strcmp(a, "--time") || !strcmp(a, "--surroundings-transform"));
     if (surr) {
         if (*i + 1 >= argc) return -usage_error(usage, "option %s needs a value", a);
         v = argv[++*i];
         if (!strcmp(a, "--surroundings")) o->surroundings = v;
-        else {
+        else if (!strcmp(a, "--surroundings-transform")) {
+            if (!cli_parse_placement(usage, v, o->place)) return -2;
+            o->place_set = 1;
+        } else {
             char *end = NULL;
             o->time = strtod(v, &end);
             if (end == v || *end || !isfinite(o->time) || o->time < 0.0)
@@ -124,12 +128,42 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
     return 1;
 }
 
+int cli_parse_placement(const char *usage, const char *v, float place[5])
+{
+    static const char *const part[5] = {"TX", "TY", "TZ", "SCALE", "YAW"};
+    const char *p = v;
+    for (int k = 0; k < 5; k++) {
+        char *end = NULL;
+        double x = strtod(p, &end);
+        if (end == p || (k < 4 && *end != ',') || (k == 4 && *end)) {
+            usage_error(usage, "--surroundings-transform %s: expected TX,TY,TZ,SCALE,YAW, five numbers (a shift, a "
+                        "uniform scale > 0, degrees about +Y)", v);
+            return 0;
+        }
+        char msg[160];
+        if (!isfinite(x) || !isfinite((float)x)) {
+            snprintf(msg, sizeof msg, "--surroundings-transform %%s: %s is not a finite number", part[k]);
+            usage_error(usage, msg, v);
+            return 0;
+        }
+        if (k == 3 && !(x > 0.0 && (float)x > 0.0f)) {
+            snprintf(msg, sizeof msg, "--surroundings-transform %%s: SCALE %g must be a number > 0", x);
+            usage_error(usage, msg, v);
+            return 0;
+        }
+        place[k] = (float)x;
+        p = end + 1;
+    }
+    return 1;
+}
+
 hl_result cli_surroundings_load(hl_context *ctx, const cli_scene_opts *o, hl_surroundings **out, int quiet)
 {
     *out = NULL;
     if (!o->surroundings) return HL_OK;
     hl_surroundings *s = NULL;
     hl_result r = hl_surroundings_load(ctx, o->surroundings, &s);
+    if (r == HL_OK && o->place_set) r = hl_surroundings_set_placement(s, o->place, o->place[3], o->place[4]);
     if (r == HL_OK) r = hl_surroundings_set_time(s, o->time);
     if (r != HL_OK) {
         hl_surroundings_destroy(s);

@@ -14,7 +14,8 @@
 
 static const char *const usage_relight =
     "usage: haarlight relight SCENE.hlt (--env ENV.exr | --sky) -o OUT [options]\n"
-    "       haarlight relight SCENE.hlt --surroundings FILE [--time T] [--env ENV.exr | --sky]\n"
+    "       haarlight relight SCENE.hlt --surroundings FILE [--surroundings-transform ...] [--time T]\n"
+    "                         [--env ENV.exr | --sky]\n"
     "                         -o OUT [options]\n"
     "\n"
     "Relights a transport file from `haarlight precompute` under an environment, or\n"
@@ -83,6 +84,7 @@ int cmd_relight(int argc, char **argv)
     if (!out) return usage_error(usage, "%s", "no output given (-o OUT.ply|.glb|.exr|.png)");
     if (env_path && want_sky) return usage_error(usage, "%s", "--env and the sky options contradict each other");
     if (o.time_set && !o.surroundings) return usage_error(usage, "%s", "--time needs --surroundings");
+    if (o.place_set && !o.surroundings) return usage_error(usage, "%s", "--surroundings-transform needs --surroundings");
     /* without --surroundings the sky is the default; with them, no map: black where they leave open */
     int use_env = env_path || want_sky || !o.surroundings;
     const char *ext = cli_ext_of(out);
@@ -146,6 +148,18 @@ int cmd_relight(int argc, char **argv)
         fprintf(stderr, "negative light: %u of %u vertices summed below zero and were clamped to 0 (the most negative "
                 "channel was %.3g%% of the brightest)\n", st.negative_vertices, t->info.vertex_count,
                 100.0 * st.most_negative);
+    if (r == HL_OK && surr && !cd.quiet) {
+        /* what the surroundings cost: memory and time grow with their
+           triangles (no cap), so say both */
+        hl_capture_cost cc;
+        hl_result rc2 = hl_bench_capture_cost(rl, 3, &cc);
+        if (rc2 == HL_OK)
+            fprintf(stderr, "capture: %u triangles, %.2f MiB on the host and %.2f MiB on the device, %.2f ms a capture "
+                    "(mean of 3 more)\n", cc.triangles, (double)cc.host_bytes / 1048576.0,
+                    (double)cc.device_bytes / 1048576.0, 1e3 * cc.seconds);
+        else
+            r = rc2;
+    }
     /* the colours are out: the device's columns go before the picture's
        render (Embree, the image) is made, so the two never add up */
     hl_relighter_destroy(rl);

@@ -541,7 +541,8 @@ typedef struct hl_surroundings hl_surroundings;
  * triangles is a rigid body, named as in the file, moved by the file's
  * first node animation (as hl_dynamic_create_from_file). Errors name the
  * file (HL_ERR_IO, HL_ERR_FORMAT, HL_ERR_MESH): no triangles, non-finite
- * positions, negative or non-finite emission, more than 4096 triangles. */
+ * positions, negative or non-finite emission. Any number of triangles:
+ * the capture's memory and time grow with them (docs/CAPTURE.md). */
 HL_API hl_result hl_surroundings_load(hl_context *ctx, const char *path, hl_surroundings **out);
 /* From arrays (copied): one body "surroundings", no animation.
  * positions: 9 floats per triangle (three corners); emission: 3 per
@@ -564,6 +565,13 @@ HL_API void hl_surroundings_time_range(const hl_surroundings *s, double *start, 
  * animation, replacing an earlier one). */
 HL_API hl_result hl_surroundings_set_time(hl_surroundings *s, double t);
 HL_API hl_result hl_surroundings_set_transform(hl_surroundings *s, uint32_t body, const float xf[12]);
+/* Places the whole file in the scene, as a root node over it would:
+ * x -> shift + scale Ry(yaw_deg) x, the turn about +Y (+X towards -Z for
+ * a positive angle), after the file's own nodes and animation and before
+ * the bodies' program transforms. scale finite and > 0, the others
+ * finite, else HL_ERR_INVALID_ARGUMENT naming the bad value; replaces an
+ * earlier placement (default: none). */
+HL_API hl_result hl_surroundings_set_placement(hl_surroundings *s, const float shift[3], float scale, float yaw_deg);
 /* The triangles in world space at the current time and transforms:
  * 9 floats per triangle and 3 of emission, owned by s, valid until the
  * next call on s. */

@@ -139,6 +139,18 @@ hl_result hl_bench_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, 
  * stage that takes env2para's place; hl_relighter_set_surroundings and
  * one run first) over reps launches. */
 hl_result hl_bench_time_capture(hl_relighter *r, uint32_t reps, double *seconds);
+/* What the capture of the relighter's surroundings costs, on either
+ * backend (after a run with surroundings): the triangles it captured, the
+ * bytes it holds on the host and on the device (its packed triangles,
+ * hierarchy, lists, tables and maps), and the mean time of one capture
+ * alone over reps (the triangles packed, the hierarchy built, the kernel
+ * or the twin run; uploads included). */
+typedef struct hl_capture_cost {
+    uint32_t triangles;
+    size_t host_bytes, device_bytes;
+    double seconds;
+} hl_capture_cost;
+hl_result hl_bench_capture_cost(hl_relighter *r, uint32_t reps, hl_capture_cost *cost);
 
 /* `bench-precompute`: d with its defaults filled in and checked (errors
  * name the option), then Embree's raw occlusion rate (rays/s) on the rays

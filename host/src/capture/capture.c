@@ -22,11 +22,13 @@ struct hl_capture {
     float *tris;         /* HL_CAPTURE_FLOATS per triangle, packed */
     float *cones;        /* the texel table (hl_capture_texel_cones) */
     float *tile_cones;   /* the tiles' (hl_capture_tile_cones) */
-    uint32_t tile_start[HL_CAPTURE_NTILES + 1];
-    uint16_t *tile_list; /* the tiles' candidates, room for cap_tris each */
-    uint32_t cap_tris;   /* triangles tris (and tris_d, tile_list) have room for */
+    hl_capture_accel acc; /* the hierarchy and the tiles' lists */
+    uint32_t ntris;      /* triangles the last run packed */
+    uint32_t cap_tris;   /* triangles tris has room for */
     cl_kernel k;
-    cl_mem tris_d, env_d, L_d, cones_d, tstart_d, tlist_d;
+    cl_mem tris_d, env_d, L_d, cones_d, tstart_d, tlist_d, nodes_d, links_d, order_d;
+    /* bytes the growing device buffers hold */
+    size_t dev_tris, dev_list, dev_nodes, dev_links, dev_order;
 };
 
 void hl_capture_destroy(hl_capture *c)
@@ -40,11 +42,14 @@ void hl_capture_destroy(hl_capture *c)
         hl_cl_release_buf(c->ctx->cl, &c->cones_d);
         hl_cl_release_buf(c->ctx->cl, &c->tstart_d);
         hl_cl_release_buf(c->ctx->cl, &c->tlist_d);
+        hl_cl_release_buf(c->ctx->cl, &c->nodes_d);
+        hl_cl_release_buf(c->ctx->cl, &c->links_d);
+        hl_cl_release_buf(c->ctx->cl, &c->order_d);
     }
     free(c->tris);
     free(c->cones);
     free(c->tile_cones);
-    free(c->tile_list);
+    hl_capture_accel_free(&c->acc);
     free(c);
 }
 
@@ -81,7 +86,7 @@ hl_result hl_capture_create(hl_context *ctx, uint32_t N, uint32_t S, hl_capture 
             r = hl_cl_make_buf(ctx, &c->cones_d, CL_MEM_READ_ONLY, (size_t)c->ncoef * HL_CAPTURE_CONE_FLOATS * 4, c->cones,
                                "the capture's texel table");
         if (r == HL_OK)
-            r = hl_cl_make_buf(ctx, &c->tstart_d, CL_MEM_READ_ONLY, sizeof c->tile_start, NULL, "the capture's tile lists");
+            r = hl_cl_make_buf(ctx, &c->tstart_d, CL_MEM_READ_ONLY, sizeof c->acc.tile_start, NULL, "the capture's tile lists");
         if (r != HL_OK) {
             hl_capture_destroy(c);
             return r;
@@ -91,20 +96,24 @@ hl_result hl_capture_create(hl_context *ctx, uint32_t N, uint32_t S, hl_capture 
     return HL_OK;
 }
 
-static hl_result check_scene(hl_context *ctx, uint32_t ncoef, const hl_capture_scene *s)
+hl_result hl_capture_check(hl_context *ctx, uint32_t ncoef, const hl_capture_scene *s)
 {
     if (!s || !s->positions || !s->emission || s->triangle_count == 0)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "capture: no surroundings (no triangles given)");
-    if (s->triangle_count > HL_CAPTURE_MAX_TRIS)
-        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "capture: %u triangles: at most %u (every ray tests every triangle)",
-                       s->triangle_count, HL_CAPTURE_MAX_TRIS);
     for (int a = 0; a < 3; a++)
         if (!isfinite(s->center[a]))
             return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "capture: the capture point is not finite");
     for (uint32_t i = 0; i < s->triangle_count; i++) {
-        for (int q = 0; q < 9; q++)
-            if (!isfinite(s->positions[9 * (size_t)i + q]))
+        for (int q = 0; q < 9; q++) {
+            const float p = s->positions[9 * (size_t)i + q];
+            if (!isfinite(p))
                 return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "capture: triangle %u has a corner that is not finite", i);
+            if (fabs((double)p - s->center[q % 3]) > HL_CAPTURE_MAX_DIST)
+                return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                               "capture: triangle %u has a corner %g from the capture point along an axis: at most %g "
+                               "(the rays' float products would overflow)",
+                               i, fabs((double)p - s->center[q % 3]), HL_CAPTURE_MAX_DIST);
+        }
         for (int q = 0; q < 3; q++) {
             float e = s->emission[3 * (size_t)i + q];
             if (!isfinite(e) || e < 0.0f)
@@ -232,18 +241,6 @@ void hl_capture_tile_cones(uint32_t N, float *cones)
     }
 }
 
-void hl_capture_tile_lists(const float *tris, uint32_t ntris, const float *tile_cones, uint32_t *start, uint16_t *list)
-{
-    uint32_t n = 0;
-    for (uint32_t k = 0; k < HL_CAPTURE_NTILES; k++) {
-        start[k] = n;
-        for (uint32_t i = 0; i < ntris; i++)
-            if (hl_capture_meets(tris + HL_CAPTURE_FLOATS * (size_t)i, tile_cones + HL_CAPTURE_CONE_FLOATS * (size_t)k))
-                list[n++] = (uint16_t)i;
-    }
-    start[HL_CAPTURE_NTILES] = n;
-}
-
 /* Corners relative to the centre (in double, then rounded once), the two
  * edges, so every ray starts at the origin, and a cone from the origin
  * holding the triangle (from the rounded corners the kernel tests): the
@@ -316,7 +313,7 @@ void hl_capture_pack(const hl_capture_scene *s, float *tris)
 
 typedef struct ref_job {
     const hl_capture *c;
-    uint32_t ntris;
+    hl_capture_tables tb;
     const float *env_L;
     float *L;
     atomic_uint next;
@@ -330,7 +327,7 @@ static void *ref_worker(void *arg)
         uint32_t t0 = atomic_fetch_add(&j->next, HL_CAPTURE_CHUNK);
         if (t0 >= c->ncoef) break;
         uint32_t t1 = t0 + HL_CAPTURE_CHUNK < c->ncoef ? t0 + HL_CAPTURE_CHUNK : c->ncoef;
-        for (uint32_t t = t0; t < t1; t++) hl_ref_capture_texel(c->tris, j->ntris, c->cones, c->tile_start, c->tile_list, c->N, c->S, j->env_L, 1, t, j->L);
+        for (uint32_t t = t0; t < t1; t++) hl_ref_capture_texel(&j->tb, c->N, c->S, j->env_L, 1, t, j->L);
     }
     return NULL;
 }
@@ -346,12 +343,20 @@ static hl_result enqueue_device(hl_capture *c, uint32_t ntris, cl_mem env, cl_me
     cl_command_queue q = ctx->cl->queue;
     size_t tbytes = (size_t)ntris * HL_CAPTURE_FLOATS * 4;
     CL_TRY(ctx, clEnqueueWriteBuffer(q, c->tris_d, CL_FALSE, 0, tbytes, c->tris, 0, NULL, NULL), "uploading the surroundings");
-    CL_TRY(ctx, clEnqueueWriteBuffer(q, c->tstart_d, CL_FALSE, 0, sizeof c->tile_start, c->tile_start, 0, NULL, NULL),
+    const hl_capture_accel *a = &c->acc;
+    CL_TRY(ctx, clEnqueueWriteBuffer(q, c->tstart_d, CL_FALSE, 0, sizeof a->tile_start, a->tile_start, 0, NULL, NULL),
            "uploading the tile lists");
-    if (c->tile_start[HL_CAPTURE_NTILES])
-        CL_TRY(ctx, clEnqueueWriteBuffer(q, c->tlist_d, CL_FALSE, 0, (size_t)c->tile_start[HL_CAPTURE_NTILES] * 2,
-                                         c->tile_list, 0, NULL, NULL),
+    if (a->tile_start[HL_CAPTURE_NTILES])
+        CL_TRY(ctx, clEnqueueWriteBuffer(q, c->tlist_d, CL_FALSE, 0, (size_t)a->tile_start[HL_CAPTURE_NTILES] * 4,
+                                         a->tile_list, 0, NULL, NULL),
                "uploading the tile lists");
+    CL_TRY(ctx, clEnqueueWriteBuffer(q, c->nodes_d, CL_FALSE, 0, (size_t)a->nnodes * HL_CAPTURE_NODE_FLOATS * 4, a->nodes, 0,
+                                     NULL, NULL),
+           "uploading the hierarchy");
+    CL_TRY(ctx, clEnqueueWriteBuffer(q, c->links_d, CL_FALSE, 0, (size_t)a->nnodes * 8, a->links, 0, NULL, NULL),
+           "uploading the hierarchy");
+    CL_TRY(ctx, clEnqueueWriteBuffer(q, c->order_d, CL_FALSE, 0, (size_t)ntris * 4, a->order, 0, NULL, NULL),
+           "uploading the hierarchy");
     cl_uint have_env = env != NULL;
     cl_mem envm = env ? env : c->env_d; /* an unused argument still needs a buffer */
     cl_uint nt = ntris, N = c->N, S = c->S;
@@ -366,6 +371,9 @@ static hl_result enqueue_device(hl_capture *c, uint32_t ntris, cl_mem env, cl_me
     SETARG(7, c->cones_d);
     SETARG(8, c->tstart_d);
     SETARG(9, c->tlist_d);
+    SETARG(10, c->nodes_d);
+    SETARG(11, c->links_d);
+    SETARG(12, c->order_d);
 #undef SETARG
     size_t local = ctx->cl->wg ? ctx->cl->wg : 1;
     size_t global = ((size_t)c->ncoef + local - 1) / local * local;
@@ -389,37 +397,70 @@ static hl_result run_device(hl_capture *c, uint32_t ntris, const float *env_L, f
     return HL_OK;
 }
 
-/* Checks scene and packs its triangles into c->tris (growing it and the
- * device's copy as needed). */
+/* Makes *m hold at least bytes (room: what it holds now), growing by
+ * half again so that a scene growing a little at a time is not
+ * reallocated each capture. */
+static hl_result grow_buf(hl_context *ctx, cl_mem *m, size_t *room, size_t bytes, const char *what)
+{
+    if (bytes <= *room && *m) return HL_OK;
+    hl_cl_release_buf(ctx->cl, m);
+    *room = 0;
+    size_t want = bytes + bytes / 2;
+    hl_result r = hl_cl_make_buf(ctx, m, CL_MEM_READ_ONLY, want ? want : 4, NULL, what);
+    if (r == HL_OK) *room = want;
+    return r;
+}
+
+/* Checks scene, packs its triangles into c->tris and builds the
+ * hierarchy and the tiles' lists (growing them and the device's copies as
+ * needed). No cap on the triangles: memory grows with them (about
+ * hl_capture_usage's bytes), time with the triangles the texels' rays
+ * meet (docs/CAPTURE.md). */
 static hl_result load_scene(hl_capture *c, const hl_capture_scene *scene)
 {
     hl_context *ctx = c->ctx;
-    hl_result r = check_scene(ctx, c->ncoef, scene);
+    hl_result r = hl_capture_check(ctx, c->ncoef, scene);
     if (r != HL_OK) return r;
     const uint32_t n = scene->triangle_count;
     if (n > c->cap_tris) {
         float *p = realloc(c->tris, (size_t)n * HL_CAPTURE_FLOATS * 4);
-        uint16_t *l = p ? realloc(c->tile_list, (size_t)n * HL_CAPTURE_NTILES * 2) : NULL;
-        if (p) c->tris = p;
-        if (l) c->tile_list = l;
-        if (!p || !l) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "capture: out of memory for %u triangles", n);
-        if (ctx->cl) {
-            hl_cl_release_buf(ctx->cl, &c->tris_d);
-            hl_cl_release_buf(ctx->cl, &c->tlist_d);
-            r = hl_cl_make_buf(ctx, &c->tris_d, CL_MEM_READ_ONLY, (size_t)n * HL_CAPTURE_FLOATS * 4, NULL, "the surroundings");
-            if (r == HL_OK)
-                r = hl_cl_make_buf(ctx, &c->tlist_d, CL_MEM_READ_ONLY, (size_t)n * HL_CAPTURE_NTILES * 2, NULL,
-                                   "the capture's tile lists");
-            if (r != HL_OK) {
-                c->cap_tris = 0;
-                return r;
-            }
-        }
+        if (!p) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "capture: out of memory for %u triangles", n);
+        c->tris = p;
         c->cap_tris = n;
     }
     hl_capture_pack(scene, c->tris);
-    hl_capture_tile_lists(c->tris, n, c->tile_cones, c->tile_start, c->tile_list);
-    return HL_OK;
+    if (!hl_capture_accel_build(&c->acc, c->tris, n, c->tile_cones))
+        return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "capture: out of memory for the hierarchy of %u triangles", n);
+    c->ntris = n;
+    if (ctx->cl) {
+        const hl_capture_accel *a = &c->acc;
+        r = grow_buf(ctx, &c->tris_d, &c->dev_tris, (size_t)n * HL_CAPTURE_FLOATS * 4, "the surroundings");
+        if (r == HL_OK)
+            r = grow_buf(ctx, &c->tlist_d, &c->dev_list, (size_t)a->tile_start[HL_CAPTURE_NTILES] * 4,
+                         "the capture's tile lists");
+        if (r == HL_OK)
+            r = grow_buf(ctx, &c->nodes_d, &c->dev_nodes, (size_t)a->nnodes * HL_CAPTURE_NODE_FLOATS * 4,
+                         "the capture's hierarchy");
+        if (r == HL_OK) r = grow_buf(ctx, &c->links_d, &c->dev_links, (size_t)a->nnodes * 8, "the capture's hierarchy");
+        if (r == HL_OK) r = grow_buf(ctx, &c->order_d, &c->dev_order, (size_t)n * 4, "the capture's hierarchy");
+    }
+    return r;
+}
+
+void hl_capture_usage(const hl_capture *c, uint32_t *triangles, size_t *host_bytes, size_t *device_bytes)
+{
+    const size_t maps = (size_t)c->ncoef * HL_CAPTURE_CONE_FLOATS * 4 + (size_t)HL_CAPTURE_NTILES * HL_CAPTURE_CONE_FLOATS * 4;
+    if (triangles) *triangles = c->ntris;
+    if (host_bytes) *host_bytes = sizeof *c + maps + (size_t)c->cap_tris * HL_CAPTURE_FLOATS * 4 + hl_capture_accel_bytes(&c->acc);
+    if (device_bytes) {
+        size_t d = 0;
+        if (c->ctx->cl) {
+            /* the texel table, the two maps, the grown buffers */
+            d = (size_t)c->ncoef * HL_CAPTURE_CONE_FLOATS * 4 + 2 * (size_t)c->ncoef * 12 + sizeof c->acc.tile_start;
+            d += c->dev_tris + c->dev_list + c->dev_nodes + c->dev_links + c->dev_order;
+        }
+        *device_bytes = d;
+    }
 }
 
 hl_result hl_capture_enqueue(hl_capture *c, const hl_capture_scene *scene, void *env_mem, void *L_mem)
@@ -440,7 +481,8 @@ hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L)
     if (r != HL_OK) return r;
     const uint32_t n = scene->triangle_count;
     if (ctx->cl) return run_device(c, n, scene->fallback_L, L);
-    ref_job job = {c, n, scene->fallback_L, L, 0};
+    const hl_capture_accel *a = &c->acc;
+    ref_job job = {c, {c->tris, n, c->cones, a->tile_start, a->tile_list, a->nodes, a->links, a->order}, scene->fallback_L, L, 0};
     atomic_init(&job.next, 0u);
     hl_run_threads(ctx->threads, ref_worker, &job);
     return HL_OK;

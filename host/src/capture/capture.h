@@ -30,17 +30,21 @@ static inline uint32_t hl_capture_default_s(uint32_t N)
     uint32_t S = N >= HL_CAPTURE_DEFAULT_NS ? 1u : HL_CAPTURE_DEFAULT_NS / N;
     return S > HL_CAPTURE_MAX_S ? HL_CAPTURE_MAX_S : S;
 }
-/* Most triangles. Every ray tests every triangle whose bounding cone
- * meets its texel's (no hierarchy), so the cost grows with the triangles
- * whose cones are wide: meant for a lamp and a few walls, and a scene of
- * thousands wants a hierarchy first (the candidate lists' ushort indices
- * would allow 65535). */
-#define HL_CAPTURE_MAX_TRIS 4096u
-/* Candidates a texel lists (HL_CAPTURE_LIST in the kernel, 512 bytes of
- * private memory); a texel whose cone meets more tests every triangle. */
+/* Farthest a corner may lie from the capture point along an axis:
+ * Moller-Trumbore's determinant is a product of three such lengths, and
+ * stays finite in float (3.4e38) below 1e12 each. */
+#define HL_CAPTURE_MAX_DIST 1e12
+/* Candidates a texel lists (HL_CAPTURE_LIST in the kernel, 1 KiB of
+ * private memory); a texel whose cone meets more traces its rays through
+ * the hierarchy. */
 #define HL_CAPTURE_LIST 256u
-/* Floats per packed triangle (HL_CAPTURE_F4 float4 in the kernel). */
-#define HL_CAPTURE_FLOATS 40u
+/* A texel whose tile lists more triangles than this lists none of its
+ * own and traces every ray through the hierarchy: past it the listing
+ * costs more than the rays it spares (measured in docs/CAPTURE.md). */
+#define HL_CAPTURE_SCAN 2048u
+/* Triangles a leaf of the hierarchy holds at most (but where the centres
+ * cannot be told apart or the tree is HL_CAPTURE_STACK deep). */
+#define HL_CAPTURE_LEAF 4u
 /* Floats per texel of the cone table (two float4 in the kernel). */
 #define HL_CAPTURE_CONE_FLOATS 8u
 /* Tiles per side of each map: a texel looks for candidates only among its
@@ -87,8 +91,11 @@ typedef struct hl_capture hl_capture;
 hl_result hl_capture_create(hl_context *ctx, uint32_t N, uint32_t S, hl_capture **out);
 /* Renders scene into L (3 x 2 N^2 floats). Checks the scene first: NaN or
  * infinite positions or centre, negative or non-finite radiance, no
- * triangles or too many, a bad fallback map. */
+ * triangles, a bad fallback map. */
 hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L);
+/* hl_capture_run's checks of scene for maps of ncoef texels a plane (the
+ * relighter makes them where it takes the triangles, to name the file). */
+hl_result hl_capture_check(hl_context *ctx, uint32_t ncoef, const hl_capture_scene *scene);
 /* As hl_capture_run on the OpenCL backend, with the maps in device
  * memory (cl_mem of 3 x 2 N^2 floats): the fallback lighting from env_mem
  * (NULL: black; scene->fallback_L must be NULL), the capture into L_mem.
@@ -96,19 +103,33 @@ hl_result hl_capture_run(hl_capture *c, const hl_capture_scene *scene, float *L)
  * or clFinish) before the next call on c, whose triangles the upload
  * reads until then. */
 hl_result hl_capture_enqueue(hl_capture *c, const hl_capture_scene *scene, void *env_mem, void *L_mem);
+/* What the capture holds now (host and device bytes: the triangles, the
+ * hierarchy, the lists, the tables and maps) and how many triangles its
+ * last run packed. */
+void hl_capture_usage(const hl_capture *c, uint32_t *triangles, size_t *host_bytes, size_t *device_bytes);
 void hl_capture_destroy(hl_capture *c);
 
-/* The twin (twins/capture.c): texel j of the map from packed triangles
- * (HL_CAPTURE_FLOATS each, in fours: v0 - centre, v1 - v0, v2 - v0,
- * emitted RGB, the bounding cone seen from the centre: unit axis and
- * half-angle, 4 for every direction, then its cosine and sine; the plane:
- * unit normal away from the centre and distance; the three edges' planes
- * through the centre: unit normals into the triangle's view, all 0 where
- * the triangle is seen edge-on) and the texel table, env_L NULL for
- * black. use_cones 0 tests every triangle with every ray (the test's
- * check that the cones and the cover cull nothing they should not). */
-void hl_ref_capture_texel(const float *tris, uint32_t ntris, const float *cones, const uint32_t *tile_start,
-                          const uint16_t *tile_list, uint32_t N, uint32_t S, const float *env_L, int use_cones,
+/* What a texel of the capture reads, as the kernel's arguments: the
+ * packed triangles (HL_CAPTURE_FLOATS each, in fours: v0 - centre,
+ * v1 - v0, v2 - v0, emitted RGB, the bounding cone seen from the centre:
+ * unit axis and half-angle, 4 for every direction, then its cosine and
+ * sine; the plane: unit normal away from the centre and distance; the
+ * three edges' planes through the centre: unit normals into the
+ * triangle's view, all 0 where the triangle is seen edge-on), the texel
+ * table, the tiles' lists and the hierarchy (hl_capture_accel). */
+typedef struct hl_capture_tables {
+    const float *tris;
+    uint32_t ntris;
+    const float *cones;
+    const uint32_t *tile_start, *tile_list;
+    const float *nodes;
+    const uint32_t *links, *order;
+} hl_capture_tables;
+
+/* The twin (twins/capture.c): texel j of the map, env_L NULL for black.
+ * use_cones 0 tests every triangle with every ray, no list, cover or
+ * hierarchy (the test's brute force, which the others must equal). */
+void hl_ref_capture_texel(const hl_capture_tables *tb, uint32_t N, uint32_t S, const float *env_L, int use_cones,
                           uint32_t j, float *L);
 /* The texel table of resolution N with S x S rays a texel
  * (HL_CAPTURE_CONE_FLOATS per texel, 2 N^2 texels): the cone holding the
@@ -123,11 +144,33 @@ void hl_capture_texel_cones(uint32_t N, uint32_t S, float *cones);
 /* The tiles' cones (HL_CAPTURE_CONE_FLOATS each, HL_CAPTURE_NTILES), as
  * the texels'. */
 void hl_capture_tile_cones(uint32_t N, float *cones);
-/* The tiles' candidate lists of packed triangles: tile k's are
- * list[start[k] .. start[k + 1]), ascending (list: room for
- * HL_CAPTURE_NTILES x ntris). A tile's cone holds its texels' cones, so a
- * texel's candidates are among its tile's. */
-void hl_capture_tile_lists(const float *tris, uint32_t ntris, const float *tile_cones, uint32_t *start, uint16_t *list);
+/* The hierarchy over the packed triangles and the tiles' candidate
+ * lists, remade at every capture (capture_bvh.c). The arrays grow and are
+ * kept for the next build. */
+typedef struct hl_capture_accel {
+    uint32_t ntris, nnodes;
+    float *nodes;     /* HL_CAPTURE_NODE_FLOATS a node (hl_shared.h) */
+    uint32_t *links;  /* 2 a node: (first, count) a leaf, (second child, 0) */
+    uint32_t *order;  /* the leaves' triangles, ntris */
+    /* tile k's candidates are tile_list[tile_start[k] .. tile_start[k + 1]),
+       ascending: the triangles that can be hit by a ray of the tile's cone
+       (hl_capture_meets; a tile's cone holds its texels' cones, so a
+       texel's candidates are among its tile's) */
+    uint32_t tile_start[HL_CAPTURE_NTILES + 1];
+    uint32_t *tile_list;
+    float *box;       /* scratch, 6 a triangle: its padded box */
+    uint32_t room_tris;
+    size_t room_list;
+} hl_capture_accel;
+
+/* Builds a's hierarchy over ntris packed triangles (boxes padded, binned
+ * surface-area splits, at most HL_CAPTURE_LEAF a leaf, depth below
+ * HL_CAPTURE_STACK) and the tiles' lists from tile_cones. 0: out of
+ * memory (a keeps what it had). */
+int hl_capture_accel_build(hl_capture_accel *a, const float *tris, uint32_t ntris, const float *tile_cones);
+/* Bytes a holds (its arrays' room). */
+size_t hl_capture_accel_bytes(const hl_capture_accel *a);
+void hl_capture_accel_free(hl_capture_accel *a);
 
 /* Whether packed triangle T can be hit by a ray of the cone c (a texel's
  * or a tile's, HL_CAPTURE_CONE_FLOATS): their bounding cones meet, and c

@@ -17,7 +17,7 @@
  * them only after the time or a transform changed, so asking twice gives
  * the same bytes at no cost (the relighter compares them to skip a frame).
  *
- * Depends on: capture.h (HL_CAPTURE_MAX_TRIS), surroundings.h, scene.h
+ * Depends on: capture.h, surroundings.h, scene.h
  * (the dynamic scene), hl_internal.h, libm.
  */
 #include <math.h>
@@ -82,8 +82,9 @@ static hl_result check_triangles(hl_surroundings *s, const char *name)
 }
 
 /* Takes the scene (destroyed on failure): counts its triangles (bodies in
- * order), refusing more than the capture takes, and makes the arrays; the
- * emission is filled by the caller. */
+ * order) and makes the arrays; the emission is filled by the caller. No
+ * cap: the capture's hierarchy takes any count that fits in memory and
+ * the 32-bit indices. */
 static hl_result wrap_scene(hl_context *ctx, hl_dyn_scene *scene, const char *name, hl_surroundings **out)
 {
     hl_surroundings *s = hl_calloc(ctx, 1, sizeof *s, "the surroundings");
@@ -103,9 +104,8 @@ static hl_result wrap_scene(hl_context *ctx, hl_dyn_scene *scene, const char *na
     uint64_t n = 0;
     for (uint32_t b = 0; r == HL_OK && b < s->nbodies; b++) n += s->objs[b].ntris;
     if (r == HL_OK && n == 0) r = hl_fail(ctx, HL_ERR_MESH, "%s: no triangles", name);
-    if (r == HL_OK && n > HL_CAPTURE_MAX_TRIS)
-        r = hl_fail(ctx, HL_ERR_MESH, "%s: %llu triangles, more than the capture's %u", name, (unsigned long long)n,
-                    HL_CAPTURE_MAX_TRIS);
+    if (r == HL_OK && n > UINT32_MAX / 9)
+        r = hl_fail(ctx, HL_ERR_MESH, "%s: %llu triangles, more than 32-bit indices can count", name, (unsigned long long)n);
     s->ntris = (uint32_t)n;
     if (r == HL_OK) {
         s->emission = hl_calloc(ctx, n ? n : 1, 3 * sizeof(float), "triangle emission");
@@ -162,9 +162,6 @@ hl_result hl_surroundings_create(hl_context *ctx, const float *positions, const 
     if (!positions || !emission || !out)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_surroundings_create: positions, emission and out are required");
     if (triangle_count == 0) return hl_fail(ctx, HL_ERR_MESH, "%s: no triangles", HL_SURR_ARRAY_NAME);
-    if (triangle_count > HL_CAPTURE_MAX_TRIS) /* refused before copying them */
-        return hl_fail(ctx, HL_ERR_MESH, "%s: %u triangles, more than the capture's %u", HL_SURR_ARRAY_NAME,
-                       triangle_count, HL_CAPTURE_MAX_TRIS);
     hl_dyn_scene *scene = NULL;
     hl_result r = hl_dyn_scene_from_triangles(ctx, HL_SURR_ARRAY_NAME, HL_SURR_ARRAY_BODY, positions, triangle_count,
                                               &scene);
@@ -185,6 +182,8 @@ hl_result hl_surroundings_create(hl_context *ctx, const float *positions, const 
 /* ---------------------------------------------------------------- queries */
 
 uint32_t hl_surroundings_triangle_count(const hl_surroundings *s) { return s ? s->ntris : 0; }
+
+const char *hl_surroundings_name_(const hl_surroundings *s) { return s ? s->scene->name : "(no surroundings)"; }
 
 uint32_t hl_surroundings_body_count(const hl_surroundings *s) { return s ? s->nbodies : 0; }
 
@@ -221,6 +220,28 @@ hl_result hl_surroundings_set_transform(hl_surroundings *s, uint32_t body, const
 {
     if (!s || !xf) return hl_fail(s ? s->ctx : NULL, HL_ERR_INVALID_ARGUMENT, "hl_surroundings_set_transform: surroundings and xf are required");
     hl_result r = hl_dyn_scene_set_transform(s->scene, body, xf);
+    if (r == HL_OK) s->posed = 0;
+    return r;
+}
+
+hl_result hl_surroundings_set_placement(hl_surroundings *s, const float shift[3], float scale, float yaw_deg)
+{
+    if (!s || !shift)
+        return hl_fail(s ? s->ctx : NULL, HL_ERR_INVALID_ARGUMENT, "hl_surroundings_set_placement: surroundings and shift are required");
+    for (int i = 0; i < 3; i++)
+        if (!isfinite(shift[i]))
+            return hl_fail(s->ctx, HL_ERR_INVALID_ARGUMENT, "surroundings placement: shift %g %g %g is not finite",
+                           (double)shift[0], (double)shift[1], (double)shift[2]);
+    if (!(isfinite(scale) && scale > 0.0f))
+        return hl_fail(s->ctx, HL_ERR_INVALID_ARGUMENT, "surroundings placement: scale %g must be a finite number > 0",
+                       (double)scale);
+    if (!isfinite(yaw_deg))
+        return hl_fail(s->ctx, HL_ERR_INVALID_ARGUMENT, "surroundings placement: turn %g degrees is not finite",
+                       (double)yaw_deg);
+    /* x' = shift + scale Ry(yaw) x, Ry turning +X towards -Z as bench's turns do */
+    const double a = (double)yaw_deg * 3.14159265358979323846 / 180.0, c = cos(a) * scale, sn = sin(a) * scale;
+    const double m[12] = {c, 0.0, sn, shift[0], 0.0, scale, 0.0, shift[1], -sn, 0.0, c, shift[2]};
+    hl_result r = hl_dyn_scene_set_placement(s->scene, m);
     if (r == HL_OK) s->posed = 0;
     return r;
 }

@@ -26,4 +26,9 @@
  * range. */
 hl_result hl_gltf_emissive_strength_(hl_context *ctx, const char *path, uint32_t nmeshes, float *strength);
 
+struct hl_surroundings;
+/* The file the surroundings came from (or "surroundings from arrays"),
+ * for messages. */
+const char *hl_surroundings_name_(const struct hl_surroundings *s);
+
 #endif

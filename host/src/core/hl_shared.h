@@ -641,4 +641,117 @@ HL_INLINE float hl_dyn_flat_one(HL_GLOBAL const float *lt, HL_GLOBAL const float
     return all > 0.0f ? V * (open / all) : V;
 }
 
+/* ------------------------------------------------- the capture's triangles */
+
+/* Floats per packed triangle of the capture (capture.h, hl_capture_pack):
+ * v0 relative to the capture point, e1, e2, emitted RGB, cones and planes. */
+#define HL_CAPTURE_FLOATS 40u
+/* Floats per node of the capture's bounding-volume hierarchy (box min,
+ * box max, each with a fourth float unused) and the deepest node the host
+ * builds below the root, which bounds the traversal's stack. */
+#define HL_CAPTURE_NODE_FLOATS 8u
+#define HL_CAPTURE_STACK 48u
+
+/* Moller-Trumbore, both sides: the distance from the origin along (dx, dy,
+ * dz) to packed triangle T where the ray hits it, or INFINITY. One
+ * function for every caster of the capture (its kernel and twin, listed,
+ * traced), so a hit is the same float wherever it is found. */
+HL_INLINE float hl_capture_tri_t(HL_GLOBAL const float *T, float dx, float dy, float dz)
+{
+    HL_GLOBAL const float *v0 = T, *e1 = T + 4, *e2 = T + 8;
+    float px = dy * e2[2] - dz * e2[1], py = dz * e2[0] - dx * e2[2], pz = dx * e2[1] - dy * e2[0];
+    float det = e1[0] * px + e1[1] * py + e1[2] * pz;
+    if (det == 0.0f) return INFINITY; /* the ray lies in the triangle's plane */
+    float inv = 1.0f / det;
+    float tx = -v0[0], ty = -v0[1], tz = -v0[2];
+    float u = (tx * px + ty * py + tz * pz) * inv;
+    if (u < 0.0f || u > 1.0f) return INFINITY;
+    float qx = ty * e1[2] - tz * e1[1], qy = tz * e1[0] - tx * e1[2], qz = tx * e1[1] - ty * e1[0];
+    float v = (dx * qx + dy * qy + dz * qz) * inv;
+    if (v < 0.0f || u + v > 1.0f) return INFINITY;
+    float t = (e2[0] * qx + e2[1] * qy + e2[2] * qz) * inv;
+    return t > 0.0f ? t : INFINITY;
+}
+
+/* Where the ray from the origin with inverse direction (ix, iy, iz)
+ * enters node box nd (slabs), or INFINITY when it misses the box or enters
+ * beyond best. The host pads every box by far more than the rounding of
+ * Moller-Trumbore's hit point, so a box holding a hit is never missed. */
+HL_INLINE float hl_capture_slab(HL_GLOBAL const float *nd, float ix, float iy, float iz, float best)
+{
+    float a = nd[0] * ix, b = nd[4] * ix;
+    float lo = a < b ? a : b, hi = a < b ? b : a;
+    a = nd[1] * iy;
+    b = nd[5] * iy;
+    float l = a < b ? a : b, h = a < b ? b : a;
+    lo = l > lo ? l : lo;
+    hi = h < hi ? h : hi;
+    a = nd[2] * iz;
+    b = nd[6] * iz;
+    l = a < b ? a : b;
+    h = a < b ? b : a;
+    lo = l > lo ? l : lo;
+    hi = h < hi ? h : hi;
+    return lo <= hi && hi >= 0.0f && lo <= best ? lo : INFINITY;
+}
+
+/* 1 / d, with |d| below 1e-20 taken as 1e-20 of its sign: a finite
+ * inverse, so that a box side at 0 gives 0 and no NaN. */
+HL_INLINE float hl_capture_inv(float d)
+{
+    return 1.0f / (d > 1e-20f || d < -1e-20f ? d : (d < 0.0f ? -1e-20f : 1e-20f));
+}
+
+/* The nearest packed triangle along (dx, dy, dz) from the origin, or -1,
+ * through the hierarchy (capture_bvh.c): node k's box at nodes[8 k]; its
+ * links[2 k], links[2 k + 1] are (first, count) for a leaf holding
+ * order[first .. first + count), (second child, 0) for an inner node whose
+ * first child is k + 1. Nearer child first; a pushed node is skipped when
+ * the ray entered it beyond the nearest hit found since. Ties go to the
+ * lower index, so the hit is the one testing every triangle in order
+ * finds (hl.capture.twin checks it). */
+HL_INLINE int hl_capture_trace(HL_GLOBAL const float *tris, HL_GLOBAL const float *nodes, HL_GLOBAL const HL_U32 *links,
+                               HL_GLOBAL const HL_U32 *order, float dx, float dy, float dz)
+{
+    const float ix = hl_capture_inv(dx), iy = hl_capture_inv(dy), iz = hl_capture_inv(dz);
+    float best = INFINITY, enter[HL_CAPTURE_STACK];
+    HL_U32 stack[HL_CAPTURE_STACK], sp = 0, node = 0;
+    int hit = -1;
+    if (!(hl_capture_slab(nodes, ix, iy, iz, best) < INFINITY)) return -1;
+    for (;;) {
+        const HL_U32 first = links[2u * node], count = links[2u * node + 1u];
+        if (count) {
+            for (HL_U32 k = first; k < first + count; k++) {
+                const HL_U32 i = order[k];
+                const float t = hl_capture_tri_t(tris + HL_CAPTURE_FLOATS * i, dx, dy, dz);
+                if (t < best || (t == best && (int)i < hit)) {
+                    best = t;
+                    hit = (int)i;
+                }
+            }
+        } else {
+            const HL_U32 l = node + 1u, r = first;
+            const float tl = hl_capture_slab(nodes + HL_CAPTURE_NODE_FLOATS * l, ix, iy, iz, best);
+            const float tr = hl_capture_slab(nodes + HL_CAPTURE_NODE_FLOATS * r, ix, iy, iz, best);
+            if (tl < INFINITY || tr < INFINITY) {
+                const int left = tl <= tr;
+                const float tf = left ? tr : tl;
+                if (tf < INFINITY) {
+                    stack[sp] = left ? r : l;
+                    enter[sp] = tf;
+                    sp++;
+                }
+                node = left ? l : r;
+                continue;
+            }
+        }
+        for (;;) { /* the next pushed node the ray enters before its nearest hit */
+            if (sp == 0) return hit;
+            sp--;
+            if (enter[sp] <= best) break;
+        }
+        node = stack[sp];
+    }
+}
+
 #endif

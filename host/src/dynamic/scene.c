@@ -101,6 +101,7 @@ static hl_dyn_scene *scene_new(hl_context *ctx, const char *name, uint32_t nnode
     memcpy(s->name, name, strlen(name) + 1);
     s->nnodes = nnodes;
     for (int i = 0; i < 9; i++) s->up[i] = i % 4 == 0 ? 1.0 : 0.0;
+    for (int i = 0; i < 12; i++) s->place[i] = i % 5 == 0 ? 1.0 : 0.0;
     return s;
 }
 

@@ -158,6 +158,12 @@ hl_result hl_dyn_scene_add_ground(hl_dyn_scene *scene, const hl_ground_desc *des
  * HL_DYN_RIGID_TOL), else HL_ERR_INVALID_ARGUMENT; the stored rotation is
  * re-orthonormalised. */
 hl_result hl_dyn_scene_set_transform(hl_dyn_scene *scene, uint32_t body, const float xf[12]);
+/* Places the whole file: m (row-major 3x4, finite; the caller checks its
+ * shape) acts on every root node after the up-axis turn, so before the
+ * program's transforms, as a root node of the file would. It may scale,
+ * so the bodies' xf are then not rigid: for the surroundings, which pose
+ * triangles by xf and nothing else. */
+hl_result hl_dyn_scene_set_placement(hl_dyn_scene *scene, const double m[12]);
 /* P as the rotation of angle radians about axis (any length but zero;
  * ignored when angle is 0) then the translation. */
 hl_result hl_dyn_scene_set_pose(hl_dyn_scene *scene, uint32_t body, const double translate[3],
@@ -210,6 +216,7 @@ struct hl_dyn_scene {
     dyn_node *nodes;
     dyn_body *bodies;
     double up[9];          /* the up-axis turn applied to the root */
+    double place[12];      /* hl_dyn_scene_set_placement: after up */
     char *anim_name;       /* NULL: no animation */
     double t_start, t_end;
     double *world;         /* scratch: 12 per node */

@@ -237,9 +237,10 @@ void hl_dyn_node_local_(const dyn_node *n, double t, double out[12])
 
 void hl_dyn_compose_(hl_dyn_scene *s, double t, hl_dyn_object *out)
 {
-    double up[12] = {0};
+    double turn[12] = {0}, up[12];
     for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) up[4 * i + j] = s->up[3 * i + j];
+        for (int j = 0; j < 3; j++) turn[4 * i + j] = s->up[3 * i + j];
+    hl_dyn_xf_mul_(s->place, turn, up);
     for (uint32_t k = 0; k < s->nnodes; k++) {
         const dyn_node *n = &s->nodes[k];
         double local[12], *w = s->world + 12 * (size_t)k;
@@ -317,6 +318,16 @@ static hl_result body_arg(const hl_dyn_scene *s, uint32_t body, const char *fn)
     if (body >= s->nbodies)
         return hl_fail(s->ctx, HL_ERR_INVALID_ARGUMENT, "%s: %s: body %u out of range (%u bodies)", s->name, fn, body,
                        s->nbodies);
+    return HL_OK;
+}
+
+hl_result hl_dyn_scene_set_placement(hl_dyn_scene *s, const double m[12])
+{
+    if (!s || !m) return hl_fail(s ? s->ctx : NULL, HL_ERR_INVALID_ARGUMENT, "hl_dyn_scene_set_placement: scene and m are required");
+    for (int i = 0; i < 12; i++)
+        if (!isfinite(m[i]))
+            return hl_fail(s->ctx, HL_ERR_INVALID_ARGUMENT, "%s: placement entry %d is not finite (%g)", s->name, i, m[i]);
+    memcpy(s->place, m, sizeof s->place);
     return HL_OK;
 }
 

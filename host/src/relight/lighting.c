@@ -19,6 +19,7 @@
 #include <fcntl.h>
 #include <math.h>
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -30,6 +31,7 @@
 #include "haarlight_tools.h"
 #include "lighting.h"
 #include "sh.h"
+#include "surroundings.h"
 #include "transport_layout.h"
 #include "twins.h"
 
@@ -418,6 +420,14 @@ static hl_result take_surroundings(hl_relighter *r)
     r->cscene.emission = r->sur_em;
     r->cscene.triangle_count = n;
     r->env_serial++;
+    /* checked here, where the file can be named (the capture checks again) */
+    res = hl_capture_check(r->ctx, r->g->ncoef, &r->cscene);
+    if (res != HL_OK) {
+        char why[1024];
+        snprintf(why, sizeof why, "%s", hl_context_last_error(r->ctx));
+        r->sur_n = 0; /* not captured: the next run checks again */
+        return hl_fail(r->ctx, res, "%s: %s", hl_surroundings_name_(r->sur), why);
+    }
     return HL_OK;
 }
 
@@ -663,4 +673,25 @@ hl_result hl_relighter_memory_use(const hl_relighter *r, hl_relighter_memory *m)
 }
 
 struct hl_cl_light *hl_relighter_device(hl_relighter *r) { return r ? r->cl : NULL; }
+
+hl_result hl_bench_capture_cost(hl_relighter *r, uint32_t reps, hl_capture_cost *cost)
+{
+    memset(cost, 0, sizeof *cost);
+    if (!r || !r->cap || !r->sur_n)
+        return hl_fail(r ? r->ctx : NULL, HL_ERR_INVALID_ARGUMENT, "no surroundings have been captured yet");
+    if (!reps) reps = 1;
+    hl_capture_usage(r->cap, &cost->triangles, &cost->host_bytes, &cost->device_bytes);
+    if (r->cl) return hl_cl_light_time_capture(r->cl, reps, &cost->seconds);
+    /* the reference: the same capture again, into a map of its own */
+    float *L = hl_malloc(r->ctx, (size_t)r->g->ncoef * 12, "a captured map");
+    if (!L) return HL_ERR_OUT_OF_MEMORY;
+    r->cscene.fallback_L = r->cells ? r->Lenv : NULL;
+    hl_result res = HL_OK;
+    const double t0 = hl_now();
+    for (uint32_t k = 0; k < reps && res == HL_OK; k++) res = hl_capture_run(r->cap, &r->cscene, L);
+    cost->seconds = (hl_now() - t0) / reps;
+    r->cscene.fallback_L = NULL;
+    free(L);
+    return res;
+}
 const hl_light_geom *hl_relighter_tables(const hl_relighter *r) { return r ? r->lg : NULL; }

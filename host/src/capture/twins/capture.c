@@ -12,27 +12,16 @@
 
 /* Nearest triangle along direction (dx, dy, dz) from the origin, or -1
  * (Moller-Trumbore, both sides, first on a tie): of the n listed ones
- * (ascending), or of all when list is NULL. */
-static int nearest(const float *tris, uint32_t ntris, const uint16_t *list, uint32_t n, float dx, float dy, float dz)
+ * (ascending), or of all when list is NULL (the brute force). */
+static int nearest(const float *tris, uint32_t ntris, const uint32_t *list, uint32_t n, float dx, float dy, float dz)
 {
     float best = INFINITY;
     int hit = -1;
     uint32_t count = list ? n : ntris;
     for (uint32_t e = 0; e < count; e++) {
-        uint32_t i = list ? (uint32_t)list[e] : e;
-        const float *v0 = tris + HL_CAPTURE_FLOATS * (size_t)i, *e1 = v0 + 4, *e2 = v0 + 8;
-        float px = dy * e2[2] - dz * e2[1], py = dz * e2[0] - dx * e2[2], pz = dx * e2[1] - dy * e2[0];
-        float det = e1[0] * px + e1[1] * py + e1[2] * pz;
-        if (det == 0.0f) continue; /* the ray lies in the triangle's plane */
-        float inv = 1.0f / det;
-        float tx = -v0[0], ty = -v0[1], tz = -v0[2];
-        float u = (tx * px + ty * py + tz * pz) * inv;
-        if (u < 0.0f || u > 1.0f) continue;
-        float qx = ty * e1[2] - tz * e1[1], qy = tz * e1[0] - tx * e1[2], qz = tx * e1[1] - ty * e1[0];
-        float v = (dx * qx + dy * qy + dz * qz) * inv;
-        if (v < 0.0f || u + v > 1.0f) continue;
-        float t = (e2[0] * qx + e2[1] * qy + e2[2] * qz) * inv;
-        if (t > 0.0f && t < best) {
+        uint32_t i = list ? list[e] : e;
+        float t = hl_capture_tri_t(tris + HL_CAPTURE_FLOATS * (size_t)i, dx, dy, dz);
+        if (t < best) {
             best = t;
             hit = (int)i;
         }
@@ -40,16 +29,23 @@ static int nearest(const float *tris, uint32_t ntris, const uint16_t *list, uint
     return hit;
 }
 
+/* The ray's hit: through the hierarchy, or (use_cones 0) of every triangle. */
+static int trace(const hl_capture_tables *tb, int use_cones, float dx, float dy, float dz)
+{
+    return use_cones ? hl_capture_trace(tb->tris, tb->nodes, tb->links, tb->order, dx, dy, dz)
+                     : nearest(tb->tris, tb->ntris, NULL, 0, dx, dy, dz);
+}
+
 /* Lists the triangles of the texel's tile that can be hit by a ray of the
  * texel (hl_capture_meets); returns their count, more than
  * HL_CAPTURE_LIST when the list overflowed. */
-static uint32_t cull(const float *tris, const uint16_t *tl, uint32_t tn, const float *cone_t, uint16_t *list)
+static uint32_t cull(const float *tris, const uint32_t *tl, uint32_t tn, const float *cone_t, uint32_t *list)
 {
     uint32_t n = 0;
     for (uint32_t e = 0; e < tn && n <= HL_CAPTURE_LIST; e++) {
         const uint32_t i = tl[e];
         if (hl_capture_meets(tris + HL_CAPTURE_FLOATS * (size_t)i, cone_t)) {
-            if (n < HL_CAPTURE_LIST) list[n] = (uint16_t)i;
+            if (n < HL_CAPTURE_LIST) list[n] = i;
             n++;
         }
     }
@@ -61,7 +57,7 @@ static uint32_t cull(const float *tris, const uint16_t *tl, uint32_t tn, const f
  * the texel's cone with HL_CAPTURE_COVER_MARGIN to spare, and every other
  * listed triangle lies behind its plane (to HL_CAPTURE_PLANE_TOL). Of the
  * triangles whose view holds the texel, only the nearest can pass. */
-static int cover(const float *tris, const uint16_t *list, uint32_t n, const float *cone_t)
+static int cover(const float *tris, const uint32_t *list, uint32_t n, const float *cone_t)
 {
     const float sc = cone_t[6];
     for (uint32_t e = 0; e < n; e++) {
@@ -87,22 +83,23 @@ static int cover(const float *tris, const uint16_t *list, uint32_t n, const floa
     return -1;
 }
 
-void hl_ref_capture_texel(const float *tris, uint32_t ntris, const float *cones, const uint32_t *tile_start,
-                          const uint16_t *tile_list, uint32_t N, uint32_t S, const float *env_L, int use_cones,
+void hl_ref_capture_texel(const hl_capture_tables *tb, uint32_t N, uint32_t S, const float *env_L, int use_cones,
                           uint32_t j, float *L)
 {
+    const float *tris = tb->tris;
     const uint32_t ncoef = 2u * N * N;
     uint32_t map = j / (N * N), rem = j % (N * N), row = rem / N, col = rem % N;
     float h = 2.0f / (float)N, hs = h / (float)S, sy = map ? -1.0f : 1.0f;
     float s0 = -1.0f + (float)col * h, t0 = -1.0f + (float)row * h;
-    const float *cone_t = cones + 8 * (size_t)j;
+    const float *cone_t = tb->cones + 8 * (size_t)j;
     float ar = 0.0f, ag = 0.0f, ab = 0.0f, wsum = 0.0f, wmiss = 0.0f;
     if (cone_t[3] != 0.0f) { /* some of the texel in the disc */
-        uint16_t list[HL_CAPTURE_LIST];
+        uint32_t list[HL_CAPTURE_LIST];
         const uint32_t T = N / HL_CAPTURE_TILES, tile = map * HL_CAPTURE_TILES * HL_CAPTURE_TILES + row / T * HL_CAPTURE_TILES + col / T;
-        uint32_t n = use_cones ? cull(tris, tile_list + tile_start[tile], tile_start[tile + 1] - tile_start[tile], cone_t, list)
-                               : HL_CAPTURE_LIST + 1;
-        const uint16_t *use = n <= HL_CAPTURE_LIST ? list : NULL; /* overflow: every triangle */
+        const uint32_t l0 = use_cones ? tb->tile_start[tile] : 0, ln = use_cones ? tb->tile_start[tile + 1] - l0 : 0;
+        /* a crowded tile: no list of the texel's own, every ray traced */
+        uint32_t n = use_cones && ln <= HL_CAPTURE_SCAN ? cull(tris, tb->tile_list + l0, ln, cone_t, list) : HL_CAPTURE_LIST + 1;
+        const uint32_t *use = n <= HL_CAPTURE_LIST ? list : NULL; /* overflow: the hierarchy */
         /* no ray to cast where no triangle is listed, or where one
            listed triangle is in front of every ray: the same sums */
         const int all = use && n == 0 ? -1 : use ? cover(tris, list, n, cone_t) : -1, cast = !(use && (n == 0 || all >= 0));
@@ -115,7 +112,8 @@ void hl_ref_capture_texel(const float *tris, uint32_t ntris, const float *cones,
                 float r2 = s * s + t * t;
                 if (r2 > 1.0f) continue;
                 float k = 1.0f / (1.0f + r2), dw = 4.0f * k * k;
-                int hit = cast ? nearest(tris, ntris, use, n, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k) : all;
+                float dx = 2.0f * s * k, dy = sy * ((1.0f - r2) * k), dz = 2.0f * t * k;
+                int hit = !cast ? all : use ? nearest(tris, tb->ntris, use, n, dx, dy, dz) : trace(tb, use_cones, dx, dy, dz);
                 if (hit >= 0) {
                     const float *em = tris + HL_CAPTURE_FLOATS * (size_t)hit + 12;
                     ar += dw * em[0];
@@ -129,10 +127,10 @@ void hl_ref_capture_texel(const float *tris, uint32_t ntris, const float *cones,
         if (wsum == 0.0f) {
             /* a sliver of the rim no sub-sample fell in: one ray at the
                in-disc point nearest the texel centre, as geom.c does
-               (every triangle: the point may lie outside the texel) */
+               (the hierarchy: the point may lie outside the texel) */
             float cs = s0 + 0.5f * h, ct = t0 + 0.5f * h, q = 0.9999999f / sqrtf(cs * cs + ct * ct);
             float s = cs * q, t = ct * q, r2 = s * s + t * t, k = 1.0f / (1.0f + r2);
-            int hit = nearest(tris, ntris, NULL, 0, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
+            int hit = trace(tb, use_cones, 2.0f * s * k, sy * ((1.0f - r2) * k), 2.0f * t * k);
             if (hit >= 0) {
                 const float *em = tris + HL_CAPTURE_FLOATS * (size_t)hit + 12;
                 ar = em[0];
