@@ -29,6 +29,9 @@
 #                  changed (HUD "lighting: unchanged"); --play, or space,
 #                  captures every frame; space again pauses (unchanged again)
 #   surroundings_bad  --surroundings' and --time's errors (no X needed)
+#   textured       tests/data/textured_box.gltf with --textures: the viewer's
+#                  capture as relight --textures's picture, which differs from
+#                  the picture without textures
 # Env: HL_BIN, HL_COMPARE (test_viewer), HL_SCENE_GEN (viewer_scene), HL_TMP, HL_REPO_DATA,
 # HL_VIEWER_BUILT (ON/OFF). Exit 77 = skipped.
 set -u
@@ -106,7 +109,7 @@ same_picture() {
 
 case "${1:-}" in
 capture_sky|capture_env|drop|dynamic_rest|dynamic_moved|dynamic_drag|dynamic_anim|surroundings_capture|\
-surroundings_drag|surroundings_unchanged)
+surroundings_drag|surroundings_unchanged|textured)
   [ "${HL_VIEWER_BUILT:-OFF}" = ON ] || skip "haarlight was built without the viewer (HL_WITH_VIEWER=OFF or no GLFW/OpenGL)"
   ;;
 esac
@@ -325,6 +328,17 @@ surroundings_unchanged)
   hud_says "--play, space" "lighting: unchanged, t .* s of 0.00-4.00 paused"
   grep -q "surroundings: 1 captures with relight (mean .* ms); 1 frames found them and the map unchanged" \
     "$tmp/view.txt" || fail "--play, space: the paused frames were not found unchanged"
+  ;;
+textured)
+  box="$(cd "$(dirname "$0")" && pwd)/data/textured_box.gltf"
+  "$bin" precompute "$box" --ground --ground-res 16 -C 16 -N 16 -q -o "$tmp/t.hlt" || fail "precompute"
+  cam=(--size 320x240 --exposure 0.5 --eye 3,2.5,4 --target 0,0.6,0)
+  "$bin" relight "$tmp/t.hlt" --sky --textures "$box" "${cam[@]}" -q -o "$tmp/relight.exr" || fail "relight --textures"
+  "$bin" relight "$tmp/t.hlt" --sky "${cam[@]}" -q -o "$tmp/plain.exr" || fail "relight"
+  view "$tmp/t.hlt" --textures "$box" "${cam[@]}" --no-glare --frames 3 --screenshot "$tmp/view.exr" ||
+    fail "view --textures exited with an error"
+  same_picture "the textured box" "$tmp/view.exr" "$tmp/relight.exr" 0.5
+  must_differ "$tmp/plain.exr" "$tmp/relight.exr" 0.5 "the texture changed nothing in relight's picture"
   ;;
 surroundings_bad)
   [ "${HL_VIEWER_BUILT:-OFF}" = ON ] || skip "haarlight was built without the viewer"

@@ -33,6 +33,13 @@
 
 struct vw_gl {
     GLuint vao, empty_vao, vbo_pos, vbo_rgb, ebo;
+    /* a textured surface (vw_gl_set_surface): its triangles' corners, one
+       range a texture, drawn with the positions and colours read from the
+       buffers above through buffer textures; ebo then holds the rest */
+    GLuint vao_tex, vbo_tex, prog_tex, tbo[2], *tex_ids;
+    uint32_t ntex;
+    GLint *tex_first;
+    GLsizei *tex_count;
     GLuint vao_sur, vbo_sur, prog_sur; /* the surroundings' triangles */
     GLsizei sur_count;                 /* their vertices */
     GLsizei index_count;
@@ -63,6 +70,42 @@ static const char *const fs_mesh =
     "in vec3 v_rgb;\n"
     "out vec4 o;\n"
     "void main() { o = vec4(v_rgb, 1.0); }\n";
+
+/* A textured triangle: hl_render_surface's pixel, base x texture x the
+ * irradiance interpolated from the vertices (colour over albedo), the
+ * positions and colours fetched by vertex from the mesh's buffers so that
+ * moved bodies and every new frame's colours are followed. The texture is
+ * sRGB (decoded before bilinear filtering, as the library's sampler
+ * does), repeating, without mipmaps; v is flipped into GL's rows. */
+static const char *const vs_tex =
+    "#version 330 core\n"
+    "layout(location = 0) in int a_vid;\n"
+    "layout(location = 1) in vec2 a_uv;\n"
+    "layout(location = 2) in vec3 a_base;\n"
+    "layout(location = 3) in vec3 a_alb;\n"
+    "uniform samplerBuffer u_pos;\n"
+    "uniform samplerBuffer u_rgb;\n"
+    "uniform mat4 u_mvp;\n"
+    "out vec2 v_uv;\n"
+    "out vec3 v_base, v_irr;\n"
+    "void main() {\n"
+    "  vec3 p = vec3(texelFetch(u_pos, 3 * a_vid).r, texelFetch(u_pos, 3 * a_vid + 1).r,\n"
+    "                texelFetch(u_pos, 3 * a_vid + 2).r);\n"
+    "  vec3 c = texelFetch(u_rgb, a_vid).rgb;\n"
+    "  v_irr = vec3(a_alb.x > 1e-6 ? c.x / a_alb.x : 0.0, a_alb.y > 1e-6 ? c.y / a_alb.y : 0.0,\n"
+    "               a_alb.z > 1e-6 ? c.z / a_alb.z : 0.0);\n"
+    "  v_uv = vec2(a_uv.x, 1.0 - a_uv.y);\n"
+    "  v_base = a_base;\n"
+    "  gl_Position = u_mvp * vec4(p, 1.0);\n"
+    "}\n";
+
+static const char *const fs_tex =
+    "#version 330 core\n"
+    "uniform sampler2D u_tex;\n"
+    "in vec2 v_uv;\n"
+    "in vec3 v_base, v_irr;\n"
+    "out vec4 o;\n"
+    "void main() { o = vec4(max(v_base * texture(u_tex, v_uv).rgb * v_irr, 0.0), 1.0); }\n";
 
 /* The surroundings: flat colours, each either radiance (an emitter, tone-
  * mapped like the mesh) or a display value (a dark body's grey, divided
@@ -287,7 +330,8 @@ int vw_gl_create(const hl_mesh *mesh, const float thr[256], vw_gl **out, char *e
     g->prog_blur = g->prog_bright ? program(vs_full, fs_blur, "blur", err, err_size) : 0;
     g->prog_final = g->prog_blur ? program(vs_full, fs_final, "tone-map", err, err_size) : 0;
     g->prog_sur = g->prog_final ? program(vs_sur, fs_sur, "surroundings", err, err_size) : 0;
-    if (!g->prog_sur) {
+    g->prog_tex = g->prog_sur ? program(vs_tex, fs_tex, "textured mesh", err, err_size) : 0;
+    if (!g->prog_tex) {
         vw_gl_destroy(g);
         return 0;
     }
@@ -355,13 +399,18 @@ int vw_gl_create(const hl_mesh *mesh, const float thr[256], vw_gl **out, char *e
 void vw_gl_destroy(vw_gl *g)
 {
     if (!g) return;
-    GLuint progs[] = {g->prog_mesh, g->prog_bg, g->prog_bright, g->prog_blur, g->prog_final, g->prog_sur};
+    GLuint progs[] = {g->prog_mesh, g->prog_bg, g->prog_bright, g->prog_blur, g->prog_final, g->prog_sur, g->prog_tex};
     for (size_t i = 0; i < sizeof progs / sizeof progs[0]; i++)
         if (progs[i]) glDeleteProgram(progs[i]);
-    GLuint bufs[] = {g->vbo_pos, g->vbo_rgb, g->ebo, g->vbo_sur};
-    glDeleteBuffers(4, bufs);
-    GLuint vaos[] = {g->vao, g->empty_vao, g->vao_sur};
-    glDeleteVertexArrays(3, vaos);
+    GLuint bufs[] = {g->vbo_pos, g->vbo_rgb, g->ebo, g->vbo_sur, g->vbo_tex};
+    glDeleteBuffers(5, bufs);
+    GLuint vaos[] = {g->vao, g->empty_vao, g->vao_sur, g->vao_tex};
+    glDeleteVertexArrays(4, vaos);
+    glDeleteTextures(2, g->tbo);
+    if (g->tex_ids) glDeleteTextures((GLsizei)g->ntex, g->tex_ids);
+    free(g->tex_ids);
+    free(g->tex_first);
+    free(g->tex_count);
     GLuint texs[] = {g->env_tex, g->thr_tex, g->tex_scene, g->tex_q[0], g->tex_q[1], g->tex_lin};
     glDeleteTextures(6, texs);
     glDeleteRenderbuffers(1, &g->rb_depth);
@@ -440,6 +489,111 @@ int vw_gl_set_surroundings(vw_gl *g, const float *verts, uint32_t vertex_count, 
     return 1;
 }
 
+int vw_gl_set_surface(vw_gl *g, const hl_mesh *mesh, const hl_surface *su, char *err, size_t err_size)
+{
+    const uint32_t nt = hl_surface_triangle_count(su), ntex = hl_surface_texture_count(su);
+    if (!nt || !ntex) return 1; /* nothing textured: the colours as they are */
+    /* corners grouped by texture: vid (int), uv, base, albedo */
+    enum { STRIDE = 4 + 8 * 4 };
+    uint32_t *count = calloc(ntex, sizeof *count), textured = 0;
+    if (!count) goto oom;
+    for (uint32_t t = 0; t < nt; t++) {
+        int32_t k;
+        hl_surface_triangle(su, t, &k, NULL, NULL);
+        if (k >= 0 && (uint32_t)k < ntex) count[k]++, textured++;
+    }
+    unsigned char *buf = malloc((size_t)textured * 3 * STRIDE + 1);
+    uint32_t *plain = malloc(((size_t)mesh->triangle_count - textured) * 12 + 1);
+    g->tex_first = calloc(ntex, sizeof *g->tex_first);
+    g->tex_count = calloc(ntex, sizeof *g->tex_count);
+    g->tex_ids = calloc(ntex, sizeof *g->tex_ids);
+    if (!buf || !plain || !g->tex_first || !g->tex_count || !g->tex_ids) {
+        free(buf);
+        free(plain);
+        free(count);
+        goto oom;
+    }
+    for (uint32_t k = 0, at = 0; k < ntex; k++) {
+        g->tex_first[k] = (GLint)at;
+        g->tex_count[k] = (GLsizei)(3 * count[k]);
+        at += 3 * count[k];
+    }
+    uint32_t *fill = calloc(ntex, sizeof *fill), np = 0;
+    for (uint32_t t = 0; fill && t < mesh->triangle_count; t++) {
+        int32_t k = -1;
+        float uv[6], base[9];
+        if (t < nt) hl_surface_triangle(su, t, &k, uv, base);
+        if (k < 0 || (uint32_t)k >= ntex) {
+            memcpy(plain + 3 * (size_t)np++, mesh->indices + 3 * (size_t)t, 12);
+            continue;
+        }
+        for (int c = 0; c < 3; c++) {
+            const int32_t vid = (int32_t)mesh->indices[3 * (size_t)t + (size_t)c];
+            float f[8] = {uv[2 * c], uv[2 * c + 1], base[3 * c], base[3 * c + 1], base[3 * c + 2]};
+            memcpy(f + 5, mesh->albedo + 3 * (size_t)vid, 12);
+            unsigned char *d = buf + (size_t)(g->tex_first[k] + (GLint)(3 * fill[k] + (uint32_t)c)) * STRIDE;
+            memcpy(d, &vid, 4);
+            memcpy(d + 4, f, sizeof f);
+        }
+        fill[k]++;
+    }
+    free(count);
+    if (!fill) {
+        free(buf);
+        free(plain);
+        goto oom;
+    }
+    free(fill);
+    glGenVertexArrays(1, &g->vao_tex);
+    glGenBuffers(1, &g->vbo_tex);
+    glBindVertexArray(g->vao_tex);
+    glBindBuffer(GL_ARRAY_BUFFER, g->vbo_tex);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)textured * 3 * STRIDE), buf, GL_STATIC_DRAW);
+    glVertexAttribIPointer(0, 1, GL_INT, STRIDE, NULL);
+    glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, STRIDE, (const void *)4);
+    glVertexAttribPointer(2, 3, GL_FLOAT, GL_FALSE, STRIDE, (const void *)12);
+    glVertexAttribPointer(3, 3, GL_FLOAT, GL_FALSE, STRIDE, (const void *)24);
+    for (GLuint a = 0; a < 4; a++) glEnableVertexAttribArray(a);
+    glBindVertexArray(0);
+    free(buf);
+    /* the plain pass draws the rest */
+    glBindVertexArray(g->vao);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g->ebo);
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(12 * (size_t)np), plain, GL_STATIC_DRAW);
+    glBindVertexArray(0);
+    g->index_count = (GLsizei)(3 * np);
+    free(plain);
+    glGenTextures(2, g->tbo);
+    glBindTexture(GL_TEXTURE_BUFFER, g->tbo[0]);
+    glTexBuffer(GL_TEXTURE_BUFFER, GL_R32F, g->vbo_pos);
+    glBindTexture(GL_TEXTURE_BUFFER, g->tbo[1]);
+    glTexBuffer(GL_TEXTURE_BUFFER, GL_RGBA32F, g->vbo_rgb);
+    glGenTextures((GLsizei)ntex, g->tex_ids);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    for (uint32_t k = 0; k < ntex; k++) {
+        uint32_t w = 0, h = 0;
+        const uint8_t *px = hl_surface_texture(su, k, &w, &h);
+        glBindTexture(GL_TEXTURE_2D, g->tex_ids[k]);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_SRGB8, (GLsizei)w, (GLsizei)h, 0, GL_RGB, GL_UNSIGNED_BYTE, px);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+    }
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    g->ntex = ntex;
+    GLenum e = glGetError();
+    if (e != GL_NO_ERROR) {
+        snprintf(err, err_size, "OpenGL: error 0x%x while uploading the textured surface (%u triangles, %u textures)",
+                 (unsigned)e, textured, ntex);
+        return 0;
+    }
+    return 1;
+oom:
+    snprintf(err, err_size, "out of memory for the textured surface");
+    return 0;
+}
+
 unsigned vw_gl_colour_buffer(const vw_gl *g) { return g->vbo_rgb; }
 
 void vw_gl_finish(void) { glFinish(); }
@@ -475,6 +629,25 @@ static void draw_scene(vw_gl *g, const vw_frame *f)
         glUniformMatrix4fv(loc(g->prog_mesh, "u_mvp"), 1, GL_FALSE, f->mvp);
         glBindVertexArray(g->vao);
         glDrawElements(GL_TRIANGLES, g->index_count, GL_UNSIGNED_INT, NULL);
+    }
+    if (g->have_colours && g->ntex) {
+        GLuint p = g->prog_tex;
+        glUseProgram(p);
+        glUniformMatrix4fv(loc(p, "u_mvp"), 1, GL_FALSE, f->mvp);
+        glActiveTexture(GL_TEXTURE1);
+        glBindTexture(GL_TEXTURE_BUFFER, g->tbo[0]);
+        glActiveTexture(GL_TEXTURE2);
+        glBindTexture(GL_TEXTURE_BUFFER, g->tbo[1]);
+        glUniform1i(loc(p, "u_pos"), 1);
+        glUniform1i(loc(p, "u_rgb"), 2);
+        glUniform1i(loc(p, "u_tex"), 3);
+        glBindVertexArray(g->vao_tex);
+        for (uint32_t k = 0; k < g->ntex; k++) {
+            if (!g->tex_count[k]) continue;
+            bind_texture(3, g->tex_ids[k]);
+            glDrawArrays(GL_TRIANGLES, g->tex_first[k], g->tex_count[k]);
+        }
+        glActiveTexture(GL_TEXTURE0);
     }
     if (f->surroundings && g->sur_count) {
         glUseProgram(g->prog_sur);

@@ -90,6 +90,9 @@ static const char *const usage_view =
     "  --spin DEG           turn the environment by DEG every frame (a lighting change\n"
     "                       every frame, for timing)\n"
     "  --drop ENV.exr       treat ENV.exr as dropped on the window (for tests)\n"
+    "  --textures MODEL     keep MODEL's base-colour textures sharp, as relight --textures\n"
+    "                       (MODEL: the file SCENE.hlt was precomputed from); a --dynamic\n"
+    "                       file loaded as one mesh keeps its own\n"
     "  --keys STRING        type STRING's characters after the first frame (for tests;\n"
     "                       the keys below that are characters)\n"
     "dynamic scenes (--dynamic: the second method, relight-dynamic's, which needs no\n"
@@ -157,7 +160,8 @@ static int open_window(viewer *v)
     float thr[256];
     vw_tonemap_thresholds(thr);
     if (!vw_gl_create(v->mesh, thr, &v->gl, err, sizeof err) ||
-        !vw_gl_resize(v->gl, v->fb_w, v->fb_h, err, sizeof err)) {
+        !vw_gl_resize(v->gl, v->fb_w, v->fb_h, err, sizeof err) ||
+        (v->surface && !vw_gl_set_surface(v->gl, v->mesh, v->surface, err, sizeof err))) {
         fprintf(stderr, "haarlight: %s\n", err);
         return 0;
     }
@@ -202,7 +206,7 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
             continue;
         }
         int takes = !strcmp(a, "--env") || !strcmp(a, "--frames") || !strcmp(a, "--screenshot") ||
-                    !strcmp(a, "--spin") || !strcmp(a, "--drop") || !strcmp(a, "--keys");
+                    !strcmp(a, "--spin") || !strcmp(a, "--drop") || !strcmp(a, "--keys") || !strcmp(a, "--textures");
         if (takes && i + 1 >= argc) return usage_error(usage, "option %s needs a value", a);
         const char *val = takes ? argv[++i] : NULL;
         if (!strcmp(a, "--env")) {
@@ -222,6 +226,8 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
             v->spinning = v->spin_deg != 0.0f;
         } else if (!strcmp(a, "--keys")) {
             v->keys = val;
+        } else if (!strcmp(a, "--textures")) {
+            v->textures = val;
         } else if (!strcmp(a, "--drop")) {
             if (v->n_drops == VW_MAX_DROPS) return usage_error(usage, "%s", "too many --drop files");
             v->drops[v->n_drops++] = val;
@@ -303,6 +309,20 @@ static int load(viewer *v, const char **env_args, int n_env_args)
         v->mesh = v->t->mesh;
         v->t_path = v->scene;
     }
+    /* textures: --textures MODEL, or a --dynamic file loaded as one mesh
+       (as relight-dynamic; an animated file's bodies keep per-vertex albedo) */
+    if (v->textures && hl_surface_load(v->ctx, v->textures, NULL, v->mesh, &v->surface) != HL_OK) {
+        cli_fail(v->ctx, HL_ERR_INVALID_ARGUMENT);
+        return 0;
+    }
+    if (!v->textures && v->dy.on && !v->t) {
+        const int quiet = hl_context_quiet(v->ctx);
+        hl_context_set_quiet(v->ctx, 1);
+        if (hl_surface_load(v->ctx, v->scene, NULL, v->mesh, &v->surface) != HL_OK) v->surface = NULL;
+        hl_context_set_quiet(v->ctx, quiet);
+    }
+    if (v->surface && !v->o.cd.quiet && hl_surface_texture_count(v->surface))
+        fprintf(stderr, "textures: %u, per pixel\n", hl_surface_texture_count(v->surface));
     hl_camera_view cv; /* an impossible camera fails here, before any window */
     if (cli_camera_complete(v->ctx, v->mesh, &v->o) != HL_OK ||
         hl_camera_query_view(v->ctx, v->mesh, &v->o.cam, &cv) != HL_OK) {
@@ -440,6 +460,7 @@ int cmd_view(int argc, char **argv)
     vw_dyn_destroy(v);
     vw_sur_destroy(v);
     hl_transport_destroy(v->t);
+    hl_surface_destroy(v->surface);
     hl_transport_destroy(v->t_rows);
     hl_context_destroy(v->ctx);
     free(env_args);

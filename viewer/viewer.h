@@ -186,6 +186,8 @@ typedef struct viewer {
     const char *t_path;  /* the file t was loaded from */
     hl_transport *t_rows; /* t loaded again for a second try at the relighter (make_relighter) */
     const hl_mesh *mesh; /* the mesh drawn: the transport's or the dynamic scene's */
+    const char *textures; /* --textures MODEL */
+    hl_surface *surface;  /* its textured surface, or a --dynamic file's own; NULL without */
     vw_dyn dy;
     vw_sur su;
     hl_relighter *rl;
@@ -357,6 +359,10 @@ int vw_gl_set_surroundings(vw_gl *g, const float *verts, uint32_t vertex_count, 
 /* Copies 4 floats per vertex (the dot products' layout) into the colour
  * buffer. */
 void vw_gl_upload_colours(vw_gl *g, const float *vertex_rgba);
+/* The mesh's textured surface (hl_surface_load): its textured triangles
+ * drawn as hl_render_surface shades them, the rest as before. 0 with a
+ * message on failure. */
+int vw_gl_set_surface(vw_gl *g, const hl_mesh *mesh, const hl_surface *su, char *err, size_t err_size);
 /* The colour buffer object, for OpenCL to write into (clCreateFromGLBuffer);
  * vw_gl_finish before OpenCL acquires it, vw_gl_colours_written after. */
 unsigned vw_gl_colour_buffer(const vw_gl *g);

@@ -648,6 +648,17 @@ typedef struct hl_surface hl_surface;
 HL_API hl_result hl_surface_load(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc,
                                  const hl_mesh *mesh, hl_surface **out);
 HL_API uint32_t hl_surface_texture_count(const hl_surface *surface);
+/* The surface's textured triangles (the first of the mesh's triangles; 0
+ * for NULL), and triangle t's texture (-1: none; the rest then NULL), its
+ * corners' texture coordinates (u, v, v up) and base colours (the
+ * material's factor x the vertex colour, linear). HL_ERR_INVALID_ARGUMENT
+ * out of range. */
+HL_API uint32_t hl_surface_triangle_count(const hl_surface *surface);
+HL_API hl_result hl_surface_triangle(const hl_surface *surface, uint32_t t, int32_t *texture, float uv[6],
+                                     float base[9]);
+/* Texture k's pixels: width x height x 3 bytes, sRGB-encoded, row 0 at the
+ * top (v = 1); NULL out of range. Owned by the surface. */
+HL_API const uint8_t *hl_surface_texture(const hl_surface *surface, uint32_t k, uint32_t *width, uint32_t *height);
 HL_API void hl_surface_destroy(hl_surface *surface);
 
 /* hl_render with a textured surface (NULL: exactly hl_render): a pixel

@@ -402,7 +402,8 @@ static void case_render(void)
         float other[12];
         quad_at(0, 0.25f, other);
         hl_mesh *o = NULL;
-        hl_mesh_create(ctx, 4, other, NULL, NULL, 2, quad_idx, &o);
+        const uint32_t other_idx[6] = {0, 1, 3, 1, 2, 3}; /* the other diagonal */
+        hl_mesh_create(ctx, 4, other, NULL, NULL, 2, other_idx, &o);
         hl_surface *bad = NULL;
         r = hl_surface_load(ctx, path, NULL, o, &bad);
         HL_CHECK(r == HL_ERR_INVALID_ARGUMENT && !bad && strstr(hl_context_last_error(ctx), path),

@@ -258,6 +258,14 @@ static void warn_unused(hl_context *ctx, const char *path, const struct aiScene 
     }
 }
 
+/* An OBJ file, gzipped or not, by its name. */
+static int is_obj(const char *path)
+{
+    size_t n = strlen(path);
+    if (n > 3 && !strcmp(path + n - 3, ".gz")) n -= 3;
+    return n >= 4 && (!strncmp(path + n - 4, ".obj", 4) || !strncmp(path + n - 4, ".OBJ", 4));
+}
+
 static hl_result read_material(hl_context *ctx, const char *path, const struct aiScene *s, hl_materials *m,
                                unsigned mi)
 {
@@ -284,8 +292,12 @@ static hl_result read_material(hl_context *ctx, const char *path, const struct a
     int textured =
         aiGetMaterialTexture(mat, aiTextureType_BASE_COLOR, 0, &tp, NULL, &uv, NULL, NULL, NULL, NULL) == aiReturn_SUCCESS ||
         aiGetMaterialTexture(mat, aiTextureType_DIFFUSE, 0, &tp, NULL, &uv, NULL, NULL, NULL, NULL) == aiReturn_SUCCESS;
-    int white = h->factor[0] == 1.0f && h->factor[1] == 1.0f && h->factor[2] == 1.0f;
-    h->given = !(named && strcmp(nm.data, AI_DEFAULT_MATERIAL_NAME) == 0) && (textured || !white);
+    int white = h->factor[0] == 1.0f && h->factor[2] == 1.0f && h->factor[1] == 1.0f;
+    /* assimp's OBJ reader makes a material of Kd 0.6 for a `usemtl` whose
+       library it cannot find (and for none at all): in an OBJ file that
+       grey, untextured, is taken for no material */
+    int obj_default = is_obj(path) && !textured && f[0] == 0.6f && f[1] == 0.6f && f[2] == 0.6f;
+    h->given = !(named && strcmp(nm.data, AI_DEFAULT_MATERIAL_NAME) == 0) && (textured || !white) && !obj_default;
     warn_unused(ctx, path, s, mat, mat_name);
     if (!textured) return HL_OK;
     if (uv >= AI_MAX_NUMBER_OF_TEXTURECOORDS)

@@ -24,6 +24,28 @@ uint32_t hl_surface_texture_count(const hl_surface *s)
     return s ? s->mats.ntex : 0;
 }
 
+uint32_t hl_surface_triangle_count(const hl_surface *s)
+{
+    return s ? s->triangle_count : 0;
+}
+
+hl_result hl_surface_triangle(const hl_surface *s, uint32_t t, int32_t *texture, float uv[6], float base[9])
+{
+    if (!s || t >= s->triangle_count || !texture) return HL_ERR_INVALID_ARGUMENT;
+    *texture = s->tex[t];
+    if (uv) memcpy(uv, s->uv + 6 * (size_t)t, 6 * sizeof(float));
+    if (base) memcpy(base, s->base + 9 * (size_t)t, 9 * sizeof(float));
+    return HL_OK;
+}
+
+const uint8_t *hl_surface_texture(const hl_surface *s, uint32_t k, uint32_t *width, uint32_t *height)
+{
+    if (!s || k >= s->mats.ntex) return NULL;
+    if (width) *width = s->mats.tex[k].w;
+    if (height) *height = s->mats.tex[k].h;
+    return s->mats.tex[k].rgb;
+}
+
 hl_result hl_surface_load(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, const hl_mesh *mesh,
                           hl_surface **out)
 {
