@@ -21,9 +21,12 @@
  *             the irradiance where textured.
  *   dynamic   the dynamic method's scene from the same file holds the same
  *             albedo at the same positions.
- *   bad       a missing texture, a corrupt one, one of absurd size, and a
- *             non-finite factor (OBJ/MTL) are refused, naming the model
- *             and the texture; a missing normal texture only warns.
+ *   bad       a texture not found, or in a format the decoder does not
+ *             read, is left out (the factor alone); one named by a path on
+ *             another machine is found beside the model; a damaged one, one
+ *             of absurd size and a non-finite factor (OBJ/MTL) are refused,
+ *             naming the model and the texture; a missing normal texture
+ *             only warns.
  * Depends on: haarlight.h (hl_mesh_load, hl_image_save, hl_dynamic_*),
  * hl_test.h, libc.
  */
@@ -581,21 +584,45 @@ static void case_bad(void)
     quad_at(0, 0, pos);
     prim pr = {4, 2, pos, quad_uv, NULL, quad_idx, 0};
     const char *tex_mat = "{\"name\":\"m\",\"pbrMetallicRoughness\":{\"baseColorTexture\":{\"index\":0}}}";
-    /* missing */
+    /* left out, the file loading with the factor alone (here white: no
+       material, the default 0.8): a texture not found, one in a format
+       the decoder does not read, one named by a path on another machine
+       that is not beside the model either */
     const char *p1 = hl_test_tmp_path("material_missing.gltf");
-    write_gltf(p1, &pr, 1, tex_mat, "{\"uri\":\"no_such_texture.png\"}", 1);
-    expect_refusal(ctx, p1, HL_ERR_IO, "no_such_texture.png");
-    /* corrupt: not an image at all, then a PNG cut short */
-    const char *p2 = hl_test_tmp_path("material_corrupt.gltf");
-    write_bytes(hl_test_tmp_path("material_corrupt.png"), "this is not a PNG file", 22);
-    write_gltf(p2, &pr, 1, tex_mat, "{\"uri\":\"material_corrupt.png\"}", 1);
-    expect_refusal(ctx, p2, HL_ERR_FORMAT, "material_corrupt.png");
+    write_bytes(hl_test_tmp_path("material_other.png"), "this is not a PNG file", 22);
+    const char *left[3] = {"{\"uri\":\"no_such_texture.png\"}", "{\"uri\":\"material_other.png\"}",
+                           "{\"uri\":\"C:%5Ctextures%5Cno_such.png\"}"};
+    for (int k = 0; k < 3; k++) {
+        write_gltf(p1, &pr, 1, tex_mat, left[k], 1);
+        hl_mesh *m = NULL;
+        hl_result r = hl_mesh_load(ctx, p1, NULL, &m, NULL);
+        double worst = 0.0;
+        for (uint32_t v = 0; m && v < 3 * m->vertex_count; v++) worst = fmax(worst, fabs(m->albedo[v] - 0.8f));
+        HL_CHECK(r == HL_OK && m && worst == 0.0, "%s: result %d, albedo off 0.8 by %g: %s", left[k], (int)r, worst,
+                 hl_context_last_error(ctx));
+        hl_mesh_destroy(m);
+    }
+    /* a texture found beside the model under a path of another machine */
+    const char *p6 = hl_test_tmp_path("material_moved.gltf");
+    write_gltf(p6, &pr, 1, tex_mat, "{\"uri\":\"D:%5Cassets%5Cmaterial_whole.png\"}", 1);
+    const char *p2 = NULL;
     hl_image *img = NULL;
     hl_image_create(ctx, 64, 64, &img);
     for (size_t i = 0; i < 64 * 64 * 3; i++) img->rgb[i] = (float)(i % 7) / 7.0f;
     const char *whole = hl_test_tmp_path("material_whole.png");
     hl_image_save(ctx, img, whole, 0.0f);
     hl_image_destroy(img);
+    {
+        hl_mesh *m = NULL;
+        hl_surface *su = NULL;
+        hl_result r = hl_mesh_load(ctx, p6, NULL, &m, NULL);
+        if (r == HL_OK) r = hl_surface_load(ctx, p6, NULL, m, &su);
+        HL_CHECK(r == HL_OK && hl_surface_texture_count(su) == 1, "a texture beside the model, named D:\\...: %s",
+                 hl_context_last_error(ctx));
+        hl_surface_destroy(su);
+        hl_mesh_destroy(m);
+        (void)p2;
+    }
     FILE *f = fopen(whole, "rb");
     unsigned char buf[65536];
     size_t n = fread(buf, 1, sizeof buf, f);

@@ -16,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <threads.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <assimp/material.h>
@@ -72,7 +73,7 @@ static void decode_uri(const char *in, char *out, size_t cap)
             char hex[3] = {in[i + 1], in[i + 2], 0}, *end;
             long v = strtol(hex, &end, 16);
             if (*end == 0 && v > 0) {
-                out[k++] = (char)v;
+                out[k++] = v == '\\' ? '/' : (char)v;
                 i += 2;
                 continue;
             }
@@ -82,17 +83,41 @@ static void decode_uri(const char *in, char *out, size_t cap)
     out[k] = 0;
 }
 
-/* The texture's file: its path relative to the model's folder. 0 when the
- * name does not fit. */
-static int texture_path(const char *model, const char *name, char *out, size_t cap)
+/* The texture's file, candidate k (0, 1): the path as the material gives
+ * it (relative to the model's folder; Blender's leading "//" means that
+ * folder too), then its last component in the model's folder, where
+ * assets are usually copied with their textures (a path absolute on
+ * another machine, "C:\\textures\\wood.png", ends there). 0 when there is
+ * no such candidate or it does not fit. */
+static int texture_path(const char *model, const char *name, int k, char *out, size_t cap)
 {
     char dec[4096];
     decode_uri(name, dec, sizeof dec);
-    if (dec[0] == '/') return snprintf(out, cap, "%s", dec) < (int)cap;
+    const char *rel = dec;
+    if (rel[0] == '/' && rel[1] == '/') rel += 2;
+    const int absolute = rel == dec && (dec[0] == '/' || (dec[0] && dec[1] == ':'));
+    if (k == 1) {
+        const char *base = strrchr(rel, '/');
+        if (!base) return 0; /* candidate 0 was it already */
+        rel = base + 1;
+    } else if (absolute) {
+        if (dec[0] != '/') return 0; /* a drive letter: not on this machine */
+        return snprintf(out, cap, "%s", dec) < (int)cap;
+    }
     const char *slash = strrchr(model, '/');
-    int dir = slash ? (int)(slash - model) : 0;
-    if (!slash) return snprintf(out, cap, "%s", dec) < (int)cap;
-    return snprintf(out, cap, "%.*s/%s", dir, model, dec) < (int)cap;
+    if (!slash) return snprintf(out, cap, "%s", rel) < (int)cap;
+    return snprintf(out, cap, "%.*s/%s", (int)(slash - model), model, rel) < (int)cap;
+}
+
+/* The first candidate that can be read into file, 0 when none. */
+static int find_texture(const char *model, const char *name, char *file, size_t cap)
+{
+    struct stat st;
+    for (int k = 0; k < 2; k++)
+        if (texture_path(model, name, k, file, cap) && access(file, R_OK) == 0 && stat(file, &st) == 0 &&
+            S_ISREG(st.st_mode))
+            return 1;
+    return 0;
 }
 
 static hl_result read_file(hl_context *ctx, const char *what, const char *file, uint8_t **data, size_t *size)
@@ -180,6 +205,30 @@ static const struct aiTexture *embedded(const struct aiScene *s, const char *nam
     return NULL;
 }
 
+/* A texture that cannot be had (missing, or a format stb_image does not
+ * read: PCX, DDS, TIFF, KTX2) is left out with a warning: the material's
+ * colour is used without it. Real assets often name textures that were
+ * not shipped with them, or by a path on the machine they were made on. */
+static void left_out(hl_context *ctx, const char *what, const char *why)
+{
+    if (!ctx || !ctx->quiet)
+        fprintf(stderr, "haarlight: %s: warning: %s; the material's colour is used without it\n", what, why);
+}
+
+/* 1 when stb_image recognises the bytes' format (a damaged file of a
+ * format it reads is then an error, not a texture left out). */
+static int known_image(const uint8_t *data, size_t size)
+{
+    int w, h, c;
+    if (size > (size_t)INT32_MAX) return 0;
+    if (stbi_info_from_memory(data, (int)size, &w, &h, &c)) return 1;
+    /* stbi_info also fails on an image too large for it; the signatures
+       of PNG and JPEG tell those apart from unknown formats */
+    static const uint8_t png[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'}, jpg[3] = {0xFF, 0xD8, 0xFF};
+    return (size >= 8 && !memcmp(data, png, 8)) || (size >= 3 && !memcmp(data, jpg, 3));
+}
+
+/* The texture into t; t->rgb stays NULL when it is left out (left_out). */
 static hl_result load_texture(hl_context *ctx, const char *path, const struct aiScene *s, const char *mat_name,
                               const char *name, hl_texture *t)
 {
@@ -188,8 +237,13 @@ static hl_result load_texture(hl_context *ctx, const char *path, const struct ai
     if (name[0] == '*' && !embedded(s, name))
         return hl_fail(ctx, HL_ERR_FORMAT, "%s: the file embeds no such texture", what);
     const struct aiTexture *e = embedded(s, name);
-    if (e && e->mHeight == 0) /* compressed bytes */
+    if (e && e->mHeight == 0) { /* compressed bytes */
+        if (!known_image((const uint8_t *)e->pcData, e->mWidth)) {
+            left_out(ctx, what, "embedded in a format the decoder does not read");
+            return HL_OK;
+        }
         return decode(ctx, what, (const uint8_t *)e->pcData, e->mWidth, t);
+    }
     if (e) { /* raw texels, BGRA */
         hl_result r = check_size(ctx, what, e->mWidth, e->mHeight);
         if (r != HL_OK) return r;
@@ -206,10 +260,18 @@ static hl_result load_texture(hl_context *ctx, const char *path, const struct ai
         return HL_OK;
     }
     char file[4096];
-    if (!texture_path(path, name, file, sizeof file)) return hl_fail(ctx, HL_ERR_IO, "%s: the path is too long", what);
+    if (!find_texture(path, name, file, sizeof file)) {
+        left_out(ctx, what, "not found");
+        return HL_OK;
+    }
     uint8_t *data = NULL;
     size_t size = 0;
     hl_result r = read_file(ctx, what, file, &data, &size);
+    if (r == HL_OK && !known_image(data, size)) {
+        left_out(ctx, what, "in a format the decoder does not read");
+        free(data);
+        return HL_OK;
+    }
     if (r == HL_OK) r = decode(ctx, what, data, size, t);
     free(data);
     return r;
@@ -245,7 +307,7 @@ static void warn_unused(hl_context *ctx, const char *path, const struct aiScene 
                 continue;
             char file[4096];
             if (embedded(s, p.data) || p.data[0] == '*') continue;
-            if (texture_path(path, p.data, file, sizeof file) && access(file, R_OK) == 0) continue;
+            if (find_texture(path, p.data, file, sizeof file)) continue;
             int dup = 0;
             for (int i = 0; i < nseen && !dup; i++) dup = strcmp(seen[i].data, p.data) == 0;
             if (dup) continue;
@@ -292,6 +354,7 @@ static hl_result read_material(hl_context *ctx, const char *path, const struct a
     int textured =
         aiGetMaterialTexture(mat, aiTextureType_BASE_COLOR, 0, &tp, NULL, &uv, NULL, NULL, NULL, NULL) == aiReturn_SUCCESS ||
         aiGetMaterialTexture(mat, aiTextureType_DIFFUSE, 0, &tp, NULL, &uv, NULL, NULL, NULL, NULL) == aiReturn_SUCCESS;
+    textured = textured && tp.data[0]; /* an empty name (MD5 writes one) names nothing */
     int white = h->factor[0] == 1.0f && h->factor[2] == 1.0f && h->factor[1] == 1.0f;
     /* assimp's OBJ reader makes a material of Kd 0.6 for a `usemtl` whose
        library it cannot find (and for none at all): in an OBJ file that
@@ -315,10 +378,14 @@ static hl_result read_material(hl_context *ctx, const char *path, const struct a
     if (!t.name) return HL_ERR_OUT_OF_MEMORY;
     strcpy(t.name, tp.data);
     hl_result r = load_texture(ctx, path, s, mat_name, tp.data, &t);
-    if (r != HL_OK) {
+    if (r != HL_OK || !t.rgb) { /* an error, or left out: the factor alone, as if untextured */
         free(t.name);
         free(t.rgb);
         free(t.file);
+        if (r == HL_OK) {
+            m->left_out++;
+            h->given = !(named && strcmp(nm.data, AI_DEFAULT_MATERIAL_NAME) == 0) && !white && !obj_default;
+        }
         return r;
     }
     m->tex[m->ntex] = t;
@@ -400,6 +467,7 @@ void hl_materials_note_(hl_context *ctx, const char *path, const hl_materials *m
     fprintf(stderr, "haarlight: %s: albedo from %u material%s", path, given, given == 1 ? "" : "s");
     for (uint32_t i = 0; i < m->ntex; i++)
         fprintf(stderr, "%s texture \"%s\" (%u x %u)", i ? "," : " with", m->tex[i].name, m->tex[i].w, m->tex[i].h);
+    if (m->left_out) fprintf(stderr, "; %u base colour texture%s left out", m->left_out, m->left_out == 1 ? "" : "s");
     fprintf(stderr, "\n");
 }
 

@@ -62,6 +62,7 @@ typedef struct hl_materials {
     uint32_t ntex;
     hl_texture *tex;
     uint32_t uv_missing; /* textured meshes without the texture's UVs (warned) */
+    uint32_t left_out;   /* base-colour textures not found or not decodable (warned) */
 } hl_materials;
 
 /* A mesh's textured surface, for pictures that keep the texture sharp
@@ -80,9 +81,10 @@ struct hl_surface {
 /* Reads the materials the scene's meshes use and decodes their base-colour
  * textures (external files relative to path's folder, or embedded).
  * Errors name path, the material and the texture: a base-colour texture
- * missing, unreadable, corrupt or of absurd size, a non-finite factor.
- * Textures the engine does not use (normal, roughness, ...) that cannot
- * be found are a warning. */
+ * that is unreadable, damaged or of absurd size, a non-finite factor. A
+ * base-colour texture that is not found, or in a format the decoder does
+ * not read, is left out with a warning (the factor alone), and so are
+ * missing textures the engine does not use (normal, roughness, ...). */
 hl_result hl_materials_read_(hl_context *ctx, const char *path, const struct aiScene *s, hl_materials *out);
 void hl_materials_free_(hl_materials *m);
 
