@@ -36,7 +36,8 @@ static const char *const usage_relight =
     CLI_USAGE_LIGHTING
     "output:\n"
     "  --exposure EV        scale by 2^EV before tone mapping (PNG, 8-bit PLY; default:\n"
-    "                       automatic: the 90th percentile of vertex luminance to 0.8)\n"
+    "                       automatic: the object's 90th percentile of vertex\n"
+    "                       luminance to 0.8, the ground left out)\n"
     "  --ply8               PLY with tone-mapped 8-bit colours instead of linear floats\n"
     CLI_USAGE_CAMERA
     "  --no-background      black instead of the environment behind the object\n"
