@@ -78,7 +78,8 @@ static const char *const usage_view =
     CLI_USAGE_LIGHTING
     "display:\n"
     "  --exposure EV        scale by 2^EV before the sRGB curve (default: automatic,\n"
-    "                       as relight's: the 90th percentile of vertex luminance to 0.8)\n"
+    "                       as relight's: the object's 90th percentile of vertex\n"
+    "                       luminance to 0.8, the ground left out)\n"
     "  --no-glare           start with the glare filter off\n"
     "  --readback           read the colours back to the host even where the device\n"
     "                       could write them into OpenGL's buffer (cl_khr_gl_sharing)\n"

@@ -4,6 +4,7 @@
  * PNG).
  */
 #define _POSIX_C_SOURCE 200809L
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,7 +36,8 @@ static const char *const usage_relight =
     CLI_USAGE_LIGHTING
     "output:\n"
     "  --exposure EV        scale by 2^EV before tone mapping (PNG, 8-bit PLY; default:\n"
-    "                       automatic: the 90th percentile of vertex luminance to 0.8)\n"
+    "                       automatic: the object's 90th percentile of vertex\n"
+    "                       luminance to 0.8, the ground left out)\n"
     "  --ply8               PLY with tone-mapped 8-bit colours instead of linear floats\n"
     CLI_USAGE_CAMERA
     "  --no-background      black instead of the environment behind the object\n"
@@ -45,8 +47,60 @@ static const char *const usage_relight =
     "                       MODEL is the file SCENE.hlt was precomputed from (checked\n"
     "                       triangle for triangle)\n"
     "  --keep-winding       as given to precompute, for reading MODEL\n"
+    "reference (with --surroundings, no --env or --sky):\n"
+    "  --reference R        write a reference instead of the relit colours (same exposure)\n"
+    "                       and print the relit colours' relative L2 error against it\n"
+    "                       (all vertices, the object's, the ground's): exact, rays from\n"
+    "                       each vertex to points on every emitting triangle, occluded by\n"
+    "                       the object, ground and surroundings; centre, the same points\n"
+    "                       seen from the capture point (exact - centre: its parallax);\n"
+    "                       discrete, the untruncated transport dotted with the\n"
+    "                       untruncated capture (centre - discrete: the resolution)\n"
+    "  --reference-points K K x K points on each emitting triangle (default 32)\n"
     "running:\n"
     CLI_USAGE_RUNNING;
+
+/* Relative L2 error of a against ref over vertices [v0, v1), in percent. */
+static double rel_l2(const float *a, const float *ref, uint32_t v0, uint32_t v1)
+{
+    double num = 0.0, den = 0.0;
+    for (size_t i = 3 * (size_t)v0; i < 3 * (size_t)v1; i++) {
+        const double e = (double)a[i] - ref[i];
+        num += e * e;
+        den += (double)ref[i] * ref[i];
+    }
+    return den > 0.0 ? 100.0 * sqrt(num / den) : 0.0;
+}
+
+/* --reference: the reference's colours replace *rgb (freed), after the
+ * relit colours' error against them is printed. */
+static hl_result swap_in_reference(hl_context *ctx, const hl_transport *t, hl_surroundings *surr, int kind, uint32_t K,
+                                   int quiet, float **rgb)
+{
+    const uint32_t nv = t->info.vertex_count, no = t->mesh->object_vertex_count ? t->mesh->object_vertex_count : nv;
+    float *ref = malloc((size_t)nv * 12);
+    if (!ref) return hl_tools_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the reference's colours");
+    double sec = 0.0;
+    hl_result r = hl_bench_capture_ref(ctx, t, surr, kind, K, ref, &sec);
+    if (r != HL_OK) {
+        free(ref);
+        return r;
+    }
+    if (!quiet) {
+        char what[64];
+        if (kind == HL_CAPTURE_REF_DISCRETE) snprintf(what, sizeof what, "discrete");
+        else snprintf(what, sizeof what, "%s, %u x %u points a triangle", kind == HL_CAPTURE_REF_EXACT ? "exact" : "centre", K, K);
+        fprintf(stderr, "reference (%s) in %.1f s; the relit colours' relative L2 error against it: %.2f%%", what, sec,
+                rel_l2(*rgb, ref, 0, nv));
+        if (no < nv)
+            fprintf(stderr, " (the object's %u vertices %.2f%%, the ground's %u %.2f%%)", no, rel_l2(*rgb, ref, 0, no),
+                    nv - no, rel_l2(*rgb, ref, no, nv));
+        fputc('\n', stderr);
+    }
+    free(*rgb);
+    *rgb = ref;
+    return HL_OK;
+}
 
 int cmd_relight(int argc, char **argv)
 {
@@ -57,14 +111,30 @@ int cmd_relight(int argc, char **argv)
     cli_scene_opts o;
     cli_scene_opts_init(&o);
     o.accept_surroundings = 1;
-    int ply8 = 0, no_bg = 0, want_sky = 0;
+    int ply8 = 0, no_bg = 0, want_sky = 0, reference = 0;
+    uint32_t ref_points = 32;
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i];
         int k = cli_scene_opt(argc, argv, &i, usage, &o);
         if (k < 0) return -k;
         if (k) continue;
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { fputs(usage, stdout); return 0; }
-        else if (!strcmp(a, "-o") || !strcmp(a, "--output") || !strcmp(a, "--env") || !strcmp(a, "--textures")) {
+        else if (!strcmp(a, "--reference") || !strcmp(a, "--reference-points")) {
+            if (i + 1 >= argc) return usage_error(usage, "option %s needs a value", a);
+            const char *v = argv[++i];
+            if (!strcmp(a, "--reference")) {
+                if (!strcmp(v, "exact")) reference = HL_CAPTURE_REF_EXACT;
+                else if (!strcmp(v, "centre") || !strcmp(v, "center")) reference = HL_CAPTURE_REF_CENTRE;
+                else if (!strcmp(v, "discrete")) reference = HL_CAPTURE_REF_DISCRETE;
+                else return usage_error(usage, "--reference %s: expected exact, centre or discrete", v);
+            } else {
+                char *end = NULL;
+                unsigned long k = strtoul(v, &end, 10);
+                if (!end || *end || end == v || k < 1 || k > HL_CAPTURE_REF_MAX_K)
+                    return usage_error(usage, "--reference-points %s: expected a whole number from 1 to 256", v);
+                ref_points = (uint32_t)k;
+            }
+        } else if (!strcmp(a, "-o") || !strcmp(a, "--output") || !strcmp(a, "--env") || !strcmp(a, "--textures")) {
             if (i + 1 >= argc) return usage_error(usage, "option %s needs a value", a);
             if (!strcmp(a, "--env")) env_path = argv[++i];
             else if (!strcmp(a, "--textures")) textures = argv[++i];
@@ -85,6 +155,9 @@ int cmd_relight(int argc, char **argv)
     if (env_path && want_sky) return usage_error(usage, "%s", "--env and the sky options contradict each other");
     if (o.time_set && !o.surroundings) return usage_error(usage, "%s", "--time needs --surroundings");
     if (o.place_set && !o.surroundings) return usage_error(usage, "%s", "--surroundings-transform needs --surroundings");
+    if (reference && !o.surroundings) return usage_error(usage, "%s", "--reference needs --surroundings");
+    if (reference && (env_path || want_sky))
+        return usage_error(usage, "%s", "--reference integrates the surroundings' emitters alone: drop --env and the sky options");
     /* without --surroundings the sky is the default; with them, no map: black where they leave open */
     int use_env = env_path || want_sky || !o.surroundings;
     const char *ext = cli_ext_of(out);
@@ -168,6 +241,7 @@ int cmd_relight(int argc, char **argv)
         exposure = hl_exposure_auto(t->mesh, rgb);
         if (!cd.quiet && (ply8 || is_glb || !strcasecmp(ext, ".png"))) fprintf(stderr, "exposure: %+.2f EV (automatic)\n", (double)exposure);
     }
+    if (r == HL_OK && reference) r = swap_in_reference(ctx, t, surr, reference, ref_points, cd.quiet, &rgb);
     if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, t->mesh, rgb, out, ply8, exposure);
     if (r == HL_OK && is_glb) r = hl_mesh_save_glb_surface(ctx, t->mesh, rgb, surface, out, exposure);
     if (r == HL_OK && is_img) r = cli_camera_complete(ctx, t->mesh, &o);

@@ -715,8 +715,11 @@ HL_API hl_result hl_camera_query_view(hl_context *ctx, const hl_mesh *mesh, cons
                                hl_camera_view *out);
 
 /* The automatic exposure of `haarlight relight` (EV, in [-64, 64]): puts the
- * 90th percentile of vertex luminance (ground included) at 0.8; 0 when the
- * colours are all black or memory runs out. */
+ * 90th percentile of the object's vertex luminance at 0.8: vertices
+ * [0, object_vertex_count), the ground left out (every vertex when the
+ * mesh has no ground), so that a ground that outnumbers the object, lit
+ * or shadowed, does not set it; 0 when those colours are all black or
+ * memory runs out. */
 HL_API float hl_exposure_auto(const hl_mesh *mesh, const float *vertex_rgb);
 
 

@@ -152,6 +152,30 @@ typedef struct hl_capture_cost {
 } hl_capture_cost;
 hl_result hl_bench_capture_cost(hl_relighter *r, uint32_t reps, hl_capture_cost *cost);
 
+/* References for lighting captured from surroundings (capture_refs.c):
+ * per vertex of t's mesh, what `relight` writes (albedo / pi times the
+ * irradiance, 3 floats a vertex) under s as posed now, no environment:
+ *   HL_CAPTURE_REF_EXACT:    rays from each vertex (offset as the
+ *       precompute's) to K x K stratified points on every emitting
+ *       triangle, occluded by the object, its ground and every triangle of
+ *       the surroundings; no capture point, map or truncation;
+ *   HL_CAPTURE_REF_CENTRE:   the same points seen from the capture point
+ *       (directions, solid angles, hidden where the surroundings hide them
+ *       from there), each direction cast from the vertex against the
+ *       object and ground: a capture of unlimited resolution with an exact
+ *       transport (exact - centre: the one capture point's parallax);
+ *   HL_CAPTURE_REF_DISCRETE: the untruncated, unquantised transport at the
+ *       file's N, C and supersampling dotted with the untruncated capture
+ *       (centre - discrete: the resolution; discrete - relit: the
+ *       transport's truncation and codes and the lighting's M); K unused.
+ * K: 1 to HL_CAPTURE_REF_MAX_K, at most HL_CAPTURE_REF_MAX_POINTS points
+ * in all. seconds (may be NULL): the call's wall time. */
+enum { HL_CAPTURE_REF_EXACT = 1, HL_CAPTURE_REF_CENTRE = 2, HL_CAPTURE_REF_DISCRETE = 3 };
+#define HL_CAPTURE_REF_MAX_K 256u
+#define HL_CAPTURE_REF_MAX_POINTS (1u << 22)
+hl_result hl_bench_capture_ref(hl_context *ctx, const hl_transport *t, hl_surroundings *s, int kind, uint32_t K,
+                               float *rgb, double *seconds);
+
 /* `bench-precompute`: d with its defaults filled in and checked (errors
  * name the option), then Embree's raw occlusion rate (rays/s) on the rays
  * the precompute casts for the listed vertices, `rounds` times. */

@@ -19,12 +19,22 @@
  *                            side opposite the lamp, wherever it is.
  * captured_light.bad         no lighting at all, and surroundings taken
  *                            away, get clear errors.
+ * captured_light.reference   the near-field references (relight
+ *                            --reference): exact against Lambert's formula
+ *                            where nothing hides the lamp, and 0 where a
+ *                            dark panel of the surroundings hides it from
+ *                            the vertex (the capture point still sees it:
+ *                            centre lights those vertices); a lamp 1000
+ *                            times as far and as large gives exact = centre;
+ *                            the relit colours against centre and discrete.
  *
  * Depends on: haarlight_core, the haarlight command (HL_BIN) for the
  * transport, an OpenCL device (PoCL).
  */
 #include <stdint.h>
 #include <string.h>
+
+#include "haarlight_tools.h"
 #include <unistd.h>
 
 #include "capture_util.h"
@@ -420,9 +430,174 @@ static void case_bad(void)
     hl_context_destroy(ref);
 }
 
+/* ============================================================ reference */
+
+/* Lambert's formula: the irradiance at p (unit normal n) from a convex
+ * polygon of radiance 1 wholly above p's horizon. */
+static double lambert(const double p[3], const double n[3], const double P[][3], int np)
+{
+    double s = 0.0;
+    for (int k = 0; k < np; k++) {
+        double a[3], b[3], la = 0.0, lb = 0.0;
+        for (int x = 0; x < 3; x++) {
+            a[x] = P[k][x] - p[x];
+            b[x] = P[(k + 1) % np][x] - p[x];
+            la += a[x] * a[x];
+            lb += b[x] * b[x];
+        }
+        la = sqrt(la);
+        lb = sqrt(lb);
+        double g[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+        double lg = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]), d = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / (la * lb);
+        double th = acos(d > 1.0 ? 1.0 : d < -1.0 ? -1.0 : d);
+        s += th * (g[0] * n[0] + g[1] * n[1] + g[2] * n[2]) / lg;
+    }
+    return 0.5 * fabs(s);
+}
+
+static double rel_l2(const float *a, const float *ref, size_t n3)
+{
+    double num = 0.0, den = 0.0;
+    for (size_t i = 0; i < n3; i++) {
+        num += ((double)a[i] - ref[i]) * ((double)a[i] - ref[i]);
+        den += (double)ref[i] * ref[i];
+    }
+    return den > 0.0 ? sqrt(num / den) : 0.0;
+}
+
+static void case_reference(void)
+{
+    hl_context *ref = hl_test_ref_context(0);
+    hl_transport *t = bunny(ref, 24);
+    HL_CHECK(t != NULL, "transport");
+    if (!t) { hl_context_destroy(ref); return; }
+    const hl_mesh *m = t->mesh;
+    const uint32_t nv = m->vertex_count, no = m->object_vertex_count;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t v = 0; v < no; v++)
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fmin(lo[a], m->positions[3 * v + a]);
+            hi[a] = fmax(hi[a], m->positions[3 * v + a]);
+        }
+    /* a square lamp (half side 0.5) 4 above the object's top, over the
+       ground vertex nearest 3 beyond its +X side: a ray from a ground
+       vertex beyond that side to it never enters the object's box */
+    uint32_t below = no;
+    double bd = INFINITY;
+    for (uint32_t v = no; v < nv; v++) {
+        const double dx = m->positions[3 * v] - (hi[0] + 3.0), dz = m->positions[3 * v + 2] - 0.5 * (lo[2] + hi[2]);
+        if (dx * dx + dz * dz < bd) {
+            bd = dx * dx + dz * dz;
+            below = v;
+        }
+    }
+    const double lc[3] = {m->positions[3 * below], hi[1] + 4.0, m->positions[3 * below + 2]}, lu[3] = {0.5, 0, 0},
+                 lv[3] = {0, 0, 0.5};
+    const float Le[3] = {30.0f, 20.0f, 10.0f}, dark[3] = {0, 0, 0};
+    const double P[4][3] = {{lc[0] - 0.5, lc[1], lc[2] - 0.5}, {lc[0] + 0.5, lc[1], lc[2] - 0.5},
+                            {lc[0] + 0.5, lc[1], lc[2] + 0.5}, {lc[0] - 0.5, lc[1], lc[2] + 0.5}};
+    static soup s;
+    s.n = 0;
+    add_quad(&s, lc, lu, lv, Le);
+    /* a dark panel 2 above the ground under the lamp, 1.2 a side of its
+       centre: it hides the whole lamp from the ground within 1.3 of the
+       point below the lamp (0.3 is tested) and none of it beyond 1.5 (4
+       is), and not from the capture point, whose rays to the lamp rise
+       above it */
+    const double gy = m->positions[3 * below + 1], pc[3] = {lc[0], gy + 2.0, lc[2]}, pu[3] = {1.2, 0, 0},
+                 pv[3] = {0, 0, 1.2};
+    add_quad(&s, pc, pu, pv, dark);
+    hl_surroundings *sur = surroundings_of(ref, &s);
+    float *ex = malloc((size_t)nv * 12), *ce = malloc((size_t)nv * 12), *di = malloc((size_t)nv * 12),
+          *rl = malloc((size_t)nv * 12);
+    HL_CHECK(sur && ex && ce && di && rl, "setup");
+    if (!sur || !ex || !ce || !di || !rl) goto done;
+    double sec = 0.0;
+    HL_CHECK(hl_bench_capture_ref(ref, t, sur, HL_CAPTURE_REF_EXACT, 32, ex, &sec) == HL_OK, "exact: %s",
+             hl_context_last_error(ref));
+    printf("exact reference, %u vertices, 32 x 32 points a triangle: %.2f s\n", nv, sec);
+    HL_CHECK(hl_bench_capture_ref(ref, t, sur, HL_CAPTURE_REF_CENTRE, 32, ce, NULL) == HL_OK, "centre");
+    /* open: ground vertices beyond the object's +X side, away from the panel's shadow */
+    double worst = 0.0, worst_hidden = 0.0, least_centre = INFINITY;
+    uint32_t open = 0, hidden = 0;
+    for (uint32_t v = no; v < nv; v++) {
+        const float *x = m->positions + 3 * (size_t)v;
+        const double p[3] = {x[0], x[1], x[2]}, n[3] = {m->normals[3 * v], m->normals[3 * v + 1], m->normals[3 * v + 2]};
+        const double dx = p[0] - lc[0], dz = p[2] - lc[2];
+        if (p[0] > hi[0] + 0.5 && (fabs(dx) > 4.0 || fabs(dz) > 4.0)) {
+            const double E = lambert(p, n, P, 4);
+            for (int c = 0; c < 3; c++) {
+                const double want = m->albedo[3 * v + c] * Le[c] * E / HL_PI;
+                worst = fmax(worst, fabs(ex[3 * v + c] - want) / want);
+            }
+            open++;
+        }
+        if (fabs(dx) < 0.3 && fabs(dz) < 0.3) {
+            for (int c = 0; c < 3; c++) {
+                worst_hidden = fmax(worst_hidden, fabs(ex[3 * v + c]));
+                least_centre = fmin(least_centre, ce[3 * v + c]);
+            }
+            hidden++;
+        }
+    }
+    printf("%u ground vertices see the whole lamp, %u none of it\n", open, hidden);
+    HL_CHECK(open > 50 && hidden > 0, "too few vertices to test (%u open, %u hidden)", open, hidden);
+    hl_check_error("exact against Lambert's formula where nothing hides the lamp (relative)", worst, 2e-3);
+    hl_check_error("exact where the panel hides the lamp from the vertex (absolute)", worst_hidden, 0.0);
+    printf("centre there (the capture point sees the lamp past the panel): at least %.4g\n", least_centre);
+    /* the lamp seen from the capture point, about 0.005 sr at 0.74 of the
+       normal there: blue 0.8 x 10 x 0.0037 / pi = 0.0094 */
+    HL_CHECK(least_centre > 0.005, "centre: the capture point's view lights the hidden vertices");
+
+    /* the relighter against the references (all terms, N = C = 32) */
+    hl_relighter *r = NULL;
+    hl_relight_desc d = {.terms = HL_TERMS_ALL, .select = HL_SELECT_DEFAULT};
+    HL_CHECK(hl_relighter_create(ref, t, &r) == HL_OK && hl_relighter_set_surroundings(r, sur) == HL_OK &&
+                 hl_relighter_run(r, &d, rl, NULL) == HL_OK,
+             "relight");
+    HL_CHECK(hl_bench_capture_ref(ref, t, sur, HL_CAPTURE_REF_DISCRETE, 0, di, NULL) == HL_OK, "discrete");
+    const double e_cd = rel_l2(di, ce, 3 * (size_t)nv), e_dr = rel_l2(rl, di, 3 * (size_t)nv),
+                 e_ex = rel_l2(ce, ex, 3 * (size_t)nv);
+    printf("relative L2: centre against exact (parallax) %.4f, discrete against centre (N = C = 32) %.4f, relit (all "
+           "terms) against discrete %.4f\n", e_ex, e_cd, e_dr);
+    /* a lamp 1 across about 11 away is 5 degrees, less than a texel
+       (about 7 degrees at N = 32): 8.2% measured */
+    hl_check_error("discrete against centre (relative L2; the resolution at N = C = 32)", e_cd, 0.12);
+    hl_check_error("relit, all terms, against discrete (relative L2; the transport's codes)", e_dr, 0.03);
+    hl_relighter_destroy(r);
+
+    /* the lamp 1000 times as far along the same direction from the capture
+       point, 1000 times as large (the same solid angle there), no panel:
+       every vertex sees it from nearly the capture point's direction */
+    double cpt[3], hd;
+    object_box(m, cpt, &hd);
+    double fc[3], fu[3] = {500.0, 0, 0}, fv[3] = {0, 0, 500.0};
+    for (int a = 0; a < 3; a++) fc[a] = cpt[a] + 1000.0 * (lc[a] - cpt[a]);
+    s.n = 0;
+    add_quad(&s, fc, fu, fv, Le);
+    hl_surroundings_destroy(sur);
+    sur = surroundings_of(ref, &s);
+    HL_CHECK(sur && hl_bench_capture_ref(ref, t, sur, HL_CAPTURE_REF_EXACT, 32, ex, NULL) == HL_OK &&
+                 hl_bench_capture_ref(ref, t, sur, HL_CAPTURE_REF_CENTRE, 32, ce, NULL) == HL_OK,
+             "far lamp");
+    const double e_far = rel_l2(ce, ex, 3 * (size_t)nv);
+    printf("near lamp: centre against exact %.4f\n", e_ex);
+    hl_check_error("far lamp: centre against exact (relative L2)", e_far, 0.01);
+    HL_CHECK(e_ex > 10.0 * e_far, "the near lamp's parallax (%.4f) well above the far lamp's (%.4f)", e_ex, e_far);
+done:
+    free(ex);
+    free(ce);
+    free(di);
+    free(rl);
+    hl_surroundings_destroy(sur);
+    hl_transport_destroy(t);
+    hl_context_destroy(ref);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {{"twin", case_twin},         {"reuse", case_reuse}, {"crosscheck", case_crosscheck},
-                                         {"motion", case_motion},     {"bad", case_bad},     {NULL, NULL}};
+                                         {"motion", case_motion},     {"bad", case_bad},     {"reference", case_reference},
+                                         {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

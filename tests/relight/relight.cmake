@@ -9,7 +9,7 @@ hl_test_cases(test_relight relight twin twin_passes relighter into furnace orien
 # twin_passes is the CPU shape's alone (its tile walk's passes)
 hl_test_cases_gpu_shape(test_relight relight twin relighter into furnace orientation extreme negative)
 hl_test_exe(test_render ${CMAKE_CURRENT_LIST_DIR}/test_render.c)
-hl_test_cases(test_render render constant_colour barycentric background explicit_camera bad_args)
+hl_test_cases(test_render render constant_colour barycentric background explicit_camera bad_args exposure_auto)
 # the GPU shape with groups of 8 (HL_TEST_GROUP_CAP), as a device that
 # allows fewer work-items a group: more groups a range, each its own tally
 add_test(NAME hl.relight.twin.gpu_shape_groups8 COMMAND test_relight twin)

@@ -506,6 +506,36 @@ static void bad_args(void)
     hl_context_destroy(ctx);
 }
 
+/* hl_exposure_auto: the object's 90th percentile of luminance (the ground
+ * left out) goes to 0.8, whatever the ground holds; without a ground,
+ * every vertex counts. */
+static void exposure_auto(void)
+{
+    enum { NO = 20, NG = 180 };
+    static float pos[3 * (NO + NG)], rgb[3 * (NO + NG)];
+    hl_mesh m = {.vertex_count = NO + NG, .object_vertex_count = NO, .positions = pos};
+    /* object: grey levels 0.1, 0.2, ..., 2.0 (the 90th percentile, sorted
+       index 18 of 20, is 1.9); ground: far brighter, then black */
+    for (int v = 0; v < NO; v++) rgb[3 * v] = rgb[3 * v + 1] = rgb[3 * v + 2] = 0.1f * (float)(v + 1);
+    double worst = 0.0;
+    for (int g = 0; g < 2; g++) {
+        for (int v = NO; v < NO + NG; v++) rgb[3 * v] = rgb[3 * v + 1] = rgb[3 * v + 2] = g ? 0.0f : 50.0f;
+        double ev = hl_exposure_auto(&m, rgb), want = log2(0.8 / 1.9);
+        printf("ground %s: %+.4f EV (want %+.4f)\n", g ? "black" : "at 50", ev, want);
+        worst = fmax(worst, fabs(ev - want));
+    }
+    hl_check_error("the object's 90th percentile to 0.8, any ground (EV)", worst, 1e-5);
+    /* no ground: every vertex, the ground's 50s included */
+    for (int v = NO; v < NO + NG; v++) rgb[3 * v] = rgb[3 * v + 1] = rgb[3 * v + 2] = 50.0f;
+    m.object_vertex_count = NO + NG;
+    double ev = hl_exposure_auto(&m, rgb);
+    hl_check_error("no ground: every vertex (EV)", fabs(ev - log2(0.8 / 50.0)), 1e-5);
+    /* an all-black object: 0 */
+    for (int v = 0; v < NO; v++) rgb[3 * v] = rgb[3 * v + 1] = rgb[3 * v + 2] = 0.0f;
+    m.object_vertex_count = NO;
+    HL_CHECK(hl_exposure_auto(&m, rgb) == 0.0f, "black object: %g", (double)hl_exposure_auto(&m, rgb));
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
@@ -514,6 +544,7 @@ int main(int argc, char **argv)
         {"background", background},
         {"explicit_camera", explicit_camera},
         {"bad_args", bad_args},
+        {"exposure_auto", exposure_auto},
         {NULL, NULL},
     };
     return hl_test_main(argc, argv, cases);

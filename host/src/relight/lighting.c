@@ -98,7 +98,7 @@ void hl_relighter_destroy(hl_relighter *r)
 
 /* The capture point: the centre of the bounding box of the object's
  * vertices (those before the ground). */
-static void object_centre(const hl_mesh *m, float c[3])
+void hl_object_centre(const hl_mesh *m, float c[3])
 {
     uint32_t n = m->object_vertex_count ? m->object_vertex_count : m->vertex_count;
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -268,7 +268,7 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
             r->albedo4[4 * (size_t)v + 3] = 0.0f;
         }
         res = row_measures(r, t);
-        object_centre(t->mesh, r->cscene.center);
+        hl_object_centre(t->mesh, r->cscene.center);
         /* the device starts with lg->area, the Haar supports' (an SH
            transport's area weights differ: uploaded when first used) */
         r->uploaded_weights = t->info.basis == HL_TRANSPORT_BASIS_HAAR ? HL_SELECT_AREA : 0u;

@@ -34,6 +34,10 @@ hl_result hl_env_to_cells(hl_context *ctx, const hl_env *env, uint32_t wc, uint3
 /* Rotation to a cell offset: s0 whole cells plus a fraction f. */
 void hl_rotation_to_shift(float rotate_deg, uint32_t wc, uint32_t *s0, float *f);
 
+/* The capture point of surroundings: the centre of the bounding box of
+ * the object's vertices (those before the ground; all without one). */
+void hl_object_centre(const hl_mesh *m, float c[3]);
+
 /* hl_relighter_run with the colours left in the relighter: *rgba points at
  * 4 floats per vertex (the fourth: the lowest channel before the clamp at
  * zero, or 0), valid until the next run, anything else that runs on

@@ -415,6 +415,7 @@ typedef struct primary_job {
     float *u, *v;
     uint8_t *occluded; /* set: occlusion queries instead of closest hits */
     const float *tnear; /* occlusion queries: per ray, or NULL for 0 */
+    const float *tfar;  /* occlusion queries: per ray, or NULL for infinity */
     atomic_uint next;
 } primary_job;
 
@@ -437,7 +438,7 @@ static void *primary_worker(void *arg)
             ray.dir_y = j->dir[3 * (size_t)i + 1];
             ray.dir_z = j->dir[3 * (size_t)i + 2];
             ray.tnear = j->tnear ? j->tnear[i] : 0.0f;
-            ray.tfar = INFINITY;
+            ray.tfar = j->tfar ? j->tfar[i] : INFINITY;
             ray.mask = 0xffffffffu;
             rtcOccluded1(j->rt->scene, &ic, &ray);
             j->occluded[i] = ray.tfar < 0.0f;
@@ -477,7 +478,13 @@ hl_result hl_rt_trace_primary(hl_rt *rt, uint32_t count, const float *org, const
 hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, const float *dir, const float *tnear,
                                uint8_t *occluded)
 {
-    primary_job j = {.rt = rt, .count = count, .org = org, .dir = dir, .occluded = occluded, .tnear = tnear};
+    return hl_rt_trace_occluded_seg(rt, count, org, dir, tnear, NULL, occluded);
+}
+
+hl_result hl_rt_trace_occluded_seg(hl_rt *rt, uint32_t count, const float *org, const float *dir, const float *tnear,
+                                   const float *tfar, uint8_t *occluded)
+{
+    primary_job j = {.rt = rt, .count = count, .org = org, .dir = dir, .occluded = occluded, .tnear = tnear, .tfar = tfar};
     atomic_init(&j.next, 0u);
     hl_run_threads(rt->ctx->threads, primary_worker, &j);
     if (rt->err[0]) return hl_fail(rt->ctx, HL_ERR_EMBREE, "Embree: %s", rt->err);

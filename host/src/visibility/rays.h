@@ -61,6 +61,10 @@ hl_result hl_rt_trace_primary(hl_rt *rt, uint32_t count, const float *org, const
  * from an offset vertex pass the offset, as hl_rt_visibility does. */
 hl_result hl_rt_trace_occluded(hl_rt *rt, uint32_t count, const float *org, const float *dir, const float *tnear,
                                uint8_t *occluded);
+/* The same along segments: only what lies between tnear[i] and tfar[i]
+ * (tfar NULL: infinity), e.g. up to just short of a point on a light. */
+hl_result hl_rt_trace_occluded_seg(hl_rt *rt, uint32_t count, const float *org, const float *dir, const float *tnear,
+                                   const float *tfar, uint8_t *occluded);
 
 /* Occlusion of `count` rays from vertex `vertex` itself, with no offset:
  * hits on the vertex's own triangles (which such a ray meets only at its
