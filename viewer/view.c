@@ -162,7 +162,7 @@ static int open_window(viewer *v)
     vw_tonemap_thresholds(thr);
     if (!vw_gl_create(v->mesh, thr, &v->gl, err, sizeof err) ||
         !vw_gl_resize(v->gl, v->fb_w, v->fb_h, err, sizeof err) ||
-        (v->surface && !vw_gl_set_surface(v->gl, v->mesh, v->surface, err, sizeof err))) {
+        (v->draw_surface && !vw_gl_set_surface(v->gl, v->mesh, v->draw_surface, err, sizeof err))) {
         fprintf(stderr, "haarlight: %s\n", err);
         return 0;
     }
@@ -316,14 +316,17 @@ static int load(viewer *v, const char **env_args, int n_env_args)
         cli_fail(v->ctx, HL_ERR_INVALID_ARGUMENT);
         return 0;
     }
-    if (!v->textures && v->dy.on && !v->t) {
+    v->draw_surface = v->surface;
+    if (!v->textures && v->dy.on && v->dy.d) v->draw_surface = hl_dynamic_surface(v->dy.d); /* bodies' own */
+    if (!v->textures && v->dy.on && !v->t && !v->draw_surface) {
         const int quiet = hl_context_quiet(v->ctx);
         hl_context_set_quiet(v->ctx, 1);
         if (hl_surface_load(v->ctx, v->scene, NULL, v->mesh, &v->surface) != HL_OK) v->surface = NULL;
         hl_context_set_quiet(v->ctx, quiet);
+        v->draw_surface = v->surface;
     }
-    if (v->surface && !v->o.cd.quiet && hl_surface_texture_count(v->surface))
-        fprintf(stderr, "textures: %u, per pixel\n", hl_surface_texture_count(v->surface));
+    if (v->draw_surface && !v->o.cd.quiet && hl_surface_texture_count(v->draw_surface))
+        fprintf(stderr, "textures: %u, per pixel\n", hl_surface_texture_count(v->draw_surface));
     hl_camera_view cv; /* an impossible camera fails here, before any window */
     if (cli_camera_complete(v->ctx, v->mesh, &v->o) != HL_OK ||
         hl_camera_query_view(v->ctx, v->mesh, &v->o.cam, &cv) != HL_OK) {

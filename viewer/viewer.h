@@ -188,6 +188,7 @@ typedef struct viewer {
     const hl_mesh *mesh; /* the mesh drawn: the transport's or the dynamic scene's */
     const char *textures; /* --textures MODEL */
     hl_surface *surface;  /* its textured surface, or a --dynamic file's own; NULL without */
+    const hl_surface *draw_surface; /* the one drawn: surface, or the dynamic bodies' */
     vw_dyn dy;
     vw_sur su;
     hl_relighter *rl;

@@ -269,24 +269,25 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
         int is_ply = !strcasecmp(ext, ".ply"), is_glb = !strcasecmp(ext, ".glb"), is_img = !is_ply && !is_glb;
         if (r == HL_OK && is_ply) r = hl_mesh_save_ply(ctx, mesh, rgb, d->out, d->ply8, exposure);
 
-        /* a file loaded as one mesh keeps its textures (sharp in pictures,
-           embedded in a .glb); one moved body by body (an animation) has
-           per-vertex albedo only */
-        hl_surface *surface = NULL;
-        if (r == HL_OK && (is_img || is_glb)) {
+        /* the textures stay sharp in pictures and are embedded in a .glb:
+           the bodies' own surface for a file moved body by body, else the
+           file's as one mesh */
+        hl_surface *loaded = NULL;
+        const hl_surface *surface = dy ? hl_dynamic_surface(dy) : NULL;
+        if (r == HL_OK && (is_img || is_glb) && !surface) {
             int quiet = o->cd.quiet;
             hl_context_set_quiet(ctx, 1);
-            if (hl_surface_load(ctx, d->scene, NULL, mesh, &surface) != HL_OK && !quiet)
-                fprintf(stderr, "textures: none in the picture (%s)\n", hl_context_last_error(ctx));
-            else if (!quiet && hl_surface_texture_count(surface))
-                fprintf(stderr, "textures: %u, per pixel\n", hl_surface_texture_count(surface));
+            if (hl_surface_load(ctx, d->scene, NULL, mesh, &loaded) != HL_OK) loaded = NULL;
             hl_context_set_quiet(ctx, quiet);
+            surface = loaded;
         }
+        if (r == HL_OK && (is_img || is_glb) && !o->cd.quiet && hl_surface_texture_count(surface))
+            fprintf(stderr, "textures: %u, per pixel\n", hl_surface_texture_count(surface));
         if (r == HL_OK && is_glb) r = hl_mesh_save_glb_surface(ctx, mesh, rgb, surface, d->out, exposure);
         if (r == HL_OK && is_img) r = cli_camera_complete(ctx, mesh, o);
         if (r == HL_OK && is_img)
             r = hl_render_surface(ctx, mesh, rgb, surface, d->no_bg ? NULL : env, o->rd.rotate_deg, &o->cam, &img);
-        hl_surface_destroy(surface);
+        hl_surface_destroy(loaded);
         if (r == HL_OK && is_img) r = hl_image_save(ctx, img, d->out, exposure);
         if (r == HL_OK && !o->cd.quiet) fprintf(stderr, "wrote %s\n", d->out);
         rc = r == HL_OK ? 0 : cli_fail(ctx, r);

@@ -848,6 +848,12 @@ HL_API hl_result hl_dynamic_render(hl_dynamic *d, double t, float **rgb_out, hl_
  * hl_mesh_save_glb and hl_render; owned by d. */
 HL_API const hl_mesh *hl_dynamic_mesh(const hl_dynamic *d);
 
+/* The textured surface of hl_dynamic_mesh where the file's bodies have
+ * textures (a file moved body by body: its animation followed); NULL
+ * otherwise, and for a file loaded as one mesh, whose surface
+ * hl_surface_load gives. Owned by d. */
+HL_API const hl_surface *hl_dynamic_surface(const hl_dynamic *d);
+
 #ifdef __cplusplus
 }
 #endif

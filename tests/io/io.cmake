@@ -38,4 +38,4 @@ hl_test_cases(test_ply_out ply_out roundtrip atomic)
 # factors, vertex colours, textures averaged per vertex, the dynamic
 # scenes, and bad textures and factors.
 hl_test_exe(test_material ${CMAKE_CURRENT_LIST_DIR}/test_material.c)
-hl_test_cases(test_material material factor colors texture render glb dynamic bad)
+hl_test_cases(test_material material factor colors texture render glb dynamic dynamic_surface bad)

@@ -21,6 +21,8 @@
  *             the irradiance where textured.
  *   dynamic   the dynamic method's scene from the same file holds the same
  *             albedo at the same positions.
+ *   dynamic_surface  an animated file's bodies keep their textured
+ *             surface (hl_dynamic_surface), corner for corner.
  *   bad       a texture not found, or in a format the decoder does not
  *             read, is left out (the factor alone); one named by a path on
  *             another machine is found beside the model; a damaged one, one
@@ -81,6 +83,10 @@ static void base64(FILE *f, const unsigned char *p, size_t n)
     }
 }
 
+/* Set: write_gltf gives node 0 a translation animation, from (0, 0, 0)
+ * at 0 s to (2, 0, 0) at 1 s. */
+static int animate;
+
 /* materials: the JSON of the "materials" array's members (NULL: none);
  * images: the JSON of "images" (NULL: none; textures i use image i). */
 static void write_gltf(const char *path, const prim *pr, int np, const char *materials, const char *images, int ntex)
@@ -123,8 +129,29 @@ static void write_gltf(const char *path, const prim *pr, int np, const char *mat
         snprintf(s, sizeof s, "%s{\"attributes\":{%s},\"indices\":%d%s}", i ? "," : "", attr, id[3], mat);
         strcat(meshes, s);
     }
+    int anim_in = -1, anim_out = -1;
+    if (animate) {
+        const float times[2] = {0, 1}, moves[6] = {0, 0, 0, 2, 0, 0};
+        char a[512];
+        size_t at = put(&b, times, sizeof times);
+        snprintf(a, sizeof a, ",{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":8}", at);
+        strcat(views, a);
+        snprintf(a, sizeof a, ",{\"bufferView\":%d,\"componentType\":5126,\"count\":2,\"type\":\"SCALAR\",\"min\":[0],\"max\":[1]}", na);
+        strcat(acc, a);
+        anim_in = na++;
+        at = put(&b, moves, sizeof moves);
+        snprintf(a, sizeof a, ",{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":24}", at);
+        strcat(views, a);
+        snprintf(a, sizeof a, ",{\"bufferView\":%d,\"componentType\":5126,\"count\":2,\"type\":\"VEC3\"}", na);
+        strcat(acc, a);
+        anim_out = na++;
+    }
     FILE *f = fopen(path, "w");
     fprintf(f, "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],");
+    if (animate)
+        fprintf(f, "\"animations\":[{\"name\":\"slide\",\"samplers\":[{\"input\":%d,\"output\":%d}],"
+                   "\"channels\":[{\"sampler\":0,\"target\":{\"node\":0,\"path\":\"translation\"}}]}],",
+                anim_in, anim_out);
     fprintf(f, "\"meshes\":[{\"primitives\":[%s]}],\"accessors\":[%s],\"bufferViews\":[%s],", meshes, acc, views);
     if (materials) fprintf(f, "\"materials\":[%s],", materials);
     if (images) {
@@ -508,6 +535,59 @@ static void case_glb(void)
 
 /* ---------------------------------------------------------------- dynamic */
 
+/* An animated file, moved body by body: hl_dynamic_surface gives the
+ * bodies' textured surface for the merged mesh, each textured corner's
+ * UV the file's at that corner (quad_at's UV is (x, -z), assimp's v up),
+ * and the ground's triangles none. */
+static void case_dynamic_surface(void)
+{
+    hl_context *ctx = hl_test_ref_context(1);
+    hl_image *img = NULL;
+    hl_image_create(ctx, 4, 4, &img);
+    for (int i = 0; i < 48; i++) img->rgb[i] = 0.02f * (float)i;
+    HL_CHECK(hl_image_save(ctx, img, hl_test_tmp_path("material_anim.png"), 0.0f) == HL_OK, "png");
+    hl_image_destroy(img);
+    float pos[12];
+    quad_at(0, 0, pos);
+    prim pr = {4, 2, pos, quad_uv, NULL, quad_idx, 0};
+    const char *path = hl_test_tmp_path("material_anim.gltf");
+    animate = 1;
+    write_gltf(path, &pr, 1, "{\"name\":\"t\",\"pbrMetallicRoughness\":{\"baseColorTexture\":{\"index\":0}}}",
+               "{\"uri\":\"material_anim.png\"}", 1);
+    animate = 0;
+    hl_dynamic *d = NULL;
+    HL_CHECK(hl_dynamic_create_from_file(ctx, path, HL_DYNAMIC_GROUND, NULL, &d) == HL_OK, "%s",
+             hl_context_last_error(ctx));
+    const hl_surface *su = d ? hl_dynamic_surface(d) : NULL;
+    HL_CHECK(su && hl_surface_texture_count(su) == 1, "the bodies' surface has %u textures",
+             hl_surface_texture_count(su));
+    if (su) {
+        const hl_mesh *m = hl_dynamic_mesh(d);
+        HL_CHECK(hl_surface_triangle_count(su) == m->triangle_count, "%u surface triangles for %u",
+                 hl_surface_triangle_count(su), m->triangle_count);
+        double worst = 0.0;
+        uint32_t textured = 0;
+        for (uint32_t t = 0; t < m->triangle_count; t++) {
+            int32_t k;
+            float uv[6];
+            hl_surface_triangle(su, t, &k, uv, NULL);
+            const int ground = m->indices[3 * (size_t)t] >= m->object_vertex_count;
+            HL_CHECK((k >= 0) == !ground, "triangle %u: texture %d, ground %d", t, k, ground);
+            if (k < 0) continue;
+            textured++;
+            for (int c = 0; c < 3; c++) { /* at rest, time 0: where the file has it */
+                const float *p = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + (size_t)c];
+                worst = fmax(worst, fabs(uv[2 * c] - p[0]));
+                worst = fmax(worst, fabs((1.0f - uv[2 * c + 1]) - (-p[2])));
+            }
+        }
+        HL_CHECK(textured == 2, "%u textured triangles, 2 expected", textured);
+        hl_check_error("the bodies' corner UVs against the file's", worst, 1e-6);
+    }
+    hl_dynamic_destroy(d);
+    hl_context_destroy(ctx);
+}
+
 static void case_dynamic(void)
 {
     hl_context *ctx = hl_test_ref_context(1);
@@ -664,7 +744,7 @@ static void case_bad(void)
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {{"factor", case_factor},   {"colors", case_colors}, {"texture", case_texture},
-                                         {"dynamic", case_dynamic}, {"bad", case_bad},       {"render", case_render}, {"glb", case_glb},
+                                         {"dynamic", case_dynamic}, {"bad", case_bad},       {"render", case_render}, {"glb", case_glb}, {"dynamic_surface", case_dynamic_surface},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

@@ -35,6 +35,7 @@ struct hl_dynamic {
     float *last_xf;        /* 12 per body */
     const hl_light_split *last_split;
     int have_last;
+    hl_surface *surface; /* the bodies' textured surfaces merged as mesh is, or NULL */
 };
 
 void hl_dynamic_destroy(hl_dynamic *d)
@@ -43,6 +44,7 @@ void hl_dynamic_destroy(hl_dynamic *d)
     hl_frame_state_destroy(d->fs);
     hl_light_split_destroy(d->split);
     hl_mesh_destroy(d->mesh);
+    hl_surface_destroy(d->surface);
     hl_dyn_scene_destroy(d->scene);
     free(d->obj); free(d->alb); free(d->rgbs); free(d->vstart); free(d->rgb); free(d->last_xf);
     free(d);
@@ -57,6 +59,42 @@ static void update_mesh(hl_dynamic *d)
 }
 
 /* Takes the scene: arrays per body, the merged mesh at time 0. */
+/* The bodies' textured surfaces as one for the merged mesh (its triangles
+ * body after body; untextured bodies, the ground, with no texture); the
+ * scene's textures move into it. None without a textured body. */
+static hl_result merge_surfaces(hl_dynamic *d, uint32_t nt)
+{
+    hl_dyn_scene *s = d->scene;
+    int any = 0;
+    for (uint32_t b = 0; b < s->nbodies; b++) any |= s->bodies[b].surf != NULL;
+    if (!any || !s->mats.ntex) return HL_OK;
+    hl_surface *su = hl_calloc(d->ctx, 1, sizeof *su, "the surface");
+    if (!su) return HL_ERR_OUT_OF_MEMORY;
+    su->triangle_count = nt;
+    su->uv = hl_calloc(d->ctx, (size_t)nt * 6 + 1, sizeof(float), "the surface's UVs");
+    su->tex = hl_malloc(d->ctx, (size_t)nt * sizeof(int32_t) + 1, "the surface's textures");
+    su->base = hl_calloc(d->ctx, (size_t)nt * 9 + 1, sizeof(float), "the surface's colours");
+    if (!su->uv || !su->tex || !su->base) {
+        hl_surface_destroy(su);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    for (uint32_t b = 0, t0 = 0; b < s->nbodies; b++) {
+        const hl_surface *bs = s->bodies[b].surf;
+        const uint32_t n = s->bodies[b].ntris;
+        if (bs && bs->triangle_count == n) {
+            memcpy(su->tex + t0, bs->tex, (size_t)n * sizeof(int32_t));
+            memcpy(su->uv + 6 * (size_t)t0, bs->uv, (size_t)n * 6 * sizeof(float));
+            memcpy(su->base + 9 * (size_t)t0, bs->base, (size_t)n * 9 * sizeof(float));
+        } else
+            for (uint32_t t = 0; t < n; t++) su->tex[t0 + t] = -1;
+        t0 += n;
+    }
+    su->mats = s->mats;
+    memset(&s->mats, 0, sizeof s->mats);
+    d->surface = su;
+    return HL_OK;
+}
+
 static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dynamic_desc *desc, hl_dynamic **out)
 {
     uint32_t R = desc ? desc->shadow_res : 0, M = desc ? desc->order : 0;
@@ -110,10 +148,16 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
         for (size_t i = 0; i < 3 * (size_t)o->ntris; i++) d->mesh->indices[3 * (size_t)t0 + i] = o->tri[i] + d->vstart[b];
         t0 += o->ntris;
     }
+    if (r == HL_OK) r = merge_surfaces(d, (uint32_t)nt);
     if (r != HL_OK) { hl_dynamic_destroy(d); return r; }
     update_mesh(d);
     *out = d;
     return HL_OK;
+}
+
+const hl_surface *hl_dynamic_surface(const hl_dynamic *d)
+{
+    return d ? d->surface : NULL;
 }
 
 /* gd: the ground's options where one is added */

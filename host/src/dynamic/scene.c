@@ -116,7 +116,9 @@ void hl_dyn_scene_destroy(hl_dyn_scene *s)
         free(nd->ch.rot_t);
         free(nd->ch.rot);
     }
+    hl_materials_free_(&s->mats);
     for (uint32_t b = 0; s->bodies && b < s->nbodies; b++) {
+        hl_surface_destroy(s->bodies[b].surf);
         free(s->bodies[b].pos);
         free(s->bodies[b].normal);
         free(s->bodies[b].albedo);
@@ -254,6 +256,8 @@ typedef struct merged {
     int normals, colors, textured;
     const hl_materials *mats; /* the albedo's sources (material.h) */
     float fallback[3];
+    hl_surface in;            /* with textured: the surface by input triangle */
+    uint32_t *origin;         /* with textured: the builder's triangle origins */
 } merged;
 
 static void merge_meshes(const struct aiScene *as, const struct aiNode *an, const double K[9], merged *m)
@@ -286,6 +290,7 @@ static void merge_meshes(const struct aiScene *as, const struct aiNode *an, cons
             }
             if (m->textured) {
                 float tx[9];
+                hl_surface_face_(m->mats, am, af, m->fallback, &m->in, t, mirror);
                 hl_material_face_tex_(m->mats, am, af, tx);
                 for (int c = 0; c < 3; c++) /* the corners as idx has them */
                     memcpy(m->tex + 9 * t + 3 * (size_t)(mirror && c ? 3 - c : c), tx + 3 * c, 3 * sizeof(float));
@@ -390,11 +395,20 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
     m.nrm = m.normals ? hl_malloc(ctx, (size_t)m.nv * 3 * sizeof(float), "vertex normals") : NULL;
     m.col = m.colors ? hl_malloc(ctx, (size_t)m.nv * 3 * sizeof(float), "vertex colours") : NULL;
     m.tex = m.textured ? hl_malloc(ctx, (size_t)m.nt * 9 * sizeof(float), "texture averages") : NULL;
+    if (m.textured) {
+        m.in.uv = hl_malloc(ctx, (size_t)m.nt * 6 * sizeof(float), "the surface's UVs");
+        m.in.tex = hl_malloc(ctx, (size_t)m.nt * sizeof(int32_t), "the surface's textures");
+        m.in.base = hl_malloc(ctx, (size_t)m.nt * 9 * sizeof(float), "the surface's colours");
+        m.origin = hl_malloc(ctx, (size_t)m.nt * sizeof(uint32_t), "triangle origins");
+        if (!m.in.uv || !m.in.tex || !m.in.base || !m.origin) m.textured = -1; /* refused below */
+    }
     m.idx = hl_malloc(ctx, (size_t)m.nt * 3 * sizeof(uint32_t), "triangle indices");
     size_t nlen = strlen(s->name) + strlen(an->mName.data) + 16;
     char *name = hl_malloc(ctx, nlen, "a name");
     hl_mesh *mesh = NULL;
-    if (!m.pos || !m.idx || (m.normals && !m.nrm) || (m.colors && !m.col) || (m.textured && !m.tex) || !name)
+    hl_surface *surf = NULL;
+    if (!m.pos || !m.idx || (m.normals && !m.nrm) || (m.colors && !m.col) || (m.textured && !m.tex) ||
+        m.textured < 0 || !name)
         r = HL_ERR_OUT_OF_MEMORY;
     if (r == HL_OK) {
         snprintf(name, nlen, "%s (node \"%s\")", s->name, an->mName.data);
@@ -407,14 +421,29 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
             set_identity(b->P);
             s->nbodies++; /* even on failure, so that destroy frees its arrays */
             if (r == HL_OK) s->nodes[k].body = (int32_t)(s->nbodies - 1);
-        } else
-            r = hl_mesh_build_(ctx, name, (uint32_t)m.nv, m.pos, m.nrm, m.col, &(hl_mesh_extra){m.tex, NULL}, (uint32_t)m.nt, m.idx, desc, &mesh,
-                               NULL);
+        } else {
+            hl_mesh_stats st;
+            r = hl_mesh_build_(ctx, name, (uint32_t)m.nv, m.pos, m.nrm, m.col, &(hl_mesh_extra){m.tex, m.origin},
+                               (uint32_t)m.nt, m.idx, desc, &mesh, &st);
+            if (r == HL_OK && m.textured)
+                r = hl_surface_finish_(ctx, &m.in, m.origin, mesh->triangle_count, st.flipped, &surf);
+            if (r != HL_OK) {
+                hl_mesh_destroy(mesh);
+                mesh = NULL;
+            }
+        }
     }
     if (r == HL_OK && !keep) {
         s->nodes[k].body = (int32_t)s->nbodies;
+        s->bodies[s->nbodies].surf = surf;
+        surf = NULL;
         body_take(&s->bodies[s->nbodies++], mesh, k, kinv);
     }
+    hl_surface_destroy(surf);
+    free(m.in.uv);
+    free(m.in.tex);
+    free(m.in.base);
+    free(m.origin);
     free(m.pos);
     free(m.nrm);
     free(m.col);
@@ -494,6 +523,10 @@ hl_result hl_dyn_scene_load_desc(hl_context *ctx, const char *path, const hl_dyn
     if (r == HL_OK) hl_materials_note_(ctx, path, &mats);
     for (uint32_t k = 0; k < nn && r == HL_OK; k++)
         r = make_body(s, as, src[k], k, &md, d.keep_triangles, &mats, fallback);
+    if (r == HL_OK && mats.ntex) { /* the bodies' surfaces use its textures */
+        s->mats = mats;
+        memset(&mats, 0, sizeof mats);
+    }
     hl_materials_free_(&mats);
     if (r == HL_OK && s->nbodies == 0)
         r = hl_fail(ctx, HL_ERR_MESH, "%s: no node of the scene holds a triangle: no geometry to move", path);

@@ -51,6 +51,7 @@
 
 #include "dynamic.h"
 #include "hl_internal.h"
+#include "material.h"
 
 typedef struct hl_dyn_scene hl_dyn_scene;
 
@@ -207,6 +208,8 @@ typedef struct dyn_body {
     double kinv[9];        /* inverse of the baked stretch K */
     double P[12];          /* the program's transform */
     uint32_t *tri_mesh;    /* keep_triangles: the file mesh of each triangle */
+    struct hl_surface *surf; /* its triangles' textures, UVs and bases, or NULL
+                                (io/material.h; the textures are the scene's) */
 } dyn_body;
 
 struct hl_dyn_scene {
@@ -222,6 +225,7 @@ struct hl_dyn_scene {
     double *world;         /* scratch: 12 per node */
     uint32_t nmeshes;      /* keep_triangles: the file's meshes */
     float *mesh_emission;  /* keep_triangles: 3 per file mesh */
+    hl_materials mats;     /* the textures of the bodies' surfaces (none: count 0) */
 };
 
 struct aiScene;

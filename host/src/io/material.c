@@ -558,3 +558,47 @@ void hl_material_face_tex_(const hl_materials *m, const struct aiMesh *am, const
     for (int c = 0; c < 3; c++)
         for (int k = 0; k < 3; k++) out[3 * c + k] = (float)(acc[c][k] / wsum[c]);
 }
+
+/* ---------------------------------------------------------------- surfaces */
+
+void hl_surface_face_(const hl_materials *mats, const struct aiMesh *am, const struct aiFace *af,
+                      const float fallback[3], hl_surface *su, size_t t, int mirror)
+{
+    const hl_material *h = am->mMaterialIndex < mats->count ? &mats->mat[am->mMaterialIndex] : NULL;
+    const int textured = h && h->tex >= 0 && am->mTextureCoords[h->uv];
+    su->tex[t] = textured ? h->tex : -1;
+    for (int c = 0; c < 3; c++) {
+        const size_t q = (size_t)(mirror && c ? 3 - c : c); /* the corner as the triangle is stored */
+        unsigned i = af->mIndices[c] < am->mNumVertices ? af->mIndices[c] : 0; /* else refused by the builder */
+        su->uv[6 * t + 2 * q] = textured ? (float)am->mTextureCoords[h->uv][i].x : 0.0f;
+        su->uv[6 * t + 2 * q + 1] = textured ? (float)am->mTextureCoords[h->uv][i].y : 0.0f;
+        hl_material_vertex_base_(mats, am, i, fallback, su->base + 9 * t + 3 * q);
+    }
+}
+
+hl_result hl_surface_finish_(hl_context *ctx, const hl_surface *in, const uint32_t *origin, uint32_t ntri,
+                             int flipped, hl_surface **out)
+{
+    hl_surface *su = hl_calloc(ctx, 1, sizeof *su, "the surface");
+    if (!su) return HL_ERR_OUT_OF_MEMORY;
+    const size_t nt = ntri;
+    su->triangle_count = ntri;
+    su->uv = hl_malloc(ctx, nt * 6 * sizeof(float) + 1, "the surface's UVs");
+    su->tex = hl_malloc(ctx, nt * sizeof(int32_t) + 1, "the surface's textures");
+    su->base = hl_malloc(ctx, nt * 9 * sizeof(float) + 1, "the surface's colours");
+    if (!su->uv || !su->tex || !su->base) {
+        hl_surface_destroy(su);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    for (size_t t = 0; t < nt; t++) {
+        size_t o = origin[t];
+        su->tex[t] = in->tex[o];
+        for (int c = 0; c < 3; c++) {
+            int from = flipped && c ? 3 - c : c; /* a flip swapped corners 1 and 2 */
+            memcpy(su->uv + 6 * t + 2 * (size_t)c, in->uv + 6 * o + 2 * (size_t)from, 2 * sizeof(float));
+            memcpy(su->base + 9 * t + 3 * (size_t)c, in->base + 9 * o + 3 * (size_t)from, 3 * sizeof(float));
+        }
+    }
+    *out = su;
+    return HL_OK;
+}

@@ -78,6 +78,18 @@ struct hl_surface {
     hl_materials mats;
 };
 
+/* Builds a surface: su's arrays (by input triangle) get triangle t's
+ * texture, corner UVs and bases from face af of am; with mirror, corners
+ * 1 and 2 swap places, as a mirrored node's triangles are stored. */
+void hl_surface_face_(const hl_materials *mats, const struct aiMesh *am, const struct aiFace *af,
+                      const float fallback[3], hl_surface *su, size_t t, int mirror);
+/* The surface of a built mesh of ntri triangles from in (by input
+ * triangle) and the builder's origins (hl_mesh_extra), corners 1 and 2
+ * swapped where the builder flipped the winding; no materials (the
+ * caller gives them). */
+hl_result hl_surface_finish_(hl_context *ctx, const hl_surface *in, const uint32_t *origin, uint32_t ntri,
+                             int flipped, hl_surface **out);
+
 /* Reads the materials the scene's meshes use and decodes their base-colour
  * textures (external files relative to path's folder, or embedded).
  * Errors name path, the material and the texture: a base-colour texture

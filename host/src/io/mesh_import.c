@@ -113,20 +113,6 @@ static hl_result assimp_failure(hl_context *ctx, const char *path, const char *m
  * faces (points, lines) are left out. col gets each vertex's albedo base
  * and tex each triangle's texture averages (material.h). The arrays hold
  * the totals that load_assimp counted. */
-static void surface_face(const hl_materials *mats, const struct aiMesh *am, const struct aiFace *af,
-                         const float fallback[3], hl_surface *su, size_t t)
-{
-    const hl_material *h = am->mMaterialIndex < mats->count ? &mats->mat[am->mMaterialIndex] : NULL;
-    const int textured = h && h->tex >= 0 && am->mTextureCoords[h->uv];
-    su->tex[t] = textured ? h->tex : -1;
-    for (int c = 0; c < 3; c++) {
-        unsigned i = af->mIndices[c] < am->mNumVertices ? af->mIndices[c] : 0; /* else refused by the builder */
-        su->uv[6 * t + 2 * (size_t)c] = textured ? (float)am->mTextureCoords[h->uv][i].x : 0.0f;
-        su->uv[6 * t + 2 * (size_t)c + 1] = textured ? (float)am->mTextureCoords[h->uv][i].y : 0.0f;
-        hl_material_vertex_base_(mats, am, i, fallback, su->base + 9 * t + 3 * (size_t)c);
-    }
-}
-
 /* With a surface wanted, su gets each input triangle's UVs, texture and
  * corner bases (struct hl_surface's layout, by input triangle). */
 static void copy_scene(const struct aiScene *s, const hl_materials *mats, const float fallback[3], float *pos,
@@ -158,42 +144,11 @@ static void copy_scene(const struct aiScene *s, const hl_materials *mats, const 
                 idx[3 * t + k] = (uint32_t)(i > UINT32_MAX ? UINT32_MAX : i);
             }
             if (tex) hl_material_face_tex_(mats, am, af, tex + 9 * t);
-            if (su) surface_face(mats, am, af, fallback, su, t);
+            if (su) hl_surface_face_(mats, am, af, fallback, su, t, 0);
             t++;
         }
         base += am->mNumVertices;
     }
-}
-
-/* The surface of the built mesh from the input triangles' (in, by input
- * triangle) and the builder's origins; takes in's materials. */
-static hl_result surface_finish(hl_context *ctx, hl_surface *in, const uint32_t *origin, const hl_mesh *mesh,
-                                int flipped, hl_surface **out)
-{
-    hl_surface *su = hl_calloc(ctx, 1, sizeof *su, "the surface");
-    if (!su) return HL_ERR_OUT_OF_MEMORY;
-    size_t nt = mesh->triangle_count;
-    su->triangle_count = mesh->triangle_count;
-    su->uv = hl_malloc(ctx, nt * 6 * sizeof(float), "the surface's UVs");
-    su->tex = hl_malloc(ctx, nt * sizeof(int32_t), "the surface's textures");
-    su->base = hl_malloc(ctx, nt * 9 * sizeof(float), "the surface's colours");
-    if (!su->uv || !su->tex || !su->base) {
-        hl_surface_destroy(su);
-        return HL_ERR_OUT_OF_MEMORY;
-    }
-    for (size_t t = 0; t < nt; t++) {
-        size_t o = origin[t];
-        su->tex[t] = in->tex[o];
-        for (int c = 0; c < 3; c++) {
-            int from = flipped && c ? 3 - c : c; /* a flip swapped corners 1 and 2 */
-            memcpy(su->uv + 6 * t + 2 * (size_t)c, in->uv + 6 * o + 2 * (size_t)from, 2 * sizeof(float));
-            memcpy(su->base + 9 * t + 3 * (size_t)c, in->base + 9 * o + 3 * (size_t)from, 3 * sizeof(float));
-        }
-    }
-    su->mats = in->mats;
-    memset(&in->mats, 0, sizeof in->mats);
-    *out = su;
-    return HL_OK;
 }
 
 static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh_load_desc *desc,
@@ -306,9 +261,11 @@ static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh
         if (stats) *stats = st;
     }
     if (r == HL_OK && surf) {
-        in.mats = mats;
-        memset(&mats, 0, sizeof mats);
-        r = surface_finish(ctx, &in, origin, *out, st.flipped, surf);
+        r = hl_surface_finish_(ctx, &in, origin, (*out)->triangle_count, st.flipped, surf);
+        if (r == HL_OK) { /* the surface owns the textures */
+            (*surf)->mats = mats;
+            memset(&mats, 0, sizeof mats);
+        }
         if (r != HL_OK) {
             hl_mesh_destroy(*out);
             *out = NULL;
