@@ -110,6 +110,9 @@ typedef struct hl_mesh_motion {
  * on failure). */
 hl_result hl_mesh_load_motion_(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
                                hl_mesh_stats *stats, hl_mesh_motion *motion);
+/* The file's motion alone, from one validating parse (no mesh built, no
+ * texture read); the same errors as a load's for a file it refuses. */
+hl_result hl_mesh_probe_motion_(hl_context *ctx, const char *path, hl_mesh_motion *motion);
 /* The same, and with surf the mesh's textured surface (io/material.h). */
 hl_result hl_mesh_load_surface_(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
                                 hl_mesh_stats *stats, hl_mesh_motion *motion, hl_surface **surf);

@@ -200,8 +200,11 @@ hl_result hl_dynamic_create_from_file_ground(hl_context *ctx, const char *path, 
            same file has them (a viewer's --hlt pairs the two) */
         hl_mesh *m = NULL;
         hl_mesh_motion mo;
-        r = hl_mesh_load_motion_(ctx, path, NULL, &m, NULL, &mo);
-        if (r == HL_OK && (rest || mo.animations == 0)) r = from_mesh(ctx, m, 1, gd, desc, out);
+        r = hl_mesh_probe_motion_(ctx, path, &mo); /* an animated file is read once, as a scene */
+        if (r == HL_OK && (rest || mo.animations == 0)) {
+            r = hl_mesh_load(ctx, path, NULL, &m, NULL);
+            if (r == HL_OK) r = from_mesh(ctx, m, 1, gd, desc, out);
+        }
         hl_mesh_destroy(m);
         if (r != HL_OK || *out) return r;
     }

@@ -341,6 +341,43 @@ hl_result hl_mesh_load(hl_context *ctx, const char *path, const hl_mesh_load_des
     return hl_mesh_load_motion_(ctx, path, desc, out, stats, NULL);
 }
 
+hl_result hl_mesh_probe_motion_(hl_context *ctx, const char *path, hl_mesh_motion *motion)
+{
+    memset(motion, 0, sizeof *motion);
+    if (!path) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_mesh_probe_motion_: no path");
+    if (hl_gz_is_gz_name(path)) { /* decompressed once only by a load */
+        hl_mesh *m = NULL;
+        hl_result r = hl_mesh_load_motion_(ctx, path, NULL, &m, NULL, motion);
+        hl_mesh_destroy(m);
+        return r;
+    }
+    FILE *f = NULL;
+    size_t size = 0;
+    hl_result r = open_checked(ctx, path, &f, &size);
+    if (r != HL_OK) return r;
+    char msg[160];
+    int bad = hl_assimp_file_problem_(path, f, size, msg, sizeof msg);
+    fclose(f);
+    if (bad) return hl_fail(ctx, HL_ERR_FORMAT, "%s: %s", path, msg);
+    mesh_src src = {.path = path};
+    const struct aiScene *s = import_scene(&src, aiProcess_ValidateDataStructure);
+    if (!s) {
+        char m2[512];
+        snprintf(m2, sizeof m2, "%s", aiGetErrorString());
+        return assimp_failure(ctx, path, m2);
+    }
+    r = hl_raw_scene_problem_(ctx, path, s);
+    if (r == HL_OK) {
+        motion->animations = s->mNumAnimations;
+        for (unsigned m = 0; m < s->mNumMeshes; m++) {
+            motion->skinned += s->mMeshes[m]->mNumBones > 0;
+            motion->morphing += s->mMeshes[m]->mNumAnimMeshes > 0;
+        }
+    }
+    aiReleaseImport(s);
+    return r;
+}
+
 hl_result hl_mesh_load_motion_(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc, hl_mesh **out,
                                hl_mesh_stats *stats, hl_mesh_motion *motion)
 {
