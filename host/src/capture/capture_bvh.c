@@ -252,7 +252,8 @@ int hl_capture_accel_build(hl_capture_accel *a, const float *tris, uint32_t ntri
             }
         }
         /* ascending, as a texel lists them: ties go to the lower index */
-        qsort(a->tile_list + a->tile_start[k], n - a->tile_start[k], sizeof(uint32_t), cmp_u32);
+        if (n > a->tile_start[k]) /* the list may be unallocated yet: no qsort of a NULL base */
+            qsort(a->tile_list + a->tile_start[k], n - a->tile_start[k], sizeof(uint32_t), cmp_u32);
     }
     a->tile_start[HL_CAPTURE_NTILES] = (uint32_t)n;
     return 1;
