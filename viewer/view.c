@@ -93,7 +93,7 @@ static const char *const usage_view =
     "  --drop ENV.exr       treat ENV.exr as dropped on the window (for tests)\n"
     "  --textures MODEL     keep MODEL's base-colour textures sharp, as relight --textures\n"
     "                       (MODEL: the file SCENE.hlt was precomputed from); a --dynamic\n"
-    "                       file loaded as one mesh keeps its own\n"
+    "                       file keeps its own, animated or not\n"
     "  --keys STRING        type STRING's characters after the first frame (for tests;\n"
     "                       the keys below that are characters)\n"
     "dynamic scenes (--dynamic: the second method, relight-dynamic's, which needs no\n"
