@@ -489,10 +489,36 @@ int vw_gl_set_surroundings(vw_gl *g, const float *verts, uint32_t vertex_count, 
     return 1;
 }
 
+/* Texture k of su within max_side on both sides. */
+static int fits(const hl_surface *su, uint32_t k, GLint max_side)
+{
+    uint32_t w = 0, h = 0;
+    hl_surface_texture(su, k, &w, &h);
+    return max_side > 0 && w <= (uint32_t)max_side && h <= (uint32_t)max_side;
+}
+
 int vw_gl_set_surface(vw_gl *g, const hl_mesh *mesh, const hl_surface *su, char *err, size_t err_size)
 {
     const uint32_t nt = hl_surface_triangle_count(su), ntex = hl_surface_texture_count(su);
     if (!nt || !ntex) return 1; /* nothing textured: the colours as they are */
+    /* what this GL can hold: a texture wider than it is drawn with the
+       vertex colours, and so is everything when the positions' buffer
+       texture would be longer than it allows (3 floats a vertex) */
+    GLint max_tex = 0, max_tbo = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_tex);
+    glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &max_tbo);
+    if ((uint64_t)mesh->vertex_count * 3 > (uint64_t)(max_tbo > 0 ? max_tbo : 0)) {
+        fprintf(stderr, "haarlight: warning: %u vertices exceed this OpenGL's buffer texture (%d texels): the textures "
+                        "are not drawn, the vertex colours are\n", mesh->vertex_count, (int)max_tbo);
+        return 1;
+    }
+    for (uint32_t k = 0; k < ntex; k++) {
+        uint32_t w = 0, h = 0;
+        hl_surface_texture(su, k, &w, &h);
+        if (w > (uint32_t)max_tex || h > (uint32_t)max_tex)
+            fprintf(stderr, "haarlight: warning: texture %u is %u x %u, more than this OpenGL's %d on a side: its "
+                            "triangles show their vertex colours\n", k, w, h, (int)max_tex);
+    }
     /* corners grouped by texture: vid (int), uv, base, albedo */
     enum { STRIDE = 4 + 8 * 4 };
     uint32_t *count = calloc(ntex, sizeof *count), textured = 0;
@@ -500,7 +526,7 @@ int vw_gl_set_surface(vw_gl *g, const hl_mesh *mesh, const hl_surface *su, char 
     for (uint32_t t = 0; t < nt; t++) {
         int32_t k;
         hl_surface_triangle(su, t, &k, NULL, NULL);
-        if (k >= 0 && (uint32_t)k < ntex) count[k]++, textured++;
+        if (k >= 0 && (uint32_t)k < ntex && fits(su, (uint32_t)k, max_tex)) count[k]++, textured++;
     }
     unsigned char *buf = malloc((size_t)textured * 3 * STRIDE + 1);
     uint32_t *plain = malloc(((size_t)mesh->triangle_count - textured) * 12 + 1);
@@ -523,7 +549,7 @@ int vw_gl_set_surface(vw_gl *g, const hl_mesh *mesh, const hl_surface *su, char 
         int32_t k = -1;
         float uv[6], base[9];
         if (t < nt) hl_surface_triangle(su, t, &k, uv, base);
-        if (k < 0 || (uint32_t)k >= ntex) {
+        if (k < 0 || (uint32_t)k >= ntex || !fits(su, (uint32_t)k, max_tex)) {
             memcpy(plain + 3 * (size_t)np++, mesh->indices + 3 * (size_t)t, 12);
             continue;
         }
@@ -573,6 +599,7 @@ int vw_gl_set_surface(vw_gl *g, const hl_mesh *mesh, const hl_surface *su, char 
     for (uint32_t k = 0; k < ntex; k++) {
         uint32_t w = 0, h = 0;
         const uint8_t *px = hl_surface_texture(su, k, &w, &h);
+        if (!fits(su, k, max_tex)) continue; /* its triangles are in the plain pass */
         glBindTexture(GL_TEXTURE_2D, g->tex_ids[k]);
         glTexImage2D(GL_TEXTURE_2D, 0, GL_SRGB8, (GLsizei)w, (GLsizei)h, 0, GL_RGB, GL_UNSIGNED_BYTE, px);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
@@ -584,7 +611,8 @@ int vw_gl_set_surface(vw_gl *g, const hl_mesh *mesh, const hl_surface *su, char 
     g->ntex = ntex;
     GLenum e = glGetError();
     if (e != GL_NO_ERROR) {
-        snprintf(err, err_size, "OpenGL: error 0x%x while uploading the textured surface (%u triangles, %u textures)",
+        snprintf(err, err_size,
+                 "OpenGL: error 0x%x while uploading the textured surface (%u triangles, %u textures of the model)",
                  (unsigned)e, textured, ntex);
         return 0;
     }

@@ -94,6 +94,7 @@ static const char *const usage_view =
     "  --textures MODEL     keep MODEL's base-colour textures sharp, as relight --textures\n"
     "                       (MODEL: the file SCENE.hlt was precomputed from); a --dynamic\n"
     "                       file keeps its own, animated or not\n"
+    "  --keep-winding       as given to precompute, for reading --textures' MODEL\n"
     "  --keys STRING        type STRING's characters after the first frame (for tests;\n"
     "                       the keys below that are characters)\n"
     "dynamic scenes (--dynamic: the second method, relight-dynamic's, which needs no\n"
@@ -206,6 +207,10 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
             v->readback_asked = 1;
             continue;
         }
+        if (!strcmp(a, "--keep-winding")) {
+            v->keep_winding = 1;
+            continue;
+        }
         int takes = !strcmp(a, "--env") || !strcmp(a, "--frames") || !strcmp(a, "--screenshot") ||
                     !strcmp(a, "--spin") || !strcmp(a, "--drop") || !strcmp(a, "--keys") || !strcmp(a, "--textures");
         if (takes && i + 1 >= argc) return usage_error(usage, "option %s needs a value", a);
@@ -312,7 +317,8 @@ static int load(viewer *v, const char **env_args, int n_env_args)
     }
     /* textures: --textures MODEL, or a --dynamic file loaded as one mesh
        (as relight-dynamic; an animated file's bodies keep per-vertex albedo) */
-    if (v->textures && hl_surface_load(v->ctx, v->textures, NULL, v->mesh, &v->surface) != HL_OK) {
+    const hl_mesh_load_desc md = {.keep_winding = v->keep_winding};
+    if (v->textures && hl_surface_load(v->ctx, v->textures, &md, v->mesh, &v->surface) != HL_OK) {
         cli_fail(v->ctx, HL_ERR_INVALID_ARGUMENT);
         return 0;
     }

@@ -187,6 +187,7 @@ typedef struct viewer {
     hl_transport *t_rows; /* t loaded again for a second try at the relighter (make_relighter) */
     const hl_mesh *mesh; /* the mesh drawn: the transport's or the dynamic scene's */
     const char *textures; /* --textures MODEL */
+    int keep_winding;     /* --keep-winding: how MODEL was read for the transport */
     hl_surface *surface;  /* its textured surface, or a --dynamic file's own; NULL without */
     const hl_surface *draw_surface; /* the one drawn: surface, or the dynamic bodies' */
     vw_dyn dy;

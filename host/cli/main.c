@@ -389,7 +389,9 @@ static hl_result load_scene(hl_context *ctx, pre_opts *o, hl_mesh **mesh)
         char anim[256];
         hl_result r = hl_tools_mesh_load_at(ctx, o->mesh, &o->ld, o->time, mesh, anim, sizeof anim);
         if (r != HL_OK) {
-            fprintf(stderr, "precompute: without --time, the file's rest pose is baked (the nodes as stored)\n");
+            if (r == HL_ERR_MESH || r == HL_ERR_INVALID_ARGUMENT) /* no animation, or one not rigid */
+                fprintf(stderr, "precompute: without --time, the file's rest pose is baked (its nodes as stored, "
+                                "skinned meshes in their bind pose); that is what --rest-pose names here\n");
             return r;
         }
         fprintf(stderr, "precompute: %s posed at %g s of its animation%s%s%s: %u vertices, %u triangles\n", o->mesh,

@@ -195,7 +195,7 @@ HL_API hl_result hl_mesh_create(hl_context *ctx, uint32_t vertex_count,
                          const uint32_t *indices, hl_mesh **out);
 
 /* hl_ground_desc fields and defaults:
- *   resolution    0: 96 quads along the longer side
+ *   resolution    0: 96 quads across the uniform middle square (below)
  *   margin        how far the plane extends beyond the footprint on every
  *                 side, in units of the footprint's larger extent (at most
  *                 64). 0: far enough to hold the shadow of the object's
@@ -648,11 +648,12 @@ typedef struct hl_surface hl_surface;
 HL_API hl_result hl_surface_load(hl_context *ctx, const char *path, const hl_mesh_load_desc *desc,
                                  const hl_mesh *mesh, hl_surface **out);
 HL_API uint32_t hl_surface_texture_count(const hl_surface *surface);
-/* The surface's textured triangles (the first of the mesh's triangles; 0
- * for NULL), and triangle t's texture (-1: none; the rest then NULL), its
+/* The surface's triangles (the first of the mesh's, or all of a dynamic
+ * mesh's, ground included; 0 for NULL), and triangle t's texture (-1:
+ * none; uv and base then hold zeros and the untextured base), its
  * corners' texture coordinates (u, v, v up) and base colours (the
- * material's factor x the vertex colour, linear). HL_ERR_INVALID_ARGUMENT
- * out of range. */
+ * material's factor x the vertex colour, linear); uv and base may be
+ * NULL. HL_ERR_INVALID_ARGUMENT out of range. */
 HL_API uint32_t hl_surface_triangle_count(const hl_surface *surface);
 HL_API hl_result hl_surface_triangle(const hl_surface *surface, uint32_t t, int32_t *texture, float uv[6],
                                      float base[9]);

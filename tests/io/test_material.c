@@ -18,7 +18,8 @@
  *             is refused.
  *   glb       .glb output with the surface read back: the texture embedded
  *             as it was, UVs, unlit materials, COLOR_0 the base colour x
- *             the irradiance where textured.
+ *             the irradiance where textured; and a file whose every
+ *             triangle is textured.
  *   dynamic   the dynamic method's scene from the same file holds the same
  *             albedo at the same positions.
  *   dynamic_surface  an animated file's bodies keep their textured
@@ -41,6 +42,7 @@
 
 #include <assimp/cimport.h>
 #include <assimp/material.h>
+#include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
 #include "hl_test.h"
@@ -528,6 +530,24 @@ static void case_glb(void)
         if (s) aiReleaseImport(s);
         free(rgb);
     }
+    hl_surface_destroy(su);
+    hl_mesh_destroy(m);
+    /* every triangle textured: no untextured primitive to write */
+    const char *only = hl_test_tmp_path("material_glb_only.gltf");
+    write_gltf(only, pr, 1, "{\"name\":\"t\",\"pbrMetallicRoughness\":{\"baseColorTexture\":{\"index\":0}}}",
+               "{\"uri\":\"material_glb.png\"}", 1);
+    m = load(ctx, only, 0.0f);
+    su = NULL;
+    if (m && hl_surface_load(ctx, only, NULL, m, &su) == HL_OK) {
+        const char *out2 = hl_test_tmp_path("material_out_only.glb");
+        hl_result r = hl_mesh_save_glb_surface(ctx, m, m->albedo, su, out2, 0.0f);
+        HL_CHECK(r == HL_OK, "a .glb whose every triangle is textured: %s", hl_context_last_error(ctx));
+        const struct aiScene *s2 = r == HL_OK ? aiImportFile(out2, aiProcess_ValidateDataStructure) : NULL;
+        HL_CHECK(s2 && s2->mNumMeshes == 1 && s2->mNumTextures == 1 && s2->mMeshes[0]->mTextureCoords[0],
+                 "read back: one textured mesh (%s)", s2 ? "" : aiGetErrorString());
+        if (s2) aiReleaseImport(s2);
+    } else
+        HL_CHECK(0, "surface: %s", hl_context_last_error(ctx));
     hl_surface_destroy(su);
     hl_mesh_destroy(m);
     hl_context_destroy(ctx);

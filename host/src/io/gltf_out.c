@@ -14,6 +14,7 @@
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -296,9 +297,9 @@ static int fill_primitive(tex_glb *g, uint32_t i, const hl_mesh *m, const float 
             if (textured) {
                 const float *uv = su->uv + 6 * (size_t)t + 2 * (size_t)q, *b = su->base + 9 * (size_t)t + 3 * (size_t)q;
                 am->mTextureCoords[0][o] = (struct aiVector3D){uv[0], uv[1], 0.0f};
-                for (int ch = 0; ch < 3; ch++) {
-                    const float a = m->albedo[3 * (size_t)v + (size_t)ch];
-                    c0[ch] = a > 1e-6f ? b[ch] * (l[ch] / a) : 0.0f;
+                for (int ch = 0; ch < 3; ch++) { /* in double: a huge colour over a tiny albedo stays finite */
+                    const double a = m->albedo[3 * (size_t)v + (size_t)ch];
+                    c0[ch] = a > 1e-6 ? (float)fmin((double)b[ch] * (l[ch] / a), FLT_MAX) : 0.0f;
                 }
             }
             am->mColors[0][o] = (struct aiColor4D){c0[0], c0[1], c0[2], 1.0f};
@@ -417,19 +418,22 @@ hl_result hl_mesh_save_glb_surface(hl_context *ctx, const hl_mesh *mesh, const f
         r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "%s: out of memory building the glTF scene", path);
         goto done;
     }
-    /* the node lists the non-empty primitives */
+    /* only the non-empty primitives: primitive 0 is empty when every
+       triangle is textured, and the exporter fails on an empty mesh */
     uint32_t nm = 0;
-    for (uint32_t i = 0; i < np; i++) {
-        g->mesh_ptr[i] = &g->mesh[i];
-        if (g->mesh[i].mNumFaces) g->node_meshes[nm++] = i;
-    }
+    for (uint32_t i = 0; i < np; i++)
+        if (g->mesh[i].mNumFaces) {
+            g->mesh_ptr[nm] = &g->mesh[i];
+            g->node_meshes[nm] = nm;
+            nm++;
+        }
     set_name(&g->root.mName, "haarlight");
     g->root.mTransformation.a1 = g->root.mTransformation.b2 = g->root.mTransformation.c3 =
         g->root.mTransformation.d4 = 1.0f;
     g->root.mNumMeshes = nm;
     g->root.mMeshes = g->node_meshes;
     g->scene.mRootNode = &g->root;
-    g->scene.mNumMeshes = np;
+    g->scene.mNumMeshes = nm;
     g->scene.mMeshes = g->mesh_ptr;
     g->scene.mNumMaterials = np;
     g->scene.mMaterials = g->mat_ptr;

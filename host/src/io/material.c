@@ -109,14 +109,13 @@ static int texture_path(const char *model, const char *name, int k, char *out, s
     return snprintf(out, cap, "%.*s/%s", (int)(slash - model), model, rel) < (int)cap;
 }
 
-/* The first candidate that can be read into file, 0 when none. */
+/* The first candidate that exists as a file into file, 0 when none (one
+ * that exists but cannot be read is then an error when read). */
 static int find_texture(const char *model, const char *name, char *file, size_t cap)
 {
     struct stat st;
     for (int k = 0; k < 2; k++)
-        if (texture_path(model, name, k, file, cap) && access(file, R_OK) == 0 && stat(file, &st) == 0 &&
-            S_ISREG(st.st_mode))
-            return 1;
+        if (texture_path(model, name, k, file, cap) && stat(file, &st) == 0 && S_ISREG(st.st_mode)) return 1;
     return 0;
 }
 
@@ -306,7 +305,7 @@ static void warn_unused(hl_context *ctx, const char *path, const struct aiScene 
                 aiReturn_SUCCESS)
                 continue;
             char file[4096];
-            if (embedded(s, p.data) || p.data[0] == '*') continue;
+            if (!p.data[0] || embedded(s, p.data) || p.data[0] == '*') continue;
             if (find_texture(path, p.data, file, sizeof file)) continue;
             int dup = 0;
             for (int i = 0; i < nseen && !dup; i++) dup = strcmp(seen[i].data, p.data) == 0;

@@ -61,7 +61,13 @@ hl_result hl_surface_load(hl_context *ctx, const char *path, const hl_mesh_load_
        corner; where they lie (another up axis, a moved body) does not
        matter */
     const char *why = NULL;
-    if (m->vertex_count != mesh->object_vertex_count || m->triangle_count > mesh->triangle_count)
+    uint32_t object_tris = 0; /* the triangles of the object's vertices alone */
+    for (uint32_t t = 0; t < mesh->triangle_count; t++) {
+        const uint32_t *f = mesh->indices + 3 * (size_t)t;
+        object_tris += f[0] < mesh->object_vertex_count && f[1] < mesh->object_vertex_count &&
+                       f[2] < mesh->object_vertex_count;
+    }
+    if (m->vertex_count != mesh->object_vertex_count || m->triangle_count != object_tris)
         why = "a different number of vertices or triangles";
     else if (memcmp(m->indices, mesh->indices, (size_t)m->triangle_count * 3 * sizeof(uint32_t)))
         why = "other triangles";
@@ -69,8 +75,9 @@ hl_result hl_surface_load(hl_context *ctx, const char *path, const hl_mesh_load_
         r = hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                     "%s: this file's mesh (%u vertices, %u triangles) is not the one relit (%u object vertices, %u "
                     "triangles): %s; give the file it was precomputed from (with --keep-winding if precompute "
-                    "had it)",
-                    path, m->vertex_count, m->triangle_count, mesh->object_vertex_count, mesh->triangle_count, why);
+                    "had it; a transport of a pose, precompute --time, has its bodies in another order, which "
+                    "textures do not follow)",
+                    path, m->vertex_count, m->triangle_count, mesh->object_vertex_count, object_tris, why);
     hl_mesh_destroy(m);
     if (r != HL_OK) {
         hl_surface_destroy(s);

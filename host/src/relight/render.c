@@ -16,6 +16,7 @@
  * and primary rays), the environment and image functions of haarlight.h,
  * libc, libm.
  */
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -227,20 +228,22 @@ static void shade_textured(const hl_mesh *mesh, const float *vertex_rgb, const h
 {
     const uint32_t *tri = mesh->indices + 3 * (size_t)t;
     const float l[3] = {1.0f - u - v, u, v};
-    float tc[2] = {0, 0}, base[3] = {0, 0, 0}, irr[3] = {0, 0, 0}, tex[3];
+    float tc[2] = {0, 0}, base[3] = {0, 0, 0}, tex[3];
+    double irr[3] = {0, 0, 0}; /* a huge colour over a tiny albedo stays finite */
     for (int c = 0; c < 3; c++) {
         tc[0] += l[c] * su->uv[6 * (size_t)t + 2 * (size_t)c];
         tc[1] += l[c] * su->uv[6 * (size_t)t + 2 * (size_t)c + 1];
         for (int k = 0; k < 3; k++) {
             base[k] += l[c] * su->base[9 * (size_t)t + 3 * (size_t)c + (size_t)k];
-            const float a = mesh->albedo[3 * (size_t)tri[c] + (size_t)k];
-            if (a > 1e-6f) irr[k] += l[c] * vertex_rgb[3 * (size_t)tri[c] + (size_t)k] / a;
+            const double a = mesh->albedo[3 * (size_t)tri[c] + (size_t)k];
+            if (a > 1e-6) irr[k] += l[c] * vertex_rgb[3 * (size_t)tri[c] + (size_t)k] / a;
         }
     }
     hl_texture_sample_(&su->mats.tex[su->tex[t]], tc[0], tc[1], tex);
     for (int k = 0; k < 3; k++) {
-        const float x = base[k] * tex[k] * irr[k];
-        px[k] = x > 0.0f ? x : 0.0f; /* rounding of 1 - u - v must not make light negative */
+        const double x = (double)base[k] * tex[k] * irr[k];
+        /* rounding of 1 - u - v must not make light negative */
+        px[k] = x > 0.0 ? (float)fmin(x, FLT_MAX) : 0.0f;
     }
 }
 

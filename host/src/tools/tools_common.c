@@ -100,7 +100,9 @@ hl_result hl_tools_mesh_load_at(hl_context *ctx, const char *path, const hl_mesh
         v0 += o->nverts;
         t0i += o->ntris;
     }
-    if (r == HL_OK) r = hl_mesh_create(ctx, (uint32_t)nv, pos, nrm, alb, (uint32_t)nt, idx, out);
+    /* the scene turned the up axis already; the winding rule is the load's */
+    const hl_mesh_load_desc bd = {.keep_winding = desc ? desc->keep_winding : 0};
+    if (r == HL_OK) r = hl_mesh_build_(ctx, path, (uint32_t)nv, pos, nrm, alb, NULL, (uint32_t)nt, idx, &bd, out, NULL);
     free(pos);
     free(nrm);
     free(alb);
