@@ -705,7 +705,6 @@ static void case_bad(void)
     /* a texture found beside the model under a path of another machine */
     const char *p6 = hl_test_tmp_path("material_moved.gltf");
     write_gltf(p6, &pr, 1, tex_mat, "{\"uri\":\"D:%5Cassets%5Cmaterial_whole.png\"}", 1);
-    const char *p2 = NULL;
     hl_image *img = NULL;
     hl_image_create(ctx, 64, 64, &img);
     for (size_t i = 0; i < 64 * 64 * 3; i++) img->rgb[i] = (float)(i % 7) / 7.0f;
@@ -721,7 +720,6 @@ static void case_bad(void)
                  hl_context_last_error(ctx));
         hl_surface_destroy(su);
         hl_mesh_destroy(m);
-        (void)p2;
     }
     FILE *f = fopen(whole, "rb");
     unsigned char buf[65536];

@@ -269,6 +269,19 @@ static uint32_t blocked_above(hl_context *ctx, hl_rt *rt, const hl_geom *g, cons
     return blocked;
 }
 
+/* The cases' turn: 37 degrees about (1, 2, 3), so that no face of an
+ * axis-aligned box stays normal to an axis (Rodrigues' formula). */
+static void test_turn(double turn[9])
+{
+    double ax[3] = {1, 2, 3}, an = 37.0 * PI / 180.0, c = cos(an), s1 = sin(an);
+    normalize3(ax);
+    const double x = ax[0], y = ax[1], z = ax[2];
+    const double R9[9] = {c + x * x * (1 - c),     x * y * (1 - c) - z * s1, x * z * (1 - c) + y * s1,
+                          y * x * (1 - c) + z * s1, c + y * y * (1 - c),     y * z * (1 - c) - x * s1,
+                          z * x * (1 - c) - y * s1, z * y * (1 - c) + x * s1, c + z * z * (1 - c)};
+    memcpy(turn, R9, sizeof R9);
+}
+
 static void case_ray_offset(void)
 {
     hl_context *ctx = make_ctx();
@@ -361,15 +374,7 @@ static void case_ray_offset(void)
     uint32_t acne = 0, checked = 0;
     static const double shifts[3] = {0.0, 100.0, 1e4};
     double turn[9];
-    {
-        double ax[3] = {1, 2, 3}, an = 37.0 * PI / 180.0, c = cos(an), s1 = sin(an);
-        normalize3(ax);
-        const double x = ax[0], y = ax[1], z = ax[2];
-        const double R9[9] = {c + x * x * (1 - c),     x * y * (1 - c) - z * s1, x * z * (1 - c) + y * s1,
-                              y * x * (1 - c) + z * s1, c + y * y * (1 - c),     y * z * (1 - c) - x * s1,
-                              z * x * (1 - c) - y * s1, z * y * (1 - c) + x * s1, c + z * z * (1 - c)};
-        memcpy(turn, R9, sizeof turn);
-    }
+    test_turn(turn);
     for (int is = 0; is < 3; is++)
         for (int ish = 0; ish < 3; ish++)
             for (int shape = 0; shape < 4; shape++) {
@@ -443,15 +448,7 @@ static void case_ray_step(void)
     mb_tri(b, rv, a[3], a[0]);
     mb_box(b, (const double[3]){-1.0, 0.0, -1.0}, (const double[3]){0.0, 0.3, 1.0});
     double turn[9];
-    {
-        double ax[3] = {1, 2, 3}, an = 37.0 * PI / 180.0, c = cos(an), s1 = sin(an);
-        normalize3(ax);
-        const double x = ax[0], y = ax[1], z = ax[2];
-        const double R9[9] = {c + x * x * (1 - c),     x * y * (1 - c) - z * s1, x * z * (1 - c) + y * s1,
-                              y * x * (1 - c) + z * s1, c + y * y * (1 - c),     y * z * (1 - c) - x * s1,
-                              z * x * (1 - c) - y * s1, z * y * (1 - c) + x * s1, c + z * z * (1 - c)};
-        memcpy(turn, R9, sizeof turn);
-    }
+    test_turn(turn);
     static const double scales[3] = {1e-3, 1.0, 1e4};
     for (int is = 0; is < 3; is++)
         for (int t = 0; t < 2; t++) {

@@ -70,11 +70,7 @@ static hl_result merge_surfaces(hl_dynamic *d, uint32_t nt)
     if (!any || !s->mats.ntex) return HL_OK;
     hl_surface *su = hl_calloc(d->ctx, 1, sizeof *su, "the surface");
     if (!su) return HL_ERR_OUT_OF_MEMORY;
-    su->triangle_count = nt;
-    su->uv = hl_calloc(d->ctx, (size_t)nt * 6 + 1, sizeof(float), "the surface's UVs");
-    su->tex = hl_malloc(d->ctx, (size_t)nt * sizeof(int32_t) + 1, "the surface's textures");
-    su->base = hl_calloc(d->ctx, (size_t)nt * 9 + 1, sizeof(float), "the surface's colours");
-    if (!su->uv || !su->tex || !su->base) {
+    if (hl_surface_arrays_(d->ctx, su, nt) != HL_OK) {
         hl_surface_destroy(su);
         return HL_ERR_OUT_OF_MEMORY;
     }

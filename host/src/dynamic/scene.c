@@ -395,20 +395,18 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
     m.nrm = m.normals ? hl_malloc(ctx, (size_t)m.nv * 3 * sizeof(float), "vertex normals") : NULL;
     m.col = m.colors ? hl_malloc(ctx, (size_t)m.nv * 3 * sizeof(float), "vertex colours") : NULL;
     m.tex = m.textured ? hl_malloc(ctx, (size_t)m.nt * 9 * sizeof(float), "texture averages") : NULL;
+    int surf_oom = 0;
     if (m.textured) {
-        m.in.uv = hl_malloc(ctx, (size_t)m.nt * 6 * sizeof(float), "the surface's UVs");
-        m.in.tex = hl_malloc(ctx, (size_t)m.nt * sizeof(int32_t), "the surface's textures");
-        m.in.base = hl_malloc(ctx, (size_t)m.nt * 9 * sizeof(float), "the surface's colours");
         m.origin = hl_malloc(ctx, (size_t)m.nt * sizeof(uint32_t), "triangle origins");
-        if (!m.in.uv || !m.in.tex || !m.in.base || !m.origin) m.textured = -1; /* refused below */
+        surf_oom = !m.origin || hl_surface_arrays_(ctx, &m.in, (uint32_t)m.nt) != HL_OK;
     }
     m.idx = hl_malloc(ctx, (size_t)m.nt * 3 * sizeof(uint32_t), "triangle indices");
     size_t nlen = strlen(s->name) + strlen(an->mName.data) + 16;
     char *name = hl_malloc(ctx, nlen, "a name");
     hl_mesh *mesh = NULL;
     hl_surface *surf = NULL;
-    if (!m.pos || !m.idx || (m.normals && !m.nrm) || (m.colors && !m.col) || (m.textured && !m.tex) ||
-        m.textured < 0 || !name)
+    if (!m.pos || !m.idx || (m.normals && !m.nrm) || (m.colors && !m.col) || (m.textured && !m.tex) || surf_oom ||
+        !name)
         r = HL_ERR_OUT_OF_MEMORY;
     if (r == HL_OK) {
         snprintf(name, nlen, "%s (node \"%s\")", s->name, an->mName.data);
@@ -440,9 +438,7 @@ static hl_result make_body(hl_dyn_scene *s, const struct aiScene *as, const stru
         body_take(&s->bodies[s->nbodies++], mesh, k, kinv);
     }
     hl_surface_destroy(surf);
-    free(m.in.uv);
-    free(m.in.tex);
-    free(m.in.base);
+    hl_surface_arrays_free_(&m.in);
     free(m.origin);
     free(m.pos);
     free(m.nrm);

@@ -354,12 +354,14 @@ static hl_result read_material(hl_context *ctx, const char *path, const struct a
         aiGetMaterialTexture(mat, aiTextureType_BASE_COLOR, 0, &tp, NULL, &uv, NULL, NULL, NULL, NULL) == aiReturn_SUCCESS ||
         aiGetMaterialTexture(mat, aiTextureType_DIFFUSE, 0, &tp, NULL, &uv, NULL, NULL, NULL, NULL) == aiReturn_SUCCESS;
     textured = textured && tp.data[0]; /* an empty name (MD5 writes one) names nothing */
-    int white = h->factor[0] == 1.0f && h->factor[2] == 1.0f && h->factor[1] == 1.0f;
+    const int white = h->factor[0] == 1.0f && h->factor[2] == 1.0f && h->factor[1] == 1.0f;
+    const int default_named = named && strcmp(nm.data, AI_DEFAULT_MATERIAL_NAME) == 0;
     /* assimp's OBJ reader makes a material of Kd 0.6 for a `usemtl` whose
        library it cannot find (and for none at all): in an OBJ file that
        grey, untextured, is taken for no material */
-    int obj_default = is_obj(path) && !textured && f[0] == 0.6f && f[1] == 0.6f && f[2] == 0.6f;
-    h->given = !(named && strcmp(nm.data, AI_DEFAULT_MATERIAL_NAME) == 0) && (textured || !white) && !obj_default;
+    const int obj_grey = is_obj(path) && f[0] == 0.6f && f[1] == 0.6f && f[2] == 0.6f;
+    const int factor_given = !default_named && !white && !obj_grey; /* given without a texture */
+    h->given = textured ? !default_named : factor_given;
     warn_unused(ctx, path, s, mat, mat_name);
     if (!textured) return HL_OK;
     if (uv >= AI_MAX_NUMBER_OF_TEXTURECOORDS)
@@ -383,7 +385,7 @@ static hl_result read_material(hl_context *ctx, const char *path, const struct a
         free(t.file);
         if (r == HL_OK) {
             m->left_out++;
-            h->given = !(named && strcmp(nm.data, AI_DEFAULT_MATERIAL_NAME) == 0) && !white && !obj_default;
+            h->given = factor_given;
         }
         return r;
     }
@@ -500,7 +502,7 @@ static uint32_t wrap(long i, uint32_t n)
 
 void hl_texture_sample_(const hl_texture *t, float u, float v, float rgb[3])
 {
-    lut_init();
+    /* the table is filled: every texture comes through hl_materials_read_ */
     /* texel centres at half-integers; v up, rows down */
     double x = (double)u * t->w - 0.5, y = (1.0 - (double)v) * t->h - 0.5;
     if (!isfinite(x) || !isfinite(y) || fabs(x) > 1e9 || fabs(y) > 1e9) x = y = 0.0;
@@ -575,17 +577,31 @@ void hl_surface_face_(const hl_materials *mats, const struct aiMesh *am, const s
     }
 }
 
+hl_result hl_surface_arrays_(hl_context *ctx, hl_surface *su, uint32_t ntri)
+{
+    su->triangle_count = ntri;
+    su->uv = hl_calloc(ctx, (size_t)ntri * 6 + 1, sizeof(float), "the surface's UVs");
+    su->tex = hl_calloc(ctx, (size_t)ntri + 1, sizeof(int32_t), "the surface's textures");
+    su->base = hl_calloc(ctx, (size_t)ntri * 9 + 1, sizeof(float), "the surface's colours");
+    return su->uv && su->tex && su->base ? HL_OK : HL_ERR_OUT_OF_MEMORY;
+}
+
+void hl_surface_arrays_free_(hl_surface *su)
+{
+    free(su->uv);
+    free(su->tex);
+    free(su->base);
+    su->uv = su->base = NULL;
+    su->tex = NULL;
+}
+
 hl_result hl_surface_finish_(hl_context *ctx, const hl_surface *in, const uint32_t *origin, uint32_t ntri,
                              int flipped, hl_surface **out)
 {
     hl_surface *su = hl_calloc(ctx, 1, sizeof *su, "the surface");
     if (!su) return HL_ERR_OUT_OF_MEMORY;
     const size_t nt = ntri;
-    su->triangle_count = ntri;
-    su->uv = hl_malloc(ctx, nt * 6 * sizeof(float) + 1, "the surface's UVs");
-    su->tex = hl_malloc(ctx, nt * sizeof(int32_t) + 1, "the surface's textures");
-    su->base = hl_malloc(ctx, nt * 9 * sizeof(float) + 1, "the surface's colours");
-    if (!su->uv || !su->tex || !su->base) {
+    if (hl_surface_arrays_(ctx, su, ntri) != HL_OK) {
         hl_surface_destroy(su);
         return HL_ERR_OUT_OF_MEMORY;
     }

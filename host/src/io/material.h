@@ -78,6 +78,12 @@ struct hl_surface {
     hl_materials mats;
 };
 
+/* su's per-triangle arrays for ntri triangles, zeroed (the failure
+ * recorded when out of memory); hl_surface_arrays_free_ frees them alone
+ * (hl_surface_destroy frees the surface whole). */
+hl_result hl_surface_arrays_(hl_context *ctx, hl_surface *su, uint32_t ntri);
+void hl_surface_arrays_free_(hl_surface *su);
+
 /* Builds a surface: su's arrays (by input triangle) get triangle t's
  * texture, corner UVs and bases from face af of am; with mirror, corners
  * 1 and 2 swap places, as a mirrored node's triangles are stored. */

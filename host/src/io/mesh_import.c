@@ -77,6 +77,31 @@ static hl_result open_checked(hl_context *ctx, const char *path, FILE **out, siz
     return HL_OK;
 }
 
+/* A file the importer may be given: open_checked's checks, then the
+ * guards that refuse what would hang or crash assimp. */
+static hl_result guard_file(hl_context *ctx, const char *path)
+{
+    FILE *f = NULL;
+    size_t size = 0;
+    hl_result r = open_checked(ctx, path, &f, &size);
+    if (r != HL_OK) return r;
+    char msg[160];
+    int bad = hl_assimp_file_problem_(path, f, size, msg, sizeof msg);
+    fclose(f);
+    return bad ? hl_fail(ctx, HL_ERR_FORMAT, "%s: %s", path, msg) : HL_OK;
+}
+
+/* The motion a raw scene holds: its animations, and its meshes with bones
+ * or morph targets. */
+static void read_motion(const struct aiScene *s, hl_mesh_motion *motion)
+{
+    motion->animations = s->mNumAnimations;
+    for (unsigned m = 0; m < s->mNumMeshes; m++) {
+        motion->skinned += s->mMeshes[m]->mNumBones > 0;
+        motion->morphing += s->mMeshes[m]->mNumAnimMeshes > 0;
+    }
+}
+
 static void skipped_note(hl_context *ctx, const char *path, uint64_t skipped)
 {
     if (skipped && ctx && !ctx->quiet)
@@ -180,13 +205,7 @@ static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh
         return assimp_failure(ctx, path, msg);
     }
     hl_result r = hl_raw_scene_problem_(ctx, path, s);
-    if (r == HL_OK && motion) { /* what the baked pose leaves behind */
-        motion->animations = s->mNumAnimations;
-        for (unsigned m = 0; m < s->mNumMeshes; m++) {
-            motion->skinned += s->mMeshes[m]->mNumBones > 0;
-            motion->morphing += s->mMeshes[m]->mNumAnimMeshes > 0;
-        }
-    }
+    if (r == HL_OK && motion) read_motion(s, motion); /* what the baked pose leaves behind */
     aiReleaseImport(s);
     if (r != HL_OK) return r;
     s = import_scene(src, aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_PreTransformVertices);
@@ -238,14 +257,9 @@ static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh
     r = hl_mesh_resolve_albedo_(ctx, path, desc ? desc->albedo : (const float[3]){0, 0, 0}, HL_DEFAULT_ALBEDO,
                                 fallback);
     if (r != HL_OK) goto done;
-    if (surf) {
-        in.uv = hl_malloc(ctx, (size_t)nt * 6 * sizeof(float), "the surface's UVs");
-        in.tex = hl_malloc(ctx, (size_t)nt * sizeof(int32_t), "the surface's textures");
-        in.base = hl_malloc(ctx, (size_t)nt * 9 * sizeof(float), "the surface's colours");
-        origin = hl_malloc(ctx, (size_t)nt * sizeof(uint32_t), "triangle origins");
-    }
+    if (surf) origin = hl_malloc(ctx, (size_t)nt * sizeof(uint32_t), "triangle origins");
     if (!pos || !idx || (all_normals && !nrm) || (colors && !col) || (textured && !tex) ||
-        (surf && (!in.uv || !in.tex || !in.base || !origin))) {
+        (surf && (!origin || hl_surface_arrays_(ctx, &in, (uint32_t)nt) != HL_OK))) {
         r = HL_ERR_OUT_OF_MEMORY;
         goto done;
     }
@@ -274,10 +288,7 @@ static hl_result load_assimp(hl_context *ctx, const mesh_src *src, const hl_mesh
 done:
     if (s) aiReleaseImport(s);
     hl_materials_free_(&mats);
-    hl_materials_free_(&in.mats);
-    free(in.uv);
-    free(in.tex);
-    free(in.base);
+    hl_surface_arrays_free_(&in);
     free(origin);
     free(pos);
     free(nrm);
@@ -351,14 +362,8 @@ hl_result hl_mesh_probe_motion_(hl_context *ctx, const char *path, hl_mesh_motio
         hl_mesh_destroy(m);
         return r;
     }
-    FILE *f = NULL;
-    size_t size = 0;
-    hl_result r = open_checked(ctx, path, &f, &size);
+    hl_result r = guard_file(ctx, path);
     if (r != HL_OK) return r;
-    char msg[160];
-    int bad = hl_assimp_file_problem_(path, f, size, msg, sizeof msg);
-    fclose(f);
-    if (bad) return hl_fail(ctx, HL_ERR_FORMAT, "%s: %s", path, msg);
     mesh_src src = {.path = path};
     const struct aiScene *s = import_scene(&src, aiProcess_ValidateDataStructure);
     if (!s) {
@@ -367,13 +372,7 @@ hl_result hl_mesh_probe_motion_(hl_context *ctx, const char *path, hl_mesh_motio
         return assimp_failure(ctx, path, m2);
     }
     r = hl_raw_scene_problem_(ctx, path, s);
-    if (r == HL_OK) {
-        motion->animations = s->mNumAnimations;
-        for (unsigned m = 0; m < s->mNumMeshes; m++) {
-            motion->skinned += s->mMeshes[m]->mNumBones > 0;
-            motion->morphing += s->mMeshes[m]->mNumAnimMeshes > 0;
-        }
-    }
+    if (r == HL_OK) read_motion(s, motion);
     aiReleaseImport(s);
     return r;
 }
@@ -398,14 +397,8 @@ hl_result hl_mesh_load_surface_(hl_context *ctx, const char *path, const hl_mesh
         if (r != HL_OK && motion) memset(motion, 0, sizeof *motion);
         return r;
     }
-    FILE *f = NULL;
-    size_t size = 0;
-    r = open_checked(ctx, path, &f, &size);
+    r = guard_file(ctx, path);
     if (r != HL_OK) return r;
-    char msg[160];
-    int bad = hl_assimp_file_problem_(path, f, size, msg, sizeof msg);
-    fclose(f);
-    if (bad) return hl_fail(ctx, HL_ERR_FORMAT, "%s: %s", path, msg);
     mesh_src src = {.path = path};
     r = load_assimp(ctx, &src, desc, out, stats, motion, surf);
     if (r != HL_OK && motion) memset(motion, 0, sizeof *motion);

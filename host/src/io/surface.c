@@ -12,9 +12,7 @@
 void hl_surface_destroy(hl_surface *s)
 {
     if (!s) return;
-    free(s->uv);
-    free(s->tex);
-    free(s->base);
+    hl_surface_arrays_free_(s);
     hl_materials_free_(&s->mats);
     free(s);
 }
