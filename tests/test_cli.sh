@@ -258,6 +258,18 @@ relight_surroundings)
   printf 'v 1e38 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n' >"$tmp/far.obj"
   expect_error surroundings_far 1 "far.obj: capture: triangle 0" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$tmp/far.obj" -o "$tmp/o.ply"
   expect_error transform_alone 2 "--surroundings-transform needs --surroundings" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings-transform 0,0,0,1,0 -o "$tmp/o.ply"
+  # more capture points: the lamp orbits close, so the one point's bound is
+  # said with the way to follow it, and 8 points are placed and said
+  grep -q "capture points: 1 of 1; parallax bound" "$tmp/s0.txt" || fail "no line saying the capture point's parallax bound"
+  grep -q -- "--probes 32 follows it" "$tmp/s0.txt" || fail "a near lamp's parallax does not point at --probes"
+  "$bin" relight "$tmp/s.hlt" --surroundings "$sur" --probes 8 -o "$tmp/sp.ply" 2>"$tmp/sp.txt" || fail "relight --probes 8"
+  grep "capture points" "$tmp/sp.txt"
+  grep -q "capture points: 8 of 8" "$tmp/sp.txt" || fail "--probes 8: not 8 points placed"
+  cmp -s "$tmp/s0.ply" "$tmp/sp.ply" && fail "8 capture points gave the one point's colours"
+  for v in 0 257 -1 2.5 many; do
+    expect_error "probes_$v" 2 "--probes" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --probes "$v" -o "$tmp/o.ply"
+  done
+  expect_error probes_alone 2 "--probes needs --surroundings" "$tmp/o.ply" -- relight "$tmp/s.hlt" --probes 8 -o "$tmp/o.ply"
   ;;
 *) echo "usage: $0 bad_input|bad_options|cl_equals_ref|info|interrupt|opencl_faults|relight|relight_bad|relight_surroundings"; exit 2 ;;
 esac

@@ -55,17 +55,22 @@ static const char *const usage_view =
     "                       OBJ, ...); emissive materials give light (emissive colour x\n"
     "                       glTF emissive strength), the others are dark and hide what\n"
     "                       lies behind them; any number of triangles. The relighter\n"
-    "                       captures them at every lighting change, as seen from ONE\n"
-    "                       point, the centre of the object's bounding box (ground left\n"
-    "                       out), so surroundings close to a large object light all of\n"
-    "                       it as if from its centre. Directions they leave open are lit\n"
-    "                       by --env or --sky if given, else black (--rotate and the\n"
-    "                       keys turn the environment only). They are drawn (an emitter\n"
-    "                       in its emitted colour at the exposure, a dark body in grey;\n"
-    "                       s hides them) and can be dragged and played (keys below); a\n"
-    "                       frame where nothing moved and the environment is the same\n"
-    "                       does no lighting work (the HUD says \"lighting: unchanged\")\n"
+    "                       captures them at every lighting change, as seen from the\n"
+    "                       centre of the object's bounding box (ground left out), so\n"
+    "                       surroundings close to a large object light all of it as if\n"
+    "                       from its centre, unless --probes says otherwise. Directions\n"
+    "                       they leave open are lit by --env or --sky if given, else\n"
+    "                       black (--rotate and the keys turn the environment only).\n"
+    "                       They are drawn (an emitter in its emitted colour at the\n"
+    "                       exposure, a dark body in grey; s hides them) and can be\n"
+    "                       dragged and played (keys below); a frame where nothing\n"
+    "                       moved and the environment is the same does no lighting work\n"
+    "                       (the HUD says \"lighting: unchanged\")\n"
     CLI_USAGE_SURROUNDINGS_TRANSFORM
+    "  --probes N           capture the surroundings from up to N points (1 to 256; default\n"
+    "                       1) where an emitter is near, each vertex blended over the\n"
+    "                       points near it (as relight's --probes): each point costs a\n"
+    "                       capture and a relight a lighting change\n"
     "  --time T             seconds into the animation of the surroundings, or of\n"
     "                       --dynamic's scene (default 0; held at the first or last key\n"
     "                       outside its range)\n"
@@ -253,6 +258,7 @@ static int parse(viewer *v, int argc, char **argv, const char **env_args, int *n
         return usage_error(usage, "%s is an option of --surroundings or --dynamic", shared_opt);
     if (v->o.place_set && !v->o.surroundings)
         return usage_error(usage, "%s", "--surroundings-transform needs --surroundings");
+    if (v->o.probes_set && !v->o.surroundings) return usage_error(usage, "%s", "--probes needs --surroundings");
     if (v->o.time_set && !v->dy.on && !v->o.surroundings)
         return usage_error(usage, "%s", "--time needs --surroundings or --dynamic");
     v->dy.time0 = (float)v->o.time; /* --dynamic's --time is read by the shared parser */

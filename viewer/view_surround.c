@@ -101,7 +101,9 @@ int vw_sur_load(viewer *v)
 int vw_sur_attach(viewer *v)
 {
     if (!v->su.s) return 1;
-    if (hl_relighter_set_surroundings(v->rl, v->su.s) == HL_OK) return 1;
+    if (hl_relighter_set_surroundings(v->rl, v->su.s) == HL_OK &&
+        (!v->o.probes_set || hl_relighter_set_probes(v->rl, v->o.probes, 0.0) == HL_OK))
+        return 1;
     fprintf(stderr, "haarlight: %s: %s\n", v->o.surroundings, vw_rl_error(v));
     return 0;
 }

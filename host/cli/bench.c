@@ -79,6 +79,8 @@ static const char *const usage_bench =
     "                       at M = 200 with every body turned a further half degree about\n"
     "                       +Y each time (a new capture each change), an unchanged frame,\n"
     "                       and the capture alone against the dot products alone\n"
+    "  --probes N           with --surroundings: up to N capture points, as relight's\n"
+    "                       --probes (each change then captures and relights once a point)\n"
     CLI_USAGE_SURROUNDINGS_TRANSFORM
     "  --device cl:P:D      OpenCL device (default: the first, or HL_OPENCL_DEVICE=P:D;\n"
     "                       HL_DEVICE_SHAPE=cpu|gpu forces the kernels' shape)\n"
@@ -94,6 +96,7 @@ typedef struct bench_opts {
     uint32_t terms[BENCH_MAX_TERMS], nterms, selects[3], nsel;
     uint32_t K, K2, reps, ref_reps;
     const char *surroundings;
+    uint32_t probes;
     float place[5];
     int place_set;
     int image;
@@ -197,6 +200,7 @@ static int parse_bench(int argc, char **argv, bench *b)
         else if (!strcmp(a, "--no-banding")) o->banding_on = 0;
         else if (!strcmp(a, "--surroundings")) { NEED(); o->surroundings = v; }
         else if (!strcmp(a, "--surroundings-transform")) { NEED(); if (!cli_parse_placement(usage, v, o->place)) return 2; o->place_set = 1; }
+        else if (!strcmp(a, "--probes")) { NEED(); if (!parse_u32(v, &o->probes) || o->probes < 1 || o->probes > 256) return usage_error(usage, "--probes %s: expected a whole number of capture points from 1 to 256", v); }
         else if (!strcmp(a, "--image")) o->image = 1;
         else if (!strcmp(a, "--image-frames")) { NEED(); if (!parse_u32(v, &o->image_frames) || o->image_frames < 1 || o->image_frames > 256) return usage_error(usage, "--image-frames %s: expected 1 to 256", v); }
         else if (!strcmp(a, "--image-size")) { NEED(); if (!cli_parse_size(v, &o->image_w, &o->image_h) || o->image_w < 8 || o->image_h < 8 || o->image_w > 4096 || o->image_h > 4096) return usage_error(usage, "--image-size %s: expected WxH, 8 to 4096 each", v); }
@@ -213,6 +217,7 @@ static int parse_bench(int argc, char **argv, bench *b)
     }
     if (!o->nfiles) return usage_error(usage, "%s", "no SCENE.hlt given");
     if (o->place_set && !o->surroundings) return usage_error(usage, "%s", "--surroundings-transform needs --surroundings");
+    if (o->probes && !o->surroundings) return usage_error(usage, "%s", "--probes needs --surroundings");
     if (o->want_sky || o->nenvs == 0) {
         if (o->nenvs == BENCH_MAX_ENVS) return usage_error(usage, "%s", "at most 16 environments");
         b->envs[o->nenvs].name = "sky";
@@ -578,7 +583,7 @@ static hl_result bench_file(bench *b, int f)
     fr.bytes = 2.0 * (double)fi->coefficients_kept + (double)b->V * (8 + 2.0 * fi->block_count);
     for (int e = 0; e < b->o.nenvs && r == HL_OK; e++) r = bench_env_rows(b, &fr, e);
     if (r == HL_OK) r = bench_speed_of(b, &fr);
-    if (r == HL_OK && b->sur) r = bench_capture(fr.rc, b->sur, b->o.reps, b->B, &b->speed[f]);
+    if (r == HL_OK && b->sur) r = bench_capture(fr.rc, b->sur, b->o.probes, b->o.reps, b->B, &b->speed[f]);
     if (r == HL_OK) r = bench_subnormal(b, &fr);
     hl_relighter_destroy(fr.rc);
     hl_relighter_destroy(fr.rr);

@@ -32,13 +32,15 @@ static hl_result turn_all(hl_surroundings *sur, double deg)
     return r;
 }
 
-hl_result bench_capture(hl_relighter *rc, hl_surroundings *sur, uint32_t reps, float *B, bench_speed *sp)
+hl_result bench_capture(hl_relighter *rc, hl_surroundings *sur, uint32_t probes, uint32_t reps, float *B,
+                        bench_speed *sp)
 {
     double *t = malloc((size_t)(reps + 1) * sizeof *t);
     if (!t) return HL_ERR_OUT_OF_MEMORY;
     hl_relight_desc d = {.terms = 200, .select = HL_SELECT_DEFAULT};
     hl_relight_stats st;
     hl_result r = hl_relighter_set_surroundings(rc, sur);
+    if (r == HL_OK) r = hl_relighter_set_probes(rc, probes ? probes : 1, 0.0);
     if (r == HL_OK) r = turn_all(sur, 0.0);
     if (r == HL_OK) r = hl_relighter_run(rc, &d, B, &st); /* first capture: the kernel's build */
     for (uint32_t k = 0; k < reps && r == HL_OK; k++) {
@@ -48,6 +50,7 @@ hl_result bench_capture(hl_relighter *rc, hl_surroundings *sur, uint32_t reps, f
         t[k] = st.seconds;
     }
     if (r == HL_OK) sp->cap_rate = 1.0 / bench_median(t, (int)reps);
+    if (r == HL_OK) sp->cap_probes = st.probes;
     /* nothing changed: the last colours again */
     for (uint32_t k = 0; k < reps && r == HL_OK; k++) {
         r = hl_relighter_run(rc, &d, B, &st);
@@ -69,5 +72,6 @@ hl_result bench_capture(hl_relighter *rc, hl_surroundings *sur, uint32_t reps, f
     free(t);
     hl_result r2 = turn_all(sur, 0.0);
     hl_result r3 = hl_relighter_set_surroundings(rc, NULL);
+    if (r3 == HL_OK) r3 = hl_relighter_set_probes(rc, 1, 0.0);
     return r != HL_OK ? r : r2 != HL_OK ? r2 : r3;
 }

@@ -119,17 +119,17 @@ static void capture_table(FILE *md, const bench_run *run)
                 "nothing moved (median of %u). Then %d rounds of the capture alone and the dot products alone\n"
                 "(means of 20 launches each); medians over the rounds. Goal: %.0f changes per second, and the\n"
                 "capture cheaper than the dot products.\n\n"
-                "| file | triangles | changes per second | goal | unchanged frame | capture alone | dot products alone | "
-                "capture / dot products |\n|---|---|---|---|---|---|---|---|\n",
+                "| file | triangles | capture points | changes per second | goal | unchanged frame | capture alone | "
+                "dot products alone | capture / dot products |\n|---|---|---|---|---|---|---|---|---|\n",
             run->envs[0].name, run->reps, run->reps, BENCH_ROUNDS, BENCH_CAPTURE_GOAL);
     for (int f = 0; f < run->nfiles; f++) {
         const bench_speed *s = &run->speed[f];
         const char *met = s->cap_rate >= BENCH_CAPTURE_GOAL ? "met" : "not met";
-        fprintf(md, "| %s | %u | %.0f | %s | %.1f us | %.3f ms | %.3f ms | %.2f |\n", bench_base_name(run->files[f]),
-                s->cap_triangles, s->cap_rate, met, 1e6 * s->cap_same, s->cap_ms, s->cap_dot_ms, s->cap_ratio);
-        printf("bench: %s: %.0f lighting changes/s with a new capture of %u triangles each (goal %.0f: %s); "
+        fprintf(md, "| %s | %u | %u | %.0f | %s | %.1f us | %.3f ms | %.3f ms | %.2f |\n", bench_base_name(run->files[f]),
+                s->cap_triangles, s->cap_probes, s->cap_rate, met, 1e6 * s->cap_same, s->cap_ms, s->cap_dot_ms, s->cap_ratio);
+        printf("bench: %s: %.0f lighting changes/s with a new capture of %u triangles from %u point(s) each (goal %.0f: %s); "
                "unchanged frame %.1f us; capture %.3f ms against dot products %.3f ms (%.2f)\n",
-               bench_base_name(run->files[f]), s->cap_rate, s->cap_triangles, BENCH_CAPTURE_GOAL, met,
+               bench_base_name(run->files[f]), s->cap_rate, s->cap_triangles, s->cap_probes, BENCH_CAPTURE_GOAL, met,
                1e6 * s->cap_same, s->cap_ms, s->cap_dot_ms, s->cap_ratio);
     }
 }

@@ -73,6 +73,9 @@ typedef struct cli_scene_opts {
     /* --surroundings-transform TX,TY,TZ,SCALE,YAW (checked when parsed) */
     float place[5];
     int place_set;
+    /* --probes N (1 to HL_PROBES_MAX, default 1) */
+    uint32_t probes;
+    int probes_set;
 } cli_scene_opts;
 
 void cli_scene_opts_init(cli_scene_opts *o);
@@ -92,6 +95,10 @@ int cli_parse_placement(const char *usage, const char *v, float place[5]);
  * prints what it holds: triangles, emitting bodies, the animation's range
  * and the time used. *out stays NULL without --surroundings. */
 hl_result cli_surroundings_load(hl_context *ctx, const cli_scene_opts *o, hl_surroundings **out, int quiet);
+/* Prints the capture points a run with surroundings used and their
+ * parallax bound (stats of hl_relighter_run), and with one point whose
+ * bound passes a few texels of the N paraboloid, how to follow it. */
+void cli_probes_report(const hl_relight_stats *st, uint32_t N, uint32_t asked);
 /* "WxH", each side 1 to 16384. */
 int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
 
@@ -114,12 +121,20 @@ int cli_parse_size(const char *s, uint32_t *w, uint32_t *h);
     "                       OBJ, ...), any number of triangles; emissive materials give\n" \
     "                       light (emissive colour x intensity, or x glTF's emissive\n" \
     "                       strength), the others are dark and hide what lies behind\n" \
-    "                       them. They are seen from ONE point, the centre of the\n"      \
-    "                       object's bounding box (ground left out), so surroundings\n"  \
-    "                       close to a large object light all of it as if from its\n"    \
-    "                       centre. Directions they leave open are lit by --env or --sky\n" \
-    "                       if given, else black; --rotate turns only the environment.\n" \
-    "                       They light the object but are not drawn in images\n"         \
+    "                       them. They are seen from the centre of the object's\n"        \
+    "                       bounding box (ground left out), so surroundings close to a\n" \
+    "                       large object light all of it as if from its centre, unless\n" \
+    "                       --probes says otherwise. Directions they leave open are lit\n" \
+    "                       by --env or --sky if given, else black; --rotate turns only\n" \
+    "                       the environment. They light the object but are not drawn in\n" \
+    "                       images\n"                                                   \
+    "  --probes N           capture the surroundings from up to N points (1 to 256; default\n" \
+    "                       1), placed where an emitter is near the vertices, and blend\n" \
+    "                       each vertex's colours over the points near it: near lamps'\n" \
+    "                       fall-off and shadow directions follow; each point costs a\n" \
+    "                       capture and a relight. No point is added once every point\n" \
+    "                       sees its emitters within 2 / (the transport's N) radians of\n" \
+    "                       where its vertices see them\n"                              \
     "  --time T             seconds into the surroundings' own node animation (default 0;\n" \
     "                       held at the first or last key outside its range)\n"         \
     CLI_USAGE_SURROUNDINGS_TRANSFORM
@@ -184,6 +199,7 @@ typedef struct bench_speed {
     double cap_rate;     /* lighting changes per second, each a new capture */
     double cap_same;     /* seconds of a run in which nothing changed */
     double cap_ms, cap_dot_ms, cap_ratio; /* capture alone, dots alone, their ratio (medians) */
+    uint32_t cap_probes; /* capture points of the last change (--probes) */
 } bench_speed;
 
 /* The goal of lighting captured from surroundings: changes per second with
@@ -213,7 +229,8 @@ hl_result bench_image(const bench_image_in *in, FILE *md);
 double bench_median(double *v, int n);
 /* `bench --surroundings`: rc lit by sur (then by its environment alone
  * again), into sp's cap_* fields; B: room for the colours. */
-hl_result bench_capture(hl_relighter *rc, hl_surroundings *sur, uint32_t reps, float *B, bench_speed *sp);
+hl_result bench_capture(hl_relighter *rc, hl_surroundings *sur, uint32_t probes, uint32_t reps, float *B,
+                        bench_speed *sp);
 
 /* The output files: written as NAME.tmp.PID, renamed when complete. */
 enum { BENCH_CSV, BENCH_MD, BENCH_GP, BENCH_OUTS };

@@ -50,7 +50,8 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
     int known = 0;
     for (int k = 0; with_value[k]; k++) known |= !strcmp(a, with_value[k]);
     int surr = o->accept_surroundings &&
-               (!strcmp(a, "--surroundings") || !strcmp(a, "--time") || !strcmp(a, "--surroundings-transform"));
+               (!strcmp(a, "--surroundings") || !strcmp(a, "--time") || !strcmp(a, "--surroundings-transform") ||
+                !strcmp(a, "--probes"));
     if (surr) {
         if (*i + 1 >= argc) return -usage_error(usage, "option %s needs a value", a);
         v = argv[++*i];
@@ -58,6 +59,10 @@ int cli_scene_opt(int argc, char **argv, int *i, const char *usage, cli_scene_op
         else if (!strcmp(a, "--surroundings-transform")) {
             if (!cli_parse_placement(usage, v, o->place)) return -2;
             o->place_set = 1;
+        } else if (!strcmp(a, "--probes")) {
+            if (!parse_u32(v, &o->probes) || o->probes < 1 || o->probes > 256)
+                return -usage_error(usage, "--probes %s: expected a whole number of capture points from 1 to 256", v);
+            o->probes_set = 1;
         } else {
             char *end = NULL;
             o->time = strtod(v, &end);
@@ -186,4 +191,18 @@ hl_result cli_surroundings_load(hl_context *ctx, const cli_scene_opts *o, hl_sur
     }
     *out = s;
     return HL_OK;
+}
+
+void cli_probes_report(const hl_relight_stats *st, uint32_t N, uint32_t asked)
+{
+    const double deg = 180.0 / 3.14159265358979323846;
+    char bound[64];
+    if (isfinite(st->parallax)) snprintf(bound, sizeof bound, "%.2g degrees", st->parallax * deg);
+    else snprintf(bound, sizeof bound, "unbounded (an emitter among the vertices)");
+    fprintf(stderr, "capture points: %u of %u; parallax bound %s (a texel: %.2g to %.2g degrees)\n", st->probes, asked,
+            bound, 2.0 / N * deg, 4.0 / N * deg);
+    /* past a few texels the one point's shadows and fall-off are off */
+    if (asked == 1 && !(st->parallax <= 8.0 / N))
+        fprintf(stderr, "capture points: an emitter is near enough for the capture point's view of it to differ "
+                "from the vertices'; --probes 32 follows it (docs/CAPTURE.md)\n");
 }

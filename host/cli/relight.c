@@ -157,6 +157,7 @@ int cmd_relight(int argc, char **argv)
     if (o.time_set && !o.surroundings) return usage_error(usage, "%s", "--time needs --surroundings");
     if (o.place_set && !o.surroundings) return usage_error(usage, "%s", "--surroundings-transform needs --surroundings");
     if (reference && !o.surroundings) return usage_error(usage, "%s", "--reference needs --surroundings");
+    if (o.probes_set && !o.surroundings) return usage_error(usage, "%s", "--probes needs --surroundings");
     if (reference && (env_path || want_sky))
         return usage_error(usage, "%s", "--reference integrates the surroundings' emitters alone: drop --env and the sky options");
     /* without --surroundings the sky is the default; with them, no map: black where they leave open */
@@ -202,6 +203,7 @@ int cmd_relight(int argc, char **argv)
     if (r == HL_OK && !cd.quiet) cli_device_memory("", rl, scene, t->info.vertex_count, !t->entries);
     if (r == HL_OK && env) r = hl_relighter_set_env(rl, env);
     if (r == HL_OK && surr) r = hl_relighter_set_surroundings(rl, surr);
+    if (r == HL_OK && surr && o.probes_set) r = hl_relighter_set_probes(rl, o.probes, 0.0);
     if (r == HL_OK) {
         rgb = malloc((size_t)t->info.vertex_count * 12);
         if (!rgb) r = HL_ERR_OUT_OF_MEMORY;
@@ -222,6 +224,7 @@ int cmd_relight(int argc, char **argv)
         fprintf(stderr, "negative light: %u of %u vertices summed below zero and were clamped to 0 (the most negative "
                 "channel was %.3g%% of the brightest)\n", st.negative_vertices, t->info.vertex_count,
                 100.0 * st.most_negative);
+    if (r == HL_OK && surr && !cd.quiet) cli_probes_report(&st, t->info.N, o.probes_set ? o.probes : 1);
     if (r == HL_OK && surr && !cd.quiet) {
         /* what the surroundings cost: memory and time grow with their
            triangles (no cap), so say both */

@@ -510,6 +510,14 @@ typedef struct hl_relight_stats {
                                      vertices (<= 0) */
     double seconds;               /* wall time of this lighting change */
     int reused;                   /* 1: nothing changed, no work was done */
+    uint32_t probes;              /* surroundings: the capture points used
+                                     (hl_relighter_set_probes); 0 without */
+    double parallax;              /* surroundings: the bound of how far (in
+                                     radians) an emitter may lie from where
+                                     a vertex's capture point sees it: r /
+                                     (d - r), r the farthest vertex a probe
+                                     serves, d its nearest emitter;
+                                     infinite where d <= r */
 } hl_relight_stats;
 
 HL_API hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out);
@@ -586,6 +594,16 @@ HL_API hl_result hl_surroundings_triangles(hl_surroundings *s, const float **pos
  * environment only. The capture point is the centre of the bounding box
  * of the transport's object (its ground left out). */
 HL_API hl_result hl_relighter_set_surroundings(hl_relighter *r, hl_surroundings *s);
+/* Near surroundings seen from more than one point: up to max_probes
+ * capture points (1 to 256; 1, the default, is the one capture point
+ * above), placed over the transport's vertices where an emitter is near,
+ * until every point's parallax bound (hl_relight_stats.parallax) is at
+ * most tol radians (0: 2 / N, about a paraboloid texel). Each run then
+ * captures and relights once a point and blends each vertex's colours
+ * smoothly over the points near it (docs/CAPTURE.md): the cost is the
+ * points' count times a run's. The points follow the surroundings as
+ * they move. */
+HL_API hl_result hl_relighter_set_probes(hl_relighter *r, uint32_t max_probes, double tol);
 
 /* ---------------------------------------------------------------- images */
 

@@ -27,6 +27,14 @@
  *                            centre lights those vertices); a lamp 1000
  *                            times as far and as large gives exact = centre;
  *                            the relit colours against centre and discrete.
+ * captured_light.probes      more than one capture point
+ *                            (hl_relighter_set_probes): every vertex's
+ *                            weights sum to 1, no more points than asked; a
+ *                            far lamp needs one, and gives the colours of
+ *                            no probes bit for bit; a near lamp's error
+ *                            against the exact reference falls; OpenCL
+ *                            against the reference, colours into a device
+ *                            buffer, and bad counts and tolerances.
  *
  * Depends on: haarlight_core, the haarlight command (HL_BIN) for the
  * transport, an OpenCL device (PoCL).
@@ -37,9 +45,12 @@
 #include "haarlight_tools.h"
 #include <unistd.h>
 
+#include "capture.h"
 #include "capture_util.h"
 #include "hl_internal.h"
 #include "hl_test.h"
+#include "cl_backend.h"
+#include "lighting.h"
 
 /* The bunny on a ground of res x res quads: its transport, made once per
  * test process and ground resolution. */
@@ -594,10 +605,169 @@ done:
     hl_context_destroy(ref);
 }
 
+/* ============================================================== probes */
+
+/* A square lamp of half side h, radiance Le, 4 above the object's top
+ * and 3 beyond its +X side (as case_reference's, with no panel). */
+static void near_lamp(soup *s, const hl_mesh *m, double h, double far)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t v = 0; v < m->object_vertex_count; v++)
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fmin(lo[a], m->positions[3 * v + a]);
+            hi[a] = fmax(hi[a], m->positions[3 * v + a]);
+        }
+    const double c[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
+    const double lc0[3] = {hi[0] + 3.0, hi[1] + 4.0, c[2]};
+    double lc[3], lu[3] = {far * h, 0, 0}, lv[3] = {0, 0, far * h};
+    for (int a = 0; a < 3; a++) lc[a] = c[a] + far * (lc0[a] - c[a]);
+    static const float Le[3] = {30.0f, 20.0f, 10.0f};
+    s->n = 0;
+    add_quad(s, lc, lu, lv, Le);
+}
+
+static void case_probes(void)
+{
+    hl_context *ref = hl_test_ref_context(0);
+    hl_transport *t = bunny(ref, 24);
+    HL_CHECK(t != NULL, "transport");
+    if (!t) { hl_context_destroy(ref); return; }
+    const hl_mesh *m = t->mesh;
+    const uint32_t nv = m->vertex_count;
+    static soup s;
+    near_lamp(&s, m, 0.5, 1.0);
+    hl_surroundings *sur = surroundings_of(ref, &s);
+    float *ex = malloc((size_t)nv * 12), *c1 = malloc((size_t)nv * 12), *cp = malloc((size_t)nv * 12);
+    hl_relighter *r = NULL;
+    HL_CHECK(sur && ex && c1 && cp && hl_relighter_create(ref, t, &r) == HL_OK &&
+                 hl_relighter_set_surroundings(r, sur) == HL_OK,
+             "setup");
+    if (!sur || !ex || !c1 || !cp || !r) goto done;
+
+    /* the layout: the weights of every vertex sum to 1, at most the
+       points asked, one point the object's centre */
+    const float *pos = NULL, *em = NULL;
+    HL_CHECK(hl_surroundings_triangles(sur, &pos, &em) == HL_OK, "triangles");
+    hl_capture_scene cs = {.positions = pos, .emission = em, .triangle_count = hl_surroundings_triangle_count(sur)};
+    float centre[3];
+    hl_object_centre(m, centre);
+    static const uint32_t asks[] = {1, 8, 32};
+    double last_bound = INFINITY;
+    for (int k = 0; k < 3; k++) {
+        hl_probe_set ps;
+        HL_CHECK(hl_probe_set_build(ref, m->positions, nv, centre, &cs, asks[k], 2.0 / t->info.N, &ps) == HL_OK,
+                 "probes");
+        double *sum = calloc(nv, sizeof *sum), worst = 0.0;
+        for (uint32_t p = 0; p < ps.count; p++)
+            for (uint32_t e = ps.start[p]; e < ps.start[p + 1]; e++) sum[ps.vert[e]] += ps.weight[e];
+        for (uint32_t v = 0; v < nv; v++) worst = fmax(worst, fabs(sum[v] - 1.0));
+        printf("%u points asked: %u placed, parallax bound %.3g rad (one point: %.3g), %u weights\n", asks[k],
+               ps.count, ps.worst_ratio, ps.single_ratio, ps.start[ps.count]);
+        HL_CHECK(ps.count >= 1 && ps.count <= asks[k], "%u points for %u asked", ps.count, asks[k]);
+        HL_CHECK(asks[k] == 1 || ps.count == asks[k], "a near lamp spends the budget (%u of %u)", ps.count, asks[k]);
+        if (k == 0) HL_CHECK(!memcmp(ps.points, centre, 12), "one point: the object's centre");
+        hl_check_error("each vertex's weights sum to 1 (max abs)", worst, 1e-6);
+        if (k == 2) HL_CHECK(ps.worst_ratio < last_bound, "32 points bound the parallax below 8 (%g, %g)",
+                             ps.worst_ratio, last_bound);
+        last_bound = ps.worst_ratio;
+        free(sum);
+        hl_probe_set_free(&ps);
+    }
+
+    /* a near lamp: the exact reference against one point and 32 */
+    hl_relight_desc d = {.terms = HL_TERMS_ALL, .select = HL_SELECT_DEFAULT};
+    hl_relight_stats st1, stp;
+    double sec = 0.0;
+    HL_CHECK(hl_bench_capture_ref(ref, t, sur, HL_CAPTURE_REF_EXACT, 16, ex, &sec) == HL_OK, "exact: %s",
+             hl_context_last_error(ref));
+    HL_CHECK(hl_relighter_run(r, &d, c1, &st1) == HL_OK, "one point: %s", hl_context_last_error(ref));
+    HL_CHECK(hl_relighter_set_probes(r, 32, 0.0) == HL_OK, "set_probes");
+    HL_CHECK(hl_relighter_run(r, &d, cp, &stp) == HL_OK, "32 points: %s", hl_context_last_error(ref));
+    const double e1 = rel_l2(c1, ex, 3 * (size_t)nv), ep = rel_l2(cp, ex, 3 * (size_t)nv);
+    printf("near lamp, relative L2 against exact: one point %.4f (bound %.3g), %u points %.4f (bound %.3g)\n", e1,
+           st1.parallax, stp.probes, ep, stp.parallax);
+    HL_CHECK(st1.probes == 1 && stp.probes == 32, "points used: %u and %u", st1.probes, stp.probes);
+    /* the one point's error is nearly all parallax (case_reference), and
+       32 points divide the bound by more than 4 */
+    HL_CHECK(ep < 0.5 * e1, "32 points: %.4f not below half of one point's %.4f", ep, e1);
+    for (size_t i = 0; i < 3 * (size_t)nv; i++)
+        if (!(cp[i] >= 0.0f && isfinite(cp[i]))) {
+            HL_CHECK(0, "blended colour %zu is %g", i, (double)cp[i]);
+            break;
+        }
+
+    /* the same lamp 1000 times as far and as large: one point is enough,
+       and it is the relighter's own (the same bytes as without probes) */
+    hl_surroundings_destroy(sur);
+    near_lamp(&s, m, 0.5, 1000.0);
+    sur = surroundings_of(ref, &s);
+    HL_CHECK(sur && hl_relighter_set_surroundings(r, sur) == HL_OK, "far lamp");
+    HL_CHECK(hl_relighter_set_probes(r, 1, 0.0) == HL_OK && hl_relighter_run(r, &d, c1, &st1) == HL_OK, "far, 1");
+    HL_CHECK(hl_relighter_set_probes(r, 32, 0.0) == HL_OK && hl_relighter_run(r, &d, cp, &stp) == HL_OK, "far, 32");
+    printf("far lamp: %u point(s) of 32, bound %.3g rad (tolerance 2 / N = %.3g)\n", stp.probes, stp.parallax,
+           2.0 / t->info.N);
+    HL_CHECK(stp.probes == 1, "a far lamp took %u points", stp.probes);
+    hl_check_error("far lamp, 32 asked: against no probes (max abs)", hl_test_rel_diff(c1, cp, 3 * (size_t)nv), 0.0);
+
+    /* bad counts and tolerances */
+    HL_CHECK(hl_relighter_set_probes(r, 0, 0.0) == HL_ERR_INVALID_ARGUMENT, "0 points");
+    HL_CHECK(hl_relighter_set_probes(r, HL_PROBES_MAX + 1, 0.0) == HL_ERR_INVALID_ARGUMENT, "257 points");
+    HL_CHECK(strstr(hl_context_last_error(ref), "1 to 256") != NULL, "the range named: %s", hl_context_last_error(ref));
+    HL_CHECK(hl_relighter_set_probes(r, 8, NAN) == HL_ERR_INVALID_ARGUMENT, "NaN tolerance");
+    HL_CHECK(hl_relighter_set_probes(r, 8, -1.0) == HL_ERR_INVALID_ARGUMENT, "negative tolerance");
+
+    /* OpenCL against the reference with 8 points, and the colours into
+       a device buffer equal to those read back */
+    hl_context *cl = hl_test_cl_context(0);
+    HL_CHECK(cl != NULL, "an OpenCL device is needed");
+    hl_transport *tc = cl ? bunny(cl, 24) : NULL;
+    hl_relighter *rc = NULL;
+    hl_surroundings *sc = NULL;
+    near_lamp(&s, m, 0.5, 1.0);
+    hl_surroundings_destroy(sur);
+    sur = surroundings_of(ref, &s);
+    if (cl && tc) sc = surroundings_of(cl, &s);
+    HL_CHECK(sc && sur && hl_relighter_create(cl, tc, &rc) == HL_OK && hl_relighter_set_surroundings(rc, sc) == HL_OK &&
+                 hl_relighter_set_probes(rc, 8, 0.0) == HL_OK && hl_relighter_set_surroundings(r, sur) == HL_OK &&
+                 hl_relighter_set_probes(r, 8, 0.0) == HL_OK,
+             "OpenCL relighter");
+    if (rc) {
+        hl_relight_desc d2 = {.terms = 200};
+        HL_CHECK(hl_relighter_run(r, &d2, c1, NULL) == HL_OK && hl_relighter_run(rc, &d2, cp, &stp) == HL_OK, "runs");
+        HL_CHECK(stp.probes == 8, "8 points: %u", stp.probes);
+        hl_check_error("8 points, M = 200: OpenCL vs reference colours (relative to max)",
+                       hl_test_rel_diff(c1, cp, 3 * (size_t)nv), 1e-4);
+        void *buf = NULL;
+        float *b4 = malloc((size_t)nv * 16);
+        HL_CHECK(b4 && hl_cl_buffer(cl, (size_t)nv * 16, &buf) == HL_OK, "buffer");
+        HL_CHECK(buf && hl_relighter_run_into(rc, &d2, buf, 0, NULL) == HL_OK &&
+                     hl_cl_buffer_read(cl, buf, (size_t)nv * 16, b4) == HL_OK,
+                 "into a buffer: %s", hl_context_last_error(cl));
+        size_t diff = 0;
+        for (uint32_t v = 0; v < nv && b4; v++) diff += memcmp(b4 + 4 * (size_t)v, cp + 3 * (size_t)v, 12) != 0;
+        printf("colours into a device buffer: %zu of %u vertices differ from those read back\n", diff, nv);
+        HL_CHECK(diff == 0, "the device buffer's colours");
+        if (buf) hl_cl_buffer_release(cl, buf);
+        free(b4);
+    }
+    hl_relighter_destroy(rc);
+    hl_surroundings_destroy(sc);
+    hl_transport_destroy(tc);
+    hl_context_destroy(cl);
+done:
+    free(ex);
+    free(c1);
+    free(cp);
+    hl_relighter_destroy(r);
+    hl_surroundings_destroy(sur);
+    hl_transport_destroy(t);
+    hl_context_destroy(ref);
+}
+
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {{"twin", case_twin},         {"reuse", case_reuse}, {"crosscheck", case_crosscheck},
                                          {"motion", case_motion},     {"bad", case_bad},     {"reference", case_reference},
-                                         {NULL, NULL}};
+                                         {"probes", case_probes},     {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

@@ -64,6 +64,15 @@ capture)
   rate=$(echo "$line" | awk '{ print $3 }')
   awk -v r="$rate" 'BEGIN { exit !(r > 0) }' || fail "rate $rate"
   grep -q "## Lighting captured from surroundings" "$tmp/out/bench.md" || fail "bench.md has no capture table"
+  echo "$line" | grep -q "from 1 point(s)" || fail "the capture line does not say one capture point"
+  # more capture points: each change captures and relights once a point
+  "$bin" bench "$tmp/s.hlt" --sky "${quick[@]}" --surroundings "$data/surroundings/lamp_orbit.gltf" --probes 4 \
+    -o "$tmp/out4" >"$tmp/stdout4.txt" 2>"$tmp/stderr4.txt" || { cat "$tmp/stderr4.txt"; fail "bench --probes 4 exited $?"; }
+  line4=$(grep "new capture" "$tmp/stdout4.txt")
+  echo "$line4"
+  echo "$line4" | grep -q "from 4 point(s)" || fail "--probes 4: the capture line does not say 4 points"
+  "$bin" bench "$tmp/s.hlt" "${quick[@]}" --probes 4 -o "$tmp/o" >/dev/null 2>"$tmp/e5.txt"; rc=$?
+  [ $rc -eq 2 ] && grep -q "probes needs --surroundings" "$tmp/e5.txt" || fail "--probes alone: exit $rc, $(cat "$tmp/e5.txt")"
   ;;
 bad_options)
   scene

@@ -191,4 +191,36 @@ static inline int hl_capture_meets(const float *T, const float *c)
  * kernel and the twin read them; the scene must have passed the checks. */
 void hl_capture_pack(const hl_capture_scene *scene, float *tris);
 
+/* Capture points for near surroundings (capture_probes.c): the
+ * transport's vertices split as a k-d tree, the cell whose probe (its
+ * box's centre) has the largest parallax bound first, until every bound
+ * is within tol or max_probes are placed. The bound of a probe serving
+ * points within rho of it, with the nearest emitting triangle at d, is
+ * rho / (d - rho) radians (infinite where d <= rho, 0 where nothing
+ * emits). Each vertex's colour is the sum over the probes listing it of
+ * weight x its colour under that probe's capture; a vertex's weights sum
+ * to 1 and depend only on its distances to the probes
+ * ((1 - (r / (1.5 rho_k))^2)^2, normalised), so they are continuous over
+ * the mesh. One probe (nothing near enough to split for, or max_probes
+ * 1) is centre itself, weight 1 for every vertex. */
+/* Most capture points a relighter takes (hl_relighter_set_probes). */
+#define HL_PROBES_MAX 256u
+typedef struct hl_probe_set {
+    uint32_t count;
+    float *points;        /* 3 a probe */
+    double *radius;       /* its cell's half-diagonal (at least 1e-6 of the largest) */
+    uint32_t *start;      /* count + 1: probe k lists vert[start[k] .. start[k + 1]) */
+    uint32_t *vert;
+    float *weight;        /* beside vert */
+    double worst_ratio;   /* the largest bound over the probes (radians) */
+    double single_ratio;  /* the bound of one probe at centre serving every vertex */
+} hl_probe_set;
+
+hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, const float centre[3],
+                             const hl_capture_scene *s, uint32_t max_probes, double tol, hl_probe_set *out);
+void hl_probe_set_free(hl_probe_set *p);
+/* The distance from p to the nearest emitting triangle of s (infinite
+ * when none emits). */
+double hl_probe_nearest_emitter(const hl_capture_scene *s, const double p[3]);
+
 #endif

@@ -150,6 +150,10 @@ void hl_cl_light_clamp_tally(const hl_cl_light *l, uint32_t *negative, float *lo
  * released after them (the caller has finished its GL work on it: glFinish). */
 hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, void *out, int gl,
                                hl_select_result *res);
+/* Writes rgba4 (4 floats per vertex, the host's) into out as
+ * hl_cl_light_run_into would have left it, acquiring it from OpenGL
+ * around the write with gl set; returns once OpenGL may draw from it. */
+hl_result hl_cl_light_write_colours(hl_cl_light *l, const float *rgba4, void *out, int gl);
 /* A cl_mem (returned as void *) over the OpenGL buffer object gl_buffer
  * (clCreateFromGLBuffer, write only); needs a context created with the GL
  * context's properties. hl_cl_mem_release frees such handles. */

@@ -472,6 +472,28 @@ hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_p
     return r;
 }
 
+hl_result hl_cl_light_write_colours(hl_cl_light *l, const float *rgba4, void *out, int gl)
+{
+    cl_mem m = (cl_mem)out;
+    size_t have = 0, need = (size_t)l->nverts * 16;
+    CL_TRY(l->ctx, clGetMemObjectInfo(m, CL_MEM_SIZE, sizeof have, &have, NULL), "the colour buffer");
+    if (have < need)
+        return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "the colour buffer holds %zu bytes; %u vertices need %zu", have,
+                       l->nverts, need);
+    if (gl) TRY(hl_cl_gl_acquire(l->ctx, m));
+    cl_int e = clEnqueueWriteBuffer(l->cl->queue, m, CL_TRUE, 0, need, rgba4, 0, NULL, NULL);
+    hl_result r = e == CL_SUCCESS ? HL_OK
+                                  : hl_fail(l->ctx, HL_ERR_OPENCL, "OpenCL: writing the blended colours failed (%s)",
+                                            hl_cl_err_name(e));
+    if (gl) {
+        cl_int e2 = hl_cl_gl_release(l->cl, m);
+        if (r == HL_OK && e2 != CL_SUCCESS)
+            r = hl_fail(l->ctx, HL_ERR_OPENCL, "OpenCL: clEnqueueReleaseGLObjects failed (%s)", hl_cl_err_name(e2));
+    }
+    clFinish(l->cl->queue);
+    return r;
+}
+
 hl_result hl_cl_light_stage_env2para(hl_cl_light *l, uint32_t s0, float f, float *Lp)
 {
     TRY(enq_env2para(l, s0, f, l->Lp));

@@ -69,6 +69,15 @@ struct hl_relighter {
     uint32_t sur_n, sur_room;
     hl_capture_scene cscene;
     float *Lenv;            /* reference: the environment behind them */
+    /* more than one capture point (hl_relighter_set_probes): the points,
+       made again when the triangles move, and the blended colours */
+    uint32_t probes_max;
+    double probe_tol;
+    hl_probe_set probes;
+    int probes_stale;
+    float centre[3];        /* the one capture point's place */
+    float *blend4;          /* V x 4: the colours blended over the points */
+    int blended;            /* rgba is blend4 */
 };
 
 void hl_relighter_destroy(hl_relighter *r)
@@ -93,6 +102,8 @@ void hl_relighter_destroy(hl_relighter *r)
     free(r->sur_pos);
     free(r->sur_em);
     free(r->Lenv);
+    hl_probe_set_free(&r->probes);
+    hl_free_big(r->blend4);
     free(r);
 }
 
@@ -269,6 +280,8 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
         }
         res = row_measures(r, t);
         hl_object_centre(t->mesh, r->cscene.center);
+        memcpy(r->centre, r->cscene.center, sizeof r->centre);
+        r->probes_max = 1;
         /* the device starts with lg->area, the Haar supports' (an SH
            transport's area weights differ: uploaded when first used) */
         r->uploaded_weights = t->info.basis == HL_TRANSPORT_BASIS_HAAR ? HL_SELECT_AREA : 0u;
@@ -396,6 +409,26 @@ hl_result hl_relighter_set_surroundings(hl_relighter *r, hl_surroundings *s)
     return HL_OK;
 }
 
+hl_result hl_relighter_set_probes(hl_relighter *r, uint32_t max_probes, double tol)
+{
+    if (!r) return HL_ERR_INVALID_ARGUMENT;
+    if (max_probes < 1 || max_probes > HL_PROBES_MAX)
+        return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "probes: %u capture points: expected 1 to %u", max_probes,
+                       HL_PROBES_MAX);
+    if (!(tol >= 0.0) || !isfinite(tol))
+        return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "probes: the parallax tolerance %g must be a finite number >= 0",
+                       tol);
+    if (max_probes > 1 && !r->blend4) {
+        r->blend4 = hl_alloc_big(r->ctx, (size_t)r->t->info.vertex_count * 16, "the colours blended over the probes");
+        if (!r->blend4) return HL_ERR_OUT_OF_MEMORY;
+    }
+    r->probes_max = max_probes;
+    r->probe_tol = tol > 0.0 ? tol : 2.0 / r->g->N;
+    r->probes_stale = 1;
+    r->env_serial++;
+    return HL_OK;
+}
+
 /* Takes the surroundings' current triangles: a new lighting (env_serial)
  * when they differ from the last captured ones. */
 static hl_result take_surroundings(hl_relighter *r)
@@ -420,6 +453,7 @@ static hl_result take_surroundings(hl_relighter *r)
     r->cscene.emission = r->sur_em;
     r->cscene.triangle_count = n;
     r->env_serial++;
+    r->probes_stale = 1;
     /* checked here, where the file can be named (the capture checks again) */
     res = hl_capture_check(r->ctx, r->g->ncoef, &r->cscene);
     if (res != HL_OK) {
@@ -560,6 +594,70 @@ static void negative_light(const float *rgba, uint32_t V, uint32_t *negative, fl
     *brightest = hi;
 }
 
+/* What the selection kept, into st. */
+static void selection_stats(const hl_relighter *r, const hl_select_result *sr, hl_relight_stats *st)
+{
+    double et = sr->energy_total, ek = sr->energy_kept;
+    st->terms_kept = sr->kept;
+    st->energy_kept = et > 0 ? ek / et : 1.0;
+    /* the energies are of Y 2^-e (hl_light_energy_scale) */
+    st->error_bound = r->max_row_norm * sqrt((double)sr->energy_dropped) * ldexp(1.0, (int)sr->energy_exp - 127);
+    st->blocks_skipped = 1.0 - (double)sr->blocks_used / r->g->nblocks;
+}
+
+/* The capture points for the surroundings' current triangles (one, the
+ * object's centre, without hl_relighter_set_probes: its bound is still
+ * measured, for stats.parallax). */
+static hl_result place_probes(hl_relighter *r)
+{
+    hl_probe_set_free(&r->probes);
+    memcpy(r->cscene.center, r->centre, sizeof r->centre);
+    hl_result res = hl_probe_set_build(r->ctx, r->t->mesh->positions, r->t->info.vertex_count, r->centre, &r->cscene,
+                                       r->probes_max, r->probe_tol, &r->probes);
+    if (res == HL_OK) r->probes_stale = 0;
+    return res;
+}
+
+/* A change under more than one capture point: each point's capture and
+ * relight in turn (on either backend, as a run with one), each vertex's
+ * colours added into blend4 with its weights, in the points' order. The
+ * stats are the worst point's: the most terms, the least energy kept, the
+ * largest bound, the fewest blocks skipped. */
+static hl_result run_probes(hl_relighter *r, uint32_t s0, float f, hl_select_params sp, const float *weight,
+                            int keep_negative, hl_relight_stats *st)
+{
+    const hl_probe_set *p = &r->probes;
+    float *acc = r->blend4;
+    memset(acc, 0, (size_t)r->t->info.vertex_count * 16);
+    hl_result res = HL_OK;
+    for (uint32_t k = 0; k < p->count && res == HL_OK; k++) {
+        memcpy(r->cscene.center, p->points + 3 * (size_t)k, 12);
+        const float *rgba = r->B4;
+        hl_select_result sr;
+        if (r->cl) {
+            res = hl_cl_light_set_capture(r->cl, r->cap, &r->cscene, r->cells != NULL);
+            if (res == HL_OK) res = hl_cl_light_run(r->cl, s0, f, sp, &rgba, &sr);
+        } else {
+            res = run_reference(r, s0, f, sp, weight, keep_negative, &sr);
+        }
+        if (res != HL_OK) break;
+        for (uint32_t e = p->start[k]; e < p->start[k + 1]; e++) {
+            const size_t v = p->vert[e];
+            const float w = p->weight[e];
+            for (int c = 0; c < 4; c++) acc[4 * v + c] += w * rgba[4 * v + c];
+        }
+        hl_relight_stats one = {0};
+        selection_stats(r, &sr, &one);
+        if (k == 0) *st = one;
+        st->terms_kept = one.terms_kept > st->terms_kept ? one.terms_kept : st->terms_kept;
+        st->energy_kept = one.energy_kept < st->energy_kept ? one.energy_kept : st->energy_kept;
+        st->error_bound = one.error_bound > st->error_bound ? one.error_bound : st->error_bound;
+        st->blocks_skipped = one.blocks_skipped < st->blocks_skipped ? one.blocks_skipped : st->blocks_skipped;
+    }
+    memcpy(r->cscene.center, r->centre, sizeof r->centre);
+    return res;
+}
+
 /* A lighting change, its colours into rgba (and from there into vertex_rgb
  * when given) or, with out set, into that device buffer
  * (hl_cl_light_run_into). */
@@ -588,7 +686,7 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         r->last.keep_negative == d.keep_negative) {
         st = r->last_stats;
         st.reused = 1;
-        if (!out && r->cl) {
+        if (!out && r->cl && !r->blended) {
             hl_result res = hl_cl_light_colours(r->cl, &r->rgba);
             if (res != HL_OK) return res;
         }
@@ -605,27 +703,38 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         hl_select_params sp = {d.terms, d.select, {0, 0}};
         hl_select_result sr;
         r->have_last = 0; /* rgba or out may be half written on failure */
+        r->blended = 0;
         if (r->cl) hl_cl_light_keep_negative(r->cl, d.keep_negative);
-        if (res == HL_OK && r->cl) res = hl_cl_light_set_capture(r->cl, r->sur ? r->cap : NULL, &r->cscene, r->cells != NULL);
-        if (res == HL_OK && out) res = hl_cl_light_run_into(r->cl, s0, f, sp, out, gl, &sr);
-        else if (res == HL_OK)
-            res = r->cl ? hl_cl_light_run(r->cl, s0, f, sp, &r->rgba, &sr)
-                        : run_reference(r, s0, f, sp, weight, d.keep_negative, &sr);
+        if (res == HL_OK && r->sur && r->probes_stale) res = place_probes(r);
+        const int multi = res == HL_OK && r->sur && r->probes.count > 1;
+        if (res == HL_OK && multi) {
+            res = run_probes(r, s0, f, sp, weight, d.keep_negative, &st);
+            r->rgba = r->blend4;
+            r->blended = res == HL_OK;
+            /* the blend is the host's: into a device buffer as a write */
+            if (res == HL_OK && out) res = hl_cl_light_write_colours(r->cl, r->blend4, out, gl);
+        } else {
+            if (res == HL_OK && r->cl)
+                res = hl_cl_light_set_capture(r->cl, r->sur ? r->cap : NULL, &r->cscene, r->cells != NULL);
+            if (res == HL_OK && out) res = hl_cl_light_run_into(r->cl, s0, f, sp, out, gl, &sr);
+            else if (res == HL_OK)
+                res = r->cl ? hl_cl_light_run(r->cl, s0, f, sp, &r->rgba, &sr)
+                            : run_reference(r, s0, f, sp, weight, d.keep_negative, &sr);
+            if (res == HL_OK) selection_stats(r, &sr, &st);
+        }
         if (res != HL_OK) return res;
-        if (!r->cl) r->rgba = r->B4;
+        if (!r->cl) r->rgba = multi ? r->blend4 : r->B4;
         if (!out) {
             uint32_t n;
             float lo, hi;
-            if (r->cl) hl_cl_light_clamp_tally(r->cl, &n, &lo, &hi);
+            if (r->cl && !multi) hl_cl_light_clamp_tally(r->cl, &n, &lo, &hi);
             else negative_light(r->rgba, V, &n, &lo, &hi);
             negative_stats(n, lo, hi, &st);
         }
-        double et = sr.energy_total, ek = sr.energy_kept;
-        st.terms_kept = sr.kept;
-        st.energy_kept = et > 0 ? ek / et : 1.0;
-        /* the energies are of Y 2^-e (hl_light_energy_scale) */
-        st.error_bound = r->max_row_norm * sqrt((double)sr.energy_dropped) * ldexp(1.0, (int)sr.energy_exp - 127);
-        st.blocks_skipped = 1.0 - (double)sr.blocks_used / r->g->nblocks;
+        if (r->sur) {
+            st.probes = r->probes.count;
+            st.parallax = r->probes.worst_ratio;
+        }
         r->have_last = 1;
         r->last_out = out;
         r->last = d;
