@@ -260,7 +260,7 @@ relight_surroundings)
   expect_error transform_alone 2 "--surroundings-transform needs --surroundings" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings-transform 0,0,0,1,0 -o "$tmp/o.ply"
   # more capture points: the lamp orbits close, so the one point's bound is
   # said with the way to follow it, and 8 points are placed and said
-  grep -q "capture points: 1 of 1; parallax bound" "$tmp/s0.txt" || fail "no line saying the capture point's parallax bound"
+  grep -q "capture points: 1 of 1; parallax up to" "$tmp/s0.txt" || fail "no line saying the capture point's parallax bound"
   grep -q -- "--probes 32 follows it" "$tmp/s0.txt" || fail "a near lamp's parallax does not point at --probes"
   "$bin" relight "$tmp/s.hlt" --surroundings "$sur" --probes 8 -o "$tmp/sp.ply" 2>"$tmp/sp.txt" || fail "relight --probes 8"
   grep "capture points" "$tmp/sp.txt"

@@ -196,10 +196,11 @@ hl_result cli_surroundings_load(hl_context *ctx, const cli_scene_opts *o, hl_sur
 void cli_probes_report(const hl_relight_stats *st, uint32_t N, uint32_t asked)
 {
     const double deg = 180.0 / 3.14159265358979323846;
-    char bound[64];
-    if (isfinite(st->parallax)) snprintf(bound, sizeof bound, "%.2g degrees", st->parallax * deg);
-    else snprintf(bound, sizeof bound, "unbounded (an emitter among the vertices)");
-    fprintf(stderr, "capture points: %u of %u; parallax bound %s (a texel: %.2g to %.2g degrees)\n", st->probes, asked,
+    char bound[96];
+    if (st->parallax < 0.5 * 3.14159265358979323846)
+        snprintf(bound, sizeof bound, "%.2g degrees", st->parallax * deg);
+    else snprintf(bound, sizeof bound, "90 degrees (an emitter as near as the vertices a point serves)");
+    fprintf(stderr, "capture points: %u of %u; parallax up to %s (a texel: %.2g to %.2g degrees)\n", st->probes, asked,
             bound, 2.0 / N * deg, 4.0 / N * deg);
     /* past a few texels the one point's shadows and fall-off are off */
     if (asked == 1 && !(st->parallax <= 8.0 / N))

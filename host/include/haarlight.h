@@ -514,10 +514,11 @@ typedef struct hl_relight_stats {
                                      (hl_relighter_set_probes); 0 without */
     double parallax;              /* surroundings: the bound of how far (in
                                      radians) an emitter may lie from where
-                                     a vertex's capture point sees it: r /
-                                     (d - r), r the farthest vertex a probe
-                                     serves, d its nearest emitter;
-                                     infinite where d <= r */
+                                     a vertex's capture point sees it:
+                                     asin(r / d), r the farthest a vertex
+                                     a point serves may be, d the point's
+                                     nearest emitter; pi / 2 (no bound)
+                                     where d <= r */
 } hl_relight_stats;
 
 HL_API hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out);

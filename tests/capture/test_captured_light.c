@@ -667,7 +667,7 @@ static void case_probes(void)
         HL_CHECK(asks[k] == 1 || ps.count == asks[k], "a near lamp spends the budget (%u of %u)", ps.count, asks[k]);
         if (k == 0) HL_CHECK(!memcmp(ps.points, centre, 12), "one point: the object's centre");
         hl_check_error("each vertex's weights sum to 1 (max abs)", worst, 1e-6);
-        if (k == 2) HL_CHECK(ps.worst_ratio < last_bound, "32 points bound the parallax below 8 (%g, %g)",
+        if (k == 2) HL_CHECK(ps.worst_ratio < last_bound, "32 points bound the parallax below 8 points (%g, %g)",
                              ps.worst_ratio, last_bound);
         last_bound = ps.worst_ratio;
         free(sum);

@@ -196,8 +196,8 @@ void hl_capture_pack(const hl_capture_scene *scene, float *tris);
  * box's centre) has the largest parallax bound first, until every bound
  * is within tol or max_probes are placed. The bound of a probe serving
  * points within rho of it, with the nearest emitting triangle at d, is
- * rho / (d - rho) radians (infinite where d <= rho, 0 where nothing
- * emits). Each vertex's colour is the sum over the probes listing it of
+ * asin(rho / d) radians (pi / 2 where d <= rho, 0 where nothing emits):
+ * how far apart a vertex and its probe may see an emitter point. Each vertex's colour is the sum over the probes listing it of
  * weight x its colour under that probe's capture; a vertex's weights sum
  * to 1 and depend only on its distances to the probes
  * ((1 - (r / (1.5 rho_k))^2)^2, normalised), so they are continuous over

@@ -4,8 +4,8 @@
  *
  * One capture point sees an emitter in one direction and solid angle; a
  * vertex at distance r from it, with the emitter at distance d, sees it up
- * to about r / (d - r) radians away and at another distance (the parallax,
- * docs/CAPTURE.md). The vertices are split as a k-d tree (the cell with
+ * to asin(r / d) radians away and at a distance off by up to a factor
+ * 1 -+ r / d (the parallax, docs/CAPTURE.md). The vertices are split as a k-d tree (the cell with
  * the largest bound first, at the middle of its box's longest side) until
  * every cell's bound is within the tolerance or the budget is spent; each
  * cell's probe is its box's centre. A vertex's colour is then the blend
@@ -30,6 +30,7 @@ typedef struct probe_cell {
     uint32_t a, b;    /* its vertices: idx[a .. b) */
     double lo[3], hi[3];
     double ratio;     /* the parallax bound of its probe, radians */
+    double priority;  /* which cell is split first */
     int leaf_only;    /* cannot be split (one point) */
 } probe_cell;
 
@@ -107,12 +108,18 @@ double hl_probe_nearest_emitter(const hl_capture_scene *s, const double p[3])
     return best;
 }
 
-/* The bound of a probe at p serving points within rho of it. */
-static double parallax_bound(const hl_capture_scene *s, const double p[3], double rho)
+/* The bound of a probe at p serving points within rho of it (and the
+ * nearest emitter's distance): an emitter point e at least d from p is
+ * seen from x, |x - p| <= rho, at most asin(rho / d) away from where p
+ * sees it (the angle at e of the triangle p x e), and its distance is
+ * off by a factor within 1 -+ rho / d. With d <= rho any direction may
+ * differ: pi / 2, the bound's largest value. */
+static double parallax_bound(const hl_capture_scene *s, const double p[3], double rho, double *dist)
 {
     const double d = hl_probe_nearest_emitter(s, p);
+    if (dist) *dist = d;
     if (!isfinite(d)) return 0.0; /* nothing emits: no parallax to see */
-    return d > rho ? rho / (d - rho) : INFINITY;
+    return d > rho ? asin(rho / d) : 0.5 * HL_PI;
 }
 
 static void cell_box(probe_cell *c, const float *pos, const uint32_t *idx)
@@ -141,7 +148,13 @@ static void cell_measure(probe_cell *c, const float *pos, const uint32_t *idx, c
     cell_box(c, pos, idx);
     double p[3], rho;
     cell_centre(c, p, &rho);
-    c->ratio = parallax_bound(s, p, rho);
+    double d;
+    c->ratio = parallax_bound(s, p, rho, &d);
+    /* rho / d, which the bound grows with, also past d <= rho (where the
+       bound stops at pi / 2), so that such cells are split larger first
+       (weighting it by the emitter's 1 / d^2 instead spent the points
+       near the lamp and measured worse: docs/CAPTURE.md) */
+    c->priority = !isfinite(d) ? 0.0 : rho / fmax(d, 1e-3 * rho);
     c->leaf_only = c->b - c->a < 2 || rho == 0.0;
 }
 
@@ -193,11 +206,11 @@ hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, cons
         for (int k = 0; k < 3; k++) q += (pos[3 * (size_t)v + k] - c0[k]) * (pos[3 * (size_t)v + k] - c0[k]);
         far2 = q > far2 ? q : far2;
     }
-    out->single_ratio = parallax_bound(s, c0, sqrt(far2));
+    out->single_ratio = parallax_bound(s, c0, sqrt(far2), NULL);
     for (;;) {
         uint32_t w = n;
         for (uint32_t k = 0; k < n; k++)
-            if (!cell[k].leaf_only && (w == n || cell[k].ratio > cell[w].ratio)) w = k;
+            if (!cell[k].leaf_only && (w == n || cell[k].priority > cell[w].priority)) w = k;
         if (w == n || n == max_probes || !(cell[w].ratio > tol)) break;
         if (!cell_split(&cell[w], &cell[n], idx, pos)) {
             cell[w].leaf_only = 1;
