@@ -281,6 +281,13 @@ surroundings_capture)
   "$bin" relight "$tmp/s.hlt" "${sur[@]}" "${top[@]}" -q -o "$tmp/top05.exr" || fail "relight from above at 0.5 s"
   echo "the lamp at 1.5 s must not light the bunny as at 0.5 s:"
   must_differ "$tmp/vtop.exr" "$tmp/top05.exr" 0.5 "--time did not move the lamp's light"
+  # more capture points: the viewer's picture is relight's with the same points
+  "$bin" relight "$tmp/s.hlt" "${tsur[@]}" "${top[@]}" --probes 8 -q -o "$tmp/top8.exr" || fail "relight --probes 8"
+  view "$tmp/s.hlt" "${tsur[@]}" "${top[@]}" --probes 8 --no-glare --frames 1 --screenshot "$tmp/vtop8.exr" ||
+    fail "view --probes 8 exited with an error"
+  same_picture "surroundings at 1.5 s from 8 capture points, seen from above" "$tmp/vtop8.exr" "$tmp/top8.exr" 0.5
+  echo "8 capture points must not light the ground as one does:"
+  must_differ "$tmp/vtop8.exr" "$tmp/top.exr" 0.5 "--probes 8 gave the one point's picture"
   ;;
 surroundings_drag)
   scene
