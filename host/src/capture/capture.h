@@ -202,7 +202,8 @@ void hl_capture_pack(const hl_capture_scene *scene, float *tris);
  * to 1 and depend only on its distances to the probes
  * ((1 - (r / (1.5 rho_k))^2)^2, normalised), so they are continuous over
  * the mesh. One probe (nothing near enough to split for, or max_probes
- * 1) is centre itself, weight 1 for every vertex. */
+ * 1) is centre itself, weight 1 for every vertex (with max_probes 1 no
+ * lists are made: start, vert and weight stay NULL). */
 /* Most capture points a relighter takes (hl_relighter_set_probes). */
 #define HL_PROBES_MAX 256u
 typedef struct hl_probe_set {
@@ -216,8 +217,11 @@ typedef struct hl_probe_set {
     double single_ratio;  /* the bound of one probe at centre serving every vertex */
 } hl_probe_set;
 
-hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, const float centre[3],
+hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, const float centre[3], double reach,
                              const hl_capture_scene *s, uint32_t max_probes, double tol, hl_probe_set *out);
+/* The farthest of the V vertices from centre (hl_probe_set_build's
+ * reach; a negative reach there computes it). */
+double hl_probe_reach(const float *pos, uint32_t V, const float centre[3]);
 void hl_probe_set_free(hl_probe_set *p);
 /* The distance from p to the nearest emitting triangle of s (infinite
  * when none emits). */

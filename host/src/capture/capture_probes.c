@@ -182,11 +182,35 @@ static int cell_split(probe_cell *c, probe_cell *d, uint32_t *idx, const float *
     return 1;
 }
 
-hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, const float centre[3],
+double hl_probe_reach(const float *pos, uint32_t V, const float centre[3])
+{
+    double far2 = 0.0;
+    for (uint32_t v = 0; v < V; v++) {
+        double q = 0.0;
+        for (int k = 0; k < 3; k++) q += (pos[3 * (size_t)v + k] - centre[k]) * (pos[3 * (size_t)v + k] - centre[k]);
+        far2 = q > far2 ? q : far2;
+    }
+    return sqrt(far2);
+}
+
+hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, const float centre[3], double reach,
                              const hl_capture_scene *s, uint32_t max_probes, double tol, hl_probe_set *out)
 {
     memset(out, 0, sizeof *out);
     if (!V || !max_probes) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "probes: no vertices or no probes");
+    /* the bound of the one capture point at the object's centre, as the
+       relighter captures without probes: the farthest vertex from it */
+    const double c0[3] = {centre[0], centre[1], centre[2]};
+    out->single_ratio = parallax_bound(s, c0, reach >= 0.0 ? reach : hl_probe_reach(pos, V, centre), NULL);
+    if (max_probes == 1) {
+        /* nothing to place or weigh: the bound alone */
+        out->count = 1;
+        out->points = hl_malloc(ctx, 12, "the probes");
+        if (!out->points) return HL_ERR_OUT_OF_MEMORY;
+        memcpy(out->points, centre, 12);
+        out->worst_ratio = out->single_ratio;
+        return HL_OK;
+    }
     uint32_t *idx = hl_malloc(ctx, (size_t)V * 4, "the probes' vertex order");
     probe_cell *cell = hl_malloc(ctx, (size_t)max_probes * sizeof *cell, "the probes' cells");
     if (!idx || !cell) {
@@ -198,15 +222,6 @@ hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, cons
     uint32_t n = 1;
     cell[0] = (probe_cell){.a = 0, .b = V};
     cell_measure(&cell[0], pos, idx, s);
-    /* the bound of the one capture point at the object's centre, as the
-       relighter captures without probes: the farthest vertex from it */
-    double c0[3] = {centre[0], centre[1], centre[2]}, far2 = 0.0;
-    for (uint32_t v = 0; v < V; v++) {
-        double q = 0.0;
-        for (int k = 0; k < 3; k++) q += (pos[3 * (size_t)v + k] - c0[k]) * (pos[3 * (size_t)v + k] - c0[k]);
-        far2 = q > far2 ? q : far2;
-    }
-    out->single_ratio = parallax_bound(s, c0, sqrt(far2), NULL);
     for (;;) {
         uint32_t w = n;
         for (uint32_t k = 0; k < n; k++)

@@ -76,6 +76,7 @@ struct hl_relighter {
     hl_probe_set probes;
     int probes_stale;
     float centre[3];        /* the one capture point's place */
+    double reach;           /* the farthest vertex from it (< 0: not yet measured) */
     float *blend4;          /* V x 4: the colours blended over the points */
     int blended;            /* rgba is blend4 */
 };
@@ -281,6 +282,7 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
         res = row_measures(r, t);
         hl_object_centre(t->mesh, r->cscene.center);
         memcpy(r->centre, r->cscene.center, sizeof r->centre);
+        r->reach = -1.0;
         r->probes_max = 1;
         /* the device starts with lg->area, the Haar supports' (an SH
            transport's area weights differ: uploaded when first used) */
@@ -612,8 +614,9 @@ static hl_result place_probes(hl_relighter *r)
 {
     hl_probe_set_free(&r->probes);
     memcpy(r->cscene.center, r->centre, sizeof r->centre);
-    hl_result res = hl_probe_set_build(r->ctx, r->t->mesh->positions, r->t->info.vertex_count, r->centre, &r->cscene,
-                                       r->probes_max, r->probe_tol, &r->probes);
+    if (r->reach < 0.0) r->reach = hl_probe_reach(r->t->mesh->positions, r->t->info.vertex_count, r->centre);
+    hl_result res = hl_probe_set_build(r->ctx, r->t->mesh->positions, r->t->info.vertex_count, r->centre, r->reach,
+                                       &r->cscene, r->probes_max, r->probe_tol, &r->probes);
     if (res == HL_OK) r->probes_stale = 0;
     return res;
 }
