@@ -448,15 +448,22 @@ void hl_cl_light_clamp_tally(const hl_cl_light *l, uint32_t *negative, float *lo
     *brightest = hi;
 }
 
-hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, void *out, int gl,
-                               hl_select_result *res)
+/* out must hold 4 floats a vertex. */
+static hl_result check_colour_buffer(hl_cl_light *l, cl_mem m)
 {
-    cl_mem m = (cl_mem)out;
     size_t have = 0, need = (size_t)l->nverts * 16;
     CL_TRY(l->ctx, clGetMemObjectInfo(m, CL_MEM_SIZE, sizeof have, &have, NULL), "the colour buffer");
     if (have < need)
         return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "the colour buffer holds %zu bytes; %u vertices need %zu", have,
                        l->nverts, need);
+    return HL_OK;
+}
+
+hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_params sp, void *out, int gl,
+                               hl_select_result *res)
+{
+    cl_mem m = (cl_mem)out;
+    TRY(check_colour_buffer(l, m));
     TRY(enq_lighting(l, s0, f, sp));
     if (gl) TRY(hl_cl_gl_acquire(l->ctx, m));
     hl_result r = enq_relight_to(l, m);
@@ -475,13 +482,9 @@ hl_result hl_cl_light_run_into(hl_cl_light *l, uint32_t s0, float f, hl_select_p
 hl_result hl_cl_light_write_colours(hl_cl_light *l, const float *rgba4, void *out, int gl)
 {
     cl_mem m = (cl_mem)out;
-    size_t have = 0, need = (size_t)l->nverts * 16;
-    CL_TRY(l->ctx, clGetMemObjectInfo(m, CL_MEM_SIZE, sizeof have, &have, NULL), "the colour buffer");
-    if (have < need)
-        return hl_fail(l->ctx, HL_ERR_INVALID_ARGUMENT, "the colour buffer holds %zu bytes; %u vertices need %zu", have,
-                       l->nverts, need);
+    TRY(check_colour_buffer(l, m));
     if (gl) TRY(hl_cl_gl_acquire(l->ctx, m));
-    cl_int e = clEnqueueWriteBuffer(l->cl->queue, m, CL_TRUE, 0, need, rgba4, 0, NULL, NULL);
+    cl_int e = clEnqueueWriteBuffer(l->cl->queue, m, CL_TRUE, 0, (size_t)l->nverts * 16, rgba4, 0, NULL, NULL);
     hl_result r = e == CL_SUCCESS ? HL_OK
                                   : hl_fail(l->ctx, HL_ERR_OPENCL, "OpenCL: writing the blended colours failed (%s)",
                                             hl_cl_err_name(e));
