@@ -202,8 +202,8 @@ void hl_capture_pack(const hl_capture_scene *scene, float *tris);
  * to 1 and depend only on its distances to the probes
  * ((1 - (r / (1.5 rho_k))^2)^2, normalised), so they are continuous over
  * the mesh. One probe (nothing near enough to split for, or max_probes
- * 1) is centre itself, weight 1 for every vertex (with max_probes 1 no
- * lists are made: start, vert and weight stay NULL). */
+ * 1) is centre itself, weight 1 for every vertex, and no lists are
+ * made (start, vert and weight stay NULL). */
 /* Most capture points a relighter takes (hl_relighter_set_probes). */
 #define HL_PROBES_MAX 256u
 typedef struct hl_probe_set {

@@ -182,6 +182,18 @@ static int cell_split(probe_cell *c, probe_cell *d, uint32_t *idx, const float *
     return 1;
 }
 
+/* One point, the relighter's own capture point as without probes, and
+ * its bound; nothing to weigh. */
+static hl_result one_point(hl_context *ctx, const float centre[3], hl_probe_set *out)
+{
+    out->count = 1;
+    out->points = hl_malloc(ctx, 12, "the probes");
+    if (!out->points) return HL_ERR_OUT_OF_MEMORY;
+    memcpy(out->points, centre, 12);
+    out->worst_ratio = out->single_ratio;
+    return HL_OK;
+}
+
 double hl_probe_reach(const float *pos, uint32_t V, const float centre[3])
 {
     double far2 = 0.0;
@@ -202,15 +214,7 @@ hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, cons
        relighter captures without probes: the farthest vertex from it */
     const double c0[3] = {centre[0], centre[1], centre[2]};
     out->single_ratio = parallax_bound(s, c0, reach >= 0.0 ? reach : hl_probe_reach(pos, V, centre), NULL);
-    if (max_probes == 1) {
-        /* nothing to place or weigh: the bound alone */
-        out->count = 1;
-        out->points = hl_malloc(ctx, 12, "the probes");
-        if (!out->points) return HL_ERR_OUT_OF_MEMORY;
-        memcpy(out->points, centre, 12);
-        out->worst_ratio = out->single_ratio;
-        return HL_OK;
-    }
+    if (max_probes == 1) return one_point(ctx, centre, out);
     uint32_t *idx = hl_malloc(ctx, (size_t)V * 4, "the probes' vertex order");
     probe_cell *cell = hl_malloc(ctx, (size_t)max_probes * sizeof *cell, "the probes' cells");
     if (!idx || !cell) {
@@ -236,6 +240,10 @@ hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, cons
         n++;
     }
     free(idx);
+    if (n == 1) {
+        free(cell);
+        return one_point(ctx, centre, out);
+    }
     out->count = n;
     out->points = hl_malloc(ctx, (size_t)n * 12, "the probes");
     out->radius = hl_malloc(ctx, (size_t)n * 8, "the probes");
@@ -251,11 +259,6 @@ hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, cons
         out->worst_ratio = cell[k].ratio > out->worst_ratio ? cell[k].ratio : out->worst_ratio;
     }
     free(cell);
-    if (res == HL_OK && n == 1) {
-        /* one probe: the relighter's own capture point, as without probes */
-        memcpy(out->points, centre, 12);
-        out->worst_ratio = out->single_ratio;
-    }
     /* a cell of one point has no extent: it reaches a little way */
     for (uint32_t k = 0; k < n && res == HL_OK; k++)
         if (!(out->radius[k] > 1e-6 * root_rho)) out->radius[k] = root_rho > 0.0 ? 1e-6 * root_rho : 1.0;
@@ -284,8 +287,8 @@ hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, cons
                     double d2 = 0.0;
                     for (int a = 0; a < 3; a++) d2 += ((double)x[a] - p[a]) * ((double)x[a] - p[a]);
                     const double reach = HL_PROBE_REACH * out->radius[k], u2 = d2 / (reach * reach);
-                    if (n > 1 && !(u2 < 1.0)) continue;
-                    const double w = n > 1 ? (1.0 - u2) * (1.0 - u2) : 1.0;
+                    if (!(u2 < 1.0)) continue;
+                    const double w = (1.0 - u2) * (1.0 - u2);
                     if (!fill) {
                         sum += w;
                         if (pass == 0) cnt[k]++, total++;
