@@ -62,6 +62,17 @@ bad_options)
   expect_error unknown_opt 2 "unknown option" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --frobnicate
   expect_error all_and_energy 2 "contradict" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --terms all --energy 0.1
   expect_error unknown_cmd 2 "unknown command" "" -- relightify
+  # interreflection: the counts, the ground's albedo, and a shard
+  for v in 17 -1 two 1.5; do
+    expect_error "bounces_$v" 2 "--bounces" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounces "$v"
+  done
+  expect_error bounce_rays_zero 2 "--bounce-rays" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounces 1 --bounce-rays 0
+  expect_error bounce_rays_alone 2 "need --bounces" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounce-rays 16
+  expect_error bounce_terms_zero 2 "--bounce-terms" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounces 1 --bounce-terms 0
+  expect_error bounces_shard 2 "does not shard" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounces 1 --shard 0/2
+  for v in 1.2 -0.1 nan 0.5,0.5 0,0,0 0.5,0.5,0.5,0.5 red; do
+    expect_error "ground_albedo_$v" 2 "--ground-albedo" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --ground-albedo "$v"
+  done
   ;;
 cl_equals_ref)
   # the OpenCL path and the plain-C reference write the same bytes
@@ -75,6 +86,17 @@ cl_equals_ref)
   # and the thread count and chunk size do not change the bytes
   "$bin" precompute "$m" --ground --ground-res 16 -o "$tmp/t1.hlt" -C 32 -N 32 -q --quant linear8 --threads 1 --chunk 77 || fail "1-thread run"
   cmp -s "$tmp/t1.hlt" "$tmp/cl.hlt" && echo "1 thread, chunk 77: identical" || fail "1 thread / chunk 77 differs"
+  # a bounced transport: the same bytes both ways, said by precompute and info
+  for dev in cl ref; do
+    "$bin" precompute "$m" --ground --ground-res 16 -C 16 -N 16 --bounces 1 --bounce-rays 16 --device $dev \
+      -o "$tmp/b_$dev.hlt" 2>"$tmp/b_$dev.txt" || fail "precompute --bounces 1 ($dev)"
+  done
+  grep "bounce" "$tmp/b_cl.txt"
+  grep -q "bounce 1/1: .* vertices x 16 rays" "$tmp/b_cl.txt" || fail "precompute --bounces does not say the bounce"
+  cmp -s "$tmp/b_cl.hlt" "$tmp/b_ref.hlt" && echo "bounced: OpenCL and reference files identical" || fail "bounced files differ"
+  "$bin" info "$tmp/b_cl.hlt" | grep -q "direct and 1 bounce of diffuse interreflection" || fail "info does not say the bounce"
+  "$bin" info "$tmp/cl.hlt" | grep -q "direct only" || fail "info does not say direct only"
+  [ -e "$tmp/b_cl.hlt.direct.hlt" ] && fail "the direct rows' file was left behind"
   ;;
 info)
   m="$data/bunny_lowres.obj"

@@ -60,6 +60,8 @@ static const char *const usage_precompute =
     "                       degrees high falls on it, at least 2.5); graded beyond 2.5\n"
     "  --albedo R[,G,B]     albedo where the file gives none: no material colour or\n"
     "                       texture, no vertex colours (default 0.8)\n"
+    "  --ground-albedo R[,G,B]  the ground's albedo, each in [0, 1] (implies --ground;\n"
+    "                       default: grey at the object's mean albedo)\n"
     "  --up y|z             the file's up axis (default y)\n"
     "  --keep-winding       never flip an inward-facing closed mesh\n"
     "  --time T             an animated file posed at T seconds of its (rigid) animation,\n"
@@ -72,6 +74,16 @@ static const char *const usage_precompute =
     "  --ray-offset F|robust  ray origin offset along the normal: a fraction of the bbox\n"
     "                       diagonal, or robust (the default: 2^-16 of the larger of the\n"
     "                       vertex's coordinates and its longest edge, at any scale)\n"
+    "interreflection:\n"
+    "  --bounces B          bake B bounces of diffuse interreflection off the object and\n"
+    "                       its ground into the rows (0 to 16; default 0, direct light,\n"
+    "                       the bytes as before). A second phase after the direct rows,\n"
+    "                       which it keeps in SCENE.hlt.direct.hlt until the end. The\n"
+    "                       bounce albedo is the luminance of the mesh's (every albedo\n"
+    "                       must be in [0, 1]); relight is unchanged\n"
+    "  --bounce-rays K      cosine-weighted rays a vertex for the bounces (default 64)\n"
+    "  --bounce-terms G|all the largest G terms of each hit vertex's row that a bounce\n"
+    "                       reads (default 256)\n"
     "truncation (per vertex):\n"
     "  --energy EPS         keep the fewest coefficients holding 1-EPS of the energy\n"
     "                       (the default rule, EPS = 1e-5)\n"
@@ -161,6 +173,8 @@ typedef struct pre_opts {
     hl_precompute_desc pd;
     hl_context_desc cd;
     int terms_set, energy_set, terms_all, sh_order_set, cube_side_set;
+    float ground_albedo[3]; /* --ground-albedo */
+    int ground_albedo_set, bounce_opt_set;
     uint32_t shard_index, shard_count; /* --shard I/N; count 0 when not given */
 } pre_opts;
 
@@ -223,6 +237,19 @@ static int pre_mesh_opt(int argc, char **argv, int *ip, const char *usage, pre_o
             return usage_error(usage, "--albedo %s: an all-black albedo would make every vertex black", v);
         memcpy(o->ld.albedo, c, sizeof c);
         memcpy(o->gd.albedo, c, sizeof c);
+    } else if (!strcmp(a, "--ground-albedo")) {
+        NEED_ARG();
+        float c[3];
+        char tail;
+        int n = sscanf(v, "%f,%f,%f%c", &c[0], &c[1], &c[2], &tail);
+        if (n == 1) c[1] = c[2] = c[0];
+        if ((n != 1 && n != 3) || !(c[0] >= 0 && c[0] <= 1 && c[1] >= 0 && c[1] <= 1 && c[2] >= 0 && c[2] <= 1))
+            return usage_error(usage, "--ground-albedo %s: expected R or R,G,B, each a number in [0, 1]", v);
+        if (c[0] == 0 && c[1] == 0 && c[2] == 0)
+            return usage_error(usage, "--ground-albedo %s: an all-black ground is not taken (use a small value)", v);
+        memcpy(o->ground_albedo, c, sizeof c);
+        o->ground_albedo_set = 1;
+        o->ground = 1;
     } else if (!strcmp(a, "--up")) {
         NEED_ARG();
         if (strcmp(v, "y") && strcmp(v, "z")) return usage_error(usage, "--up %s: expected y or z", v);
@@ -255,6 +282,21 @@ static int pre_transport_opt(int argc, char **argv, int *ip, const char *usage, 
         if (!strcmp(v, "robust")) o->pd.ray_offset = 0.0f;
         else if (!parse_float(v, &o->pd.ray_offset) || !(o->pd.ray_offset > 0 && o->pd.ray_offset < 0.1f))
             return usage_error(usage, "--ray-offset %s: expected `robust` or a number in (0, 0.1)", v);
+    } else if (!strcmp(a, "--bounces")) {
+        NEED_ARG();
+        if (!parse_u32(v, &o->pd.bounces) || o->pd.bounces > HL_MAX_BOUNCES)
+            return usage_error(usage, "--bounces %s: expected a whole number from 0 to 16", v);
+    } else if (!strcmp(a, "--bounce-rays")) {
+        NEED_ARG();
+        if (!parse_u32(v, &o->pd.bounce_rays) || o->pd.bounce_rays < 1 || o->pd.bounce_rays > 4096)
+            return usage_error(usage, "--bounce-rays %s: expected 1 to 4096 rays a vertex", v);
+        o->bounce_opt_set = 1;
+    } else if (!strcmp(a, "--bounce-terms")) {
+        NEED_ARG();
+        if (!strcmp(v, "all")) o->pd.bounce_terms = HL_TERMS_ALL;
+        else if (!parse_u32(v, &o->pd.bounce_terms) || o->pd.bounce_terms < 1)
+            return usage_error(usage, "--bounce-terms %s: expected a count >= 1 or `all`", v);
+        o->bounce_opt_set = 1;
     } else if (!strcmp(a, "--energy")) {
         NEED_ARG();
         if (!parse_float(v, &o->pd.eps) || !(o->pd.eps > 0 && o->pd.eps < 1))
@@ -345,6 +387,11 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
         else return usage_error(usage, "unexpected argument %s", a);
     }
     if (!o->mesh) return usage_error(usage, "%s", "no MESH given");
+    if (o->ground_albedo_set) memcpy(o->gd.albedo, o->ground_albedo, sizeof o->ground_albedo);
+    if (o->bounce_opt_set && !o->pd.bounces)
+        return usage_error(usage, "%s", "--bounce-rays and --bounce-terms need --bounces B (B >= 1)");
+    if (o->pd.bounces && o->shard_count)
+        return usage_error(usage, "%s", "--bounces with --shard: the bounce phase does not shard yet (run it whole)");
     if (o->terms_all && o->energy_set) return usage_error(usage, "%s", "--terms all and --energy contradict each other");
     if (o->sh_order_set && o->pd.basis != HL_TRANSPORT_BASIS_SH)
         return usage_error(usage, "%s", "--sh-order needs --basis sh");
@@ -465,6 +512,8 @@ static int cmd_precompute(int argc, char **argv)
                 (unsigned long long)st.rays_cast, (unsigned long long)st.rays_culled,
                 dirs ? 100.0 * (double)st.rays_culled / (double)dirs : 0.0, st.seconds_total, st.seconds_rays,
                 st.seconds_rays > 0 ? (double)st.rays_cast / st.seconds_rays * 1e-6 : 0.0, st.seconds_kernels);
+        if (o.pd.bounces)
+            fprintf(stderr, "bounces: %u, %.2f s of the total\n", o.pd.bounces, st.seconds_bounces);
     }
     hl_mesh_destroy(mesh);
     cli_unwatch();

@@ -185,6 +185,9 @@ int cmd_relight(int argc, char **argv)
     const double t_built = hl_tools_now();
     if (r == HL_OK && !cd.quiet)
         fprintf(stderr, "loaded %s: %u vertices in %.2f s\n", scene, t->info.vertex_count, t_built - t_load);
+    if (r == HL_OK && !cd.quiet && t->info.bounces)
+        fprintf(stderr, "%s: direct light and %u bounce%s of interreflection, baked with the albedo stored in the "
+                "file\n", scene, t->info.bounces, t->info.bounces == 1 ? "" : "s");
     if (r == HL_OK && use_env)
         r = env_path ? cli_env_load(ctx, env_path, o.layout, &env, cd.quiet) : hl_env_create_sky(ctx, &o.sky, &env);
     if (r == HL_OK) r = cli_surroundings_load(ctx, &o, &surr, cd.quiet);

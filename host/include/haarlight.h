@@ -285,6 +285,11 @@ typedef struct hl_precompute_desc {
     uint32_t sh_order; /* spherical harmonics: order L (bands 0..L-1); 0: 20 */
     uint32_t cube_side; /* cube-face Haar: the faces' side C' (a power of two,
                            6 C'^2 <= 2 N^2, dividing C); 0: the largest such */
+    uint32_t bounces;     /* diffuse interreflection bounces (0 to HL_MAX_BOUNCES;
+                             0: direct light, the file's bytes as before) */
+    uint32_t bounce_rays; /* rays per vertex of each bounce's gather (0: 64) */
+    uint32_t bounce_terms;/* most terms of a hit vertex's row the gather reads,
+                             the largest kept (0: 256; HL_TERMS_ALL: every one) */
 } hl_precompute_desc;
 
 /* Counters and timings of one precompute. */
@@ -295,6 +300,7 @@ typedef struct hl_precompute_stats {
     double seconds_rays;      /* wall time inside ray casting */
     double seconds_kernels;   /* wall time waiting for the kernel stages */
     double seconds_total;
+    double seconds_bounces;   /* --bounces: the bounce phase (within the total) */
 } hl_precompute_stats;
 
 /* The basis of a transport's rows (hl_transport_info.basis). Haar: the
@@ -308,6 +314,11 @@ typedef struct hl_precompute_stats {
  * position in slot k, slots from 6 C'^2 on empty; sh_order holds C'. */
 #define HL_TRANSPORT_BASIS_CUBE 2u
 #define HL_DEFAULT_SH_ORDER 20u
+
+/* Most interreflection bounces a precompute bakes. */
+#define HL_MAX_BOUNCES 16u
+#define HL_DEFAULT_BOUNCE_RAYS 64u
+#define HL_DEFAULT_BOUNCE_TERMS 256u
 
 /* The transport file format version this build writes and reads. */
 #define HL_TRANSPORT_VERSION 2u
@@ -331,6 +342,9 @@ typedef struct hl_transport_info {
     uint32_t basis;               /* HL_TRANSPORT_BASIS_* */
     uint32_t sh_order;            /* spherical harmonics: L, slots 0..L^2-1; cube-face
                                      Haar: the faces' side C', slots 0..6 C'^2-1; else 0 */
+    uint32_t bounces;             /* diffuse interreflection bounces baked into the
+                                     rows (precompute --bounces), with the albedo of
+                                     the file's mesh; 0: direct light only */
 } hl_transport_info;
 
 /* A transport file in memory. Vertex v's entries are

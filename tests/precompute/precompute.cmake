@@ -14,3 +14,8 @@ hl_test_cases_gpu_shape(test_precompute precompute pipeline)
 if(NOT HL_SANITIZE)
   hl_test_cases(test_precompute precompute ref_oom)
 endif()
+# Interreflection (precompute --bounces): a spherical cavity against its
+# exact series, the white furnace, the gather kernel against its twin.
+hl_test_exe(test_bounce ${CMAKE_CURRENT_LIST_DIR}/test_bounce.c)
+hl_test_cases(test_bounce bounce cavity furnace twin bad)
+hl_test_cases_gpu_shape(test_bounce bounce twin)

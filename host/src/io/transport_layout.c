@@ -35,6 +35,7 @@ void hl_tf_header_encode(const tf_header *h, const char *magic, uint32_t appende
     /* zero for Haar, so a Haar file keeps the bytes of files from before */
     put_u32(out + H_BASIS, i->basis);
     put_u32(out + H_SH_ORDER, i->sh_order);
+    put_u32(out + H_BOUNCES, i->bounces);
     put_u32(out + H_VERSION, TF_VERSION);
     put_u32(out + H_HEADER_SIZE, TF_HEADER_SIZE);
     put_u32(out + H_N, i->N);
@@ -94,6 +95,7 @@ void hl_tf_header_decode(const uint8_t *in, tf_header *h)
     h->shard.end = get_u32(in + H_SHARD_END);
     i->basis = get_u32(in + H_BASIS);
     i->sh_order = get_u32(in + H_SH_ORDER);
+    i->bounces = get_u32(in + H_BOUNCES);
     for (unsigned k = H_RESERVED; k < H_HEADER_CRC; k++)
         if (in[k] && !tf_basis_byte(k)) h->reserved_nonzero = 1;
 }
@@ -116,6 +118,8 @@ int hl_tf_info_problem(const hl_transport_info *i, char *msg, size_t n)
     if (!(i->ray_offset >= 0.0f && isfinite(i->ray_offset)))
         return snprintf(msg, n, "ray_offset = %g is not a finite non-negative number", (double)i->ray_offset), 1;
     if (i->vertex_count == 0) return snprintf(msg, n, "vertex_count is 0"), 1;
+    if (i->bounces > HL_MAX_BOUNCES)
+        return snprintf(msg, n, "bounces = %u is outside 0..%u", i->bounces, HL_MAX_BOUNCES), 1;
     if (i->object_vertex_count > i->vertex_count)
         return snprintf(msg, n, "object_vertex_count = %u exceeds vertex_count = %u", i->object_vertex_count,
                         i->vertex_count),

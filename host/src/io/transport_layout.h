@@ -64,6 +64,7 @@ enum {
     H_SHARD_END = 172,
     H_BASIS = 176,    /* HL_TRANSPORT_BASIS_*: 0 (Haar) in files from before */
     H_SH_ORDER = 180, /* spherical harmonics: L; cube-face Haar: C'; else 0 */
+    H_BOUNCES = 184,  /* interreflection bounces baked in (0 in files from before) */
     H_HEADER_CRC = 188
 };
 
@@ -141,7 +142,7 @@ static inline uint32_t slot_total(uint32_t N) { return 2u * N * N; }
 static inline uint32_t blocks_for(uint32_t N) { return (slot_total(N) + HL_BLOCK - 1) / HL_BLOCK; }
 
 /* Whether header byte k is one of the basis words (not reserved). */
-static inline int tf_basis_byte(unsigned k) { return k >= H_BASIS && k < H_SH_ORDER + 4; }
+static inline int tf_basis_byte(unsigned k) { return k >= H_BASIS && k < H_BOUNCES + 4; }
 
 /* The slots a row of the basis may fill: L^2 for spherical harmonics,
  * 6 C'^2 for cube-face Haar, else all 2 N^2. */

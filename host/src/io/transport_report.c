@@ -67,6 +67,11 @@ void hl_transport_describe(const hl_transport *t, const char *path, FILE *f)
     else
         fprintf(f, "basis              paraboloid Haar wavelets\n");
     fprintf(f, "cubemap C          %u, supersample %u x %u\n", i->C, i->supersample, i->supersample);
+    if (i->bounces)
+        fprintf(f, "light              direct and %u bounce%s of diffuse interreflection, baked with the mesh's albedo "
+                   "(its luminance)\n", i->bounces, i->bounces == 1 ? "" : "s");
+    else
+        fprintf(f, "light              direct only\n");
     fprintf(f, "truncation         %s", rule_name(i->rule));
     if (i->rule == HL_TRUNC_TOPK || i->rule == HL_TRUNC_ENERGY) {
         if (i->K)

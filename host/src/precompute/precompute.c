@@ -23,7 +23,9 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "bounce.h"
 #include "cube.h"
+#include "mesh_ops.h"
 #include "haarlight_tools.h"
 #include "precompute.h"
 #include "rays.h"
@@ -85,6 +87,10 @@ hl_result hl_precompute_resolve(hl_context *ctx, hl_precompute_desc *d)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "spherical-harmonic order %u: must be 1 to %u with order^2 at most the 2 N^2 = %u slots of N = %u",
                        d->sh_order, HL_SH_MAX_ORDER, 2 * d->N * d->N, d->N);
+    if (d->bounces > HL_MAX_BOUNCES)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "bounces = %u: at most %u", d->bounces, HL_MAX_BOUNCES);
+    if (d->bounce_rays > 4096)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "bounce rays = %u: at most 4096 a vertex", d->bounce_rays);
     if (d->chunk > (1u << 20))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "chunk = %u: at most %u vertices", d->chunk, 1u << 20);
     return HL_OK;
@@ -426,6 +432,9 @@ static hl_result run_close(pc_run *u, hl_result r, hl_precompute_stats *stats)
     return r;
 }
 
+static hl_result precompute_bounced(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *d,
+                                    const char *out_path, hl_precompute_stats *stats);
+
 hl_result hl_precompute_shard(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *desc,
                               uint32_t shard_index, uint32_t shard_count, const char *out_path,
                               hl_precompute_stats *stats)
@@ -437,6 +446,11 @@ hl_result hl_precompute_shard(hl_context *ctx, const hl_mesh *mesh, const hl_pre
     if (r != HL_OK) return r;
     if (!mesh || mesh->vertex_count == 0 || mesh->triangle_count == 0)
         return hl_fail(ctx, HL_ERR_MESH, "the mesh is empty");
+    if (u.d.bounces && shard_count)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "--bounces with --shard: the bounce phase reads every vertex's direct rows and does not shard "
+                       "yet; precompute the bounces in one run");
+    if (u.d.bounces) return precompute_bounced(ctx, mesh, &u.d, out_path, stats);
     u.V = mesh->vertex_count;
     u.lo = 0;
     u.hi = u.V;
@@ -463,4 +477,46 @@ hl_result hl_precompute(hl_context *ctx, const hl_mesh *mesh, const hl_precomput
                         const char *out_path, hl_precompute_stats *stats)
 {
     return hl_precompute_shard(ctx, mesh, desc, 0, 0, out_path, stats);
+}
+
+/* --bounces: the direct rows into OUT.direct.hlt (resumable as any run),
+ * then the bounce phase from them into OUT; the direct file is removed
+ * once OUT is written. */
+static hl_result precompute_bounced(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *d,
+                                    const char *out_path, hl_precompute_stats *stats)
+{
+    char direct[4096];
+    if ((size_t)snprintf(direct, sizeof direct, "%s.direct.hlt", out_path) >= sizeof direct)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: the path is too long", out_path);
+    /* checked before the direct rays: light would grow with each bounce */
+    for (uint32_t v = 0; v < mesh->vertex_count; v++)
+        for (int c = 0; c < 3; c++) {
+            const float a = mesh->albedo ? mesh->albedo[3 * (size_t)v + c] : HL_DEFAULT_ALBEDO;
+            if (!(a >= 0.0f && a <= 1.0f))
+                return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                               "--bounces: vertex %u has albedo %g in channel %d; every albedo must be in [0, 1] "
+                               "(light would grow with each bounce)", v, (double)a, c);
+        }
+    hl_precompute_desc dd = *d;
+    dd.bounces = 0;
+    const double t0 = hl_now();
+    hl_result r = HL_OK;
+    /* --resume after the direct rows were done: the bounces only */
+    if (d->resume && access(direct, F_OK) == 0) {
+        if (!ctx->quiet) fprintf(stderr, "precompute: resuming with the direct rows of %s\n", direct);
+        if (stats) memset(stats, 0, sizeof *stats);
+    } else {
+        r = hl_precompute_shard(ctx, mesh, &dd, 0, 0, direct, stats);
+    }
+    double sec = 0.0;
+    uint64_t kept = 0;
+    if (r == HL_OK) r = hl_bounce_file(ctx, d, mesh, direct, out_path, &sec, &kept);
+    /* kept only for --resume after an interruption */
+    if (r != HL_ERR_INTERRUPTED) unlink(direct);
+    if (stats) {
+        stats->seconds_bounces = sec;
+        if (r == HL_OK) stats->coefficients_kept = kept;
+        stats->seconds_total = hl_now() - t0;
+    }
+    return r;
 }

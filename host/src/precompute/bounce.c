@@ -1,0 +1,479 @@
+/* bounce.c - the bounce phase of precompute --bounces (bounce.h).
+ *
+ * Horner's form keeps one set of rows in memory: S_0 = T_0 and
+ * S_b = T_0 + W S_(b-1), where W is one gather, so S_B = T_0 + W T_0 +
+ * ... + W^B T_0 without storing each bounce. The gather reads the
+ * bounce_terms largest terms of each S_(b-1) row (indirect light is an
+ * average of many rows, so the small terms of each weigh little:
+ * docs/BOUNCES.md measures it); T_0 itself is added whole, as decoded
+ * from the direct file. Every vertex's K directions are cast once, before
+ * the first bounce, and reused by every bounce. The last S_B goes through
+ * the precompute's own truncation and quantisation (the twins) into the
+ * file.
+ * Depends on: bounce.h, rays.h (Embree), geom.h and twins.h (truncation,
+ * quantisation), transport_file.h (the writer), cl_internal.h (the
+ * gather kernel), core.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bounce.h"
+#include "cl_internal.h"
+#include "geom.h"
+#include "precompute.h"
+#include "rays.h"
+#include "transport_file.h"
+#include "twins.h"
+
+/* One bounce's state, shared by the threads of a chunk. */
+typedef struct bounce_run {
+    hl_context *ctx;
+    const hl_transport *t;
+    const hl_mesh *m;
+    const hl_geom *g;
+    uint32_t V, K, G, R;
+    float *rho;
+    uint32_t *prim;     /* V x K */
+    float *uv;          /* V x K x 2 */
+    hl_bounce_src cur;  /* S_(b-1), capped */
+    uint32_t *ncnt;     /* next rows: counts, then V x G strided terms */
+    uint32_t *nslot;
+    float *nval;
+    float *dense;       /* R x ncoef: the chunk's gathers */
+    /* the last bounce: the chunk's rows for the writer */
+    hl_trunc_params tp;
+    hl_row_quant *rq;
+    uint16_t *bc;
+    uint8_t *entries;
+    uint32_t *nnz;
+    /* a chunk's job */
+    uint32_t first, count, last;
+    atomic_uint next;
+    atomic_int oom;
+    /* the device's gather */
+    cl_kernel k;
+    cl_mem d_start, d_slot, d_val, d_idx, d_rho, d_prim, d_uv, d_out;
+} bounce_run;
+
+/* --------------------------------------------------------- rows */
+
+/* The decoded row of vertex v of t, added into dense. */
+static void add_direct_row(const hl_transport *t, uint32_t v, float *dense)
+{
+    const uint32_t nb = t->info.block_count;
+    const hl_row_quant q = t->row_quant[v];
+    const uint8_t *en = t->entries;
+    uint64_t e = t->row_offset[v];
+    for (uint32_t b = 0; b < nb; b++)
+        for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++) {
+            const uint32_t slot = b * HL_BLOCK + en[2 * e];
+            dense[slot] += hl_dequant(t->info.quant, en[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
+        }
+}
+
+/* The k-th largest of x[0 .. n) (k from 0), x reordered. */
+static float kth_largest(float *x, uint32_t n, uint32_t k)
+{
+    int64_t lo = 0, hi = (int64_t)n - 1;
+    while (lo < hi) {
+        const float p = x[lo + (hi - lo) / 2];
+        int64_t i = lo, j = hi;
+        while (i <= j) {
+            while (x[i] > p) i++;
+            while (x[j] < p) j--;
+            if (i <= j) {
+                const float s = x[i];
+                x[i++] = x[j];
+                x[j--] = s;
+            }
+        }
+        if ((int64_t)k <= j) hi = j;
+        else if ((int64_t)k >= i) lo = i;
+        else return x[k];
+    }
+    return x[k];
+}
+
+/* The G largest terms of dense (ties by slot order) into slot/val, in
+ * slot order; returns their count. mag: ncoef scratch. */
+static uint32_t cap_row(const float *dense, uint32_t ncoef, uint32_t G, float *mag, uint32_t *slot, float *val)
+{
+    uint32_t n = 0;
+    for (uint32_t s = 0; s < ncoef; s++)
+        if (dense[s] != 0.0f) mag[n++] = fabsf(dense[s]);
+    float thr = 0.0f;
+    uint32_t ties = UINT32_MAX;
+    if (n > G) {
+        thr = kth_largest(mag, n, G - 1);
+        uint32_t above = 0;
+        for (uint32_t i = 0; i < n; i++) above += mag[i] > thr;
+        ties = G - above;
+    }
+    uint32_t c = 0;
+    for (uint32_t s = 0; s < ncoef && c < G; s++) {
+        const float a = fabsf(dense[s]);
+        if (dense[s] == 0.0f || a < thr || (a == thr && n > G && ties == 0)) continue;
+        if (n > G && a == thr) ties--;
+        slot[c] = s;
+        val[c++] = dense[s];
+    }
+    return c;
+}
+
+/* The strided next rows packed into cur (CSR), in place. */
+static void pack_next(bounce_run *u)
+{
+    uint32_t at = 0;
+    for (uint32_t v = 0; v < u->V; v++) {
+        u->cur.start[v] = at;
+        const size_t from = (size_t)v * u->G;
+        memmove(u->cur.slot + at, u->nslot + from, (size_t)u->ncnt[v] * 4);
+        memmove(u->cur.val + at, u->nval + from, (size_t)u->ncnt[v] * 4);
+        at += u->ncnt[v];
+    }
+    u->cur.start[u->V] = at;
+}
+
+/* --------------------------------------------------------- samples */
+
+/* K cosine-weighted directions about vertex v's normal (stratified over
+ * the sqrt(K) x sqrt(K) grid where K is a square, jittered by a hash of
+ * the vertex and sample, so the rays depend on nothing but them). */
+static void sample_dirs(const hl_mesh *m, uint32_t v, uint32_t K, float *dir)
+{
+    const float *n = m->normals + 3 * (size_t)v;
+    /* a tangent frame (Duff et al. 2017) */
+    const float sg = n[2] >= 0.0f ? 1.0f : -1.0f, a = -1.0f / (sg + n[2]), b = n[0] * n[1] * a;
+    const float t1[3] = {1.0f + sg * n[0] * n[0] * a, sg * b, -sg * n[0]}, t2[3] = {b, sg + n[1] * n[1] * a, -n[1]};
+    uint32_t S = (uint32_t)sqrt((double)K);
+    if (S * S != K) S = 0;
+    for (uint32_t k = 0; k < K; k++) {
+        const uint32_t h1 = hl_dither_key(v, 2 * k), h2 = hl_dither_key(v, 2 * k + 1);
+        const double j1 = (h1 >> 8) * (1.0 / 16777216.0), j2 = (h2 >> 8) * (1.0 / 16777216.0);
+        const double u1 = S ? ((k % S) + j1) / S : (k + j1) / K, u2 = S ? ((k / S) + j2) / S : j2;
+        const double r = sqrt(u1), ph = 2.0 * HL_PI * u2, z = sqrt(fmax(0.0, 1.0 - u1));
+        const double x = r * cos(ph), y = r * sin(ph);
+        for (int c = 0; c < 3; c++) dir[3 * k + c] = (float)(x * t1[c] + y * t2[c] + z * n[c]);
+    }
+}
+
+/* Every vertex's K hits, in chunks of vertices. A hit on a surface's back
+ * (its interpolated normal along the ray) counts as a miss. */
+static hl_result cast_hits(bounce_run *u, hl_rt *rt)
+{
+    const uint32_t R = u->R, K = u->K;
+    float *org = hl_alloc_big(u->ctx, (size_t)R * K * 12, "the bounce rays"), *dir = org ? hl_alloc_big(u->ctx, (size_t)R * K * 12, "the bounce rays") : NULL;
+    float *hu = dir ? hl_alloc_big(u->ctx, (size_t)R * K * 8, "the bounce hits") : NULL;
+    if (!hu) {
+        hl_free_big(org);
+        hl_free_big(dir);
+        return HL_ERR_OUT_OF_MEMORY;
+    }
+    hl_result r = HL_OK;
+    for (uint32_t first = 0; first < u->V && r == HL_OK; first += R) {
+        const uint32_t count = u->V - first < R ? u->V - first : R;
+        for (uint32_t i = 0; i < count; i++) {
+            const uint32_t v = first + i;
+            const float *p = u->m->positions + 3 * (size_t)v, *n = u->m->normals + 3 * (size_t)v;
+            const float off = hl_rt_robust_offset(rt, v);
+            sample_dirs(u->m, v, K, dir + (size_t)i * K * 3);
+            for (uint32_t k = 0; k < K; k++)
+                for (int c = 0; c < 3; c++) org[((size_t)i * K + k) * 3 + c] = hl_rt_origin_coord(p[c], n[c], off);
+        }
+        uint32_t *prim = u->prim + (size_t)first * K;
+        r = hl_rt_trace_primary(rt, count * K, org, dir, prim, hu, hu + (size_t)R * K);
+        for (uint32_t q = 0; q < count * K && r == HL_OK; q++) {
+            float *uv = u->uv + ((size_t)first * K + q) * 2;
+            uv[0] = hu[q];
+            uv[1] = hu[(size_t)R * K + q];
+            if (prim[q] == UINT32_MAX) continue;
+            const uint32_t *c = u->m->indices + 3 * (size_t)prim[q];
+            const float w0 = 1.0f - uv[0] - uv[1];
+            float dot = 0.0f;
+            for (int a = 0; a < 3; a++)
+                dot += (w0 * u->m->normals[3 * (size_t)c[0] + a] + uv[0] * u->m->normals[3 * (size_t)c[1] + a] +
+                        uv[1] * u->m->normals[3 * (size_t)c[2] + a]) *
+                       dir[3 * (size_t)q + a];
+            if (!(dot < 0.0f)) prim[q] = HL_BOUNCE_MISS;
+        }
+    }
+    hl_free_big(org);
+    hl_free_big(dir);
+    hl_free_big(hu);
+    return r;
+}
+
+/* --------------------------------------------------------- the device */
+
+static hl_result device_open(bounce_run *u)
+{
+    hl_context *ctx = u->ctx;
+    cl_int e;
+    u->k = clCreateKernel(ctx->cl->program, "hl_bounce_gather", &e);
+    if (e != CL_SUCCESS) return hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: the kernel hl_bounce_gather: %s", hl_cl_err_name(e));
+    const size_t cap = (size_t)u->V * u->G * 4;
+    TRY(hl_cl_make_buf(ctx, &u->d_start, CL_MEM_READ_ONLY, ((size_t)u->V + 1) * 4, NULL, "the bounce rows"));
+    TRY(hl_cl_make_buf(ctx, &u->d_slot, CL_MEM_READ_ONLY, cap ? cap : 4, NULL, "the bounce rows"));
+    TRY(hl_cl_make_buf(ctx, &u->d_val, CL_MEM_READ_ONLY, cap ? cap : 4, NULL, "the bounce rows"));
+    TRY(hl_cl_make_buf(ctx, &u->d_idx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, (size_t)u->m->triangle_count * 12,
+                       u->m->indices, "the triangles"));
+    TRY(hl_cl_make_buf(ctx, &u->d_rho, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, (size_t)u->V * 4, u->rho,
+                       "the albedo"));
+    TRY(hl_cl_make_buf(ctx, &u->d_prim, CL_MEM_READ_ONLY, (size_t)u->R * u->K * 4, NULL, "the bounce hits"));
+    TRY(hl_cl_make_buf(ctx, &u->d_uv, CL_MEM_READ_ONLY, (size_t)u->R * u->K * 8, NULL, "the bounce hits"));
+    return hl_cl_make_buf(ctx, &u->d_out, CL_MEM_WRITE_ONLY, (size_t)u->R * u->g->ncoef * 4, NULL, "the gathers");
+}
+
+static void device_close(bounce_run *u)
+{
+    if (!u->ctx->cl) return;
+    if (u->k) clReleaseKernel(u->k);
+    cl_mem *m[] = {&u->d_start, &u->d_slot, &u->d_val, &u->d_idx, &u->d_rho, &u->d_prim, &u->d_uv, &u->d_out};
+    for (size_t i = 0; i < sizeof m / sizeof *m; i++) hl_cl_release_buf(u->ctx->cl, m[i]);
+}
+
+/* The rows of S_(b-1) onto the device, once a bounce. */
+static hl_result device_rows(bounce_run *u)
+{
+    cl_command_queue q = u->ctx->cl->queue;
+    const size_t n = u->cur.start[u->V];
+    CL_TRY(u->ctx, clEnqueueWriteBuffer(q, u->d_start, CL_FALSE, 0, ((size_t)u->V + 1) * 4, u->cur.start, 0, NULL, NULL),
+           "uploading the bounce rows");
+    if (n) {
+        CL_TRY(u->ctx, clEnqueueWriteBuffer(q, u->d_slot, CL_FALSE, 0, n * 4, u->cur.slot, 0, NULL, NULL),
+               "uploading the bounce rows");
+        CL_TRY(u->ctx, clEnqueueWriteBuffer(q, u->d_val, CL_FALSE, 0, n * 4, u->cur.val, 0, NULL, NULL),
+               "uploading the bounce rows");
+    }
+    return HL_OK;
+}
+
+/* The chunk's gathers into u->dense on the device. */
+static hl_result device_gather(bounce_run *u)
+{
+    hl_context *ctx = u->ctx;
+    cl_command_queue q = ctx->cl->queue;
+    const size_t ns = (size_t)u->count * u->K;
+    CL_TRY(ctx, clEnqueueWriteBuffer(q, u->d_prim, CL_FALSE, 0, ns * 4, u->prim + (size_t)u->first * u->K, 0, NULL, NULL),
+           "uploading the bounce hits");
+    CL_TRY(ctx, clEnqueueWriteBuffer(q, u->d_uv, CL_FALSE, 0, ns * 8, u->uv + (size_t)u->first * u->K * 2, 0, NULL, NULL),
+           "uploading the bounce hits");
+    cl_uint K = u->K, nc = u->g->ncoef, count = u->count;
+#define SETARG(i, v) CL_TRY(ctx, clSetKernelArg(u->k, i, sizeof(v), &(v)), "clSetKernelArg (hl_bounce_gather)")
+    SETARG(0, u->d_start);
+    SETARG(1, u->d_slot);
+    SETARG(2, u->d_val);
+    SETARG(3, u->d_idx);
+    SETARG(4, u->d_rho);
+    SETARG(5, u->d_prim);
+    SETARG(6, u->d_uv);
+    SETARG(7, K);
+    SETARG(8, nc);
+    SETARG(9, count);
+    SETARG(10, u->d_out);
+#undef SETARG
+    /* the device's fixed group size, so the kernel builds once per device */
+    size_t local = ctx->cl->wg ? ctx->cl->wg : 1, global = ((size_t)u->count + local - 1) / local * local;
+    CL_TRY(ctx, clEnqueueNDRangeKernel(q, u->k, 1, NULL, &global, &local, 0, NULL, NULL), "hl_bounce_gather");
+    CL_TRY(ctx, clEnqueueReadBuffer(q, u->d_out, CL_TRUE, 0, (size_t)u->count * u->g->ncoef * 4, u->dense, 0, NULL, NULL),
+           "reading the gathers");
+    return HL_OK;
+}
+
+/* --------------------------------------------------------- a chunk */
+
+/* After the gather of the chunk's vertex i: S_b = T_0 + the gather, then
+ * capped into the next rows, or (the last bounce) truncated and quantised
+ * for the file. With ref set the gather is made here (the twin). */
+static void *chunk_worker(void *arg)
+{
+    bounce_run *u = arg;
+    const hl_geom *g = u->g;
+    const int ref = u->k == NULL;
+    float *mag = malloc((size_t)g->ncoef * 4);
+    hl_ref_key *keys = malloc((size_t)g->ncoef * sizeof *keys);
+    if (!mag || !keys) atomic_store(&u->oom, 1);
+    for (;;) {
+        const uint32_t i = atomic_fetch_add(&u->next, 1u);
+        if (i >= u->count || !mag || !keys) break;
+        const uint32_t v = u->first + i;
+        float *dense = u->dense + (size_t)i * g->ncoef;
+        if (ref)
+            hl_ref_bounce_gather(&u->cur, u->m->indices, u->rho, u->prim + (size_t)v * u->K,
+                                 u->uv + (size_t)v * u->K * 2, u->K, g->ncoef, dense);
+        add_direct_row(u->t, v, dense);
+        if (!u->last) {
+            u->ncnt[v] = cap_row(dense, g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
+        } else {
+            const hl_trunc_result tr = hl_ref_truncate(g, dense, u->tp, keys);
+            u->nnz[i] = hl_ref_quantize(g, dense, tr, u->t->info.quant, v, &u->rq[i], u->bc + (size_t)i * g->nblocks,
+                                        u->entries + (size_t)i * g->ncoef * 2);
+        }
+    }
+    free(mag);
+    free(keys);
+    return NULL;
+}
+
+static hl_result run_chunk(bounce_run *u, uint32_t first, uint32_t count, int last)
+{
+    u->first = first;
+    u->count = count;
+    u->last = last;
+    atomic_store(&u->next, 0u);
+    atomic_store(&u->oom, 0);
+    if (u->k) TRY(device_gather(u));
+    hl_run_threads(u->ctx->threads, chunk_worker, u);
+    if (atomic_load(&u->oom)) return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the bounce's scratch");
+    return HL_OK;
+}
+
+/* --------------------------------------------------------- the phase */
+
+static hl_result check_albedo(bounce_run *u, const char *path)
+{
+    for (uint32_t v = 0; v < u->V; v++) {
+        const float *a = u->m->albedo + 3 * (size_t)v;
+        for (int c = 0; c < 3; c++)
+            if (!(a[c] >= 0.0f && a[c] <= 1.0f))
+                return hl_fail(u->ctx, HL_ERR_INVALID_ARGUMENT,
+                               "%s: vertex %u has albedo %g in channel %d: --bounces needs every albedo in [0, 1] (light "
+                               "would grow with each bounce)",
+                               path, v, (double)a[c], c);
+        u->rho[v] = 0.2126f * a[0] + 0.7152f * a[1] + 0.0722f * a[2];
+    }
+    return HL_OK;
+}
+
+static hl_result alloc_run(bounce_run *u)
+{
+    hl_context *ctx = u->ctx;
+    const size_t VG = (size_t)u->V * u->G, nc = u->g->ncoef;
+    u->rho = hl_alloc_big(ctx, (size_t)u->V * 4, "the albedo");
+    u->prim = hl_alloc_big(ctx, (size_t)u->V * u->K * 4, "the bounce hits");
+    u->uv = hl_alloc_big(ctx, (size_t)u->V * u->K * 8, "the bounce hits");
+    u->cur.start = hl_alloc_big(ctx, ((size_t)u->V + 1) * 4, "the bounce rows");
+    u->cur.slot = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
+    u->cur.val = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
+    u->ncnt = hl_alloc_big(ctx, (size_t)u->V * 4, "the bounce rows");
+    u->nslot = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
+    u->nval = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
+    u->dense = hl_alloc_big(ctx, (size_t)u->R * nc * 4, "the gathers");
+    u->rq = hl_alloc_big(ctx, (size_t)u->R * sizeof *u->rq, "quantisation parameters");
+    u->bc = hl_alloc_big(ctx, (size_t)u->R * u->g->nblocks * 2, "block counts");
+    u->entries = hl_alloc_big(ctx, (size_t)u->R * nc * 2, "entries");
+    u->nnz = hl_alloc_big(ctx, (size_t)u->R * 4, "entry counts");
+    u->cur.V = u->V;
+    return u->rho && u->prim && u->uv && u->cur.start && u->cur.slot && u->cur.val && u->ncnt && u->nslot && u->nval &&
+                   u->dense && u->rq && u->bc && u->entries && u->nnz
+               ? HL_OK
+               : HL_ERR_OUT_OF_MEMORY;
+}
+
+static void free_run(bounce_run *u)
+{
+    void *p[] = {u->rho, u->prim, u->uv, u->cur.start, u->cur.slot, u->cur.val, u->ncnt,
+                 u->nslot, u->nval, u->dense, u->rq, u->bc, u->entries, u->nnz};
+    for (size_t i = 0; i < sizeof p / sizeof *p; i++) hl_free_big(p[i]);
+    device_close(u);
+}
+
+/* S_0 = T_0 capped: the direct rows as the first gather reads them. */
+static hl_result first_rows(bounce_run *u)
+{
+    float *dense = malloc((size_t)u->g->ncoef * 4), *mag = malloc((size_t)u->g->ncoef * 4);
+    if (!dense || !mag) {
+        free(dense);
+        free(mag);
+        return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the bounce rows");
+    }
+    for (uint32_t v = 0; v < u->V; v++) {
+        memset(dense, 0, (size_t)u->g->ncoef * 4);
+        add_direct_row(u->t, v, dense);
+        u->ncnt[v] = cap_row(dense, u->g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
+    }
+    free(dense);
+    free(mag);
+    pack_next(u);
+    return HL_OK;
+}
+
+hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_mesh *mesh, const char *direct_path,
+                         const char *out_path, double *seconds, uint64_t *kept_out)
+{
+    const double t0 = hl_now();
+    hl_transport *t = NULL;
+    hl_result r = hl_transport_load(ctx, direct_path, &t);
+    if (r != HL_OK) return r;
+    const hl_transport_info *ti = &t->info;
+    if (ti->vertex_count != mesh->vertex_count || ti->triangle_count != mesh->triangle_count ||
+        memcmp(t->mesh->positions, mesh->positions, (size_t)mesh->vertex_count * 12) ||
+        ti->N != d->N || ti->C != d->C || ti->supersample != d->supersample || ti->quant != d->quant ||
+        ti->basis != d->basis) {
+        hl_transport_destroy(t);
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "%s: its direct rows are of another mesh or other options than this run's (remove it to start "
+                       "again)", direct_path);
+    }
+    bounce_run u = {.ctx = ctx, .t = t, .m = t->mesh, .V = t->info.vertex_count};
+    u.K = d->bounce_rays ? d->bounce_rays : HL_DEFAULT_BOUNCE_RAYS;
+    u.G = d->bounce_terms == HL_TERMS_ALL ? 2 * t->info.N * t->info.N
+          : d->bounce_terms                ? d->bounce_terms
+                                           : HL_DEFAULT_BOUNCE_TERMS;
+    if (u.G > 2 * t->info.N * t->info.N) u.G = 2 * t->info.N * t->info.N;
+    u.R = d->chunk && d->chunk < u.V ? d->chunk : (u.V < HL_DEFAULT_CHUNK ? u.V : HL_DEFAULT_CHUNK);
+    hl_geom *g = NULL;
+    hl_rt *rt = NULL;
+    hl_tfile_writer *w = NULL;
+    r = hl_geom_create(ctx, t->info.N, t->info.C, &g);
+    u.g = g;
+    if (r == HL_OK) r = alloc_run(&u);
+    if (r == HL_OK) r = check_albedo(&u, direct_path);
+    if (r == HL_OK) r = hl_rt_create(ctx, t->mesh, &rt);
+    if (r == HL_OK) r = cast_hits(&u, rt);
+    hl_rt_destroy(rt);
+    if (r == HL_OK && ctx->backend == HL_BACKEND_OPENCL) r = device_open(&u);
+    if (r == HL_OK) r = first_rows(&u);
+    hl_transport_info info = t->info;
+    info.bounces = d->bounces;
+    info.coefficients_kept = 0;
+    u.tp = hl_precompute_trunc_params(d);
+    if (r == HL_OK) r = hl_tfile_writer_open(ctx, out_path, &info, t->mesh, &w);
+    uint64_t kept = 0;
+    for (uint32_t b = 1; b <= d->bounces && r == HL_OK; b++) {
+        const double tb = hl_now();
+        const int last = b == d->bounces;
+        if (u.k) r = device_rows(&u);
+        for (uint32_t first = 0; first < u.V && r == HL_OK; first += u.R) {
+            const uint32_t count = u.V - first < u.R ? u.V - first : u.R;
+            r = run_chunk(&u, first, count, last);
+            if (r == HL_OK && last) {
+                r = hl_tfile_writer_append(w, count, u.rq, u.bc, u.entries, (size_t)g->ncoef * 2, u.nnz);
+                for (uint32_t i = 0; i < count; i++) kept += u.nnz[i];
+            }
+            if (r == HL_OK && hl_context_cancelled(ctx)) r = HL_ERR_INTERRUPTED;
+        }
+        if (r == HL_OK && !last) pack_next(&u);
+        if (r == HL_OK && !ctx->quiet)
+            fprintf(stderr, "precompute: bounce %u/%u: %u vertices x %u rays, the %u largest terms of each hit row, %.1f s\n",
+                    b, d->bounces, u.V, u.K, u.G, hl_now() - tb);
+    }
+    if (r == HL_OK) {
+        info.coefficients_kept = kept;
+        r = hl_tfile_writer_finish(w, &info);
+        w = NULL;
+    }
+    if (w) hl_tfile_writer_abort(w);
+    if (r == HL_ERR_INTERRUPTED)
+        hl_fail(ctx, r, "interrupted in the bounces: %s not written (the direct rows stay in %s)", out_path, direct_path);
+    free_run(&u);
+    hl_geom_destroy(g);
+    hl_transport_destroy(t);
+    if (seconds) *seconds = hl_now() - t0;
+    if (kept_out) *kept_out = kept;
+    return r;
+}

@@ -1,0 +1,51 @@
+/* bounce.h - diffuse interreflection baked into the transport
+ * (precompute --bounces B, docs/BOUNCES.md).
+ *
+ * With T_0 the direct rows (visibility times cosine over pi, as the
+ * precompute makes them), bounce b gathers at each vertex x
+ *   T_b(x) = (1 / K) sum_k rho(y_k) T_(b-1)(y_k)
+ * over K cosine-weighted directions of x's hemisphere, y_k the first
+ * surface hit (T and rho interpolated over the hit triangle from its
+ * corners; a miss or a back face adds nothing): the Monte Carlo estimate
+ * of the integral of (rho(y) / pi) T_(b-1)(y) max(0, n . w) dw, whose
+ * cosine over pi is the sampling density. The file's rows are then
+ * T_0 + T_1 + ... + T_B, truncated and quantised as the direct rows are,
+ * so relighting is unchanged. rho is the albedo's luminance (Rec. 709
+ * weights): the rows are one per vertex, so a coloured surface's bounce
+ * is baked with its brightness, not its hue.
+ */
+#ifndef HL_BOUNCE_H
+#define HL_BOUNCE_H
+
+#include "hl_internal.h"
+
+/* A sample that hit nothing (or a surface from behind). */
+#define HL_BOUNCE_MISS 0xffffffffu
+
+/* Rows as the gather reads them: vertex v's terms are slot[e], val[e] for
+ * e in [start[v], start[v + 1]), slots ascending. */
+typedef struct hl_bounce_src {
+    uint32_t V;
+    uint32_t *start;
+    uint32_t *slot;
+    float *val;
+} hl_bounce_src;
+
+/* The twin of kernels/precompute/bounce.cl: one vertex's T_b into out
+ * (ncoef floats, overwritten) from its K samples (prim[k] the hit
+ * triangle or HL_BOUNCE_MISS, uv[2 k ..] the barycentrics of its corners
+ * 1 and 2), the triangles' corners (indices, 3 a triangle), the
+ * vertices' albedo luminance rho and the rows of T_(b-1). */
+void hl_ref_bounce_gather(const hl_bounce_src *src, const uint32_t *indices, const float *rho, const uint32_t *prim,
+                          const float *uv, uint32_t K, uint32_t ncoef, float *out);
+
+/* The bounce phase: reads the direct transport at direct_path (made from
+ * mesh with the same parameters: its mesh section must hold mesh's
+ * positions, else HL_ERR_INVALID_ARGUMENT), gathers d->bounces bounces on ctx's
+ * backend and writes T_0 + ... + T_B to out_path (atomically, its header
+ * recording the bounces); *kept: the coefficients it holds. Progress on
+ * stderr unless ctx is quiet. */
+hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_mesh *mesh, const char *direct_path,
+                         const char *out_path, double *seconds, uint64_t *kept);
+
+#endif

@@ -1,0 +1,291 @@
+/* test_bounce.c - diffuse interreflection baked into the transport
+ * (precompute --bounces, host/src/precompute/bounce.c), suite "bounce".
+ *
+ * bounce.cavity   a sphere of radius 1 seen from inside (normals inward)
+ *                 with a round opening of form factor f: under a uniform
+ *                 map of radiance L every inner point has
+ *                 B_B = rho L f sum_(k=0..B) (rho (1 - f))^k,
+ *                 for B = 0, 1, 2, 8 and rho = 0.5, 0.9 (tolerances
+ *                 derived below, printed with the errors).
+ * bounce.furnace  the same with albedo 1 and a wider opening: the mean
+ *                 rises towards L with every bounce, every vertex with it.
+ * bounce.twin     the OpenCL gather against its plain-C twin: the two
+ *                 bounced files byte for byte (the same rays, the
+ *                 kernel's sums bit for bit the twin's), and no direct
+ *                 rows' file left behind.
+ * bounce.bad      an albedo above 1, too many bounces, --bounces with a
+ *                 shard: clear errors, no file.
+ *
+ * Depends on: haarlight_core, an OpenCL device (PoCL).
+ */
+#define _POSIX_C_SOURCE 200809L /* strdup */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "bounce.h"
+#include "haarlight_tools.h"
+#include "hl_test.h"
+#include "precompute.h"
+
+/* The sphere's rings and segments: fine enough that its polygons are
+ * within 0.1% of the sphere's area, coarse enough for a quick test. */
+#define RINGS 24
+#define SEGS 48
+#define RAYS 64u
+
+/* A unit sphere without its cap theta < theta0 (about +Y), as rings from
+ * theta0 to the south pole; normals point inward. */
+static hl_mesh *cavity(hl_context *ctx, double theta0, float rho)
+{
+    const uint32_t nv = RINGS * SEGS + 1, nt = 2 * (RINGS - 1) * SEGS + SEGS;
+    float *p = malloc((size_t)nv * 12), *n = malloc((size_t)nv * 12), *a = malloc((size_t)nv * 12);
+    uint32_t *ix = malloc((size_t)nt * 12), t = 0;
+    for (uint32_t j = 0; j < RINGS; j++)
+        for (uint32_t s = 0; s < SEGS; s++) {
+            const double th = theta0 + (HL_PI - theta0) * j / RINGS, ph = 2.0 * HL_PI * s / SEGS;
+            float *q = p + 3 * (j * SEGS + s);
+            q[0] = (float)(sin(th) * cos(ph));
+            q[1] = (float)cos(th);
+            q[2] = (float)(sin(th) * sin(ph));
+        }
+    p[3 * (nv - 1)] = 0.0f, p[3 * (nv - 1) + 1] = -1.0f, p[3 * (nv - 1) + 2] = 0.0f;
+    for (uint32_t v = 0; v < nv; v++)
+        for (int c = 0; c < 3; c++) n[3 * v + c] = -p[3 * v + c], a[3 * v + c] = rho;
+    for (uint32_t j = 0; j + 1 < RINGS; j++)
+        for (uint32_t s = 0; s < SEGS; s++) {
+            const uint32_t a0 = j * SEGS + s, a1 = j * SEGS + (s + 1) % SEGS, b0 = a0 + SEGS, b1 = a1 + SEGS;
+            ix[3 * t] = a0, ix[3 * t + 1] = a1, ix[3 * t + 2] = b0, t++;
+            ix[3 * t] = a1, ix[3 * t + 1] = b1, ix[3 * t + 2] = b0, t++;
+        }
+    for (uint32_t s = 0; s < SEGS; s++) {
+        const uint32_t a0 = (RINGS - 1) * SEGS + s, a1 = (RINGS - 1) * SEGS + (s + 1) % SEGS;
+        ix[3 * t] = a0, ix[3 * t + 1] = a1, ix[3 * t + 2] = nv - 1, t++;
+    }
+    hl_mesh *m = NULL;
+    if (hl_mesh_create(ctx, nv, p, n, a, nt, ix, &m) != HL_OK) fprintf(stderr, "cavity: %s\n", hl_context_last_error(ctx));
+    free(p);
+    free(n);
+    free(a);
+    free(ix);
+    return m;
+}
+
+/* The transport of m with B bounces at path, its colours under a uniform
+ * white map of radiance 1 (all terms) into rgb (3 a vertex). */
+static int bake_and_relight(hl_context *ctx, const hl_mesh *m, uint32_t B, uint32_t terms, const char *path, float *rgb)
+{
+    hl_precompute_desc d = {.N = 32, .C = 32, .bounces = B, .bounce_rays = RAYS, .bounce_terms = terms};
+    if (hl_precompute(ctx, m, &d, path, NULL) != HL_OK) {
+        fprintf(stderr, "precompute: %s\n", hl_context_last_error(ctx));
+        return 0;
+    }
+    hl_transport *t = NULL;
+    hl_relighter *r = NULL;
+    hl_env *env = NULL;
+    float *white = malloc(64 * 32 * 12);
+    for (int i = 0; i < 64 * 32 * 3; i++) white[i] = 1.0f;
+    hl_relight_desc rd = {.terms = HL_TERMS_ALL};
+    int ok = hl_transport_load(ctx, path, &t) == HL_OK && t->info.bounces == B &&
+             hl_env_create(ctx, 64, 32, white, &env, NULL) == HL_OK && hl_relighter_create(ctx, t, &r) == HL_OK &&
+             hl_relighter_set_env(r, env) == HL_OK && hl_relighter_run(r, &rd, rgb, NULL) == HL_OK;
+    if (!ok) fprintf(stderr, "relight: %s\n", hl_context_last_error(ctx));
+    free(white);
+    hl_relighter_destroy(r);
+    hl_env_destroy(env);
+    hl_transport_destroy(t);
+    return ok;
+}
+
+/* Mean and relative spread (standard deviation over mean) of the inner
+ * vertices' green channel: rings 2 and on (the rim's two rings see the
+ * opening's polygon edge at a grazing angle). */
+static void inner_stats(const float *rgb, double *mean, double *spread)
+{
+    double s = 0.0, s2 = 0.0;
+    uint32_t n = 0;
+    for (uint32_t v = 2 * SEGS; v < RINGS * SEGS + 1; v++, n++) {
+        s += rgb[3 * v + 1];
+        s2 += (double)rgb[3 * v + 1] * rgb[3 * v + 1];
+    }
+    *mean = s / n;
+    *spread = sqrt(fmax(0.0, s2 / n - *mean * *mean)) / *mean;
+}
+
+static double series(double q, uint32_t B)
+{
+    double s = 0.0, p = 1.0;
+    for (uint32_t k = 0; k <= B; k++, p *= q) s += p;
+    return s;
+}
+
+static double series_slope(double q, uint32_t B)
+{
+    double s = 0.0, p = 1.0;
+    for (uint32_t k = 1; k <= B; k++, p *= q) s += k * p;
+    return s;
+}
+
+static void case_cavity(void)
+{
+    hl_context *ctx = hl_test_ref_context(0);
+    const double f = 0.1, theta0 = acos(1.0 - 2.0 * f); /* cap area 2 pi (1 - cos) = 4 pi f */
+    static const float rhos[2] = {0.5f, 0.9f};
+    static const uint32_t Bs[4] = {0, 1, 2, 8};
+    const uint32_t nv = RINGS * SEGS + 1, ninner = nv - 2 * SEGS;
+    float *rgb = malloc((size_t)nv * 12);
+    for (int ri = 0; ri < 2; ri++) {
+        const double rho = rhos[ri];
+        hl_mesh *m = cavity(ctx, theta0, rhos[ri]);
+        HL_CHECK(m != NULL, "the cavity mesh");
+        if (!m) continue;
+        double m0 = 0.0, sp0 = 0.0;
+        for (int bi = 0; bi < 4; bi++) {
+            const uint32_t B = Bs[bi];
+            char path[64];
+            snprintf(path, sizeof path, "cavity_%d_%u.hlt", ri, B);
+            if (!bake_and_relight(ctx, m, B, HL_TERMS_ALL, hl_test_tmp_path(path), rgb)) {
+                HL_CHECK(0, "bake rho %.1f B %u", rho, B);
+                continue;
+            }
+            double mean, spread;
+            inner_stats(rgb, &mean, &spread);
+            const double want = rho * f * series(rho * (1.0 - f), B);
+            printf("rho %.1f, B = %u: inner mean %.5f, exact %.5f (spread %.3f%%)\n", rho, B, mean, want,
+                   100.0 * spread);
+            if (B == 0) {
+                /* the direct rows: the opening's edge falls across
+                   texels of 2 pi / (4 N) radians at the paraboloid's rim,
+                   about 5.6 degrees at N = 32; an edge of length l
+                   (radians) through texels of width w misplaces at most
+                   half a texel's strip, l w / 2, of the opening's solid
+                   angle Omega: the opening, 2 theta0 = 73.7 degrees
+                   across from its far side, l = pi 2 theta0 / 2 (a
+                   circle's half seen edge-on and half face-on), so
+                   l w / (2 Omega) with Omega = 4 pi f / 2 (the opening as
+                   a disc seen from the far side) is 4.8%; the polygon's
+                   48 sides add 0.3% */
+                hl_check_error("B = 0: inner mean against rho L f (relative)", fabs(mean - want) / want, 0.051);
+                m0 = mean, sp0 = spread;
+                continue;
+            }
+            /* the bounces against the direct light of the same file
+               (its own error cancels): B_B / B_0 = S(q), q = rho (1 - f'),
+               f' = B_0 / (rho L) the form factor as the direct rows have
+               it. The error of the ratio: the fraction of each vertex's
+               RAYS rays that stay inside, a binomial of standard
+               deviation sqrt(f (1 - f) / RAYS) per vertex and that over
+               sqrt(ninner) for the mean, 4 of those; times
+               rho S'(q) / S(q) for the series; plus the spread of B_0
+               over the vertices the rays hit (a mean over other points
+               than the inner vertices' mean), the share (S - 1) / S of
+               B_B that the bounces make; plus the final rows' 8-bit
+               codes, whose dither averages out in the mean but whose
+               magnitude step (1 / 127 of the largest term) we allow once */
+            const double fm = m0 / rho, q = rho * (1.0 - fm), S = series(q, B);
+            const double sampling = 4.0 * sqrt(fm * (1.0 - fm) / RAYS / ninner) * rho * series_slope(q, B) / S;
+            const double tol = sampling + sp0 * (S - 1.0) / S + 1.0 / 127.0;
+            char what[160];
+            snprintf(what, sizeof what, "rho %.1f, B = %u: B_B / B_0 against the series (relative)", rho, B);
+            hl_check_error(what, fabs(mean / m0 - S) / S, tol);
+        }
+        hl_mesh_destroy(m);
+    }
+    free(rgb);
+    hl_context_destroy(ctx);
+}
+
+static void case_furnace(void)
+{
+    hl_context *ctx = hl_test_ref_context(0);
+    const double f = 0.3, theta0 = acos(1.0 - 2.0 * f);
+    hl_mesh *m = cavity(ctx, theta0, 1.0f);
+    const uint32_t nv = RINGS * SEGS + 1;
+    static const uint32_t Bs[4] = {0, 1, 4, 12};
+    float *prev = malloc((size_t)nv * 12), *rgb = malloc((size_t)nv * 12);
+    double last = 0.0, worst_drop = 0.0;
+    for (int bi = 0; m && bi < 4; bi++) {
+        char path[64];
+        snprintf(path, sizeof path, "furnace_%u.hlt", Bs[bi]);
+        if (!bake_and_relight(ctx, m, Bs[bi], 0, hl_test_tmp_path(path), rgb)) {
+            HL_CHECK(0, "bake B %u", Bs[bi]);
+            break;
+        }
+        double mean, spread;
+        inner_stats(rgb, &mean, &spread);
+        printf("albedo 1, B = %2u: inner mean %.4f (L = 1; the series %.4f)\n", Bs[bi], mean,
+               f * series(1.0 - f, Bs[bi]));
+        HL_CHECK(mean > last, "B = %u: the mean %.5f did not rise from %.5f", Bs[bi], mean, last);
+        HL_CHECK(mean <= 1.0 + 1.0 / 127.0, "B = %u: the mean %.5f passes L", Bs[bi], mean);
+        for (uint32_t v = 0; bi > 0 && v < nv; v++) worst_drop = fmax(worst_drop, prev[3 * v + 1] - rgb[3 * v + 1]);
+        last = mean;
+        memcpy(prev, rgb, (size_t)nv * 12);
+    }
+    /* each file's own 8-bit codes: a vertex may read up to a step of its
+       row's largest term (1 / 127 of a value below 1) under the last */
+    hl_check_error("no vertex falls from one bounce count to the next (absolute)", worst_drop, 1.0 / 127.0);
+    HL_CHECK(last > 0.95, "12 bounces of albedo 1 reach %.4f of L (the series: %.4f)", last, f * series(0.7, 12));
+    free(prev);
+    free(rgb);
+    hl_mesh_destroy(m);
+    hl_context_destroy(ctx);
+}
+
+static void case_twin(void)
+{
+    hl_context *ref = hl_test_ref_context(0), *cl = hl_test_cl_context(0);
+    HL_CHECK(cl != NULL, "an OpenCL device is needed");
+    if (!cl) { hl_context_destroy(ref); return; }
+    hl_mesh *m = cavity(ref, acos(1.0 - 2.0 * 0.2), 0.7f);
+    const char *pa = strdup(hl_test_tmp_path("bounce_ref.hlt")), *pb = strdup(hl_test_tmp_path("bounce_cl.hlt"));
+    hl_precompute_desc d = {.N = 16, .C = 16, .bounces = 2, .bounce_rays = 16};
+    HL_CHECK(m && hl_precompute(ref, m, &d, pa, NULL) == HL_OK, "reference: %s", hl_context_last_error(ref));
+    HL_CHECK(m && hl_precompute(cl, m, &d, pb, NULL) == HL_OK, "OpenCL: %s", hl_context_last_error(cl));
+    size_t na = 0, nb = 0;
+    uint8_t *a = hl_test_read_file(pa, &na), *b = hl_test_read_file(pb, &nb);
+    size_t diff = a && b && na == nb ? 0 : SIZE_MAX;
+    for (size_t i = 0; diff != SIZE_MAX && i < na; i++) diff += a[i] != b[i];
+    printf("bounced files: %zu and %zu bytes, %zu bytes differ\n", na, nb, diff);
+    HL_CHECK(diff == 0, "the OpenCL and reference bounced files differ");
+    char direct[1200];
+    snprintf(direct, sizeof direct, "%s.direct.hlt", pa);
+    HL_CHECK(access(direct, F_OK) != 0, "the direct rows' file %s was left behind", direct);
+    free(a);
+    free(b);
+    free((void *)pa);
+    free((void *)pb);
+    hl_mesh_destroy(m);
+    hl_context_destroy(cl);
+    hl_context_destroy(ref);
+}
+
+static void case_bad(void)
+{
+    hl_context *ctx = hl_test_ref_context(0);
+    hl_mesh *m = cavity(ctx, 0.6, 0.5f);
+    const char *p = hl_test_tmp_path("bounce_bad.hlt");
+    hl_precompute_desc d = {.N = 16, .C = 16, .bounces = HL_MAX_BOUNCES + 1};
+    HL_CHECK(hl_precompute(ctx, m, &d, p, NULL) == HL_ERR_INVALID_ARGUMENT, "17 bounces taken");
+    printf("17 bounces: %s\n", hl_context_last_error(ctx));
+    d.bounces = 1;
+    HL_CHECK(hl_precompute_shard(ctx, m, &d, 0, 2, p, NULL) == HL_ERR_INVALID_ARGUMENT, "a bounced shard taken");
+    printf("a shard: %s\n", hl_context_last_error(ctx));
+    /* an albedo above 1: each bounce would add more light than it took */
+    for (uint32_t v = 0; v < m->vertex_count; v++) m->albedo[3 * v] = 1.5f;
+    HL_CHECK(hl_precompute(ctx, m, &d, p, NULL) == HL_ERR_INVALID_ARGUMENT, "albedo 1.5 taken");
+    printf("albedo 1.5: %s\n", hl_context_last_error(ctx));
+    HL_CHECK(strstr(hl_context_last_error(ctx), "albedo") != NULL, "the error names the albedo");
+    HL_CHECK(access(p, F_OK) != 0, "a file was written");
+    hl_mesh_destroy(m);
+    hl_context_destroy(ctx);
+}
+
+int main(int argc, char **argv)
+{
+    static const hl_test_case cases[] = {
+        {"cavity", case_cavity}, {"furnace", case_furnace}, {"twin", case_twin}, {"bad", case_bad}, {NULL, NULL}};
+    return hl_test_main(argc, argv, cases);
+}
