@@ -416,8 +416,8 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
         ti->basis != d->basis) {
         hl_transport_destroy(t);
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
-                       "%s: its direct rows are of another mesh or other options than this run's (remove it to start "
-                       "again)", direct_path);
+                       "%s: its direct rows are of another mesh or other options than this run's (removed: run again without "
+                       "--resume)", direct_path);
     }
     bounce_run u = {.ctx = ctx, .t = t, .m = t->mesh, .V = t->info.vertex_count};
     u.K = d->bounce_rays ? d->bounce_rays : HL_DEFAULT_BOUNCE_RAYS;
