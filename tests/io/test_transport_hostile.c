@@ -434,9 +434,14 @@ static void case_basis(void)
         expect_refused(ctx, bad, f, size, forged[k].what, "file_basis.hlt");
     }
     memcpy(f, data, size);
-    f[184] = 1; /* still reserved */
+    f[170] = 1; /* still reserved in a whole file */
     fix_header_crc(f);
-    expect_refused(ctx, bad, f, size, "reserved byte 184", "reserved header bytes");
+    expect_refused(ctx, bad, f, size, "reserved byte 170", "reserved header bytes");
+    /* 184 holds the bounces baked in: at most HL_MAX_BOUNCES */
+    memcpy(f, data, size);
+    wr32(f + 184, HL_MAX_BOUNCES + 1);
+    fix_header_crc(f);
+    expect_refused(ctx, bad, f, size, "17 bounces", "bounces = 17");
     /* orders 1 to 11 over this file, whose entries reach slot 127:
        refused, naming the first slot at or past L^2 */
     int refused = 0;
