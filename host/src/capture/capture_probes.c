@@ -182,6 +182,17 @@ static int cell_split(probe_cell *c, probe_cell *d, uint32_t *idx, const float *
     return 1;
 }
 
+/* Probe k's weight at x before normalising: (1 - u^2)^2 with u the
+ * distance over its reach, 0 past it. */
+static double probe_weight(const hl_probe_set *ps, uint32_t k, const float *x)
+{
+    const float *p = ps->points + 3 * (size_t)k;
+    double d2 = 0.0;
+    for (int a = 0; a < 3; a++) d2 += ((double)x[a] - p[a]) * ((double)x[a] - p[a]);
+    const double reach = HL_PROBE_REACH * ps->radius[k], u2 = d2 / (reach * reach);
+    return u2 < 1.0 ? (1.0 - u2) * (1.0 - u2) : 0.0;
+}
+
 /* One point, the relighter's own capture point as without probes, and
  * its bound; nothing to weigh. */
 static hl_result one_point(hl_context *ctx, const float centre[3], hl_probe_set *out)
@@ -262,42 +273,30 @@ hl_result hl_probe_set_build(hl_context *ctx, const float *pos, uint32_t V, cons
     /* a cell of one point has no extent: it reaches a little way */
     for (uint32_t k = 0; k < n && res == HL_OK; k++)
         if (!(out->radius[k] > 1e-6 * root_rho)) out->radius[k] = root_rho > 0.0 ? 1e-6 * root_rho : 1.0;
-    /* each vertex's weights, twice over the probes: count, then fill */
-    size_t total = 0;
+    /* the lists: counted, then filled with each vertex's weights over
+       their sum */
     uint32_t *cnt = res == HL_OK ? calloc((size_t)n + 1, 4) : NULL;
     if (res == HL_OK && !cnt) res = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the probes' lists");
-    for (int pass = 0; pass < 2 && res == HL_OK; pass++) {
-        if (pass == 1) {
-            out->start[0] = 0;
-            for (uint32_t k = 0; k < n; k++) out->start[k + 1] = out->start[k] + cnt[k];
-            out->vert = hl_malloc(ctx, total * 4 + 4, "the probes' lists");
-            out->weight = hl_malloc(ctx, total * 4 + 4, "the probes' weights");
-            if (!out->vert || !out->weight) {
-                res = HL_ERR_OUT_OF_MEMORY;
-                break;
-            }
-            memset(cnt, 0, (size_t)n * 4);
-        }
-        for (uint32_t v = 0; v < V; v++) {
-            const float *x = pos + 3 * (size_t)v;
-            double sum = 0.0;
-            for (int fill = 0; fill < 1 + pass; fill++)
-                for (uint32_t k = 0; k < n; k++) {
-                    const float *p = out->points + 3 * k;
-                    double d2 = 0.0;
-                    for (int a = 0; a < 3; a++) d2 += ((double)x[a] - p[a]) * ((double)x[a] - p[a]);
-                    const double reach = HL_PROBE_REACH * out->radius[k], u2 = d2 / (reach * reach);
-                    if (!(u2 < 1.0)) continue;
-                    const double w = (1.0 - u2) * (1.0 - u2);
-                    if (!fill) {
-                        sum += w;
-                        if (pass == 0) cnt[k]++, total++;
-                    } else {
-                        const uint32_t e = out->start[k] + cnt[k]++;
-                        out->vert[e] = v;
-                        out->weight[e] = (float)(w / sum);
-                    }
-                }
+    for (uint32_t v = 0; v < V && res == HL_OK; v++)
+        for (uint32_t k = 0; k < n; k++) cnt[k] += probe_weight(out, k, pos + 3 * (size_t)v) > 0.0;
+    if (res == HL_OK) {
+        out->start[0] = 0;
+        for (uint32_t k = 0; k < n; k++) out->start[k + 1] = out->start[k] + cnt[k];
+        out->vert = hl_malloc(ctx, (size_t)out->start[n] * 4 + 4, "the probes' lists");
+        out->weight = hl_malloc(ctx, (size_t)out->start[n] * 4 + 4, "the probes' weights");
+        if (!out->vert || !out->weight) res = HL_ERR_OUT_OF_MEMORY;
+        else memset(cnt, 0, (size_t)n * 4);
+    }
+    for (uint32_t v = 0; v < V && res == HL_OK; v++) {
+        const float *x = pos + 3 * (size_t)v;
+        double sum = 0.0;
+        for (uint32_t k = 0; k < n; k++) sum += probe_weight(out, k, x);
+        for (uint32_t k = 0; k < n; k++) {
+            const double w = probe_weight(out, k, x);
+            if (!(w > 0.0)) continue;
+            const uint32_t e = out->start[k] + cnt[k]++;
+            out->vert[e] = v;
+            out->weight[e] = (float)(w / sum);
         }
     }
     free(cnt);

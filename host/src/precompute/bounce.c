@@ -24,6 +24,7 @@
 #include "bounce.h"
 #include "cl_internal.h"
 #include "geom.h"
+#include "mesh_ops.h"
 #include "precompute.h"
 #include "rays.h"
 #include "transport_file.h"
@@ -334,19 +335,26 @@ static hl_result run_chunk(bounce_run *u, uint32_t first, uint32_t count, int la
 
 /* --------------------------------------------------------- the phase */
 
-static hl_result check_albedo(bounce_run *u, const char *path)
+hl_result hl_bounce_check_albedo(hl_context *ctx, const hl_mesh *m)
+{
+    for (uint32_t v = 0; v < m->vertex_count; v++)
+        for (int c = 0; c < 3; c++) {
+            const float a = m->albedo ? m->albedo[3 * (size_t)v + c] : HL_DEFAULT_ALBEDO;
+            if (!(a >= 0.0f && a <= 1.0f))
+                return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                               "--bounces: vertex %u has albedo %g in channel %d; every albedo must be in [0, 1] "
+                               "(light would grow with each bounce)", v, (double)a, c);
+        }
+    return HL_OK;
+}
+
+/* The bounce albedo: each vertex's albedo's luminance (Rec. 709). */
+static void bounce_albedo(bounce_run *u)
 {
     for (uint32_t v = 0; v < u->V; v++) {
         const float *a = u->m->albedo + 3 * (size_t)v;
-        for (int c = 0; c < 3; c++)
-            if (!(a[c] >= 0.0f && a[c] <= 1.0f))
-                return hl_fail(u->ctx, HL_ERR_INVALID_ARGUMENT,
-                               "%s: vertex %u has albedo %g in channel %d: --bounces needs every albedo in [0, 1] (light "
-                               "would grow with each bounce)",
-                               path, v, (double)a[c], c);
         u->rho[v] = 0.2126f * a[0] + 0.7152f * a[1] + 0.0722f * a[2];
     }
-    return HL_OK;
 }
 
 static hl_result alloc_run(bounce_run *u)
@@ -432,7 +440,8 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     r = hl_geom_create(ctx, t->info.N, t->info.C, &g);
     u.g = g;
     if (r == HL_OK) r = alloc_run(&u);
-    if (r == HL_OK) r = check_albedo(&u, direct_path);
+    if (r == HL_OK) r = hl_bounce_check_albedo(ctx, t->mesh);
+    if (r == HL_OK) bounce_albedo(&u);
     if (r == HL_OK) r = hl_rt_create(ctx, t->mesh, &rt);
     if (r == HL_OK) r = cast_hits(&u, rt);
     hl_rt_destroy(rt);

@@ -39,6 +39,10 @@ typedef struct hl_bounce_src {
 void hl_ref_bounce_gather(const hl_bounce_src *src, const uint32_t *indices, const float *rho, const uint32_t *prim,
                           const float *uv, uint32_t K, uint32_t ncoef, float *out);
 
+/* Refuses (HL_ERR_INVALID_ARGUMENT, naming the vertex and channel) a mesh
+ * with an albedo outside [0, 1]: each bounce would add light. */
+hl_result hl_bounce_check_albedo(hl_context *ctx, const hl_mesh *m);
+
 /* The bounce phase: reads the direct transport at direct_path (made from
  * mesh with the same parameters: its mesh section must hold mesh's
  * positions, else HL_ERR_INVALID_ARGUMENT), gathers d->bounces bounces on ctx's

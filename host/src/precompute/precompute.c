@@ -25,7 +25,6 @@
 
 #include "bounce.h"
 #include "cube.h"
-#include "mesh_ops.h"
 #include "haarlight_tools.h"
 #include "precompute.h"
 #include "rays.h"
@@ -488,19 +487,12 @@ static hl_result precompute_bounced(hl_context *ctx, const hl_mesh *mesh, const 
     char direct[4096];
     if ((size_t)snprintf(direct, sizeof direct, "%s.direct.hlt", out_path) >= sizeof direct)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: the path is too long", out_path);
-    /* checked before the direct rays: light would grow with each bounce */
-    for (uint32_t v = 0; v < mesh->vertex_count; v++)
-        for (int c = 0; c < 3; c++) {
-            const float a = mesh->albedo ? mesh->albedo[3 * (size_t)v + c] : HL_DEFAULT_ALBEDO;
-            if (!(a >= 0.0f && a <= 1.0f))
-                return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
-                               "--bounces: vertex %u has albedo %g in channel %d; every albedo must be in [0, 1] "
-                               "(light would grow with each bounce)", v, (double)a, c);
-        }
+    /* checked before the direct rays, not after them */
+    hl_result r = hl_bounce_check_albedo(ctx, mesh);
+    if (r != HL_OK) return r;
     hl_precompute_desc dd = *d;
     dd.bounces = 0;
     const double t0 = hl_now();
-    hl_result r = HL_OK;
     /* --resume after the direct rows were done: the bounces only */
     if (d->resume && access(direct, F_OK) == 0) {
         if (!ctx->quiet) fprintf(stderr, "precompute: resuming with the direct rows of %s\n", direct);

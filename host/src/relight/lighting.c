@@ -78,7 +78,6 @@ struct hl_relighter {
     float centre[3];        /* the one capture point's place */
     double reach;           /* the farthest vertex from it (< 0: not yet measured) */
     float *blend4;          /* V x 4: the colours blended over the points */
-    int blended;            /* rgba is blend4 */
 };
 
 void hl_relighter_destroy(hl_relighter *r)
@@ -689,7 +688,7 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         r->last.keep_negative == d.keep_negative) {
         st = r->last_stats;
         st.reused = 1;
-        if (!out && r->cl && !r->blended) {
+        if (!out && r->cl && r->rgba != r->blend4) {
             hl_result res = hl_cl_light_colours(r->cl, &r->rgba);
             if (res != HL_OK) return res;
         }
@@ -706,14 +705,12 @@ static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex
         hl_select_params sp = {d.terms, d.select, {0, 0}};
         hl_select_result sr;
         r->have_last = 0; /* rgba or out may be half written on failure */
-        r->blended = 0;
         if (r->cl) hl_cl_light_keep_negative(r->cl, d.keep_negative);
         if (res == HL_OK && r->sur && r->probes_stale) res = place_probes(r);
         const int multi = res == HL_OK && r->sur && r->probes.count > 1;
         if (res == HL_OK && multi) {
             res = run_probes(r, s0, f, sp, weight, d.keep_negative, &st);
             r->rgba = r->blend4;
-            r->blended = res == HL_OK;
             /* the blend is the host's: into a device buffer as a write */
             if (res == HL_OK && out) res = hl_cl_light_write_colours(r->cl, r->blend4, out, gl);
         } else {
