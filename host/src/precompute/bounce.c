@@ -421,7 +421,8 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     if (ti->vertex_count != mesh->vertex_count || ti->triangle_count != mesh->triangle_count ||
         memcmp(t->mesh->positions, mesh->positions, (size_t)mesh->vertex_count * 12) ||
         ti->N != d->N || ti->C != d->C || ti->supersample != d->supersample || ti->quant != d->quant ||
-        ti->basis != d->basis) {
+        ti->basis != d->basis || ti->rule != d->rule || ti->K != d->K || ti->ray_offset != d->ray_offset ||
+        (d->rule == HL_TRUNC_ENERGY && ti->eps != d->eps)) {
         hl_transport_destroy(t);
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "%s: its direct rows are of another mesh or other options than this run's (removed: run again without "
