@@ -345,20 +345,33 @@ typedef struct hl_transport_info {
     uint32_t bounces;             /* diffuse interreflection bounces baked into the
                                      rows (precompute --bounces), with the albedo of
                                      the file's mesh; 0: direct light only */
+    uint32_t channels;            /* rows a vertex: 1 (0 taken as 1), one row for
+                                     R, G and B; 3, bounces off coloured surfaces:
+                                     a plane of V rows per channel, R's, then G's,
+                                     then B's (docs/BOUNCES.md) */
 } hl_transport_info;
 
-/* A transport file in memory. Vertex v's entries are
+/* A transport file in memory. Row v's entries are
  * entries[2*row_offset[v] .. 2*row_offset[v+1]), in pairs (index in block,
  * quantised value), ordered by block then index; block_counts[v*block_count
- * + b] says how many belong to block b. */
+ * + b] says how many belong to block b. There are R = vertex_count x
+ * channels rows: row c V + v is vertex v's for channel c when channels is 3
+ * (hl_transport_rows). */
 typedef struct hl_transport {
     hl_transport_info info;
     hl_mesh *mesh;
-    struct hl_row_quant *row_quant; /* vertex_count */
-    uint16_t *block_counts;    /* vertex_count * block_count */
-    uint64_t *row_offset;      /* vertex_count + 1, derived on load */
+    struct hl_row_quant *row_quant; /* R */
+    uint16_t *block_counts;    /* R * block_count */
+    uint64_t *row_offset;      /* R + 1, derived on load */
     uint8_t *entries;          /* 2 * coefficients_kept */
 } hl_transport;
+
+/* The rows of a transport: vertex_count, or 3 vertex_count for coloured
+ * bounces (channels 3). */
+static inline uint32_t hl_transport_rows(const hl_transport_info *i)
+{
+    return i->vertex_count * (i->channels == 3 ? 3u : 1u);
+}
 
 /* Runs the whole precomputation on the context's device and writes the
  * transport file atomically: rows go to out_path + ".partial", renamed onto
@@ -375,8 +388,9 @@ HL_API hl_result hl_transport_load(hl_context *ctx, const char *path,
                             hl_transport **out);
 HL_API void hl_transport_destroy(hl_transport *t);
 
-/* Dequantises vertex v's kept coefficients into a dense row of 2 N^2
- * floats (zero elsewhere). */
+/* Dequantises row v's kept coefficients into a dense row of 2 N^2
+ * floats (zero elsewhere): vertex v's, or with channels 3, v < 3
+ * vertex_count, vertex v mod vertex_count's for channel v / vertex_count. */
 HL_API void hl_transport_query_row(const hl_transport *t, uint32_t v, float *dense);
 
 /* The same row as the dot products add it (both backends): each term

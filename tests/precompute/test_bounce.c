@@ -13,6 +13,10 @@
  *                 bounced files byte for byte (the same rays, the
  *                 kernel's sums bit for bit the twin's), and no direct
  *                 rows' file left behind.
+ * bounce.colour   a coloured albedo: a row a channel; each channel's rows
+ *                 byte for byte those of a grey bake with that channel's
+ *                 albedo, and relit the same bit for bit (both backends);
+ *                 the OpenCL and reference files byte for byte.
  * bounce.bad      an albedo above 1, too many bounces, --bounces with a
  *                 shard: clear errors, no file.
  *
@@ -262,6 +266,137 @@ static void case_twin(void)
     hl_context_destroy(ref);
 }
 
+/* The rows of plane c of a (3 planes, each of b's vertex count) against
+ * the one plane of b: how many rows differ in parameters, counts or
+ * entries. */
+static uint32_t plane_differs(const hl_transport *a, uint32_t c, const hl_transport *b)
+{
+    const uint32_t V = b->info.vertex_count, nb = b->info.block_count;
+    uint32_t bad = 0;
+    for (uint32_t v = 0; v < V; v++) {
+        const uint32_t ra = c * V + v;
+        const uint64_t na = a->row_offset[ra + 1] - a->row_offset[ra], nbv = b->row_offset[v + 1] - b->row_offset[v];
+        bad += na != nbv || memcmp(&a->row_quant[ra], &b->row_quant[v], sizeof b->row_quant[v]) ||
+               memcmp(a->block_counts + (size_t)ra * nb, b->block_counts + (size_t)v * nb, (size_t)nb * 2) ||
+               memcmp(a->entries + 2 * a->row_offset[ra], b->entries + 2 * b->row_offset[v], 2 * (size_t)na);
+    }
+    return bad;
+}
+
+/* A map with colour and direction in it: a bright warm patch, a blue
+ * gradient, a dim floor. */
+static hl_env *coloured_map(hl_context *ctx)
+{
+    const uint32_t W = 64, H = 32;
+    float *px = malloc((size_t)W * H * 12);
+    for (uint32_t y = 0; y < H; y++)
+        for (uint32_t x = 0; x < W; x++) {
+            float *q = px + 3 * ((size_t)y * W + x);
+            const int sun = x >= 10 && x < 14 && y >= 6 && y < 10;
+            q[0] = sun ? 40.0f : 0.2f + 0.02f * (float)x;
+            q[1] = sun ? 30.0f : 0.3f;
+            q[2] = sun ? 10.0f : 1.2f - 0.03f * (float)y;
+        }
+    hl_env *env = NULL;
+    if (hl_env_create(ctx, W, H, px, &env, NULL) != HL_OK) fprintf(stderr, "map: %s\n", hl_context_last_error(ctx));
+    free(px);
+    return env;
+}
+
+static void case_colour(void)
+{
+    hl_context *ref = hl_test_ref_context(0), *cl = hl_test_cl_context(0);
+    HL_CHECK(cl != NULL, "an OpenCL device is needed");
+    if (!cl) { hl_context_destroy(ref); return; }
+    /* red, a green that varies over the vertices, little blue */
+    hl_mesh *m = cavity(ref, acos(1.0 - 2.0 * 0.2), 0.9f);
+    for (uint32_t v = 0; m && v < m->vertex_count; v++) {
+        m->albedo[3 * v + 1] = 0.3f + 0.05f * (float)((v * 37u) % 11u);
+        m->albedo[3 * v + 2] = 0.2f;
+    }
+    hl_precompute_desc d = {.N = 16, .C = 16, .bounces = 2, .bounce_rays = 16};
+    const char *pc = strdup(hl_test_tmp_path("bounce_colour.hlt")), *pk = strdup(hl_test_tmp_path("bounce_colour_cl.hlt"));
+    HL_CHECK(m && hl_precompute(ref, m, &d, pc, NULL) == HL_OK, "reference: %s", hl_context_last_error(ref));
+    HL_CHECK(m && hl_precompute(cl, m, &d, pk, NULL) == HL_OK, "OpenCL: %s", hl_context_last_error(cl));
+    size_t na = 0, nk = 0;
+    uint8_t *fa = hl_test_read_file(pc, &na), *fk = hl_test_read_file(pk, &nk);
+    size_t diff = fa && fk && na == nk ? 0 : SIZE_MAX;
+    for (size_t i = 0; diff != SIZE_MAX && i < na; i++) diff += fa[i] != fk[i];
+    printf("coloured bounced files: %zu and %zu bytes, %zu bytes differ\n", na, nk, diff);
+    HL_CHECK(diff == 0, "the OpenCL and reference coloured files differ");
+    free(fa);
+    free(fk);
+    hl_transport *tc = NULL;
+    HL_CHECK(hl_transport_load(ref, pc, &tc) == HL_OK, "load: %s", hl_context_last_error(ref));
+    HL_CHECK(tc && tc->info.channels == 3 && hl_transport_rows(&tc->info) == 3 * m->vertex_count,
+             "a coloured albedo gives a row a channel (channels %u)", tc ? tc->info.channels : 0);
+    hl_env *env = coloured_map(ref);
+    hl_relight_desc rd = {.terms = 60};
+    const size_t V = m ? m->vertex_count : 0;
+    float *rgb_c = malloc(V * 12), *rgb_g = malloc(V * 12), *rgb_k = malloc(V * 12);
+    /* the coloured file relit, on both backends */
+    hl_relighter *rc = NULL, *rk = NULL;
+    HL_CHECK(tc && env && hl_relighter_create(ref, tc, &rc) == HL_OK && hl_relighter_set_env(rc, env) == HL_OK &&
+                 hl_relighter_run(rc, &rd, rgb_c, NULL) == HL_OK,
+             "relight (reference): %s", hl_context_last_error(ref));
+    HL_CHECK(tc && env && hl_relighter_create(cl, tc, &rk) == HL_OK && hl_relighter_set_env(rk, env) == HL_OK &&
+                 hl_relighter_run(rk, &rd, rgb_k, NULL) == HL_OK,
+             "relight (OpenCL): %s", hl_context_last_error(cl));
+    double worst_k = 0.0;
+    for (size_t i = 0; rc && rk && i < 3 * V; i++) worst_k = fmax(worst_k, fabs((double)rgb_c[i] - rgb_k[i]));
+    printf("coloured file, OpenCL against the reference: worst %.3g (tolerance 0)\n", worst_k);
+    HL_CHECK(worst_k == 0.0, "the backends' colours differ by %g", worst_k);
+    /* each channel against a grey bake with that channel's albedo */
+    double tint[3] = {0, 0, 0};
+    for (int c = 0; c < 3 && tc; c++) {
+        hl_mesh *mg = cavity(ref, acos(1.0 - 2.0 * 0.2), 0.5f);
+        for (uint32_t v = 0; v < mg->vertex_count; v++)
+            for (int k = 0; k < 3; k++) mg->albedo[3 * v + k] = m->albedo[3 * v + c];
+        char pg[64];
+        snprintf(pg, sizeof pg, "bounce_grey%d.hlt", c);
+        const char *path = hl_test_tmp_path(pg);
+        hl_transport *tg = NULL;
+        hl_relighter *rg = NULL;
+        HL_CHECK(hl_precompute(ref, mg, &d, path, NULL) == HL_OK && hl_transport_load(ref, path, &tg) == HL_OK,
+                 "grey bake: %s", hl_context_last_error(ref));
+        if (!tg) {
+            hl_mesh_destroy(mg);
+            continue;
+        }
+        HL_CHECK(tg->info.channels == 1, "a grey albedo keeps a row a vertex");
+        const uint32_t bad = plane_differs(tc, (uint32_t)c, tg);
+        printf("channel %d: %u of %zu rows differ from the grey bake's (tolerance 0)\n", c, bad, V);
+        HL_CHECK(bad == 0, "channel %d's rows are not the grey bake's", c);
+        HL_CHECK(hl_relighter_create(ref, tg, &rg) == HL_OK && hl_relighter_set_env(rg, env) == HL_OK &&
+                     hl_relighter_run(rg, &rd, rgb_g, NULL) == HL_OK,
+                 "relight grey: %s", hl_context_last_error(ref));
+        double worst = 0.0;
+        for (size_t v = 0; rc && v < V; v++) {
+            worst = fmax(worst, fabs((double)rgb_c[3 * v + c] - rgb_g[3 * v + c]));
+            tint[c] += rgb_c[3 * v + c];
+        }
+        printf("channel %d: relit against the grey bake's, worst %.3g (tolerance 0)\n", c, worst);
+        HL_CHECK(worst == 0.0, "channel %d relights differently from the grey bake", c);
+        hl_relighter_destroy(rg);
+        hl_transport_destroy(tg);
+        hl_mesh_destroy(mg);
+    }
+    /* the point of it: the red light multiplies inside the red cavity */
+    printf("inner means, red : green : blue = %.4f : %.4f : %.4f\n", tint[0] / (double)V, tint[1] / (double)V, tint[2] / (double)V);
+    hl_relighter_destroy(rc);
+    hl_relighter_destroy(rk);
+    free(rgb_c);
+    free(rgb_g);
+    free(rgb_k);
+    hl_env_destroy(env);
+    hl_transport_destroy(tc);
+    free((void *)pc);
+    free((void *)pk);
+    hl_mesh_destroy(m);
+    hl_context_destroy(cl);
+    hl_context_destroy(ref);
+}
+
 static void case_bad(void)
 {
     hl_context *ctx = hl_test_ref_context(0);
@@ -286,6 +421,7 @@ static void case_bad(void)
 int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
-        {"cavity", case_cavity}, {"furnace", case_furnace}, {"twin", case_twin}, {"bad", case_bad}, {NULL, NULL}};
+        {"cavity", case_cavity}, {"furnace", case_furnace}, {"twin", case_twin},
+        {"colour", case_colour}, {"bad", case_bad},       {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

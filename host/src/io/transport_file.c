@@ -52,7 +52,7 @@ struct hl_tfile_writer {
     int fd;
     int failed; /* after an I/O error only abort is useful */
     tf_header hdr; /* hdr.shard.count 0: a whole file */
-    uint32_t rows_total; /* vertices this file holds: V, or the shard's */
+    uint32_t rows_total; /* rows this file holds: V (3 V with a row a channel), or the shard's */
     uint32_t appended;
     uint64_t coefficients;
     tf_stream rows, entries;
@@ -157,7 +157,8 @@ static int info_params_differ(const hl_transport_info *a, const hl_transport_inf
            a->K != b->K || HL_AS_U32(a->eps) != HL_AS_U32(b->eps) || a->quant != b->quant ||
            HL_AS_U32(a->ray_offset) != HL_AS_U32(b->ray_offset) || a->vertex_count != b->vertex_count ||
            a->object_vertex_count != b->object_vertex_count || a->triangle_count != b->triangle_count ||
-           a->block_count != b->block_count || a->basis != b->basis || a->sh_order != b->sh_order;
+           a->block_count != b->block_count || a->basis != b->basis || a->sh_order != b->sh_order ||
+           (a->channels == 3) != (b->channels == 3);
 }
 
 /* The mesh's agreement with info, and its contents. */
@@ -216,7 +217,8 @@ static hl_result writer_new(hl_context *ctx, const char *path, const hl_transpor
     tf_header *h = &w->hdr;
     h->info = *info;
     h->shard = sh;
-    w->rows_total = sh.end - sh.first;
+    /* a row a channel: the range's rows for red, then green, then blue */
+    w->rows_total = (sh.end - sh.first) * (info->channels == 3 ? 3u : 1u);
     h->info.version = TF_VERSION;
     h->info.coefficients_kept = 0;
     h->info.rays_cast = h->info.rays_culled = 0;
@@ -529,14 +531,14 @@ hl_result hl_tfile_writer_append(hl_tfile_writer *w, uint32_t vertex_count, cons
         return hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: append: arrays missing", w->path);
     if (vertex_count > w->rows_total - w->appended)
         return hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT,
-                       "%s: append of %u vertices after %u would exceed the %u vertices of the file", w->path,
+                       "%s: append of %u rows after %u would exceed the %u rows of the file", w->path,
                        vertex_count, w->appended, w->rows_total);
 
     /* Validate everything first so that a refusal leaves the file as it was. */
     uint32_t B = info->block_count;
     char msg[256];
     for (uint32_t i = 0; i < vertex_count; i++) {
-        uint32_t v = w->hdr.shard.first + w->appended + i;
+        uint32_t v = w->hdr.shard.first + (w->appended + i) % (w->hdr.shard.end - w->hdr.shard.first);
         uint64_t sum = 0;
         if (hl_tf_row_quant_problem(info->quant, rq[i], msg, sizeof msg))
             return hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: vertex %u: %s", w->path, v, msg);
@@ -602,7 +604,7 @@ hl_result hl_tfile_writer_finish(hl_tfile_writer *w, const hl_transport_info *fi
     if (w->failed) {
         r = hl_fail(w->ctx, HL_ERR_IO, "%s: the writer failed earlier", w->path);
     } else if (w->appended != w->rows_total) {
-        r = hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: finished after %u of %u vertices", w->path, w->appended,
+        r = hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: finished after %u of %u rows", w->path, w->appended,
                     w->rows_total);
     } else if (final_info && info_params_differ(final_info, &h->info)) {
         r = hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: final parameters differ from those given at open",

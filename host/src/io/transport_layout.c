@@ -35,7 +35,9 @@ void hl_tf_header_encode(const tf_header *h, const char *magic, uint32_t appende
     /* zero for Haar, so a Haar file keeps the bytes of files from before */
     put_u32(out + H_BASIS, i->basis);
     put_u32(out + H_SH_ORDER, i->sh_order);
-    put_u32(out + H_BOUNCES, i->bounces);
+    /* the channels in the high half: 0 for one row a vertex, so such a
+       file keeps the bytes of files from before */
+    put_u32(out + H_BOUNCES, i->bounces | (i->channels == 3 ? 3u << 16 : 0u));
     put_u32(out + H_VERSION, TF_VERSION);
     put_u32(out + H_HEADER_SIZE, TF_HEADER_SIZE);
     put_u32(out + H_N, i->N);
@@ -95,7 +97,9 @@ void hl_tf_header_decode(const uint8_t *in, tf_header *h)
     h->shard.end = get_u32(in + H_SHARD_END);
     i->basis = get_u32(in + H_BASIS);
     i->sh_order = get_u32(in + H_SH_ORDER);
-    i->bounces = get_u32(in + H_BOUNCES);
+    i->bounces = get_u32(in + H_BOUNCES) & 0xffffu;
+    i->channels = get_u32(in + H_BOUNCES) >> 16;
+    if (!i->channels) i->channels = 1;
     for (unsigned k = H_RESERVED; k < H_HEADER_CRC; k++)
         if (in[k] && !tf_basis_byte(k)) h->reserved_nonzero = 1;
 }
@@ -120,6 +124,12 @@ int hl_tf_info_problem(const hl_transport_info *i, char *msg, size_t n)
     if (i->vertex_count == 0) return snprintf(msg, n, "vertex_count is 0"), 1;
     if (i->bounces > HL_MAX_BOUNCES)
         return snprintf(msg, n, "bounces = %u is outside 0..%u", i->bounces, HL_MAX_BOUNCES), 1;
+    if (i->channels != 0 && i->channels != 1 && i->channels != 3)
+        return snprintf(msg, n, "channels = %u: rows a vertex must be 1 or 3", i->channels), 1;
+    if (i->channels == 3 && !i->bounces)
+        return snprintf(msg, n, "channels = 3 without bounces: only bounces off coloured surfaces have a row a channel"), 1;
+    if (i->channels == 3 && i->vertex_count > UINT32_MAX / 3)
+        return snprintf(msg, n, "vertex_count = %u with 3 rows a vertex: more rows than a file can index", i->vertex_count), 1;
     if (i->object_vertex_count > i->vertex_count)
         return snprintf(msg, n, "object_vertex_count = %u exceeds vertex_count = %u", i->object_vertex_count,
                         i->vertex_count),
@@ -187,7 +197,7 @@ int hl_tf_shard_header_problem(const tf_header *h, const uint8_t bytes[TF_HEADER
     for (unsigned k = H_RESERVED; k < H_HEADER_CRC; k++)
         if (bytes[k] && (k < H_SHARD_INDEX || k >= H_SHARD_END + 4) && !tf_basis_byte(k))
             return snprintf(msg, n, "reserved header byte %u is not zero", k), 1;
-    uint64_t rows = (uint64_t)(end - first), max_coef = rows * slot_total(i->N);
+    uint64_t rows = (uint64_t)(end - first) * (i->channels == 3 ? 3 : 1), max_coef = rows * slot_total(i->N);
     if (i->coefficients_kept > max_coef)
         return snprintf(msg, n, "header field coefficients_kept = %" PRIu64 " exceeds the shard's %" PRIu64
                         " vertices x 2N^2", i->coefficients_kept, rows), 1;

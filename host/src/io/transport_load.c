@@ -283,15 +283,15 @@ static hl_result read_header(tf_reader *rd, tf_header *h)
     const hl_transport_info *i = &h->info;
     if (hl_tf_info_problem(i, msg, sizeof msg))
         return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header field %s", rd->path, msg);
-    uint64_t max_coef = (uint64_t)i->vertex_count * slot_total(i->N);
+    uint64_t max_coef = (uint64_t)hl_transport_rows(i) * slot_total(i->N);
     if (i->coefficients_kept > max_coef)
         return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: header field coefficients_kept = %" PRIu64
-                       " exceeds vertex_count x 2N^2 = %" PRIu64, rd->path, i->coefficients_kept, max_coef);
+                       " exceeds rows x 2N^2 = %" PRIu64, rd->path, i->coefficients_kept, max_coef);
 
     /* Sizes follow from the counts; offsets are free but ordered, aligned
      * past the header and inside the file, so no section overlaps another. */
     const uint64_t expect[SEC_COUNT] = {mesh_bytes(i->vertex_count, i->triangle_count),
-                                        (uint64_t)i->vertex_count * row_record_bytes(i->block_count),
+                                        (uint64_t)hl_transport_rows(i) * row_record_bytes(i->block_count),
                                         2 * i->coefficients_kept};
     if (hl_tf_sections_problem(h, expect, msg, sizeof msg)) return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: %s", rd->path, msg);
     if (rd->file_size < h->file_size)
@@ -347,13 +347,14 @@ static hl_result read_rows(tf_reader *rd, const tf_header *h, hl_transport *t)
     uint32_t B = i->block_count;
     size_t rec = (size_t)row_record_bytes(B);
     size_t chunk = ((size_t)1 << 20) / rec;
-    if (chunk > i->vertex_count) chunk = i->vertex_count;
+    const uint32_t R = hl_transport_rows(i);
+    if (chunk > R) chunk = R;
     uint8_t *buf = hl_malloc(rd->ctx, chunk * rec, "the row table reader");
     if (!buf) return HL_ERR_OUT_OF_MEMORY;
     uint32_t crc = 0;
     hl_result r = HL_OK;
-    for (uint64_t v0 = 0; v0 < i->vertex_count && r == HL_OK; v0 += chunk) {
-        size_t n = i->vertex_count - v0 < chunk ? (size_t)(i->vertex_count - v0) : chunk;
+    for (uint64_t v0 = 0; v0 < R && r == HL_OK; v0 += chunk) {
+        size_t n = R - v0 < chunk ? (size_t)(R - v0) : chunk;
         r = read_range(rd, buf, (uint64_t)n * rec, sec->offset + (uint64_t)v0 * rec, "row table");
         if (r != HL_OK) break;
         crc = crc_update(crc, buf, n * rec);
@@ -404,6 +405,16 @@ static void *row_worker(void *arg)
     return NULL;
 }
 
+/* A bad row, named by its vertex (and channel, for a row a channel). */
+static hl_result row_fail(tf_reader *rd, const hl_transport_info *i, uint32_t row, const char *msg)
+{
+    static const char *const name[3] = {"red", "green", "blue"};
+    if (i->channels == 3)
+        return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u (%s row): %s", rd->path, row % i->vertex_count,
+                       name[row / i->vertex_count], msg);
+    return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, row, msg);
+}
+
 /* Derives row_offset and checks every row against the entries. Runs after
  * all checksums, so it reports structure errors in files that are intact
  * but were written wrongly. The counts and offsets first, in order (a bad
@@ -412,10 +423,11 @@ static void *row_worker(void *arg)
 static hl_result validate_rows(tf_reader *rd, hl_transport *t)
 {
     const hl_transport_info *i = &t->info;
-    uint32_t B = i->block_count, first = i->vertex_count; /* the first row whose counts are bad */
+    const uint32_t R = hl_transport_rows(i);
+    uint32_t B = i->block_count, first = R; /* the first row whose counts are bad */
     uint64_t off = 0;
     char msg[256] = "";
-    for (uint32_t v = 0; v < i->vertex_count && first == i->vertex_count; v++) {
+    for (uint32_t v = 0; v < R && first == R; v++) {
         t->row_offset[v] = off;
         uint64_t nnz = 0;
         const uint16_t *counts = t->block_counts + (size_t)v * B;
@@ -440,13 +452,13 @@ static hl_result validate_rows(tf_reader *rd, hl_transport *t)
     while (c < j.nchunks && j.bad[c] == first) c++;
     hl_result r = HL_OK;
     if (c < j.nchunks)
-        r = hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, j.bad[c], j.msg[c]);
-    else if (first < i->vertex_count)
-        r = hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: vertex %u: %s", rd->path, first, msg);
+        r = row_fail(rd, i, j.bad[c], j.msg[c]);
+    else if (first < R)
+        r = row_fail(rd, i, first, msg);
     free(j.bad);
     free(j.msg);
     if (r != HL_OK) return r;
-    t->row_offset[i->vertex_count] = off;
+    t->row_offset[R] = off;
     if (off != i->coefficients_kept)
         return hl_fail(rd->ctx, HL_ERR_FORMAT, "%s: block counts of all vertices sum to %" PRIu64
                        ", coefficients_kept says %" PRIu64, rd->path, off, i->coefficients_kept);
@@ -494,7 +506,7 @@ hl_result hl_transport_load(hl_context *ctx, const char *path, hl_transport **ou
     if (r == HL_OK) {
         /* Every size below is bounded by the file size checked in
          * read_header: rows need >= 10 bytes per vertex on disk. */
-        size_t V = h.info.vertex_count, B = h.info.block_count;
+        size_t V = hl_transport_rows(&h.info), B = h.info.block_count;
         t->row_quant = hl_malloc(ctx, V * sizeof *t->row_quant, "row quantisation parameters");
         t->block_counts = hl_alloc_big(ctx, V * B * sizeof *t->block_counts, "block counts");
         t->row_offset = hl_malloc(ctx, (V + 1) * sizeof *t->row_offset, "row offsets");
@@ -532,21 +544,23 @@ void hl_transport_query_row(const hl_transport *t, uint32_t v, float *dense)
     if (!t || !dense) return;
     const hl_transport_info *i = &t->info;
     memset(dense, 0, (size_t)slot_total(i->N) * sizeof *dense);
-    if (v >= i->vertex_count) return;
+    if (v >= hl_transport_rows(i)) return;
     const uint8_t *e = t->entries + 2 * t->row_offset[v];
     const uint16_t *counts = t->block_counts + (size_t)v * i->block_count;
     hl_row_quant rq = t->row_quant[v];
+    /* a channel's row is dithered by its vertex, as the plane's own */
+    const uint32_t key = v % i->vertex_count;
     for (uint32_t b = 0; b < i->block_count; b++) {
         float *base = dense + (size_t)b * HL_BLOCK;
         for (uint32_t j = 0; j < counts[b]; j++, e += 2)
-            base[e[0]] = hl_dequant(i->quant, e[1], rq.a, rq.b, hl_dither_key(v, b * HL_BLOCK + e[0]));
+            base[e[0]] = hl_dequant(i->quant, e[1], rq.a, rq.b, hl_dither_key(key, b * HL_BLOCK + e[0]));
     }
 }
 
 void hl_transport_query_terms(const hl_transport *t, uint32_t v, float *dense)
 {
     hl_transport_query_row(t, v, dense);
-    if (!t || !dense || v >= t->info.vertex_count) return;
+    if (!t || !dense || v >= hl_transport_rows(&t->info)) return;
     const hl_row_quant rq = t->row_quant[v];
     const int ex = hl_half_exponent(t->info.quant, rq.a, rq.b);
     for (uint32_t i = 0; i < slot_total(t->info.N); i++)

@@ -38,14 +38,17 @@ void hl_transport_describe(const hl_transport *t, const char *path, FILE *f)
     const hl_transport_info *i = &t->info;
     uint32_t V = i->vertex_count, B = i->block_count;
     uint64_t min_nnz = UINT64_MAX, max_nnz = 0, nonempty = 0;
-    for (uint32_t v = 0; v < V; v++) {
+    const uint32_t R = hl_transport_rows(i);
+    for (uint32_t v = 0; v < R; v++) {
         uint64_t n = t->row_offset[v + 1] - t->row_offset[v];
         if (n < min_nnz) min_nnz = n;
         if (n > max_nnz) max_nnz = n;
         for (uint32_t b = 0; b < B; b++) nonempty += t->block_counts[(size_t)v * B + b] != 0;
     }
     if (V == 0) min_nnz = 0;
-    double dv = V ? (double)V : 1.0;
+    double dv = V ? (double)V : 1.0, dr = R ? (double)R : 1.0;
+    /* with a row a channel the row statistics are per row */
+    const char *per = i->channels == 3 ? "row" : "vertex";
     uint64_t entry_bytes = 2 * i->coefficients_kept;
     uint64_t directions = i->rays_cast + i->rays_culled;
 
@@ -69,7 +72,8 @@ void hl_transport_describe(const hl_transport *t, const char *path, FILE *f)
     fprintf(f, "cubemap C          %u, supersample %u x %u\n", i->C, i->supersample, i->supersample);
     if (i->bounces)
         fprintf(f, "light              direct and %u bounce%s of diffuse interreflection, baked with the mesh's albedo "
-                   "(its luminance)\n", i->bounces, i->bounces == 1 ? "" : "s");
+                   "%s\n", i->bounces, i->bounces == 1 ? "" : "s",
+                i->channels == 3 ? "(a row a colour channel: coloured bounces)" : "(grey: one row a vertex)");
     else
         fprintf(f, "light              direct only\n");
     fprintf(f, "truncation         %s", rule_name(i->rule));
@@ -87,10 +91,11 @@ void hl_transport_describe(const hl_transport *t, const char *path, FILE *f)
     fprintf(f, "vertices           %u (object %u, ground %u)\n", V, i->object_vertex_count,
             V - i->object_vertex_count);
     fprintf(f, "triangles          %u\n", i->triangle_count);
-    fprintf(f, "blocks per vertex  %u of %u slots\n", B, HL_BLOCK);
-    fprintf(f, "coefficients kept  %" PRIu64 " (per vertex: mean %.1f, min %" PRIu64 ", max %" PRIu64 ")\n",
-            i->coefficients_kept, (double)i->coefficients_kept / dv, min_nnz, max_nnz);
-    fprintf(f, "non-empty blocks   %.2f per vertex (of %u)\n", (double)nonempty / dv, B);
+    if (i->channels == 3) fprintf(f, "rows               %u: a red, a green and a blue row a vertex\n", R);
+    fprintf(f, "blocks per %-6s  %u of %u slots\n", per, B, HL_BLOCK);
+    fprintf(f, "coefficients kept  %" PRIu64 " (per %s: mean %.1f, min %" PRIu64 ", max %" PRIu64 ")\n",
+            i->coefficients_kept, per, (double)i->coefficients_kept / dr, min_nnz, max_nnz);
+    fprintf(f, "non-empty blocks   %.2f per %s (of %u)\n", (double)nonempty / dr, per, B);
     fprintf(f, "rays cast          %" PRIu64 " (%.0f per vertex)\n", i->rays_cast, (double)i->rays_cast / dv);
     fprintf(f, "rays culled        %" PRIu64 " (%.1f%% of all directions)\n", i->rays_culled,
             directions ? 100.0 * (double)i->rays_culled / (double)directions : 0.0);

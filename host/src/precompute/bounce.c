@@ -222,8 +222,7 @@ static hl_result device_open(bounce_run *u)
     TRY(hl_cl_make_buf(ctx, &u->d_val, CL_MEM_READ_ONLY, cap ? cap : 4, NULL, "the bounce rows"));
     TRY(hl_cl_make_buf(ctx, &u->d_idx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, (size_t)u->m->triangle_count * 12,
                        u->m->indices, "the triangles"));
-    TRY(hl_cl_make_buf(ctx, &u->d_rho, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, (size_t)u->V * 4, u->rho,
-                       "the albedo"));
+    TRY(hl_cl_make_buf(ctx, &u->d_rho, CL_MEM_READ_ONLY, (size_t)u->V * 4, NULL, "the albedo"));
     TRY(hl_cl_make_buf(ctx, &u->d_prim, CL_MEM_READ_ONLY, (size_t)u->R * u->K * 4, NULL, "the bounce hits"));
     TRY(hl_cl_make_buf(ctx, &u->d_uv, CL_MEM_READ_ONLY, (size_t)u->R * u->K * 8, NULL, "the bounce hits"));
     return hl_cl_make_buf(ctx, &u->d_out, CL_MEM_WRITE_ONLY, (size_t)u->R * u->g->ncoef * 4, NULL, "the gathers");
@@ -235,6 +234,14 @@ static void device_close(bounce_run *u)
     if (u->k) clReleaseKernel(u->k);
     cl_mem *m[] = {&u->d_start, &u->d_slot, &u->d_val, &u->d_idx, &u->d_rho, &u->d_prim, &u->d_uv, &u->d_out};
     for (size_t i = 0; i < sizeof m / sizeof *m; i++) hl_cl_release_buf(u->ctx->cl, m[i]);
+}
+
+/* The channel's albedo onto the device, once a channel. */
+static hl_result device_albedo(bounce_run *u)
+{
+    CL_TRY(u->ctx, clEnqueueWriteBuffer(u->ctx->cl->queue, u->d_rho, CL_TRUE, 0, (size_t)u->V * 4, u->rho, 0, NULL, NULL),
+           "uploading the albedo");
+    return HL_OK;
 }
 
 /* The rows of S_(b-1) onto the device, once a bounce. */
@@ -348,13 +355,20 @@ hl_result hl_bounce_check_albedo(hl_context *ctx, const hl_mesh *m)
     return HL_OK;
 }
 
-/* The bounce albedo: each vertex's albedo's luminance (Rec. 709). */
-static void bounce_albedo(bounce_run *u)
+uint32_t hl_bounce_channels(const hl_mesh *m)
 {
-    for (uint32_t v = 0; v < u->V; v++) {
-        const float *a = u->m->albedo + 3 * (size_t)v;
-        u->rho[v] = 0.2126f * a[0] + 0.7152f * a[1] + 0.0722f * a[2];
+    for (uint32_t v = 0; v < m->vertex_count; v++) {
+        const float *a = m->albedo + 3 * (size_t)v;
+        if (a[0] != a[1] || a[0] != a[2]) return 3;
     }
+    return 1;
+}
+
+/* The bounce albedo of channel c: each vertex's albedo there (the same
+ * in every channel where the file has one row a vertex). */
+static void bounce_albedo(bounce_run *u, int c)
+{
+    for (uint32_t v = 0; v < u->V; v++) u->rho[v] = u->m->albedo[3 * (size_t)v + c];
 }
 
 static hl_result alloc_run(bounce_run *u)
@@ -442,35 +456,45 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     u.g = g;
     if (r == HL_OK) r = alloc_run(&u);
     if (r == HL_OK) r = hl_bounce_check_albedo(ctx, t->mesh);
-    if (r == HL_OK) bounce_albedo(&u);
     if (r == HL_OK) r = hl_rt_create(ctx, t->mesh, &rt);
     if (r == HL_OK) r = cast_hits(&u, rt);
     hl_rt_destroy(rt);
     if (r == HL_OK && ctx->backend == HL_BACKEND_OPENCL) r = device_open(&u);
-    if (r == HL_OK) r = first_rows(&u);
     hl_transport_info info = t->info;
     info.bounces = d->bounces;
+    /* a row a channel only where some surface is coloured: grey bounces
+       are the same in every channel */
+    info.channels = hl_bounce_channels(t->mesh);
     info.coefficients_kept = 0;
     u.tp = hl_precompute_trunc_params(d);
     if (r == HL_OK) r = hl_tfile_writer_open(ctx, out_path, &info, t->mesh, &w);
     uint64_t kept = 0;
-    for (uint32_t b = 1; b <= d->bounces && r == HL_OK; b++) {
-        const double tb = hl_now();
-        const int last = b == d->bounces;
-        if (u.k) r = device_rows(&u);
-        for (uint32_t first = 0; first < u.V && r == HL_OK; first += u.R) {
-            const uint32_t count = u.V - first < u.R ? u.V - first : u.R;
-            r = run_chunk(&u, first, count, last);
-            if (r == HL_OK && last) {
-                r = hl_tfile_writer_append(w, count, u.rq, u.bc, u.entries, (size_t)g->ncoef * 2, u.nnz);
-                for (uint32_t i = 0; i < count; i++) kept += u.nnz[i];
+    static const char *const cname[3] = {" (red)", " (green)", " (blue)"};
+    /* each channel's bounces alone (its rows are a plane of the file),
+       from the same rays */
+    for (uint32_t c = 0; c < info.channels && r == HL_OK; c++) {
+        bounce_albedo(&u, (int)c);
+        if (u.k) r = device_albedo(&u);
+        if (r == HL_OK) r = first_rows(&u);
+        for (uint32_t b = 1; b <= d->bounces && r == HL_OK; b++) {
+            const double tb = hl_now();
+            const int last = b == d->bounces;
+            if (u.k) r = device_rows(&u);
+            for (uint32_t first = 0; first < u.V && r == HL_OK; first += u.R) {
+                const uint32_t count = u.V - first < u.R ? u.V - first : u.R;
+                r = run_chunk(&u, first, count, last);
+                if (r == HL_OK && last) {
+                    r = hl_tfile_writer_append(w, count, u.rq, u.bc, u.entries, (size_t)g->ncoef * 2, u.nnz);
+                    for (uint32_t i = 0; i < count; i++) kept += u.nnz[i];
+                }
+                if (r == HL_OK && hl_context_cancelled(ctx)) r = HL_ERR_INTERRUPTED;
             }
-            if (r == HL_OK && hl_context_cancelled(ctx)) r = HL_ERR_INTERRUPTED;
+            if (r == HL_OK && !last) pack_next(&u);
+            if (r == HL_OK && !ctx->quiet)
+                fprintf(stderr,
+                        "precompute: bounce %u/%u%s: %u vertices x %u rays, the %u largest terms of each hit row, %.1f s\n",
+                        b, d->bounces, info.channels == 3 ? cname[c] : "", u.V, u.K, u.G, hl_now() - tb);
         }
-        if (r == HL_OK && !last) pack_next(&u);
-        if (r == HL_OK && !ctx->quiet)
-            fprintf(stderr, "precompute: bounce %u/%u: %u vertices x %u rays, the %u largest terms of each hit row, %.1f s\n",
-                    b, d->bounces, u.V, u.K, u.G, hl_now() - tb);
     }
     if (r == HL_OK) {
         info.coefficients_kept = kept;

@@ -10,9 +10,11 @@
  * of the integral of (rho(y) / pi) T_(b-1)(y) max(0, n . w) dw, whose
  * cosine over pi is the sampling density. The file's rows are then
  * T_0 + T_1 + ... + T_B, truncated and quantised as the direct rows are,
- * so relighting is unchanged. rho is the albedo's luminance (Rec. 709
- * weights): the rows are one per vertex, so a coloured surface's bounce
- * is baked with its brightness, not its hue.
+ * so relighting is unchanged. Where every albedo is grey the file has a
+ * row a vertex; where some surface is coloured, a row a vertex and
+ * channel (hl_transport_info.channels 3): each channel's bounces gathered
+ * with that channel's rho, from the same rays, into a plane of rows, and
+ * the relighter dots each channel's lighting with its own plane.
  */
 #ifndef HL_BOUNCE_H
 #define HL_BOUNCE_H
@@ -35,9 +37,13 @@ typedef struct hl_bounce_src {
  * (ncoef floats, overwritten) from its K samples (prim[k] the hit
  * triangle or HL_BOUNCE_MISS, uv[2 k ..] the barycentrics of its corners
  * 1 and 2), the triangles' corners (indices, 3 a triangle), the
- * vertices' albedo luminance rho and the rows of T_(b-1). */
+ * vertices' albedo rho in the channel gathered and the rows of T_(b-1). */
 void hl_ref_bounce_gather(const hl_bounce_src *src, const uint32_t *indices, const float *rho, const uint32_t *prim,
                           const float *uv, uint32_t K, uint32_t ncoef, float *out);
+
+/* The rows a vertex a bounced file of m needs: 3 where some vertex's
+ * albedo differs between channels, else 1. */
+uint32_t hl_bounce_channels(const hl_mesh *m);
 
 /* Refuses (HL_ERR_INVALID_ARGUMENT, naming the vertex and channel) a mesh
  * with an albedo outside [0, 1]: each bounce would add light. */

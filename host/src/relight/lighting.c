@@ -78,11 +78,27 @@ struct hl_relighter {
     float centre[3];        /* the one capture point's place */
     double reach;           /* the farthest vertex from it (< 0: not yet measured) */
     float *blend4;          /* V x 4: the colours blended over the points */
+    /* a row a channel (coloured bounces, channels 3): a relighter per
+       channel's plane of rows, its albedo that channel's alone, and this
+       one only passes the settings on and gathers each plane's channel */
+    struct hl_relighter *sub[3];
+    hl_transport *plane;    /* 3: the planes as transports of their own */
+    float *sum4;            /* V x 4: the gathered colours */
 };
 
 void hl_relighter_destroy(hl_relighter *r)
 {
     if (!r) return;
+    if (r->sub[0] || r->plane) {
+        for (int c = 0; c < 3; c++) {
+            hl_relighter_destroy(r->sub[c]);
+            if (r->plane) free(r->plane[c].row_offset);
+        }
+        free(r->plane);
+        hl_free_big(r->sum4);
+        free(r);
+        return;
+    }
     hl_cl_light_destroy(r->cl);
     hl_light_geom_destroy(r->lg);
     hl_geom_destroy(r->g);
@@ -245,9 +261,10 @@ static hl_result row_measures(hl_relighter *r, const hl_transport *t)
 }
 
 /* hl_relighter_create; with drop and src, drop's entries (t's) are freed
- * once read for row_measures, and the columns read them from src. */
-static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport *drop, const hl_row_source *src,
-                            int rows, hl_relighter **out)
+ * once read for row_measures, and the columns read them from src. only:
+ * the one channel whose albedo is kept (the others zero), or -1. */
+static hl_result create_one(hl_context *ctx, const hl_transport *t, hl_transport *drop, const hl_row_source *src,
+                            int rows, int only, hl_relighter **out)
 {
     *out = NULL;
     if (!t || !t->mesh) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_relighter_create: no transport");
@@ -277,6 +294,8 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
         for (uint32_t v = 0; v < V; v++) {
             memcpy(r->albedo4 + 4 * (size_t)v, t->mesh->albedo + 3 * (size_t)v, 12);
             r->albedo4[4 * (size_t)v + 3] = 0.0f;
+            for (int c = 0; c < 3 && only >= 0; c++)
+                if (c != only) r->albedo4[4 * (size_t)v + c] = 0.0f;
         }
         res = row_measures(r, t);
         hl_object_centre(t->mesh, r->cscene.center);
@@ -319,9 +338,73 @@ static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport
     return HL_OK;
 }
 
+/* A transport with a row a channel: each plane of V rows becomes a
+ * transport of its own (its offsets from its first entry, the rest
+ * pointing into t's arrays, which it must outlive) with a relighter of its
+ * own. Nothing of t is dropped: the planes share its arrays. */
+static hl_result create_planes(hl_context *ctx, const hl_transport *t, const hl_row_source *src, int rows,
+                               hl_relighter **out)
+{
+    *out = NULL;
+    hl_relighter *r = hl_calloc(ctx, 1, sizeof *r, "the relighter");
+    if (!r) return HL_ERR_OUT_OF_MEMORY;
+    r->ctx = ctx;
+    r->t = t;
+    const uint32_t V = t->info.vertex_count, nb = t->info.block_count;
+    r->plane = hl_calloc(ctx, 3, sizeof *r->plane, "the channels' rows");
+    r->sum4 = r->plane ? hl_alloc_big(ctx, (size_t)V * 16, "vertex colours") : NULL;
+    hl_result res = r->sum4 ? HL_OK : HL_ERR_OUT_OF_MEMORY;
+    for (uint32_t c = 0; c < 3 && res == HL_OK; c++) {
+        hl_transport *p = &r->plane[c];
+        const uint64_t base = t->row_offset[(size_t)c * V];
+        p->row_offset = hl_malloc(ctx, ((size_t)V + 1) * 8, "the channels' row offsets");
+        if (!p->row_offset) {
+            res = HL_ERR_OUT_OF_MEMORY;
+            break;
+        }
+        for (uint32_t v = 0; v <= V; v++) p->row_offset[v] = t->row_offset[(size_t)c * V + v] - base;
+        p->info = t->info;
+        p->info.channels = 1;
+        p->info.coefficients_kept = p->row_offset[V];
+        p->mesh = t->mesh;
+        p->row_quant = t->row_quant + (size_t)c * V;
+        p->block_counts = t->block_counts + (size_t)c * V * nb;
+        p->entries = t->entries ? t->entries + 2 * base : NULL;
+        hl_row_source one;
+        if (src) {
+            one = *src;
+            one.offset += 2 * base;
+        }
+        res = create_one(ctx, p, NULL, src ? &one : NULL, rows, (int)c, &r->sub[c]);
+    }
+    if (res != HL_OK) {
+        hl_relighter_destroy(r);
+        return res;
+    }
+    *out = r;
+    return HL_OK;
+}
+
+static hl_result create_src(hl_context *ctx, const hl_transport *t, hl_transport *drop, const hl_row_source *src,
+                            int rows, hl_relighter **out)
+{
+    if (t && t->mesh && t->info.channels == 3) return create_planes(ctx, t, src, rows, out);
+    return create_one(ctx, t, drop, src, rows, -1, out);
+}
+
 hl_result hl_relighter_create(hl_context *ctx, const hl_transport *t, hl_relighter **out)
 {
     return create_src(ctx, t, NULL, NULL, 0, out);
+}
+
+uint32_t hl_relighter_planes(hl_relighter *r, hl_relighter **sub)
+{
+    if (r && r->sub[0]) {
+        for (int c = 0; c < 3; c++) sub[c] = r->sub[c];
+        return 3;
+    }
+    sub[0] = r;
+    return 1;
 }
 
 hl_result hl_relighter_create_once(hl_context *ctx, hl_transport *t, const char *path, hl_relighter **out)
@@ -330,7 +413,7 @@ hl_result hl_relighter_create_once(hl_context *ctx, hl_transport *t, const char 
     /* the entries in one buffer, and beside them the row table (16 bytes
        and 2 a block a vertex), albedo and colours (32 a vertex) and 64 MiB
        for the lighting stages; else the columns (in parts where need be) */
-    const uint64_t V = t->info.vertex_count, bytes = 2 * t->info.coefficients_kept;
+    const uint64_t V = hl_transport_rows(&t->info), bytes = 2 * t->info.coefficients_kept;
     const uint64_t all = bytes + V * (48 + 2 * (uint64_t)t->info.block_count) + ((uint64_t)64 << 20);
     if (bytes > hl_cl_largest_buffer(ctx) || all > hl_cl_memory_free(ctx))
         return path ? hl_relighter_create_from_file(ctx, t, path, out) : hl_relighter_create(ctx, t, out);
@@ -387,9 +470,23 @@ hl_result hl_relighter_create_from_file(hl_context *ctx, hl_transport *t, const 
     return res;
 }
 
+/* A setting passed on to every channel's relighter (create_planes). */
+#define FORWARD_TO_PLANES(r, call)                                                  \
+    do {                                                                            \
+        if ((r)->sub[0]) {                                                          \
+            hl_result res_ = HL_OK;                                                 \
+            for (int c_ = 0; c_ < 3 && res_ == HL_OK; c_++) {                       \
+                hl_relighter *p_ = (r)->sub[c_];                                    \
+                res_ = call;                                                        \
+            }                                                                       \
+            return res_;                                                            \
+        }                                                                           \
+    } while (0)
+
 hl_result hl_relighter_set_surroundings(hl_relighter *r, hl_surroundings *s)
 {
     if (!r) return HL_ERR_INVALID_ARGUMENT;
+    FORWARD_TO_PLANES(r, hl_relighter_set_surroundings(p_, s));
     /* the capture draws the surroundings on the paraboloid texels, which a
        cube-face transport's lighting never passes through */
     if (s && r->cube)
@@ -413,6 +510,7 @@ hl_result hl_relighter_set_surroundings(hl_relighter *r, hl_surroundings *s)
 hl_result hl_relighter_set_probes(hl_relighter *r, uint32_t max_probes, double tol)
 {
     if (!r) return HL_ERR_INVALID_ARGUMENT;
+    FORWARD_TO_PLANES(r, hl_relighter_set_probes(p_, max_probes, tol));
     if (max_probes < 1 || max_probes > HL_PROBES_MAX)
         return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "probes: %u capture points: expected 1 to %u", max_probes,
                        HL_PROBES_MAX);
@@ -468,6 +566,7 @@ static hl_result take_surroundings(hl_relighter *r)
 
 hl_result hl_relighter_set_env(hl_relighter *r, const hl_env *env)
 {
+    FORWARD_TO_PLANES(r, hl_relighter_set_env(p_, env));
     if (!env || !env->rgb || env->width == 0 || env->height == 0)
         return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "hl_relighter_set_env: no environment");
     float *cells = NULL;
@@ -660,12 +759,68 @@ static hl_result run_probes(hl_relighter *r, uint32_t s0, float f, hl_select_par
     return res;
 }
 
+static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb, void *out, int gl,
+                     hl_relight_stats *stats);
+
+/* A change with a row a channel: each channel's relighter in turn, each
+ * vertex's channel c from plane c's (the others are zero there: their
+ * albedo is), the fourth float the lowest of the three. The stats are the
+ * worst plane's, as run_probes takes the worst point's; the negative
+ * light is counted from the gathered colours. */
+static hl_result run_planes(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb, void *out, int gl,
+                            hl_relight_stats *stats)
+{
+    const double t0 = hl_now();
+    const uint32_t V = r->t->info.vertex_count;
+    hl_relight_stats st = {0};
+    int reused = 1;
+    for (int c = 0; c < 3; c++) {
+        hl_relight_stats one;
+        hl_result res = run(r->sub[c], desc, NULL, NULL, 0, &one);
+        if (res != HL_OK) return res;
+        const float *p = r->sub[c]->rgba;
+        for (uint32_t v = 0; v < V; v++) {
+            float *q = r->sum4 + 4 * (size_t)v;
+            q[c] = p[4 * (size_t)v + c];
+            q[3] = c ? fminf(q[3], p[4 * (size_t)v + 3]) : p[4 * (size_t)v + 3];
+        }
+        reused &= one.reused;
+        if (c == 0) st = one;
+        st.terms_kept = one.terms_kept > st.terms_kept ? one.terms_kept : st.terms_kept;
+        st.energy_kept = one.energy_kept < st.energy_kept ? one.energy_kept : st.energy_kept;
+        st.error_bound = one.error_bound > st.error_bound ? one.error_bound : st.error_bound;
+        st.blocks_skipped = one.blocks_skipped < st.blocks_skipped ? one.blocks_skipped : st.blocks_skipped;
+        st.parallax = one.parallax > st.parallax ? one.parallax : st.parallax;
+    }
+    st.reused = reused;
+    r->rgba = r->sum4;
+    uint32_t n;
+    float lo, hi;
+    negative_light(r->sum4, V, &n, &lo, &hi);
+    negative_stats(n, lo, hi, &st);
+    if (out) {
+        hl_result res = hl_cl_light_write_colours(r->sub[0]->cl, r->sum4, out, gl);
+        if (res != HL_OK) return res;
+    }
+    if (vertex_rgb)
+        for (uint32_t v = 0; v < V; v++)
+            for (int c = 0; c < 3; c++) vertex_rgb[3 * (size_t)v + c] = r->sum4[4 * (size_t)v + c];
+    st.seconds = hl_now() - t0;
+    if (stats) *stats = st;
+    return HL_OK;
+}
+
 /* A lighting change, its colours into rgba (and from there into vertex_rgb
  * when given) or, with out set, into that device buffer
  * (hl_cl_light_run_into). */
 static hl_result run(hl_relighter *r, const hl_relight_desc *desc, float *vertex_rgb, void *out, int gl,
                      hl_relight_stats *stats)
 {
+    if (r->sub[0]) {
+        if (out && !r->sub[0]->cl)
+            return hl_fail(r->ctx, HL_ERR_INVALID_ARGUMENT, "colours into a device buffer need the OpenCL backend");
+        return run_planes(r, desc, vertex_rgb, out, gl, stats);
+    }
     hl_relight_desc d = {0};
     if (desc) d = *desc;
     if (!d.terms) d.terms = 200;
@@ -773,6 +928,19 @@ hl_result hl_relighter_memory_use(const hl_relighter *r, hl_relighter_memory *m)
     if (!m) return HL_ERR_INVALID_ARGUMENT;
     memset(m, 0, sizeof *m);
     if (!r) return HL_ERR_INVALID_ARGUMENT;
+    if (r->sub[0]) {
+        /* the three planes' together */
+        for (int c = 0; c < 3; c++) {
+            hl_relighter_memory one;
+            hl_result res = hl_relighter_memory_use(r->sub[c], &one);
+            if (res != HL_OK) return res;
+            m->device_bytes += one.device_bytes;
+            m->column_bytes += one.column_bytes;
+            m->parts = one.parts > m->parts ? one.parts : m->parts;
+            m->resident = c ? (one.resident < m->resident ? one.resident : m->resident) : one.resident;
+        }
+        return HL_OK;
+    }
     if (!r->cl) return HL_OK;
     m->device_bytes = hl_cl_light_device_bytes(r->cl);
     m->column_bytes = hl_cl_light_column_bytes(r->cl);
@@ -781,11 +949,23 @@ hl_result hl_relighter_memory_use(const hl_relighter *r, hl_relighter_memory *m)
     return HL_OK;
 }
 
-struct hl_cl_light *hl_relighter_device(hl_relighter *r) { return r ? r->cl : NULL; }
+/* With a row a channel, the red plane's (hl_relighter_planes gives all three). */
+struct hl_cl_light *hl_relighter_device(hl_relighter *r) { return r ? (r->sub[0] ? r->sub[0]->cl : r->cl) : NULL; }
 
 hl_result hl_bench_capture_cost(hl_relighter *r, uint32_t reps, hl_capture_cost *cost)
 {
     memset(cost, 0, sizeof *cost);
+    if (r && r->sub[0]) {
+        /* each plane captures for itself: their times add */
+        double sum = 0.0;
+        for (int c = 0; c < 3; c++) {
+            hl_result res = hl_bench_capture_cost(r->sub[c], reps, cost);
+            if (res != HL_OK) return res;
+            sum += cost->seconds;
+        }
+        cost->seconds = sum;
+        return HL_OK;
+    }
     if (!r || !r->cap || !r->sur_n)
         return hl_fail(r ? r->ctx : NULL, HL_ERR_INVALID_ARGUMENT, "no surroundings have been captured yet");
     if (!reps) reps = 1;
@@ -803,4 +983,4 @@ hl_result hl_bench_capture_cost(hl_relighter *r, uint32_t reps, hl_capture_cost 
     free(L);
     return res;
 }
-const hl_light_geom *hl_relighter_tables(const hl_relighter *r) { return r ? r->lg : NULL; }
+const hl_light_geom *hl_relighter_tables(const hl_relighter *r) { return r ? (r->sub[0] ? r->sub[0]->lg : r->lg) : NULL; }

@@ -58,6 +58,9 @@ hl_result hl_relighter_run_into(hl_relighter *r, const hl_relight_desc *desc, vo
 /* The relighter's device stages (NULL on the reference backend) and
  * tables, for the benchmark. */
 struct hl_cl_light *hl_relighter_device(hl_relighter *r);
+/* The relighters that do the work: r itself (returns 1), or with a row a
+ * channel (hl_transport_info.channels 3) the three channels' (returns 3). */
+uint32_t hl_relighter_planes(hl_relighter *r, hl_relighter **sub);
 const hl_light_geom *hl_relighter_tables(const hl_relighter *r);
 
 #endif

@@ -13,25 +13,50 @@
 #include "precompute.h"
 #include "rays.h"
 
+/* Each takes every plane's device where the transport has a row a
+ * channel (hl_relighter_planes): their bytes and times add. */
 hl_result hl_bench_bytes_read(hl_relighter *r, double *bytes)
 {
-    hl_cl_light *l = hl_relighter_device(r); /* NULL on the reference backend */
-    if (!l) return hl_fail(NULL, HL_ERR_UNSUPPORTED, "no OpenCL device behind this relighter");
-    return hl_cl_light_bytes_read(l, bytes);
+    hl_relighter *sub[3];
+    const uint32_t n = hl_relighter_planes(r, sub);
+    *bytes = 0.0;
+    for (uint32_t c = 0; c < n; c++) {
+        hl_cl_light *l = hl_relighter_device(sub[c]); /* NULL on the reference backend */
+        if (!l) return hl_fail(NULL, HL_ERR_UNSUPPORTED, "no OpenCL device behind this relighter");
+        double one;
+        hl_result res = hl_cl_light_bytes_read(l, &one);
+        if (res != HL_OK) return res;
+        *bytes += one;
+    }
+    return HL_OK;
+}
+
+/* One of the timings below over every plane. */
+static hl_result time_planes(hl_relighter *r, uint32_t reps, double *seconds,
+                             hl_result (*timer)(hl_cl_light *, uint32_t, double *))
+{
+    hl_relighter *sub[3];
+    const uint32_t n = hl_relighter_planes(r, sub);
+    *seconds = 0.0;
+    for (uint32_t c = 0; c < n; c++) {
+        hl_cl_light *l = hl_relighter_device(sub[c]); /* NULL on the reference backend */
+        if (!l) return hl_fail(NULL, HL_ERR_UNSUPPORTED, "no OpenCL device behind this relighter");
+        double one;
+        hl_result res = timer(l, reps, &one);
+        if (res != HL_OK) return res;
+        *seconds += one;
+    }
+    return HL_OK;
 }
 
 hl_result hl_bench_time_dots(hl_relighter *r, uint32_t reps, double *seconds)
 {
-    hl_cl_light *l = hl_relighter_device(r); /* NULL on the reference backend */
-    if (!l) return hl_fail(NULL, HL_ERR_UNSUPPORTED, "no OpenCL device behind this relighter");
-    return hl_cl_light_time_relight(l, reps, seconds);
+    return time_planes(r, reps, seconds, hl_cl_light_time_relight);
 }
 
 hl_result hl_bench_time_capture(hl_relighter *r, uint32_t reps, double *seconds)
 {
-    hl_cl_light *l = hl_relighter_device(r); /* NULL on the reference backend */
-    if (!l) return hl_fail(NULL, HL_ERR_UNSUPPORTED, "no OpenCL device behind this relighter");
-    return hl_cl_light_time_capture(l, reps, seconds);
+    return time_planes(r, reps, seconds, hl_cl_light_time_capture);
 }
 
 hl_result hl_bench_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, double *bytes_per_s)
