@@ -69,7 +69,10 @@ bad_options)
   expect_error bounce_rays_zero 2 "--bounce-rays" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounces 1 --bounce-rays 0
   expect_error bounce_rays_alone 2 "need --bounces" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounce-rays 16
   expect_error bounce_terms_zero 2 "--bounce-terms" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounces 1 --bounce-terms 0
-  expect_error bounces_shard 2 "does not shard" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounces 1 --shard 0/2
+  expect_error bounces_shard 2 "--direct-rows" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounces 1 --shard 0/2
+  expect_error direct_rows_alone 2 "needs --bounces" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --direct-rows "$tmp/d.hlt"
+  expect_error direct_rows_resume 2 "nothing to resume" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounces 1 --direct-rows "$tmp/d.hlt" --resume
+  expect_error direct_rows_missing 1 "cannot open" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --bounces 1 --direct-rows "$tmp/none.hlt"
   for v in 1.2 -0.1 nan 0.5,0.5 0,0,0 0.5,0.5,0.5,0.5 red; do
     expect_error "ground_albedo_$v" 2 "--ground-albedo" "$tmp/x.hlt" -- precompute "$m" -o "$tmp/x.hlt" --ground-albedo "$v"
   done

@@ -79,11 +79,19 @@ static const char *const usage_precompute =
     "                       its ground into the rows (0 to 16; default 0, direct light,\n"
     "                       the bytes as before). A second phase after the direct rows,\n"
     "                       which it keeps in SCENE.hlt.direct.hlt until the end. The\n"
-    "                       bounce albedo is the luminance of the mesh's (every albedo\n"
-    "                       must be in [0, 1]); relight is unchanged\n"
+    "                       bounces carry the mesh's albedo (every albedo must be in\n"
+    "                       [0, 1]); where some surface is coloured the file holds a\n"
+    "                       row a vertex and channel (three times the rows, and a third\n"
+    "                       of the relighting speed); relight is unchanged\n"
     "  --bounce-rays K      cosine-weighted rays a vertex for the bounces (default 64)\n"
     "  --bounce-terms G|all the largest G terms of each hit vertex's row that a bounce\n"
     "                       reads (default 256)\n"
+    "  --direct-rows FILE   with --bounces: start the bounces from FILE, a finished\n"
+    "                       transport of the same mesh and options without bounces (as\n"
+    "                       merged from shards), instead of casting the direct rays;\n"
+    "                       with --shard I/N, the last bounce of shard I's vertices only\n"
+    "                       (the bounces before it of every vertex), and merge joins the\n"
+    "                       shards into the bytes of one run\n"
     "truncation (per vertex):\n"
     "  --energy EPS         keep the fewest coefficients holding 1-EPS of the energy\n"
     "                       (the default rule, EPS = 1e-5)\n"
@@ -286,6 +294,9 @@ static int pre_transport_opt(int argc, char **argv, int *ip, const char *usage, 
         NEED_ARG();
         if (!parse_u32(v, &o->pd.bounces) || o->pd.bounces > HL_MAX_BOUNCES)
             return usage_error(usage, "--bounces %s: expected a whole number from 0 to 16", v);
+    } else if (!strcmp(a, "--direct-rows")) {
+        NEED_ARG();
+        o->pd.direct_rows = v;
     } else if (!strcmp(a, "--bounce-rays")) {
         NEED_ARG();
         if (!parse_u32(v, &o->pd.bounce_rays) || o->pd.bounce_rays < 1 || o->pd.bounce_rays > 4096)
@@ -390,8 +401,15 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
     if (o->ground_albedo_set) memcpy(o->gd.albedo, o->ground_albedo, sizeof o->ground_albedo);
     if (o->bounce_opt_set && !o->pd.bounces)
         return usage_error(usage, "%s", "--bounce-rays and --bounce-terms need --bounces B (B >= 1)");
-    if (o->pd.bounces && o->shard_count)
-        return usage_error(usage, "%s", "--bounces with --shard: the bounce phase does not shard yet (run it whole)");
+    if (o->pd.direct_rows && !o->pd.bounces)
+        return usage_error(usage, "%s", "--direct-rows needs --bounces B (B >= 1): only the bounces start from it");
+    if (o->pd.bounces && o->shard_count && !o->pd.direct_rows)
+        return usage_error(usage, "%s",
+                           "--bounces with --shard: the bounces need every vertex's direct rows; shard and merge the "
+                           "precompute without --bounces, then run --bounces B --direct-rows MERGED.hlt --shard I/N");
+    if (o->pd.direct_rows && o->pd.resume)
+        return usage_error(usage, "%s", "--resume with --direct-rows: the bounces from a direct file start over "
+                                        "(there is nothing to resume)");
     if (o->terms_all && o->energy_set) return usage_error(usage, "%s", "--terms all and --energy contradict each other");
     if (o->sh_order_set && o->pd.basis != HL_TRANSPORT_BASIS_SH)
         return usage_error(usage, "%s", "--sh-order needs --basis sh");

@@ -187,7 +187,14 @@ int cmd_relight(int argc, char **argv)
         fprintf(stderr, "loaded %s: %u vertices in %.2f s\n", scene, t->info.vertex_count, t_built - t_load);
     if (r == HL_OK && !cd.quiet && t->info.bounces)
         fprintf(stderr, "%s: direct light and %u bounce%s of interreflection, baked with the albedo stored in the "
-                "file\n", scene, t->info.bounces, t->info.bounces == 1 ? "" : "s");
+                "file (%s)\n", scene, t->info.bounces, t->info.bounces == 1 ? "" : "s",
+                t->info.channels == 3 ? "coloured: a row a channel" : "grey");
+    /* the textures change the albedo the picture shows, not the one the
+       bounces were baked with */
+    if (r == HL_OK && t->info.bounces && textures)
+        fprintf(stderr, "%s: warning: --textures shows %s's texture albedo, but the bounces were baked with the "
+                "albedo stored in the file (per vertex), so the light they carry keeps that albedo's colour\n", scene,
+                textures);
     if (r == HL_OK && use_env)
         r = env_path ? cli_env_load(ctx, env_path, o.layout, &env, cd.quiet) : hl_env_create_sky(ctx, &o.sky, &env);
     if (r == HL_OK) r = cli_surroundings_load(ctx, &o, &surr, cd.quiet);

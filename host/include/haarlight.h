@@ -290,6 +290,10 @@ typedef struct hl_precompute_desc {
     uint32_t bounce_rays; /* rays per vertex of each bounce's gather (0: 64) */
     uint32_t bounce_terms;/* most terms of a hit vertex's row the gather reads,
                              the largest kept (0: 256; HL_TERMS_ALL: every one) */
+    const char *direct_rows; /* with bounces: start them from this finished
+                                direct transport (of the same mesh and options,
+                                e.g. merged from shards) instead of casting the
+                                direct rays; needed to shard the bounces */
 } hl_precompute_desc;
 
 /* Counters and timings of one precompute. */

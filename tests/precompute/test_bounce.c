@@ -17,8 +17,11 @@
  *                 byte for byte those of a grey bake with that channel's
  *                 albedo, and relit the same bit for bit (both backends);
  *                 the OpenCL and reference files byte for byte.
+ * bounce.shards   the bounces sharded as a second phase from a direct
+ *                 file, merged: the bytes of one run (B = 1 and 2, three
+ *                 coloured planes); bad direct files refused.
  * bounce.bad      an albedo above 1, too many bounces, --bounces with a
- *                 shard: clear errors, no file.
+ *                 shard but no direct rows: clear errors, no file.
  *
  * Depends on: haarlight_core, an OpenCL device (PoCL).
  */
@@ -397,6 +400,68 @@ static void case_colour(void)
     hl_context_destroy(ref);
 }
 
+/* The bounces sharded as a second phase (hl_precompute_desc.direct_rows
+ * with a shard, then merge) against one run, byte for byte: B = 1 (each
+ * shard casts its own vertices' rays) and B = 2 (every vertex's, for the
+ * first bounce), a coloured albedo (three planes to merge). */
+static void case_shards(void)
+{
+    hl_context *ctx = hl_test_cl_context(0);
+    HL_CHECK(ctx != NULL, "an OpenCL device is needed");
+    if (!ctx) return;
+    hl_mesh *m = cavity(ctx, acos(1.0 - 2.0 * 0.2), 0.8f);
+    for (uint32_t v = 0; m && v < m->vertex_count; v++) m->albedo[3 * v + 2] = 0.3f + 0.04f * (float)(v % 7u);
+    const char *direct = strdup(hl_test_tmp_path("bounce_direct.hlt"));
+    hl_precompute_desc d0 = {.N = 16, .C = 16};
+    HL_CHECK(m && hl_precompute(ctx, m, &d0, direct, NULL) == HL_OK, "direct: %s", hl_context_last_error(ctx));
+    for (uint32_t B = 1; B <= 2 && m; B++) {
+        hl_precompute_desc d = {.N = 16, .C = 16, .bounces = B, .bounce_rays = 16};
+        char one[1200], merged[1200], part[3][1200];
+        snprintf(one, sizeof one, "%s", hl_test_tmp_path("bounce_one.hlt"));
+        snprintf(merged, sizeof merged, "%s", hl_test_tmp_path("bounce_merged.hlt"));
+        HL_CHECK(hl_precompute(ctx, m, &d, one, NULL) == HL_OK, "one run: %s", hl_context_last_error(ctx));
+        d.direct_rows = direct;
+        const char *parts[3];
+        for (uint32_t i = 0; i < 3; i++) {
+            char name[64];
+            snprintf(name, sizeof name, "bounce_part%u.hlt", i);
+            snprintf(part[i], sizeof part[i], "%s", hl_test_tmp_path(name));
+            parts[i] = part[i];
+            HL_CHECK(hl_precompute_shard(ctx, m, &d, i, 3, part[i], NULL) == HL_OK, "shard %u: %s", i,
+                     hl_context_last_error(ctx));
+        }
+        HL_CHECK(hl_transport_merge(ctx, merged, parts, 3, NULL) == HL_OK, "merge: %s", hl_context_last_error(ctx));
+        size_t na = 0, nb = 0;
+        uint8_t *a = hl_test_read_file(one, &na), *b = hl_test_read_file(merged, &nb);
+        size_t diff = a && b && na == nb ? 0 : SIZE_MAX;
+        for (size_t k = 0; diff != SIZE_MAX && k < na; k++) diff += a[k] != b[k];
+        printf("B = %u: one run %zu bytes, 3 shards merged %zu bytes, %zu bytes differ (tolerance 0)\n", B, na, nb, diff);
+        HL_CHECK(diff == 0, "B = %u: the merged shards differ from one run", B);
+        free(a);
+        free(b);
+        /* a shard file is no transport, and the direct file stays */
+        hl_transport *t = NULL;
+        HL_CHECK(hl_transport_load(ctx, part[0], &t) != HL_OK, "a shard loaded as a transport");
+        HL_CHECK(access(direct, F_OK) == 0, "the given direct rows were removed");
+    }
+    /* direct rows that already hold bounces, or of another mesh */
+    hl_precompute_desc d = {.N = 16, .C = 16, .bounces = 1, .bounce_rays = 16, .direct_rows = direct};
+    const char *bounced = hl_test_tmp_path("bounce_one.hlt");
+    d.direct_rows = bounced;
+    HL_CHECK(hl_precompute(ctx, m, &d, hl_test_tmp_path("bounce_x.hlt"), NULL) == HL_ERR_INVALID_ARGUMENT,
+             "bounces from a bounced file taken");
+    printf("from a bounced file: %s\n", hl_context_last_error(ctx));
+    hl_mesh *other = cavity(ctx, acos(1.0 - 2.0 * 0.3), 0.8f);
+    d.direct_rows = direct;
+    HL_CHECK(hl_precompute(ctx, other, &d, hl_test_tmp_path("bounce_x.hlt"), NULL) == HL_ERR_INVALID_ARGUMENT,
+             "another mesh's direct rows taken");
+    printf("another mesh: %s\n", hl_context_last_error(ctx));
+    hl_mesh_destroy(other);
+    free((void *)direct);
+    hl_mesh_destroy(m);
+    hl_context_destroy(ctx);
+}
+
 static void case_bad(void)
 {
     hl_context *ctx = hl_test_ref_context(0);
@@ -406,7 +471,8 @@ static void case_bad(void)
     HL_CHECK(hl_precompute(ctx, m, &d, p, NULL) == HL_ERR_INVALID_ARGUMENT, "17 bounces taken");
     printf("17 bounces: %s\n", hl_context_last_error(ctx));
     d.bounces = 1;
-    HL_CHECK(hl_precompute_shard(ctx, m, &d, 0, 2, p, NULL) == HL_ERR_INVALID_ARGUMENT, "a bounced shard taken");
+    HL_CHECK(hl_precompute_shard(ctx, m, &d, 0, 2, p, NULL) == HL_ERR_INVALID_ARGUMENT,
+             "a bounced shard without direct rows taken");
     printf("a shard: %s\n", hl_context_last_error(ctx));
     /* an albedo above 1: each bounce would add more light than it took */
     for (uint32_t v = 0; v < m->vertex_count; v++) m->albedo[3 * v] = 1.5f;
@@ -422,6 +488,6 @@ int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"cavity", case_cavity}, {"furnace", case_furnace}, {"twin", case_twin},
-        {"colour", case_colour}, {"bad", case_bad},       {NULL, NULL}};
+        {"colour", case_colour}, {"shards", case_shards}, {"bad", case_bad}, {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

@@ -191,6 +191,22 @@ case_array() {
   same_as_one_run "$SHARDS" "${OPTS[@]}"
 }
 
+# the bounces: two phases (the direct rows' shards and merge, then each
+# shard's bounces from them and their merge), a coloured ground so that
+# three planes of rows are merged; the result must be one run's bytes
+BOUNCE_OPTS=(--ground --ground-res 12 --ground-albedo 0.8,0.2,0.1 -C 16 -N 16 --bounces 2 --bounce-rays 16 -q)
+case_bounces() {
+  start_cluster
+  submit 3 "${BOUNCE_OPTS[@]}"
+  finish 3
+  local i
+  for ((i = 0; i < 3; i++)); do
+    grep -q "bounce shard $i/3" "$tmp/out/sharded.hlt.shards/bounce-$i.out" 2>/dev/null \
+      || fail "no log of the bounces' array task $i"
+  done
+  same_as_one_run 3 "${BOUNCE_OPTS[@]}"
+}
+
 # grows FILE: waits until FILE exists and has grown twice after that (its
 # header, then at least one chunk of rows), up to JOB_TIMEOUT_S
 grows() {
@@ -232,7 +248,8 @@ case "${1:-}" in
   usage) case_usage ;;
   array) case_array ;;
   requeue) case_requeue ;;
-  *) echo "usage: $0 usage|array|requeue" >&2; exit 2 ;;
+  bounces) case_bounces ;;
+  *) echo "usage: $0 usage|array|requeue|bounces" >&2; exit 2 ;;
 esac
 [ "$fails" -eq 0 ] || { echo "$fails failed"; exit 1; }
 echo "PASS"

@@ -3,7 +3,13 @@
 # an array job of N shards (`haarlight precompute --shard I/N`, one task
 # each), then a job that runs once they all succeeded and joins them
 # (`haarlight merge`) into the same bytes as one whole run. Depends on
-# Slurm's sbatch and scontrol, and on the haarlight command.
+# Slurm's sbatch and scontrol, and on the haarlight command. With
+# --bounces B (B >= 1) among the options it runs in two phases, as the
+# bounces need every vertex's direct rows: the array and merge of the
+# direct rows (the options without --bounces, --bounce-rays and
+# --bounce-terms) into OUT.hlt.shards/direct.hlt, then a second array that
+# gathers each shard's bounces from it (precompute --direct-rows) and the
+# merge of those into OUT.hlt: the same bytes as one run with --bounces.
 #
 # One command submits both jobs:
 #
@@ -44,12 +50,41 @@
 # The two job steps, which submit uses, can also be submitted by hand:
 #   sbatch --array=0-(N-1) precompute-array.sh task N MESH SHARD_DIR [PRECOMPUTE_OPTION...]
 #   sbatch --dependency=afterok:ARRAY_JOB_ID precompute-array.sh merge N OUT.hlt SHARD_DIR
+# and with --bounces, after the direct rows' merge into SHARD_DIR/direct.hlt:
+#   sbatch --array=0-(N-1) precompute-array.sh bounce-task N MESH SHARD_DIR [PRECOMPUTE_OPTION...]
+#   sbatch --dependency=afterok:ID precompute-array.sh merge N OUT.hlt SHARD_DIR bounce
 set -u
 
 # the shard files' names inside SHARD_DIR, I counted from 0 (the array's
 # task id); every name of a run carries N, so runs with another N never
 # mix their shards
 shard_name() { printf 'shard-%s-of-%s.hls' "$1" "$2"; }
+bounce_name() { printf 'bounce-%s-of-%s.hls' "$1" "$2"; }
+
+# the bounces the options ask for (0: none)
+bounces_of() {
+  local b=0
+  while [ $# -gt 0 ]; do
+    case "$1" in
+      --bounces) b="${2:-0}"; shift ;;
+      --bounces=*) b="${1#--bounces=}" ;;
+    esac
+    shift
+  done
+  echo "$b"
+}
+
+# the options without the bounces' own, one a line (the direct phase's)
+without_bounces() {
+  while [ $# -gt 0 ]; do
+    case "$1" in
+      --bounces|--bounce-rays|--bounce-terms) shift ;;
+      --bounces=*|--bounce-rays=*|--bounce-terms=*) ;;
+      *) printf '%s\n' "$1" ;;
+    esac
+    shift
+  done
+}
 
 # usage [CODE]: the comment above; 2 (a usage error) unless asked for
 usage() {
@@ -80,7 +115,7 @@ check_options() {
   local a
   for a in "$@"; do
     case "$a" in
-      -o|--output|--output=*|--shard|--shard=*|--resume)
+      -o|--output|--output=*|--shard|--shard=*|--resume|--direct-rows|--direct-rows=*)
         die "precompute option $a is set by this script; leave it out" 2 ;;
     esac
   done
@@ -110,12 +145,39 @@ task() {
   exec "$hl" precompute "$mesh" --shard "$i/$n" -o "$shard" --resume "${threads[@]}" "$@"
 }
 
+# the bounces of shard SLURM_ARRAY_TASK_ID, from the merged direct rows
+# in SHARD_DIR/direct.hlt; not resumable (it starts over if requeued)
+bounce_task() {
+  [ $# -ge 3 ] || usage
+  local n="$1" mesh="$2" dir="$3"; shift 3
+  is_count "$n" || die "N must be a whole number >= 1, not '$n'" 2
+  local i="${SLURM_ARRAY_TASK_ID:-}"
+  [ -n "$i" ] || die "bounce-task: SLURM_ARRAY_TASK_ID is not set; submit with sbatch --array=0-$((n - 1))" 2
+  [ "$i" -lt "$n" ] || die "bounce-task: array task $i is outside 0..$((n - 1))" 2
+  [ -f "$dir/direct.hlt" ] || die "bounce-task: $dir/direct.hlt (the merged direct rows) is missing"
+  local hl shard; hl="$(find_haarlight)" || exit 2
+  shard="$dir/$(bounce_name "$i" "$n")"
+  if [ -f "$shard" ]; then
+    echo "precompute-array: $shard is already whole; nothing to do"
+    exit 0
+  fi
+  local threads=()
+  if [ -n "${SLURM_CPUS_PER_TASK:-}" ] && ! printf '%s\n' "$@" | grep -q '^--threads'; then
+    threads=(--threads "$SLURM_CPUS_PER_TASK")
+  fi
+  echo "precompute-array: bounce shard $i/$n of $mesh on $(hostname) (job ${SLURM_JOB_ID:-?})"
+  exec "$hl" precompute "$mesh" --shard "$i/$n" -o "$shard" --direct-rows "$dir/direct.hlt" "${threads[@]}" "$@"
+}
+
 merge() {
-  [ $# -eq 3 ] || usage
-  local n="$1" out="$2" dir="$3"
+  [ $# -eq 3 ] || [ $# -eq 4 ] || usage
+  local n="$1" out="$2" dir="$3" kind="${4:-shard}"
   is_count "$n" || die "N must be a whole number >= 1, not '$n'" 2
   local hl i shards=(); hl="$(find_haarlight)" || exit 2
-  for ((i = 0; i < n; i++)); do shards+=("$dir/$(shard_name "$i" "$n")"); done
+  for ((i = 0; i < n; i++)); do
+    if [ "$kind" = bounce ]; then shards+=("$dir/$(bounce_name "$i" "$n")")
+    else shards+=("$dir/$(shard_name "$i" "$n")"); fi
+  done
   echo "precompute-array: merging $n shards from $dir into $out on $(hostname)"
   exec "$hl" merge -o "$out" "${shards[@]}"
 }
@@ -191,21 +253,49 @@ submit() {
   local dir="$out.shards" self; self="$(realpath "$0")"
   mkdir -p "$dir" || die "cannot make $dir"
 
+  local bounces direct_opts=() first_out="$out"
+  bounces="$(bounces_of "$@")"
+  [[ "$bounces" =~ ^[0-9]+$ ]] || die "--bounces $bounces: expected a whole number" 2
+  if [ "$bounces" -gt 0 ]; then
+    mapfile -t direct_opts < <(without_bounces "$@")
+    first_out="$dir/direct.hlt"
+  else
+    direct_opts=("$@")
+  fi
   local array merge_id
   array="$(sbatch --parsable --job-name=hl-precompute --array="0-$((n - 1))" --requeue \
              --open-mode=append --output="$dir/task-%a.out" --export=ALL,HAARLIGHT="$hl" \
-             "${common[@]}" "$self" task "$n" "$mesh" "$dir" "$@")" \
+             "${common[@]}" "$self" task "$n" "$mesh" "$dir" "${direct_opts[@]}")" \
     || die "sbatch refused the array job"
   array="${array%%;*}" # --parsable prints ID[;CLUSTER]
   echo "precompute-array: array job $array: $n shards of $mesh into $dir"
   merge_id="$(sbatch --parsable --job-name=hl-merge --dependency="afterok:$array" --kill-on-invalid-dep=yes \
                 --output="$dir/merge.out" --export=ALL,HAARLIGHT="$hl" \
-                "${common[@]}" "${merge_only[@]}" "$self" merge "$n" "$out" "$dir")"
+                "${common[@]}" "${merge_only[@]}" "$self" merge "$n" "$first_out" "$dir")"
   local rc=$?
   merge_id="${merge_id%%;*}"
   [ "$rc" -eq 0 ] && [ -n "$merge_id" ] \
     || die "sbatch refused the merge job (exit $rc); cancel the array with: scancel $array"
-  echo "precompute-array: merge job $merge_id writes $out once the array has succeeded"
+  echo "precompute-array: merge job $merge_id writes $first_out once the array has succeeded"
+  if [ "$bounces" -gt 0 ]; then
+    # the second phase: each shard's bounces from the merged direct rows
+    array="$(sbatch --parsable --job-name=hl-bounces --array="0-$((n - 1))" --requeue \
+               --dependency="afterok:$merge_id" --kill-on-invalid-dep=yes \
+               --open-mode=append --output="$dir/bounce-%a.out" --export=ALL,HAARLIGHT="$hl" \
+               "${common[@]}" "$self" bounce-task "$n" "$mesh" "$dir" "$@")" \
+      || die "sbatch refused the bounces' array job; cancel the others with: scancel $array $merge_id"
+    array="${array%%;*}"
+    echo "precompute-array: array job $array: the bounces of the $n shards, once $first_out is written"
+    local direct_merge="$merge_id"
+    merge_id="$(sbatch --parsable --job-name=hl-merge --dependency="afterok:$array" --kill-on-invalid-dep=yes \
+                  --output="$dir/merge-bounces.out" --export=ALL,HAARLIGHT="$hl" \
+                  "${common[@]}" "${merge_only[@]}" "$self" merge "$n" "$out" "$dir" bounce)"
+    rc=$?
+    merge_id="${merge_id%%;*}"
+    [ "$rc" -eq 0 ] && [ -n "$merge_id" ] \
+      || die "sbatch refused the last merge job (exit $rc); cancel the others with: scancel $array $direct_merge"
+    echo "precompute-array: merge job $merge_id writes $out once the bounces have succeeded"
+  fi
   [ "$wait" -eq 1 ] || return 0
   local state; state="$(wait_job "$merge_id" "$poll")"
   report_merge "$array" "$merge_id" "$out" "$dir" "$state"
@@ -216,6 +306,7 @@ mode="$1"; shift
 case "$mode" in
   submit) submit "$@" ;;
   task) task "$@" ;;
+  bounce-task) bounce_task "$@" ;;
   merge) merge "$@" ;;
   -h|--help) usage 0 ;;
   *) usage ;;

@@ -64,7 +64,8 @@ enum {
     H_SHARD_END = 172,
     H_BASIS = 176,    /* HL_TRANSPORT_BASIS_*: 0 (Haar) in files from before */
     H_SH_ORDER = 180, /* spherical harmonics: L; cube-face Haar: C'; else 0 */
-    H_BOUNCES = 184,  /* interreflection bounces baked in (0 in files from before) */
+    H_BOUNCES = 184,  /* u16 interreflection bounces baked in (0 in files from before), then u16
+                         channels: 3 for a row a channel (coloured bounces), else 0 */
     H_HEADER_CRC = 188
 };
 

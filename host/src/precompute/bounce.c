@@ -24,6 +24,7 @@
 #include "bounce.h"
 #include "cl_internal.h"
 #include "geom.h"
+#include "haarlight_tools.h"
 #include "mesh_ops.h"
 #include "precompute.h"
 #include "rays.h"
@@ -164,7 +165,7 @@ static void sample_dirs(const hl_mesh *m, uint32_t v, uint32_t K, float *dir)
 
 /* Every vertex's K hits, in chunks of vertices. A hit on a surface's back
  * (its interpolated normal along the ray) counts as a miss. */
-static hl_result cast_hits(bounce_run *u, hl_rt *rt)
+static hl_result cast_hits(bounce_run *u, hl_rt *rt, uint32_t lo, uint32_t hi)
 {
     const uint32_t R = u->R, K = u->K;
     float *org = hl_alloc_big(u->ctx, (size_t)R * K * 12, "the bounce rays"), *dir = org ? hl_alloc_big(u->ctx, (size_t)R * K * 12, "the bounce rays") : NULL;
@@ -175,8 +176,8 @@ static hl_result cast_hits(bounce_run *u, hl_rt *rt)
         return HL_ERR_OUT_OF_MEMORY;
     }
     hl_result r = HL_OK;
-    for (uint32_t first = 0; first < u->V && r == HL_OK; first += R) {
-        const uint32_t count = u->V - first < R ? u->V - first : R;
+    for (uint32_t first = lo; first < hi && r == HL_OK; first += R) {
+        const uint32_t count = hi - first < R ? hi - first : R;
         for (uint32_t i = 0; i < count; i++) {
             const uint32_t v = first + i;
             const float *p = u->m->positions + 3 * (size_t)v, *n = u->m->normals + 3 * (size_t)v;
@@ -425,7 +426,8 @@ static hl_result first_rows(bounce_run *u)
 }
 
 hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_mesh *mesh, const char *direct_path,
-                         const char *out_path, double *seconds, uint64_t *kept_out)
+                         uint32_t shard_index, uint32_t shard_count, const char *out_path, double *seconds,
+                         uint64_t *kept_out)
 {
     const double t0 = hl_now();
     hl_transport *t = NULL;
@@ -439,8 +441,16 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
         (d->rule == HL_TRUNC_ENERGY && ti->eps != d->eps)) {
         hl_transport_destroy(t);
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
-                       "%s: its direct rows are of another mesh or other options than this run's (removed: run again without "
-                       "--resume)", direct_path);
+                       d->direct_rows ? "%s: its direct rows are of another mesh or other options than this run's (the "
+                                        "same mesh, --ground and options as its precompute are needed)"
+                                      : "%s: its direct rows are of another mesh or other options than this run's "
+                                        "(removed: run again without --resume)",
+                       direct_path);
+    }
+    if (ti->bounces) {
+        hl_transport_destroy(t);
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: already holds %u bounces; the bounces start from direct rows",
+                       direct_path, ti->bounces);
     }
     bounce_run u = {.ctx = ctx, .t = t, .m = t->mesh, .V = t->info.vertex_count};
     u.K = d->bounce_rays ? d->bounce_rays : HL_DEFAULT_BOUNCE_RAYS;
@@ -457,7 +467,11 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     if (r == HL_OK) r = alloc_run(&u);
     if (r == HL_OK) r = hl_bounce_check_albedo(ctx, t->mesh);
     if (r == HL_OK) r = hl_rt_create(ctx, t->mesh, &rt);
-    if (r == HL_OK) r = cast_hits(&u, rt);
+    /* a shard gathers its own vertices' last bounce, but the bounces
+       before it for every vertex (each reads rows from anywhere) */
+    uint32_t lo = 0, hi = u.V;
+    if (shard_count) hl_shard_range(u.V, shard_index, shard_count, &lo, &hi);
+    if (r == HL_OK) r = d->bounces > 1 ? cast_hits(&u, rt, 0, u.V) : cast_hits(&u, rt, lo, hi);
     hl_rt_destroy(rt);
     if (r == HL_OK && ctx->backend == HL_BACKEND_OPENCL) r = device_open(&u);
     hl_transport_info info = t->info;
@@ -467,7 +481,10 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     info.channels = hl_bounce_channels(t->mesh);
     info.coefficients_kept = 0;
     u.tp = hl_precompute_trunc_params(d);
-    if (r == HL_OK) r = hl_tfile_writer_open(ctx, out_path, &info, t->mesh, &w);
+    /* the direct rays' counters once, in shard 0, so that the shards
+       merged carry the direct file's as one run does */
+    if (shard_count && shard_index) info.rays_cast = info.rays_culled = 0;
+    if (r == HL_OK) r = hl_tfile_writer_open_shard(ctx, out_path, &info, t->mesh, shard_index, shard_count, &w);
     uint64_t kept = 0;
     static const char *const cname[3] = {" (red)", " (green)", " (blue)"};
     /* each channel's bounces alone (its rows are a plane of the file),
@@ -480,8 +497,9 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
             const double tb = hl_now();
             const int last = b == d->bounces;
             if (u.k) r = device_rows(&u);
-            for (uint32_t first = 0; first < u.V && r == HL_OK; first += u.R) {
-                const uint32_t count = u.V - first < u.R ? u.V - first : u.R;
+            const uint32_t from = last ? lo : 0, to = last ? hi : u.V;
+            for (uint32_t first = from; first < to && r == HL_OK; first += u.R) {
+                const uint32_t count = to - first < u.R ? to - first : u.R;
                 r = run_chunk(&u, first, count, last);
                 if (r == HL_OK && last) {
                     r = hl_tfile_writer_append(w, count, u.rq, u.bc, u.entries, (size_t)g->ncoef * 2, u.nnz);
@@ -493,7 +511,8 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
             if (r == HL_OK && !ctx->quiet)
                 fprintf(stderr,
                         "precompute: bounce %u/%u%s: %u vertices x %u rays, the %u largest terms of each hit row, %.1f s\n",
-                        b, d->bounces, info.channels == 3 ? cname[c] : "", u.V, u.K, u.G, hl_now() - tb);
+                        b, d->bounces, info.channels == 3 ? cname[c] : "", last ? hi - lo : u.V, u.K, u.G,
+                        hl_now() - tb);
         }
     }
     if (r == HL_OK) {

@@ -53,9 +53,13 @@ hl_result hl_bounce_check_albedo(hl_context *ctx, const hl_mesh *m);
  * mesh with the same parameters: its mesh section must hold mesh's
  * positions, else HL_ERR_INVALID_ARGUMENT), gathers d->bounces bounces on ctx's
  * backend and writes T_0 + ... + T_B to out_path (atomically, its header
- * recording the bounces); *kept: the coefficients it holds. Progress on
- * stderr unless ctx is quiet. */
+ * recording the bounces); *kept: the coefficients it holds. With
+ * shard_count > 0, out_path is shard shard_index's file: the last bounce
+ * of its vertices only (the bounces before it of every vertex), which
+ * merge joins into the bytes of one run. Progress on stderr unless ctx is
+ * quiet. */
 hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_mesh *mesh, const char *direct_path,
-                         const char *out_path, double *seconds, uint64_t *kept);
+                         uint32_t shard_index, uint32_t shard_count, const char *out_path, double *seconds,
+                         uint64_t *kept);
 
 #endif

@@ -49,6 +49,11 @@ typedef struct shard_in {
     tf_header h;
     dev_t dev;
     ino_t ino;
+    /* with a row a channel, the planes are merged one after the other:
+       what of its sections the planes before took, and their checksums
+       so far */
+    uint64_t rows_taken, ents_taken, kept;
+    uint32_t rows_crc, ents_crc;
 } shard_in;
 
 /* ---------------------------------------------------------------- headers */
@@ -130,6 +135,8 @@ static int shards_differ(const tf_header *a, const tf_header *b, char *msg, size
         {"the ray offset (--ray-offset)", HL_AS_U32(x->ray_offset), HL_AS_U32(y->ray_offset), AS_FLOAT},
         {"the basis (--basis)", x->basis, y->basis, AS_INT},
         {"the spherical-harmonic order or cube side (--sh-order, --cube-side)", x->sh_order, y->sh_order, AS_INT},
+        {"the bounces (--bounces)", x->bounces, y->bounces, AS_INT},
+        {"the rows a vertex (coloured bounces)", x->channels, y->channels, AS_INT},
         {"the shard count (--shard I/N)", a->shard.count, b->shard.count, AS_INT},
     };
     for (size_t i = 0; i < sizeof f / sizeof f[0]; i++) {
@@ -197,7 +204,8 @@ typedef struct sec_reader {
     uint64_t pos, left; /* next file offset to read; section bytes not yet read */
     uint8_t *buf;
     size_t at, len;
-    uint32_t crc;
+    uint32_t crc;   /* of the bytes taken */
+    uint64_t taken;
 } sec_reader;
 
 /* The next n bytes (n <= MERGE_READ_BYTES) at *p, valid until the next call. */
@@ -213,7 +221,6 @@ static hl_result take(sec_reader *r, size_t n, uint32_t vertex, const uint8_t **
         if (k != 0)
             return hl_fail(r->ctx, k < 0 ? HL_ERR_IO : HL_ERR_FORMAT, "%s: cannot read the %s: %s", r->path, r->what,
                            k < 0 ? strerror(errno) : "the file ends inside it (changed while merging?)");
-        r->crc = crc_update(r->crc, r->buf + r->len, want);
         r->len += want;
         r->pos += want;
         r->left -= want;
@@ -222,16 +229,21 @@ static hl_result take(sec_reader *r, size_t n, uint32_t vertex, const uint8_t **
                            r->what);
     }
     *p = r->buf + r->at;
+    /* what is taken, not what is read ahead: a plane's reader may read
+       into the next plane's bytes, which that plane's reader takes again */
+    r->crc = crc_update(r->crc, *p, n);
     r->at += n;
+    r->taken += n;
     return HL_OK;
 }
 
+/* From byte `from` of the section on, its checksum so far crc. */
 static void reader_start(sec_reader *r, hl_context *ctx, const shard_in *s, int fd, int sec, const char *what,
-                         uint8_t *buf)
+                         uint8_t *buf, uint64_t from, uint32_t crc)
 {
-    *r = (sec_reader){.ctx = ctx, .path = s->path, .what = what, .fd = fd, .buf = buf};
-    r->pos = s->h.sec[sec].offset;
-    r->left = s->h.sec[sec].size;
+    *r = (sec_reader){.ctx = ctx, .path = s->path, .what = what, .fd = fd, .buf = buf, .crc = crc};
+    r->pos = s->h.sec[sec].offset + from;
+    r->left = s->h.sec[sec].size - from;
 }
 
 /* Checks one row of shard s as the loader would and appends it. */
@@ -263,8 +275,10 @@ static hl_result merge_row(hl_tfile_writer *w, const shard_in *s, sec_reader *ro
 }
 
 /* Reopens shard s, makes sure its header is the one checked, and appends
- * its rows; then its checksums and its count of entries must hold. */
-static hl_result merge_shard(hl_context *ctx, hl_tfile_writer *w, shard_in *s, uint8_t *bufs, hl_merge_stats *st)
+ * its rows of plane c (of planes: 1, or 3 with a row a channel); after its
+ * last plane its checksums and its count of entries must hold. */
+static hl_result merge_shard(hl_context *ctx, hl_tfile_writer *w, shard_in *s, uint8_t *bufs, uint32_t c,
+                             uint32_t planes, hl_merge_stats *st)
 {
     int fd = -1;
     uint64_t size = 0;
@@ -274,9 +288,9 @@ static hl_result merge_shard(hl_context *ctx, hl_tfile_writer *w, shard_in *s, u
                        memcmp(now, s->bytes, sizeof now) != 0))
         r = hl_fail(ctx, HL_ERR_FORMAT, "%s: changed while merging", s->path);
     sec_reader rows, ents;
-    reader_start(&rows, ctx, s, fd, SEC_ROWS, "row table", bufs);
-    reader_start(&ents, ctx, s, fd, SEC_ENTRIES, "entries", bufs + MERGE_READ_BYTES);
-    uint64_t kept = 0;
+    reader_start(&rows, ctx, s, fd, SEC_ROWS, "row table", bufs, s->rows_taken, s->rows_crc);
+    reader_start(&ents, ctx, s, fd, SEC_ENTRIES, "entries", bufs + MERGE_READ_BYTES, s->ents_taken, s->ents_crc);
+    uint64_t kept = s->kept;
     for (uint32_t v = s->h.shard.first; r == HL_OK && v < s->h.shard.end; v++) {
         r = merge_row(w, s, &rows, &ents, v, &kept);
         if (r == HL_OK && (v - s->h.shard.first) % MERGE_POLL_VERTICES == 0 && hl_context_cancelled(ctx))
@@ -284,9 +298,15 @@ static hl_result merge_shard(hl_context *ctx, hl_tfile_writer *w, shard_in *s, u
     }
     if (fd >= 0) close(fd);
     if (r != HL_OK) return r;
-    if (rows.crc != s->h.sec[SEC_ROWS].crc)
+    s->rows_taken += rows.taken;
+    s->ents_taken += ents.taken;
+    s->rows_crc = rows.crc;
+    s->ents_crc = ents.crc;
+    s->kept = kept;
+    if (c + 1 < planes) return HL_OK;
+    if (s->rows_taken != s->h.sec[SEC_ROWS].size || rows.crc != s->h.sec[SEC_ROWS].crc)
         return hl_fail(ctx, HL_ERR_FORMAT, "%s: checksum mismatch in the row table section (corrupt)", s->path);
-    if (ents.left != 0 || ents.at != ents.len || kept != s->h.info.coefficients_kept)
+    if (s->ents_taken != s->h.sec[SEC_ENTRIES].size || kept != s->h.info.coefficients_kept)
         return hl_fail(ctx, HL_ERR_FORMAT, "%s: block counts sum to %" PRIu64 ", coefficients_kept says %" PRIu64,
                        s->path, kept, s->h.info.coefficients_kept);
     if (ents.crc != s->h.sec[SEC_ENTRIES].crc)
@@ -343,8 +363,12 @@ hl_result hl_transport_merge(hl_context *ctx, const char *out_path, const char *
         if (fd >= 0) close(fd);
     }
     info.coefficients_kept = info.rays_cast = info.rays_culled = 0;
+    /* a row a channel: the red rows of every shard, then the green, then
+       the blue, as one run writes them */
+    const uint32_t planes = info.channels == 3 ? 3 : 1;
+    for (uint32_t c = 0; c < planes; c++)
+        for (uint32_t i = 0; r == HL_OK && i < count; i++) r = merge_shard(ctx, w, &s[i], bufs, c, planes, &st);
     for (uint32_t i = 0; r == HL_OK && i < count; i++) {
-        r = merge_shard(ctx, w, &s[i], bufs, &st);
         info.coefficients_kept += s[i].h.info.coefficients_kept;
         info.rays_cast += s[i].h.info.rays_cast;
         info.rays_culled += s[i].h.info.rays_culled;

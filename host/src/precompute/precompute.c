@@ -445,10 +445,31 @@ hl_result hl_precompute_shard(hl_context *ctx, const hl_mesh *mesh, const hl_pre
     if (r != HL_OK) return r;
     if (!mesh || mesh->vertex_count == 0 || mesh->triangle_count == 0)
         return hl_fail(ctx, HL_ERR_MESH, "the mesh is empty");
-    if (u.d.bounces && shard_count)
+    if (u.d.direct_rows && !u.d.bounces)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--direct-rows %s: only the bounces start from direct rows "
+                       "(give --bounces B)", u.d.direct_rows);
+    if (u.d.bounces && shard_count && !u.d.direct_rows)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
-                       "--bounces with --shard: the bounce phase reads every vertex's direct rows and does not shard "
-                       "yet; precompute the bounces in one run");
+                       "--bounces with --shard: the bounces read every vertex's direct rows, so they shard as a second "
+                       "phase: shard and merge the direct precompute (no --bounces), then run --bounces B --direct-rows "
+                       "MERGED.hlt --shard I/N and merge those (docs/BOUNCES.md)");
+    if (u.d.bounces && shard_count && (shard_index >= shard_count || shard_count > mesh->vertex_count))
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "shard %u/%u: the index must be below the count, and the count from 1 to the mesh's %u "
+                       "vertices", shard_index, shard_count, mesh->vertex_count);
+    if (u.d.bounces && u.d.direct_rows) {
+        if (stats) memset(stats, 0, sizeof *stats);
+        double sec = 0.0;
+        uint64_t kept = 0;
+        r = hl_bounce_check_albedo(ctx, mesh);
+        if (r == HL_OK)
+            r = hl_bounce_file(ctx, &u.d, mesh, u.d.direct_rows, shard_index, shard_count, out_path, &sec, &kept);
+        if (stats) {
+            stats->seconds_bounces = stats->seconds_total = sec;
+            if (r == HL_OK) stats->coefficients_kept = kept;
+        }
+        return r;
+    }
     if (u.d.bounces) return precompute_bounced(ctx, mesh, &u.d, out_path, stats);
     u.V = mesh->vertex_count;
     u.lo = 0;
@@ -502,7 +523,7 @@ static hl_result precompute_bounced(hl_context *ctx, const hl_mesh *mesh, const 
     }
     double sec = 0.0;
     uint64_t kept = 0;
-    if (r == HL_OK) r = hl_bounce_file(ctx, d, mesh, direct, out_path, &sec, &kept);
+    if (r == HL_OK) r = hl_bounce_file(ctx, d, mesh, direct, 0, 0, out_path, &sec, &kept);
     /* kept only for --resume after an interruption */
     if (r != HL_ERR_INTERRUPTED) unlink(direct);
     if (stats) {
