@@ -122,6 +122,17 @@ capture_sky)
   view "$tmp/s.hlt" "${cam[@]}" --no-glare --frames 3 --screenshot "$tmp/view.exr" || fail "view exited with an error"
   same_picture "built-in sky, automatic framing" "$tmp/view.exr" "$tmp/relight.exr" 0.5
   ;;
+capture_bounced)
+  # a row a channel (coloured bounces off a red ground): the viewer's
+  # device buffer gathers each channel's plane as relight does
+  "$bin" precompute "$data/bunny_lowres.obj" --ground --ground-res 24 --ground-albedo 0.8,0.15,0.1 -N 16 -C 16 \
+    --bounces 1 --bounce-rays 16 -q -o "$tmp/b.hlt" || fail "precompute --bounces"
+  "$bin" info "$tmp/b.hlt" | grep -q "a row a colour channel" || fail "the file has no row a channel"
+  cam=(--size 320x240 --exposure 0.5)
+  "$bin" relight "$tmp/b.hlt" --sky "${cam[@]}" -q -o "$tmp/relight.exr" || fail "relight"
+  view "$tmp/b.hlt" "${cam[@]}" --no-glare --frames 3 --screenshot "$tmp/view.exr" || fail "view exited with an error"
+  same_picture "coloured bounces, built-in sky" "$tmp/view.exr" "$tmp/relight.exr" 0.5
+  ;;
 capture_env)
   scene
   # low and wide, so that most of the picture is the map: a turn of 1 degree fails
