@@ -269,6 +269,9 @@ relight_surroundings)
   expect_error time_nan 2 "--time" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --time nan -o "$tmp/o.ply"
   expect_error time_text 2 "--time" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$sur" --time soon -o "$tmp/o.ply"
   expect_error time_alone 2 "--time needs --surroundings" "$tmp/o.ply" -- relight "$tmp/s.hlt" --time 1 -o "$tmp/o.ply"
+  # the references are of direct light: a bounced file is refused, not measured against them
+  "$bin" precompute "$data/bunny_lowres.obj" -N 16 -C 16 --bounces 1 --bounce-rays 4 -q -o "$tmp/b.hlt" || fail "bounced precompute"
+  expect_error reference_bounced 2 "bounces" "$tmp/o.ply" -- relight "$tmp/b.hlt" --surroundings "$sur" --reference exact -o "$tmp/o.ply"
   expect_error surroundings_missing 1 "nosuch.gltf" "$tmp/o.ply" -- relight "$tmp/s.hlt" --surroundings "$tmp/nosuch.gltf" -o "$tmp/o.ply"
   # what the capture costs is said; the file's placement moves the lamp
   grep -q "capture: 44 triangles, .* MiB on the host and .* MiB on the device, .* ms a capture" "$tmp/s0.txt" || fail "no line saying what the capture costs"

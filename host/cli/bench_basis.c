@@ -591,6 +591,10 @@ int cmd_bench_basis(int argc, char **argv)
                 t->info.C);
         rc = 2;
     }
+    /* the bases are compared on rows recast from the mesh: direct light */
+    if (r == HL_OK && t->info.bounces && !o.quiet)
+        fprintf(stderr, "bench-basis: %s holds %u bounce%s; the bases are compared on its mesh's direct transport, "
+                "without them\n", o.file, t->info.bounces, t->info.bounces == 1 ? "" : "s");
     if (r == HL_OK && !rc && !cli_make_dir(o.outdir)) rc = 1; /* cli_make_dir has printed why */
     if (r == HL_OK && !rc) r = run(ctx, &o, t, &fs);
     if (!rc && (r == HL_OK || fs.f[0] || fs.f[1] || fs.f[2])) r = files_finish(&fs, ctx, r);

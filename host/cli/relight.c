@@ -185,6 +185,17 @@ int cmd_relight(int argc, char **argv)
     const double t_built = hl_tools_now();
     if (r == HL_OK && !cd.quiet)
         fprintf(stderr, "loaded %s: %u vertices in %.2f s\n", scene, t->info.vertex_count, t_built - t_load);
+    /* the references integrate direct light only: against a bounced file
+       they would count the bounces as error */
+    if (r == HL_OK && reference && t->info.bounces) {
+        fprintf(stderr, "haarlight: relight: --reference: %s holds %u bounce%s of interreflection, and the "
+                "references are of direct light only; relight a file precomputed without --bounces\n", scene,
+                t->info.bounces, t->info.bounces == 1 ? "" : "s");
+        hl_transport_destroy(t);
+        cli_unwatch();
+        hl_context_destroy(ctx);
+        return 2;
+    }
     if (r == HL_OK && !cd.quiet && t->info.bounces)
         fprintf(stderr, "%s: direct light and %u bounce%s of interreflection, baked with the albedo stored in the "
                 "file (%s)\n", scene, t->info.bounces, t->info.bounces == 1 ? "" : "s",
