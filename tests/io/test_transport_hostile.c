@@ -442,6 +442,22 @@ static void case_basis(void)
     wr32(f + 184, HL_MAX_BOUNCES + 1);
     fix_header_crc(f);
     expect_refused(ctx, bad, f, size, "17 bounces", "bounces = 17");
+    /* 186 the rows a vertex: 3 only with bounces; 2 never; and a file
+       that says 3 must hold three planes of rows (this one holds one) */
+    static const struct {
+        uint32_t word;
+        const char *what, *needle;
+    } planes[] = {
+        {3u << 16, "3 rows a vertex without bounces", "without bounces"},
+        {2u << 16 | 1u, "2 rows a vertex", "channels = 2"},
+        {3u << 16 | 1u, "3 rows a vertex but one plane of rows", "rows_size"},
+    };
+    for (size_t k = 0; k < sizeof planes / sizeof planes[0]; k++) {
+        memcpy(f, data, size);
+        wr32(f + 184, planes[k].word);
+        fix_header_crc(f);
+        expect_refused(ctx, bad, f, size, planes[k].what, planes[k].needle);
+    }
     /* orders 1 to 11 over this file, whose entries reach slot 127:
        refused, naming the first slot at or past L^2 */
     int refused = 0;
