@@ -14,7 +14,12 @@
  *   continuous: the original equirectangular map integrated directly,
  *               one Embree ray per map pixel, cast from the vertex itself
  *               with its own triangles skipped (no ray offset);
- *               independent of N and C and of the precompute's offset.
+ *               independent of N and C and of the precompute's offset;
+ * and for a file with bounces (precompute --bounces B) the exact reference
+ * becomes the bounced one: the direct exact light of every vertex, then B
+ * gathers in float64 with each channel's albedo on rays of its own
+ * (--bounce-rays; hl_bench_ref_bounced), the continuous reference and
+ * banding not measured for it (they are direct light only).
  * Writes bench.md, bench.csv and bench.svg (gnuplot) to the output folder.
  *
  * This file holds the options and the measuring phases; the references
@@ -512,9 +517,16 @@ static hl_result bench_row(bench *b, const file_relighters *fr, int e, uint32_t 
             nb ? en->noise_bound[nb] : 0.0);
     char refcell[32] = "not timed";
     if (fr->rr) snprintf(refcell, sizeof refcell, "%.1f", rms);
-    fprintf(md, "| %s | %s | %s | %s | %u | %.6f | %.3g | %.0f%% | %.3f%% | %.3f%% | %.3f%% | %u | %.4f | %.3f%% | %.3f%% | %.3f | %s | %.1f |\n",
+    /* a bounced file's continuous and banding cells: no such reference */
+    char bandcell[32] = "n/a (bounced)", l2ccell[32] = "n/a (bounced)", mxccell[32] = "n/a (bounced)";
+    if (!nb) {
+        snprintf(bandcell, sizeof bandcell, "%.4f", band);
+        snprintf(l2ccell, sizeof l2ccell, "%.3f%%", 100 * l2c);
+        snprintf(mxccell, sizeof mxccell, "%.3f%%", 100 * mxc);
+    }
+    fprintf(md, "| %s | %s | %s | %s | %u | %.6f | %.3g | %.0f%% | %.3f%% | %.3f%% | %.3f%% | %u | %s | %s | %s | %.3f | %s | %.1f |\n",
             name, en->name, sel, mstr, st.terms_kept, st.energy_kept, st.error_bound, 100 * st.blocks_skipped,
-            100 * l2e, 100 * mxe, 100 * l2u, st.negative_vertices, band, 100 * l2c, 100 * mxc, cl_ms, refcell,
+            100 * l2e, 100 * mxe, 100 * l2u, st.negative_vertices, bandcell, l2ccell, mxccell, cl_ms, refcell,
             fr->bytes / 1e6);
     if (o->selects[s] == o->selects[0]) fprintf(b->out.f[BENCH_GP], "%.5f %.6g %s\n", cl_ms, l2e, mstr);
     fflush(csv);
