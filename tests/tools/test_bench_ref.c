@@ -184,7 +184,8 @@ static void case_cavity(void)
      *    the angle between neighbouring vertices, a = max(ring step,
      *    segment step) / 2, so the rays within a of the horizon leave
      *    through a facet from behind and add nothing (the precompute's rule
-     *    too), a fraction sin^2 a of cosine-weighted rays (0.43% here): the
+     *    too), a fraction sin^2 a of cosine-weighted rays (0.43% here; at
+     *    48 x 96 the mean's deficit falls from 0.43% to 0.10%, as a^2): the
      *    fraction p that stays inside is off by at most
      *    d = 0.00285 f + 0.001 + sin^2 a, each q^k by k d / p relative. */
     const double a = 0.5 * fmax((PI - theta0) / RINGS, 2.0 * PI / SEGS);
