@@ -14,7 +14,12 @@
  *   continuous: the original equirectangular map integrated directly,
  *               one Embree ray per map pixel, cast from the vertex itself
  *               with its own triangles skipped (no ray offset);
- *               independent of N and C and of the precompute's offset.
+ *               independent of N and C and of the precompute's offset;
+ * and for a file with bounces (precompute --bounces B) the exact reference
+ * becomes the bounced one: the direct exact light of every vertex, then B
+ * gathers in float64 with each channel's albedo on rays of its own
+ * (--bounce-rays; hl_bench_ref_bounced), the continuous reference and
+ * banding not measured for it (they are direct light only).
  * Writes bench.md, bench.csv and bench.svg (gnuplot) to the output folder.
  *
  * This file holds the options and the measuring phases; the references
@@ -44,7 +49,9 @@ static const char *const usage_bench =
     "products, the colours readable on the host as the viewer takes them) on the\n"
     "OpenCL device and on the reference (the latter under the first environment:\n"
     "its time does not depend on the map). All files must come from the same\n"
-    "mesh, N and C (e.g. different --quant or --energy).\n"
+    "mesh, N, C and albedo (e.g. different --quant, --energy or --bounces). A file\n"
+    "with bounces is measured against the exact reference with the same bounces\n"
+    "(see --bounce-rays); bench.md and bench.csv say which reference each file has.\n"
     "At M = 200 under the first environment it also gives each file's lighting\n"
     "changes per second, the time of taking a new map (resampling it onto the cell\n"
     "grid and uploading it), and the dot products' time against the device's read\n"
@@ -62,6 +69,15 @@ static const char *const usage_bench =
     "                       the first)\n"
     "  --vertices K         vertices for the exact reference (default 1024; all if fewer)\n"
     "  --continuous K       vertices for the continuous reference (default 96)\n"
+    "  --bounce-rays K      for a file with bounces (precompute --bounces B): rays a vertex\n"
+    "                       of each bounce of its exact reference (default 1024; must be 4\n"
+    "                       or more). That reference is the direct exact light of every\n"
+    "                       vertex, then B gathers in float64 with each channel's own\n"
+    "                       albedo, on rays of its own (about a precompute's direct rays\n"
+    "                       for the first part, K rays a vertex a bounce for the rest);\n"
+    "                       bench.md gives its own noise. The continuous reference and\n"
+    "                       banding are direct light only: not measured for such a file,\n"
+    "                       and --image refuses it\n"
     "  --reps R             timed lighting changes per setting on OpenCL (default 15)\n"
     "  --ref-reps R         timed lighting changes per setting on the reference (default 3)\n"
     "  --no-ref-timing      skip timing the plain-C reference\n"
@@ -94,7 +110,7 @@ typedef struct bench_opts {
     const char *files[BENCH_MAX_FILES], *outdir;
     int nfiles, nenvs, want_sky, ref_timing, banding_on;
     uint32_t terms[BENCH_MAX_TERMS], nterms, selects[3], nsel;
-    uint32_t K, K2, reps, ref_reps;
+    uint32_t K, K2, reps, ref_reps, bounce_rays;
     const char *surroundings;
     uint32_t probes;
     float place[5];
@@ -174,7 +190,7 @@ static int parse_bench(int argc, char **argv, bench *b)
     *o = (bench_opts){.outdir = "bench-out", .ref_timing = 1, .banding_on = 1,
                       .terms = {25, 50, 100, 200, 500, 1000, 2000, HL_TERMS_ALL}, .nterms = 8,
                       .selects = {HL_SELECT_TRANSPORT, HL_SELECT_AREA, HL_SELECT_UNWEIGHTED}, .nsel = 3,
-                      .K = 1024, .K2 = 96, .reps = 15, .ref_reps = 3,
+                      .K = 1024, .K2 = 96, .reps = 15, .ref_reps = 3, .bounce_rays = 1024,
                       .image_frames = 16, .image_w = 320, .image_h = 240,
                       .cd = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1}};
     for (int i = 0; i < argc; i++) {
@@ -193,6 +209,7 @@ static int parse_bench(int argc, char **argv, bench *b)
         else if (!strcmp(a, "--terms")) { NEED(); if ((e = parse_terms(usage, v, o))) return e; }
         else if (!strcmp(a, "--select")) { NEED(); if ((e = parse_selects(usage, v, o))) return e; }
         else if (!strcmp(a, "--vertices")) { NEED(); if (!parse_u32(v, &o->K) || o->K < 1 || o->K > 65536) return usage_error(usage, "--vertices %s: expected 1 to 65536", v); }
+        else if (!strcmp(a, "--bounce-rays")) { NEED(); if (!parse_u32(v, &o->bounce_rays) || o->bounce_rays < 4 || o->bounce_rays > 1048576) return usage_error(usage, "--bounce-rays %s: expected 4 to 1048576 rays a vertex", v); }
         else if (!strcmp(a, "--continuous")) { NEED(); if (!parse_u32(v, &o->K2) || o->K2 > 4096) return usage_error(usage, "--continuous %s: expected 0 to 4096", v); }
         else if (!strcmp(a, "--reps")) { NEED(); if (!parse_u32(v, &o->reps) || o->reps < 1 || o->reps > MAX_REPS) return usage_error(usage, "--reps %s: expected 1 to 1000", v); }
         else if (!strcmp(a, "--ref-reps")) { NEED(); if (!parse_u32(v, &o->ref_reps) || o->ref_reps < 1 || o->ref_reps > MAX_REF_REPS) return usage_error(usage, "--ref-reps %s: expected 1 to 100", v); }
@@ -241,6 +258,16 @@ static hl_result load(bench *b)
             (tf->info.N != t0->info.N || tf->info.C != t0->info.C || tf->info.vertex_count != t0->info.vertex_count ||
              memcmp(tf->mesh->positions, t0->mesh->positions, (size_t)t0->info.vertex_count * 12) != 0))
             r = hl_tools_fail(b->ref, HL_ERR_INVALID_ARGUMENT, "%s: not the same mesh, N and C as %s", o->files[f], o->files[0]);
+        /* the exact colours are the first file's albedo times its rows
+           (and its bounces): another albedo would be measured against
+           the wrong colours */
+        if (r == HL_OK && f > 0 && memcmp(tf->mesh->albedo, t0->mesh->albedo, (size_t)t0->info.vertex_count * 12) != 0)
+            r = hl_tools_fail(b->ref, HL_ERR_INVALID_ARGUMENT, "%s: not the same albedo as %s (bench them in separate runs)",
+                              o->files[f], o->files[0]);
+        if (r == HL_OK && o->image && b->t[f]->info.bounces)
+            r = hl_tools_fail(b->ref, HL_ERR_INVALID_ARGUMENT,
+                              "--image: %s has %u bounces, and the image errors have a direct-light reference only", o->files[f],
+                              b->t[f]->info.bounces);
     }
     for (int e = 0; e < o->nenvs && r == HL_OK; e++) {
         hl_sky_desc sky = {0};
@@ -264,8 +291,58 @@ static uint32_t ground_side(const hl_transport_info *in)
     return (uint64_t)n * n == G && n >= 3 ? n : 0;
 }
 
+/* The bounced exact reference of the sampled vertices, for every bounce
+ * count up to the files' largest (one run of hl_bench_ref_bounced gives
+ * them all), kept for the counts some file has. */
+static hl_result bounced_references(bench *b)
+{
+    uint32_t Bmax = 0, K = b->K;
+    for (int f = 0; f < b->o.nfiles; f++)
+        if (b->t[f]->info.bounces > Bmax) Bmax = b->t[f]->info.bounces;
+    if (!Bmax) {
+        if (b->o.bounce_rays != 1024)
+            fprintf(stderr, "bench: --bounce-rays: no file has bounces, so its reference is direct light only\n");
+        return HL_OK;
+    }
+    const int nenvs = b->o.nenvs;
+    if (Bmax > HL_MAX_BOUNCES)
+        return hl_tools_fail(b->ref, HL_ERR_INVALID_ARGUMENT, "a file with %u bounces (at most %u)", Bmax, HL_MAX_BOUNCES);
+    fprintf(stderr, "bench: bounced exact reference: %u bounces, %u rays a vertex a bounce, direct light of all %u vertices first\n",
+            Bmax, b->o.bounce_rays, b->V);
+    double **out = calloc((size_t)(Bmax + 1) * nenvs, sizeof *out);
+    double *own = calloc((size_t)(Bmax + 1) * nenvs, sizeof *own), *bound = calloc((size_t)(Bmax + 1) * nenvs, sizeof *bound);
+    hl_result r = out && own && bound ? HL_OK : hl_tools_fail(b->ref, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    for (size_t i = 0; i < (size_t)(Bmax + 1) * nenvs && r == HL_OK; i++)
+        if (!(out[i] = calloc((size_t)K * 3, sizeof(double))))
+            r = hl_tools_fail(b->ref, HL_ERR_OUT_OF_MEMORY, "out of memory for the bounced reference");
+    const hl_env *envs[BENCH_MAX_ENVS];
+    for (int e = 0; e < nenvs; e++) envs[e] = b->envs[e].env;
+    const double t0 = hl_tools_now();
+    if (r == HL_OK) r = hl_bench_ref_bounced(b->br, b->idx, K, Bmax, b->o.bounce_rays, envs, nenvs, 1, out, own, bound);
+    if (r == HL_OK) fprintf(stderr, "bench: bounced exact reference: %.1f s\n", hl_tools_now() - t0);
+    for (uint32_t B = 1; B <= Bmax && r == HL_OK; B++) {
+        int wanted = 0;
+        for (int f = 0; f < b->o.nfiles; f++) wanted |= b->t[f]->info.bounces == B;
+        for (int e = 0; e < nenvs && wanted; e++) {
+            bench_env *en = &b->envs[e];
+            en->exact_b[B] = out[(size_t)B * nenvs + e];
+            out[(size_t)B * nenvs + e] = NULL;
+            en->noise_own[B] = own[(size_t)B * nenvs + e];
+            en->noise_bound[B] = bound[(size_t)B * nenvs + e];
+            fprintf(stderr, "bench: bounced reference after %u bounce%s under %s: its own noise %.3f%% (bound %.3f%%) of its L2\n",
+                    B, B == 1 ? "" : "s", en->name, 100 * en->noise_own[B], 100 * en->noise_bound[B]);
+        }
+    }
+    for (size_t i = 0; out && i < (size_t)(Bmax + 1) * nenvs; i++) free(out[i]);
+    free(out);
+    free(own);
+    free(bound);
+    return r;
+}
+
 /* The exact and continuous colours of the sampled vertices under every
- * environment, and the exact colours of the ground for banding. */
+ * environment, the exact colours of the ground for banding, and the
+ * bounced references. */
 static hl_result references(bench *b)
 {
     const hl_transport_info *in = &b->t[0]->info;
@@ -296,6 +373,7 @@ static hl_result references(bench *b)
         r = hl_bench_ref_ground(b->br, ground);
         for (int e = 0; e < nenvs; e++) b->envs[e].ground = ground[e];
     }
+    if (r == HL_OK) r = bounced_references(b);
     return r;
 }
 
@@ -416,25 +494,39 @@ static hl_result bench_row(bench *b, const file_relighters *fr, int e, uint32_t 
     if (r == HL_OK) r = hl_relighter_run(fr->rc, &d, b->B, &st);
     if (r != HL_OK) return r;
     double l2e, mxe, l2u, mxu, l2c = NAN, mxc = NAN;
-    errors(b->B, b->idx, b->K, en->exact, &l2e, &mxe);
-    errors(b->Braw, b->idx, b->K, en->exact, &l2u, &mxu);
-    const double band = b->gside ? banding(b->B, fi->object_vertex_count, b->gside, en->ground) : NAN;
-    if (b->K2) errors(b->B, b->idx2, b->K2, en->cont, &l2c, &mxc);
+    /* a bounced file against the reference with its bounces; the
+       continuous and banding references are direct light only */
+    const uint32_t nb = fi->bounces;
+    const double *exact = nb ? en->exact_b[nb] : en->exact;
+    errors(b->B, b->idx, b->K, exact, &l2e, &mxe);
+    errors(b->Braw, b->idx, b->K, exact, &l2u, &mxu);
+    const double band = b->gside && !nb ? banding(b->B, fi->object_vertex_count, b->gside, en->ground) : NAN;
+    if (b->K2 && !nb) errors(b->B, b->idx2, b->K2, en->cont, &l2c, &mxc);
+    char refname[96];
+    bench_ref_name(refname, sizeof refname, nb, o->bounce_rays);
     double rms = fr->rr ? b->ref_ms[f][s][mi] : NAN;
     const char *name = bench_base_name(o->files[f]), *sel = select_name(o->selects[s]);
     char mstr[16];
     if (o->terms[mi] == HL_TERMS_ALL) snprintf(mstr, sizeof mstr, "all");
     else snprintf(mstr, sizeof mstr, "%u", o->terms[mi]);
     FILE *csv = b->out.f[BENCH_CSV], *md = b->out.f[BENCH_MD];
-    fprintf(csv, "%s,%s,%.1f,%.0f,%s,%s,%s,%u,%.8f,%.6g,%.4f,%.6g,%.6g,%.6g,%.6g,%.4f,%.2f,%.6g,%.6g,%u,%.6g\n",
+    fprintf(csv, "%s,%s,%.1f,%.0f,%s,%s,%s,%u,%.8f,%.6g,%.4f,%.6g,%.6g,%.6g,%.6g,%.4f,%.2f,%.6g,%.6g,%u,%.6g,\"%s\",%.6g\n",
             name, fi->quant == HL_QUANT_LOG8 ? "log8" : fi->quant == HL_QUANT_SQRT8 ? "sqrt8" : "linear8",
             (double)fi->coefficients_kept / b->V, fr->bytes, en->name, sel, mstr, st.terms_kept, st.energy_kept,
-            st.error_bound, st.blocks_skipped, l2e, mxe, l2c, mxc, cl_ms, rms, l2u, mxu, st.negative_vertices, band);
+            st.error_bound, st.blocks_skipped, l2e, mxe, l2c, mxc, cl_ms, rms, l2u, mxu, st.negative_vertices, band, refname,
+            nb ? en->noise_bound[nb] : 0.0);
     char refcell[32] = "not timed";
     if (fr->rr) snprintf(refcell, sizeof refcell, "%.1f", rms);
-    fprintf(md, "| %s | %s | %s | %s | %u | %.6f | %.3g | %.0f%% | %.3f%% | %.3f%% | %.3f%% | %u | %.4f | %.3f%% | %.3f%% | %.3f | %s | %.1f |\n",
+    /* a bounced file's continuous and banding cells: no such reference */
+    char bandcell[32] = "n/a (bounced)", l2ccell[32] = "n/a (bounced)", mxccell[32] = "n/a (bounced)";
+    if (!nb) {
+        snprintf(bandcell, sizeof bandcell, "%.4f", band);
+        snprintf(l2ccell, sizeof l2ccell, "%.3f%%", 100 * l2c);
+        snprintf(mxccell, sizeof mxccell, "%.3f%%", 100 * mxc);
+    }
+    fprintf(md, "| %s | %s | %s | %s | %u | %.6f | %.3g | %.0f%% | %.3f%% | %.3f%% | %.3f%% | %u | %s | %s | %s | %.3f | %s | %.1f |\n",
             name, en->name, sel, mstr, st.terms_kept, st.energy_kept, st.error_bound, 100 * st.blocks_skipped,
-            100 * l2e, 100 * mxe, 100 * l2u, st.negative_vertices, band, 100 * l2c, 100 * mxc, cl_ms, refcell,
+            100 * l2e, 100 * mxe, 100 * l2u, st.negative_vertices, bandcell, l2ccell, mxccell, cl_ms, refcell,
             fr->bytes / 1e6);
     if (o->selects[s] == o->selects[0]) fprintf(b->out.f[BENCH_GP], "%.5f %.6g %s\n", cl_ms, l2e, mstr);
     fflush(csv);
@@ -603,6 +695,7 @@ static void bench_free(bench *b)
         free(b->envs[e].exact);
         free(b->envs[e].cont);
         free(b->envs[e].ground);
+        for (uint32_t B = 0; B <= HL_MAX_BOUNCES; B++) free(b->envs[e].exact_b[B]);
     }
     for (int f = 0; f < b->o.nfiles; f++) hl_transport_destroy(b->t[f]);
     hl_bench_ref_destroy(b->br);
@@ -621,6 +714,11 @@ static hl_result bench_measure(bench *b)
     bench_out_names(&b->out, b->o.outdir);
     if (r == HL_OK)
         r = bench_out_open(&b->out, b->ref, b->cl, &b->t[0]->info, b->K, b->K2, b->o.reps, b->o.ref_reps);
+    if (r == HL_OK) {
+        uint32_t nb[BENCH_MAX_FILES];
+        for (int f = 0; f < b->o.nfiles; f++) nb[f] = b->t[f]->info.bounces;
+        bench_out_references(&b->out, b->o.files, nb, b->o.nfiles, b->o.bounce_rays, b->envs, b->o.nenvs);
+    }
     b->B = malloc((size_t)b->V * 12);
     b->Braw = malloc((size_t)b->V * 12);
     if (r == HL_OK && (!b->B || !b->Braw))

@@ -60,8 +60,6 @@ static void md_heading(FILE *md, hl_context *cl, const hl_transport_info *in, ui
                 "along the ground raise it, noise from cell to cell hardly does.\n\n",
             V, in->object_vertex_count, V - in->object_vertex_count, in->N, in->C, hl_context_device_name(cl),
             hl_context_threads(cl), K, K2, reps, ref_reps, V);
-    fprintf(md, "| file | env | select | M | kept | energy kept | bound | blocks skipped | L2 exact | max exact | L2 unclamped | clamped | banding | L2 cont. | max cont. | OpenCL ms | ref ms | MB |\n"
-                "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
 }
 
 hl_result bench_out_open(bench_out *o, hl_context *ref, hl_context *cl, const hl_transport_info *in, uint32_t K,
@@ -73,9 +71,53 @@ hl_result bench_out_open(bench_out *o, hl_context *ref, hl_context *cl, const hl
     if (!o->f[BENCH_MD]) return hl_tools_fail(ref, HL_ERR_IO, "%s: cannot write: %s", o->tmp[BENCH_MD], strerror(errno));
     fprintf(o->f[BENCH_CSV], "file,quant,coef_per_vertex,transport_bytes,env,select,M,kept,energy_kept,error_bound,blocks_skipped,"
                              "l2_exact,max_exact,l2_continuous,max_continuous,cl_ms,ref_ms,l2_exact_unclamped,max_exact_unclamped,"
-                             "negative_vertices,banding\n");
+                             "negative_vertices,banding,reference,reference_noise\n");
     md_heading(o->f[BENCH_MD], cl, in, K, K2, reps, ref_reps);
     return HL_OK;
+}
+
+void bench_ref_name(char *buf, size_t n, uint32_t B, uint32_t rays)
+{
+    if (B) snprintf(buf, n, "exact (direct + %u bounce%s, %u rays)", B, B == 1 ? "" : "s", rays);
+    else snprintf(buf, n, "exact (direct)");
+}
+
+void bench_out_references(bench_out *o, const char *const *files, const uint32_t *bounces, int nfiles,
+                          uint32_t rays, const bench_env *envs, int nenvs)
+{
+    FILE *md = o->f[BENCH_MD];
+    int any = 0;
+    fprintf(md, "References: ");
+    for (int f = 0; f < nfiles; f++) {
+        char name[96];
+        bench_ref_name(name, sizeof name, bounces[f], rays);
+        fprintf(md, "%s%s against %s", f ? "; " : "", bench_base_name(files[f]), name);
+        any |= bounces[f] > 0;
+    }
+    fprintf(md, ".\n\n");
+    if (any) {
+        fprintf(md, "The bounced reference: the direct exact light of every vertex (no albedo), then each bounce\n"
+                    "gathered in float64 from %u cosine-weighted rays a vertex, fresh for each bounce, with each\n"
+                    "channel's own albedo (every vertex for the bounces before the last, the measured ones for the\n"
+                    "last); the colour is the albedo times the sum of the bounces (docs/BOUNCES.md). Its continuous\n"
+                    "and banding columns are not measured (those references are direct light only). Its own noise,\n"
+                    "relative to its L2 norm over the measured vertices: the gathers' standard errors, and a bound\n"
+                    "that adds the noise each gather reads from the bounce before:\n\n| bounces | ", rays);
+        for (int e = 0; e < nenvs; e++) fprintf(md, "%s | ", envs[e].name);
+        fprintf(md, "\n|---|");
+        for (int e = 0; e < nenvs; e++) fprintf(md, "---|");
+        fprintf(md, "\n");
+        for (uint32_t B = 1; B <= HL_MAX_BOUNCES; B++) {
+            if (!envs[0].exact_b[B]) continue;
+            fprintf(md, "| %u | ", B);
+            for (int e = 0; e < nenvs; e++)
+                fprintf(md, "%.3f%% (bound %.3f%%) | ", 100 * envs[e].noise_own[B], 100 * envs[e].noise_bound[B]);
+            fprintf(md, "\n");
+        }
+        fprintf(md, "\n");
+    }
+    fprintf(md, "| file | env | select | M | kept | energy kept | bound | blocks skipped | L2 exact | max exact | L2 unclamped | clamped | banding | L2 cont. | max cont. | OpenCL ms | ref ms | MB |\n"
+                "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
 }
 
 hl_result bench_out_open_plot(bench_out *o, hl_context *ref)

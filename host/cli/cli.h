@@ -185,6 +185,11 @@ typedef struct bench_env {
     double *exact;  /* K x 3 */
     double *cont;   /* K2 x 3 */
     double *ground; /* exact B of each ground vertex (G x 3), for banding */
+    /* with a bounced file: the bounced exact reference after b bounces
+       (K x 3, b from 1; NULL where no file has b bounces) and its own
+       noise relative to its L2 norm (hl_bench_ref_bounced) */
+    double *exact_b[HL_MAX_BOUNCES + 1];
+    double noise_own[HL_MAX_BOUNCES + 1], noise_bound[HL_MAX_BOUNCES + 1];
 } bench_env;
 
 /* The speed summary of one transport file. */
@@ -261,6 +266,14 @@ void bench_out_names(bench_out *o, const char *dir);
  * recorded on ref. */
 hl_result bench_out_open(bench_out *o, hl_context *ref, hl_context *cl, const hl_transport_info *in, uint32_t K,
                          uint32_t K2, uint32_t reps, uint32_t ref_reps);
+/* The name of the exact reference a file of B bounces is measured
+ * against: "exact (direct)" or "exact (direct + B bounces, R rays)". */
+void bench_ref_name(char *buf, size_t n, uint32_t B, uint32_t rays);
+/* Under the heading of bench.md: which reference each file is measured
+ * against and, for the bounced ones, the reference's own noise per map
+ * (from envs[e].noise_own and noise_bound); then the rows' table heading. */
+void bench_out_references(bench_out *o, const char *const *files, const uint32_t *bounces, int nfiles,
+                          uint32_t rays, const bench_env *envs, int nenvs);
 /* Opens bench.gp (the plot's script, its series written as they come). */
 hl_result bench_out_open_plot(bench_out *o, hl_context *ref);
 /* The speed and subnormal tables (bench.md and stdout) and the plot's

@@ -127,6 +127,27 @@ hl_result hl_bench_ref_colours(hl_bench_ref *b, const uint32_t *idx, uint32_t n,
  * doubles per ground vertex (allocated here; the caller frees them). */
 hl_result hl_bench_ref_ground(hl_bench_ref *b, double **ground);
 
+/* The bounced exact reference of the n vertices idx (docs/BOUNCES.md, "The
+ * bounced reference in bench"), for B bounces (1 to HL_MAX_BOUNCES) of
+ * diffuse interreflection with the mesh's per-channel albedo (each in
+ * [0, 1], else HL_ERR_INVALID_ARGUMENT), under each of the nenvs maps:
+ * E_0 = every vertex's untruncated row dotted with the untruncated
+ * lighting in float64 (no albedo), then F_b(x) = (1 / K) sum_k rho_c(y_k)
+ * F_(b-1)(y_k), F_0 = E_0, over K cosine-weighted rays of x (fresh rays
+ * each bounce; the precompute's origin and back-face rule; rho and F
+ * interpolated over the hit triangle), every vertex for b < B, the subset
+ * for b = B. exact[b nenvs + e] for b = 0 .. B (3 n doubles each, the
+ * caller's) gets rho_c(x) (F_0 + ... + F_b)(x): b = 0 is the direct exact
+ * reference. noise_own and noise_bound ((B + 1) nenvs doubles, may be NULL)
+ * get the reference's own Monte Carlo noise relative to its L2 norm over
+ * the subset: the gathers' standard errors at the subset (root sum of
+ * squares over the bounces), and a bound that adds the noise each gather
+ * reads from the bounce before (no cancellation assumed). Progress on
+ * stderr when progress is set. */
+hl_result hl_bench_ref_bounced(hl_bench_ref *b, const uint32_t *idx, uint32_t n, uint32_t B, uint32_t K,
+                               const hl_env *const *envs, int nenvs, int progress, double *const *exact,
+                               double *noise_own, double *noise_bound);
+
 /* Probes of the OpenCL device a relighter runs on (HL_ERR_UNSUPPORTED on
  * the reference backend): the bytes the dot products read for the last
  * selection, the mean time of the dot-product kernel alone over reps

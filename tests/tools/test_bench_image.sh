@@ -12,6 +12,13 @@
 #                triangles and a rate above 0, bench.md has the table.
 #   bad_options  --image-frames 0 and --image-size 4x4 exit 2 naming the
 #                option; a missing surroundings file exits 1 naming it.
+#   bounced      a file with one bounce and the direct one in one run: each
+#                row names its reference (bench.csv, bench.md), the bounced
+#                one's continuous column is not measured, its error at
+#                M = all is finite and below 10%, bench.md gives the
+#                reference's noise; --bounce-rays 0 and 3 exit 2 naming the
+#                option; --image with the bounced file and two albedos in
+#                one run exit 1 naming why.
 # Env: HL_BIN (the binary), HL_TMP (scratch), HL_REPO_DATA (data/).
 set -u
 bin="${HL_BIN:?}"
@@ -83,7 +90,36 @@ bad_options)
   "$bin" bench "$tmp/s.hlt" "${quick[@]}" --surroundings "$tmp/nosuch.gltf" -o "$tmp/o" >/dev/null 2>"$tmp/e3.txt"; rc=$?
   [ $rc -eq 1 ] && grep -q "nosuch.gltf" "$tmp/e3.txt" || fail "missing surroundings: exit $rc, $(cat "$tmp/e3.txt")"
   ;;
-*) echo "usage: $0 image|capture|bad_options" >&2; exit 2 ;;
+bounced)
+  scene
+  "$bin" precompute "$data/bunny_lowres.obj" --ground --ground-res 16 -C 16 -N 16 --bounces 1 -q -o "$tmp/b.hlt" ||
+    { fail "precompute --bounces 1"; exit 1; }
+  "$bin" bench "$tmp/s.hlt" "$tmp/b.hlt" --sky --terms all --select transport --no-ref-timing --reps 2 --vertices 64 \
+    --continuous 4 --no-banding --bounce-rays 64 -o "$tmp/out" >"$tmp/stdout.txt" 2>"$tmp/stderr.txt" ||
+    { cat "$tmp/stderr.txt"; fail "bench of a bounced file exited $?"; }
+  grep "bounced" "$tmp/stderr.txt"
+  # file, l2_exact and l2_continuous (columns before the quoted reference, which holds a comma)
+  awk -F, 'NR > 1 { print $1 "|" $12 "|" $14 }' "$tmp/out/bench.csv" | tee "$tmp/rows.txt"
+  grep -q '^s.hlt,.*,"exact (direct)",0$' "$tmp/out/bench.csv" || fail "the direct file's row does not name the direct reference"
+  grep -q '^b.hlt,.*,"exact (direct + 1 bounce, 64 rays)",[0-9.e-]*$' "$tmp/out/bench.csv" ||
+    fail "the bounced file's row does not name its reference"
+  grep -q '^b.hlt|.*|nan$' "$tmp/rows.txt" || fail "the bounced file has a continuous error (that reference is direct only)"
+  l2=$(awk -F'|' '$1 == "b.hlt" { print $2 }' "$tmp/rows.txt")
+  awk -v e="$l2" 'BEGIN { exit !(e >= 0 && e < 0.1) }' || fail "the bounced file's L2 against its reference: $l2"
+  grep -q "b.hlt against exact (direct + 1 bounce, 64 rays)" "$tmp/out/bench.md" || fail "bench.md does not name the reference"
+  grep -q "^| 1 | .*% (bound .*%) |" "$tmp/out/bench.md" || fail "bench.md does not give the reference's noise"
+  for k in 0 3 x; do
+    "$bin" bench "$tmp/b.hlt" --bounce-rays $k -o "$tmp/o" >/dev/null 2>"$tmp/e.txt"; rc=$?
+    [ $rc -eq 2 ] && grep -q -- "--bounce-rays $k" "$tmp/e.txt" || fail "--bounce-rays $k: exit $rc, $(cat "$tmp/e.txt")"
+  done
+  "$bin" bench "$tmp/b.hlt" --sky "${quick[@]}" --image -o "$tmp/o" >/dev/null 2>"$tmp/e.txt"; rc=$?
+  [ $rc -eq 1 ] && grep -q -- "--image: .*b.hlt has 1 bounces" "$tmp/e.txt" || fail "--image with a bounced file: exit $rc, $(cat "$tmp/e.txt")"
+  "$bin" precompute "$data/bunny_lowres.obj" --ground --ground-res 16 -C 16 -N 16 --ground-albedo 0.8,0.15,0.1 -q -o "$tmp/r.hlt" ||
+    fail "precompute --ground-albedo"
+  "$bin" bench "$tmp/s.hlt" "$tmp/r.hlt" --sky "${quick[@]}" -o "$tmp/o" >/dev/null 2>"$tmp/e.txt"; rc=$?
+  [ $rc -eq 1 ] && grep -q "not the same albedo" "$tmp/e.txt" || fail "two albedos: exit $rc, $(cat "$tmp/e.txt")"
+  ;;
+*) echo "usage: $0 image|capture|bad_options|bounced" >&2; exit 2 ;;
 esac
 [ $fails -eq 0 ] || exit 1
 echo "passed"
