@@ -142,10 +142,7 @@ static void pack_next(bounce_run *u)
 
 /* --------------------------------------------------------- samples */
 
-/* K cosine-weighted directions about vertex v's normal (stratified over
- * the sqrt(K) x sqrt(K) grid where K is a square, jittered by a hash of
- * the vertex and sample, so the rays depend on nothing but them). */
-static void sample_dirs(const hl_mesh *m, uint32_t v, uint32_t K, float *dir)
+void hl_bounce_dirs(const hl_mesh *m, uint32_t v, uint32_t key, uint32_t K, float *dir)
 {
     const float *n = m->normals + 3 * (size_t)v;
     /* a tangent frame (Duff et al. 2017) */
@@ -154,7 +151,7 @@ static void sample_dirs(const hl_mesh *m, uint32_t v, uint32_t K, float *dir)
     uint32_t S = (uint32_t)sqrt((double)K);
     if (S * S != K) S = 0;
     for (uint32_t k = 0; k < K; k++) {
-        const uint32_t h1 = hl_dither_key(v, 2 * k), h2 = hl_dither_key(v, 2 * k + 1);
+        const uint32_t h1 = hl_dither_key(key, 2 * k), h2 = hl_dither_key(key, 2 * k + 1);
         const double j1 = (h1 >> 8) * (1.0 / 16777216.0), j2 = (h2 >> 8) * (1.0 / 16777216.0);
         const double u1 = S ? ((k % S) + j1) / S : (k + j1) / K, u2 = S ? ((k / S) + j2) / S : j2;
         const double r = sqrt(u1), ph = 2.0 * HL_PI * u2, z = sqrt(fmax(0.0, 1.0 - u1));
@@ -182,7 +179,7 @@ static hl_result cast_hits(bounce_run *u, hl_rt *rt, uint32_t lo, uint32_t hi)
             const uint32_t v = first + i;
             const float *p = u->m->positions + 3 * (size_t)v, *n = u->m->normals + 3 * (size_t)v;
             const float off = hl_rt_robust_offset(rt, v);
-            sample_dirs(u->m, v, K, dir + (size_t)i * K * 3);
+            hl_bounce_dirs(u->m, v, v, K, dir + (size_t)i * K * 3);
             for (uint32_t k = 0; k < K; k++)
                 for (int c = 0; c < 3; c++) org[((size_t)i * K + k) * 3 + c] = hl_rt_origin_coord(p[c], n[c], off);
         }

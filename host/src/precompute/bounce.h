@@ -41,6 +41,13 @@ typedef struct hl_bounce_src {
 void hl_ref_bounce_gather(const hl_bounce_src *src, const uint32_t *indices, const float *rho, const uint32_t *prim,
                           const float *uv, uint32_t K, uint32_t ncoef, float *out);
 
+/* K cosine-weighted directions about vertex v's normal into dir (3 K
+ * floats): stratified over the sqrt(K) x sqrt(K) grid where K is a
+ * square, each jittered by a hash of key and the sample, so the rays
+ * depend on nothing else. The precompute's key is v; bench's reference
+ * mixes in the bounce, for rays of its own each bounce. */
+void hl_bounce_dirs(const hl_mesh *m, uint32_t v, uint32_t key, uint32_t K, float *dir);
+
 /* The rows a vertex a bounced file of m needs: 3 where some vertex's
  * albedo differs between channels, else 1. */
 uint32_t hl_bounce_channels(const hl_mesh *m);

@@ -23,6 +23,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bounce.h"
 #include "haarlight_tools.h"
 #include "lighting.h"
 #include "rays.h"
@@ -316,29 +317,6 @@ static void *bref_direct_worker(void *arg)
     return NULL;
 }
 
-/* K cosine-weighted directions about vertex v's normal, stratified over the
- * sqrt(K) x sqrt(K) grid where K is a square and jittered by a hash of the
- * vertex, the bounce and the sample (the precompute's scheme, with the
- * bounce in the hash so that each bounce's noise is its own). */
-static void bref_dirs(const hl_mesh *m, uint32_t v, uint32_t bounce, uint32_t K, float *dir)
-{
-    const float *n = m->normals + 3 * (size_t)v;
-    /* a tangent frame (Duff et al. 2017) */
-    const float sg = n[2] >= 0.0f ? 1.0f : -1.0f, a = -1.0f / (sg + n[2]), bb = n[0] * n[1] * a;
-    const float t1[3] = {1.0f + sg * n[0] * n[0] * a, sg * bb, -sg * n[0]}, t2[3] = {bb, sg + n[1] * n[1] * a, -n[1]};
-    uint32_t S = (uint32_t)sqrt((double)K);
-    if (S * S != K) S = 0;
-    const uint32_t key = v ^ (bounce * 0x9e3779b9u);
-    for (uint32_t k = 0; k < K; k++) {
-        const uint32_t h1 = hl_dither_key(key, 2 * k), h2 = hl_dither_key(key, 2 * k + 1);
-        const double j1 = (h1 >> 8) * (1.0 / 16777216.0), j2 = (h2 >> 8) * (1.0 / 16777216.0);
-        const double u1 = S ? ((k % S) + j1) / S : (k + j1) / K, u2 = S ? ((k / S) + j2) / S : j2;
-        const double r = sqrt(u1), ph = 2.0 * HL_PI * u2, z = sqrt(fmax(0.0, 1.0 - u1));
-        const double x = r * cos(ph), y = r * sin(ph);
-        for (int c = 0; c < 3; c++) dir[3 * k + c] = (float)(x * t1[c] + y * t2[c] + z * n[c]);
-    }
-}
-
 /* Whether K rays are an S x S grid of strata with S even, so that the
  * strata pair up along the grid's first axis (bref_gather_worker). */
 static int bref_paired(uint32_t K)
@@ -431,7 +409,8 @@ static hl_result bref_gather(bref_run *u, hl_rt *rt, const uint32_t *list, uint3
             const float *p = u->m->positions + 3 * (size_t)v, *nv = u->m->normals + 3 * (size_t)v;
             /* the precompute's bounce-ray origin: the robust offset */
             const float off = hl_rt_robust_offset(rt, v);
-            bref_dirs(u->m, v, u->bounce, K, dir + (size_t)i * K * 3);
+            /* rays of its own each bounce: the bounce in the hash */
+            hl_bounce_dirs(u->m, v, v ^ (u->bounce * 0x9e3779b9u), K, dir + (size_t)i * K * 3);
             for (uint32_t k = 0; k < K; k++)
                 for (int c = 0; c < 3; c++) org[((size_t)i * K + k) * 3 + c] = hl_rt_origin_coord(p[c], nv[c], off);
         }
