@@ -83,7 +83,7 @@ static const char *const usage_precompute =
     "                       [0, 1]); where some surface is coloured the file holds a\n"
     "                       row a vertex and channel (three times the rows, and a third\n"
     "                       of the relighting speed); relight is unchanged\n"
-    "  --bounce-rays K      cosine-weighted rays a vertex for the bounces (default 64)\n"
+    "  --bounce-rays K      cosine-weighted rays a vertex for the bounces (default 256)\n"
     "  --bounce-terms G|all the largest G terms of each hit vertex's row that a bounce\n"
     "                       reads (default 256)\n"
     "  --direct-rows FILE   with --bounces: start the bounces from FILE, a finished\n"

@@ -287,7 +287,7 @@ typedef struct hl_precompute_desc {
                            6 C'^2 <= 2 N^2, dividing C); 0: the largest such */
     uint32_t bounces;     /* diffuse interreflection bounces (0 to HL_MAX_BOUNCES;
                              0: direct light, the file's bytes as before) */
-    uint32_t bounce_rays; /* rays per vertex of each bounce's gather (0: 64) */
+    uint32_t bounce_rays; /* rays per vertex of each bounce's gather (0: 256) */
     uint32_t bounce_terms;/* most terms of a hit vertex's row the gather reads,
                              the largest kept (0: 256; HL_TERMS_ALL: every one) */
     const char *direct_rows; /* with bounces: start them from this finished
@@ -321,7 +321,7 @@ typedef struct hl_precompute_stats {
 
 /* Most interreflection bounces a precompute bakes. */
 #define HL_MAX_BOUNCES 16u
-#define HL_DEFAULT_BOUNCE_RAYS 64u
+#define HL_DEFAULT_BOUNCE_RAYS 256u
 #define HL_DEFAULT_BOUNCE_TERMS 256u
 
 /* The transport file format version this build writes and reads. */

@@ -437,6 +437,14 @@ static void case_shards(void)
         for (size_t k = 0; diff != SIZE_MAX && k < na; k++) diff += a[k] != b[k];
         printf("B = %u: one run %zu bytes, 3 shards merged %zu bytes, %zu bytes differ (tolerance 0)\n", B, na, nb, diff);
         HL_CHECK(diff == 0, "B = %u: the merged shards differ from one run", B);
+        free(b);
+        /* a whole run's bounces from the direct file: the same bytes too */
+        HL_CHECK(hl_precompute(ctx, m, &d, merged, NULL) == HL_OK, "from the direct rows: %s", hl_context_last_error(ctx));
+        b = hl_test_read_file(merged, &nb);
+        diff = a && b && na == nb ? 0 : SIZE_MAX;
+        for (size_t k = 0; diff != SIZE_MAX && k < na; k++) diff += a[k] != b[k];
+        printf("B = %u: a whole run from the direct rows, %zu bytes differ (tolerance 0)\n", B, diff);
+        HL_CHECK(diff == 0, "B = %u: the bounces from the direct rows differ from one run", B);
         free(a);
         free(b);
         /* a shard file is no transport, and the direct file stays */
