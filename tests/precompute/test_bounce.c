@@ -34,51 +34,32 @@
 #include <unistd.h>
 
 #include "bounce.h"
+#include "cavity_mesh.h"
 #include "haarlight_tools.h"
 #include "hl_test.h"
 #include "precompute.h"
 
-/* The sphere's rings and segments: fine enough that its polygons are
- * within 0.1% of the sphere's area, coarse enough for a quick test. */
-#define RINGS 24
-#define SEGS 48
+#define RINGS HL_CAVITY_RINGS
+#define SEGS HL_CAVITY_SEGS
 #define RAYS 64u
 
-/* A unit sphere without its cap theta < theta0 (about +Y), as rings from
- * theta0 to the south pole; normals point inward. */
+/* The cavity (cavity_mesh.h) with a grey albedo rho. */
 static hl_mesh *cavity(hl_context *ctx, double theta0, float rho)
 {
-    const uint32_t nv = RINGS * SEGS + 1, nt = 2 * (RINGS - 1) * SEGS + SEGS;
-    float *p = malloc((size_t)nv * 12), *n = malloc((size_t)nv * 12), *a = malloc((size_t)nv * 12);
-    uint32_t *ix = malloc((size_t)nt * 12), t = 0;
-    for (uint32_t j = 0; j < RINGS; j++)
-        for (uint32_t s = 0; s < SEGS; s++) {
-            const double th = theta0 + (HL_PI - theta0) * j / RINGS, ph = 2.0 * HL_PI * s / SEGS;
-            float *q = p + 3 * (j * SEGS + s);
-            q[0] = (float)(sin(th) * cos(ph));
-            q[1] = (float)cos(th);
-            q[2] = (float)(sin(th) * sin(ph));
-        }
-    p[3 * (nv - 1)] = 0.0f, p[3 * (nv - 1) + 1] = -1.0f, p[3 * (nv - 1) + 2] = 0.0f;
-    for (uint32_t v = 0; v < nv; v++)
-        for (int c = 0; c < 3; c++) n[3 * v + c] = -p[3 * v + c], a[3 * v + c] = rho;
-    for (uint32_t j = 0; j + 1 < RINGS; j++)
-        for (uint32_t s = 0; s < SEGS; s++) {
-            const uint32_t a0 = j * SEGS + s, a1 = j * SEGS + (s + 1) % SEGS, b0 = a0 + SEGS, b1 = a1 + SEGS;
-            ix[3 * t] = a0, ix[3 * t + 1] = a1, ix[3 * t + 2] = b0, t++;
-            ix[3 * t] = a1, ix[3 * t + 1] = b1, ix[3 * t + 2] = b0, t++;
-        }
-    for (uint32_t s = 0; s < SEGS; s++) {
-        const uint32_t a0 = (RINGS - 1) * SEGS + s, a1 = (RINGS - 1) * SEGS + (s + 1) % SEGS;
-        ix[3 * t] = a0, ix[3 * t + 1] = a1, ix[3 * t + 2] = nv - 1, t++;
-    }
-    hl_mesh *m = NULL;
-    if (hl_mesh_create(ctx, nv, p, n, a, nt, ix, &m) != HL_OK) fprintf(stderr, "cavity: %s\n", hl_context_last_error(ctx));
-    free(p);
-    free(n);
+    const float g[3] = {rho, rho, rho};
+    return hl_test_cavity(ctx, theta0, g);
+}
+
+/* How many bytes files pa and pb differ in (SIZE_MAX when either is
+ * unreadable or their sizes differ); their sizes into *na, *nb. */
+static size_t bytes_differ(const char *pa, const char *pb, size_t *na, size_t *nb)
+{
+    uint8_t *a = hl_test_read_file(pa, na), *b = hl_test_read_file(pb, nb);
+    size_t diff = a && b && *na == *nb ? 0 : SIZE_MAX;
+    for (size_t i = 0; diff != SIZE_MAX && i < *na; i++) diff += a[i] != b[i];
     free(a);
-    free(ix);
-    return m;
+    free(b);
+    return diff;
 }
 
 /* The transport of m with B bounces at path, its colours under a uniform
@@ -251,17 +232,12 @@ static void case_twin(void)
     hl_precompute_desc d = {.N = 16, .C = 16, .bounces = 2, .bounce_rays = 16};
     HL_CHECK(m && hl_precompute(ref, m, &d, pa, NULL) == HL_OK, "reference: %s", hl_context_last_error(ref));
     HL_CHECK(m && hl_precompute(cl, m, &d, pb, NULL) == HL_OK, "OpenCL: %s", hl_context_last_error(cl));
-    size_t na = 0, nb = 0;
-    uint8_t *a = hl_test_read_file(pa, &na), *b = hl_test_read_file(pb, &nb);
-    size_t diff = a && b && na == nb ? 0 : SIZE_MAX;
-    for (size_t i = 0; diff != SIZE_MAX && i < na; i++) diff += a[i] != b[i];
+    size_t na = 0, nb = 0, diff = bytes_differ(pa, pb, &na, &nb);
     printf("bounced files: %zu and %zu bytes, %zu bytes differ\n", na, nb, diff);
     HL_CHECK(diff == 0, "the OpenCL and reference bounced files differ");
     char direct[1200];
     snprintf(direct, sizeof direct, "%s.direct.hlt", pa);
     HL_CHECK(access(direct, F_OK) != 0, "the direct rows' file %s was left behind", direct);
-    free(a);
-    free(b);
     free((void *)pa);
     free((void *)pb);
     hl_mesh_destroy(m);
@@ -321,14 +297,9 @@ static void case_colour(void)
     const char *pc = strdup(hl_test_tmp_path("bounce_colour.hlt")), *pk = strdup(hl_test_tmp_path("bounce_colour_cl.hlt"));
     HL_CHECK(m && hl_precompute(ref, m, &d, pc, NULL) == HL_OK, "reference: %s", hl_context_last_error(ref));
     HL_CHECK(m && hl_precompute(cl, m, &d, pk, NULL) == HL_OK, "OpenCL: %s", hl_context_last_error(cl));
-    size_t na = 0, nk = 0;
-    uint8_t *fa = hl_test_read_file(pc, &na), *fk = hl_test_read_file(pk, &nk);
-    size_t diff = fa && fk && na == nk ? 0 : SIZE_MAX;
-    for (size_t i = 0; diff != SIZE_MAX && i < na; i++) diff += fa[i] != fk[i];
+    size_t na = 0, nk = 0, diff = bytes_differ(pc, pk, &na, &nk);
     printf("coloured bounced files: %zu and %zu bytes, %zu bytes differ\n", na, nk, diff);
     HL_CHECK(diff == 0, "the OpenCL and reference coloured files differ");
-    free(fa);
-    free(fk);
     hl_transport *tc = NULL;
     HL_CHECK(hl_transport_load(ref, pc, &tc) == HL_OK, "load: %s", hl_context_last_error(ref));
     HL_CHECK(tc && tc->info.channels == 3 && hl_transport_rows(&tc->info) == 3 * m->vertex_count,
@@ -431,22 +402,14 @@ static void case_shards(void)
                      hl_context_last_error(ctx));
         }
         HL_CHECK(hl_transport_merge(ctx, merged, parts, 3, NULL) == HL_OK, "merge: %s", hl_context_last_error(ctx));
-        size_t na = 0, nb = 0;
-        uint8_t *a = hl_test_read_file(one, &na), *b = hl_test_read_file(merged, &nb);
-        size_t diff = a && b && na == nb ? 0 : SIZE_MAX;
-        for (size_t k = 0; diff != SIZE_MAX && k < na; k++) diff += a[k] != b[k];
+        size_t na = 0, nb = 0, diff = bytes_differ(one, merged, &na, &nb);
         printf("B = %u: one run %zu bytes, 3 shards merged %zu bytes, %zu bytes differ (tolerance 0)\n", B, na, nb, diff);
         HL_CHECK(diff == 0, "B = %u: the merged shards differ from one run", B);
-        free(b);
         /* a whole run's bounces from the direct file: the same bytes too */
         HL_CHECK(hl_precompute(ctx, m, &d, merged, NULL) == HL_OK, "from the direct rows: %s", hl_context_last_error(ctx));
-        b = hl_test_read_file(merged, &nb);
-        diff = a && b && na == nb ? 0 : SIZE_MAX;
-        for (size_t k = 0; diff != SIZE_MAX && k < na; k++) diff += a[k] != b[k];
+        diff = bytes_differ(one, merged, &na, &nb);
         printf("B = %u: a whole run from the direct rows, %zu bytes differ (tolerance 0)\n", B, diff);
         HL_CHECK(diff == 0, "B = %u: the bounces from the direct rows differ from one run", B);
-        free(a);
-        free(b);
         /* a shard file is no transport, and the direct file stays */
         hl_transport *t = NULL;
         HL_CHECK(hl_transport_load(ctx, part[0], &t) != HL_OK, "a shard loaded as a transport");

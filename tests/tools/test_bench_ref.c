@@ -31,54 +31,22 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "cavity_mesh.h"
 #include "haarlight_tools.h"
 #include "hl_test.h"
 
 #define PI 3.14159265358979323846
 
-/* The sphere's rings and segments: as tests/precompute/test_bounce.c's
- * cavity, within 0.1% of the sphere's area. */
-#define RINGS 24
-#define SEGS 48
-#define NV (RINGS * SEGS + 1)
+/* The sphere's rings and segments (cavity_mesh.h): within 0.1% of the
+ * sphere's area. */
+#define RINGS HL_CAVITY_RINGS
+#define SEGS HL_CAVITY_SEGS
+#define NV HL_CAVITY_VERTICES
 #define KREF 1024u
 #define BMAX 3u
 
-/* A unit sphere without its cap theta < theta0 (about +Y), rings from
- * theta0 to the south pole, normals inward, albedo rho (3 channels). */
-static hl_mesh *cavity(hl_context *ctx, double theta0, const float rho[3])
-{
-    const uint32_t nt = 2 * (RINGS - 1) * SEGS + SEGS;
-    float *p = malloc((size_t)NV * 12), *n = malloc((size_t)NV * 12), *a = malloc((size_t)NV * 12);
-    uint32_t *ix = malloc((size_t)nt * 12), t = 0;
-    if (!p || !n || !a || !ix) {
-        free(p), free(n), free(a), free(ix);
-        return NULL;
-    }
-    for (uint32_t j = 0; j < RINGS; j++)
-        for (uint32_t s = 0; s < SEGS; s++) {
-            const double th = theta0 + (PI - theta0) * j / RINGS, ph = 2.0 * PI * s / SEGS;
-            float *q = p + 3 * (j * SEGS + s);
-            q[0] = (float)(sin(th) * cos(ph)), q[1] = (float)cos(th), q[2] = (float)(sin(th) * sin(ph));
-        }
-    p[3 * (NV - 1)] = 0.0f, p[3 * (NV - 1) + 1] = -1.0f, p[3 * (NV - 1) + 2] = 0.0f;
-    for (uint32_t v = 0; v < NV; v++)
-        for (int c = 0; c < 3; c++) n[3 * v + c] = -p[3 * v + c], a[3 * v + c] = rho[c];
-    for (uint32_t j = 0; j + 1 < RINGS; j++)
-        for (uint32_t s = 0; s < SEGS; s++) {
-            const uint32_t a0 = j * SEGS + s, a1 = j * SEGS + (s + 1) % SEGS, b0 = a0 + SEGS, b1 = a1 + SEGS;
-            ix[3 * t] = a0, ix[3 * t + 1] = a1, ix[3 * t + 2] = b0, t++;
-            ix[3 * t] = a1, ix[3 * t + 1] = b1, ix[3 * t + 2] = b0, t++;
-        }
-    for (uint32_t s = 0; s < SEGS; s++) {
-        const uint32_t a0 = (RINGS - 1) * SEGS + s, a1 = (RINGS - 1) * SEGS + (s + 1) % SEGS;
-        ix[3 * t] = a0, ix[3 * t + 1] = a1, ix[3 * t + 2] = NV - 1, t++;
-    }
-    hl_mesh *m = NULL;
-    if (hl_mesh_create(ctx, NV, p, n, a, nt, ix, &m) != HL_OK) fprintf(stderr, "cavity: %s\n", hl_context_last_error(ctx));
-    free(p), free(n), free(a), free(ix);
-    return m;
-}
+/* The cavity of cavity_mesh.h, albedo rho. */
+static hl_mesh *cavity(hl_context *ctx, double theta0, const float rho[3]) { return hl_test_cavity(ctx, theta0, rho); }
 
 /* A uniform map of radiance 1. */
 static hl_env *white_env(hl_context *ctx)

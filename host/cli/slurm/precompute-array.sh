@@ -121,24 +121,36 @@ check_options() {
   done
 }
 
+# a host thread per CPU Slurm gave the task, unless the options say: the
+# words to add, one a line
+task_threads() {
+  if [ -n "${SLURM_CPUS_PER_TASK:-}" ] && ! printf '%s\n' "$@" | grep -q '^--threads'; then
+    printf '%s\n' --threads "$SLURM_CPUS_PER_TASK"
+  fi
+}
+
+# task_index N MODE: the array task's index, checked against N
+task_index() {
+  local n="$1" i="${SLURM_ARRAY_TASK_ID:-}"
+  is_count "$n" || die "N must be a whole number >= 1, not '$n'" 2
+  [ -n "$i" ] || die "$2: SLURM_ARRAY_TASK_ID is not set; submit with sbatch --array=0-$((n - 1))" 2
+  [ "$i" -lt "$n" ] || die "$2: array task $i is outside 0..$((n - 1))" 2
+  echo "$i"
+}
+
 task() {
   [ $# -ge 3 ] || usage
   local n="$1" mesh="$2" dir="$3"; shift 3
-  is_count "$n" || die "N must be a whole number >= 1, not '$n'" 2
-  local i="${SLURM_ARRAY_TASK_ID:-}"
-  [ -n "$i" ] || die "task: SLURM_ARRAY_TASK_ID is not set; submit with sbatch --array=0-$((n - 1))" 2
-  [ "$i" -lt "$n" ] || die "task: array task $i is outside 0..$((n - 1))" 2
-  local hl shard; hl="$(find_haarlight)" || exit 2
+  local i hl shard
+  i="$(task_index "$n" task)" || exit 2
+  hl="$(find_haarlight)" || exit 2
   shard="$dir/$(shard_name "$i" "$n")"
   if [ -f "$shard" ] && [ ! -e "$shard.partial" ]; then
     echo "precompute-array: $shard is already whole; nothing to do"
     exit 0
   fi
-  # a host thread per CPU Slurm gave the task, unless the options say
   local threads=()
-  if [ -n "${SLURM_CPUS_PER_TASK:-}" ] && ! printf '%s\n' "$@" | grep -q '^--threads'; then
-    threads=(--threads "$SLURM_CPUS_PER_TASK")
-  fi
+  mapfile -t threads < <(task_threads "$@")
   echo "precompute-array: shard $i/$n of $mesh on $(hostname) (job ${SLURM_JOB_ID:-?}, restart ${SLURM_RESTART_COUNT:-0})"
   # --resume continues the shard's .partial if a previous attempt left one
   # and starts afresh if not, so a requeued task loses at most a chunk
@@ -150,21 +162,17 @@ task() {
 bounce_task() {
   [ $# -ge 3 ] || usage
   local n="$1" mesh="$2" dir="$3"; shift 3
-  is_count "$n" || die "N must be a whole number >= 1, not '$n'" 2
-  local i="${SLURM_ARRAY_TASK_ID:-}"
-  [ -n "$i" ] || die "bounce-task: SLURM_ARRAY_TASK_ID is not set; submit with sbatch --array=0-$((n - 1))" 2
-  [ "$i" -lt "$n" ] || die "bounce-task: array task $i is outside 0..$((n - 1))" 2
+  local i hl shard
+  i="$(task_index "$n" bounce-task)" || exit 2
   [ -f "$dir/direct.hlt" ] || die "bounce-task: $dir/direct.hlt (the merged direct rows) is missing"
-  local hl shard; hl="$(find_haarlight)" || exit 2
+  hl="$(find_haarlight)" || exit 2
   shard="$dir/$(bounce_name "$i" "$n")"
   if [ -f "$shard" ]; then
     echo "precompute-array: $shard is already whole; nothing to do"
     exit 0
   fi
   local threads=()
-  if [ -n "${SLURM_CPUS_PER_TASK:-}" ] && ! printf '%s\n' "$@" | grep -q '^--threads'; then
-    threads=(--threads "$SLURM_CPUS_PER_TASK")
-  fi
+  mapfile -t threads < <(task_threads "$@")
   echo "precompute-array: bounce shard $i/$n of $mesh on $(hostname) (job ${SLURM_JOB_ID:-?})"
   exec "$hl" precompute "$mesh" --shard "$i/$n" -o "$shard" --direct-rows "$dir/direct.hlt" "${threads[@]}" "$@"
 }

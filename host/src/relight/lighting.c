@@ -705,6 +705,19 @@ static void selection_stats(const hl_relighter *r, const hl_select_result *sr, h
     st->blocks_skipped = 1.0 - (double)sr->blocks_used / r->g->nblocks;
 }
 
+/* st made the worst of itself and one (first: st becomes one): the most
+ * terms, the least energy kept, the largest bound, the fewest blocks
+ * skipped, the largest parallax. */
+static void worst_stats(hl_relight_stats *st, const hl_relight_stats *one, int first)
+{
+    if (first) *st = *one;
+    st->terms_kept = one->terms_kept > st->terms_kept ? one->terms_kept : st->terms_kept;
+    st->energy_kept = one->energy_kept < st->energy_kept ? one->energy_kept : st->energy_kept;
+    st->error_bound = one->error_bound > st->error_bound ? one->error_bound : st->error_bound;
+    st->blocks_skipped = one->blocks_skipped < st->blocks_skipped ? one->blocks_skipped : st->blocks_skipped;
+    st->parallax = one->parallax > st->parallax ? one->parallax : st->parallax;
+}
+
 /* The capture points for the surroundings' current triangles (one, the
  * object's centre, without hl_relighter_set_probes: its bound is still
  * measured, for stats.parallax). */
@@ -749,11 +762,7 @@ static hl_result run_probes(hl_relighter *r, uint32_t s0, float f, hl_select_par
         }
         hl_relight_stats one = {0};
         selection_stats(r, &sr, &one);
-        if (k == 0) *st = one;
-        st->terms_kept = one.terms_kept > st->terms_kept ? one.terms_kept : st->terms_kept;
-        st->energy_kept = one.energy_kept < st->energy_kept ? one.energy_kept : st->energy_kept;
-        st->error_bound = one.error_bound > st->error_bound ? one.error_bound : st->error_bound;
-        st->blocks_skipped = one.blocks_skipped < st->blocks_skipped ? one.blocks_skipped : st->blocks_skipped;
+        worst_stats(st, &one, k == 0);
     }
     memcpy(r->cscene.center, r->centre, sizeof r->centre);
     return res;
@@ -785,12 +794,7 @@ static hl_result run_planes(hl_relighter *r, const hl_relight_desc *desc, float 
             q[3] = c ? fminf(q[3], p[4 * (size_t)v + 3]) : p[4 * (size_t)v + 3];
         }
         reused &= one.reused;
-        if (c == 0) st = one;
-        st.terms_kept = one.terms_kept > st.terms_kept ? one.terms_kept : st.terms_kept;
-        st.energy_kept = one.energy_kept < st.energy_kept ? one.energy_kept : st.energy_kept;
-        st.error_bound = one.error_bound > st.error_bound ? one.error_bound : st.error_bound;
-        st.blocks_skipped = one.blocks_skipped < st.blocks_skipped ? one.blocks_skipped : st.blocks_skipped;
-        st.parallax = one.parallax > st.parallax ? one.parallax : st.parallax;
+        worst_stats(&st, &one, c == 0);
     }
     st.reused = reused;
     r->rgba = r->sum4;

@@ -13,50 +13,41 @@
 #include "precompute.h"
 #include "rays.h"
 
-/* Each takes every plane's device where the transport has a row a
- * channel (hl_relighter_planes): their bytes and times add. */
-hl_result hl_bench_bytes_read(hl_relighter *r, double *bytes)
+/* Each measure below over every plane's device where the transport has a
+ * row a channel (hl_relighter_planes): their bytes and times add. */
+static hl_result sum_planes(hl_relighter *r, uint32_t reps, double *sum,
+                            hl_result (*measure)(hl_cl_light *, uint32_t, double *))
 {
     hl_relighter *sub[3];
     const uint32_t n = hl_relighter_planes(r, sub);
-    *bytes = 0.0;
+    *sum = 0.0;
     for (uint32_t c = 0; c < n; c++) {
         hl_cl_light *l = hl_relighter_device(sub[c]); /* NULL on the reference backend */
         if (!l) return hl_fail(NULL, HL_ERR_UNSUPPORTED, "no OpenCL device behind this relighter");
         double one;
-        hl_result res = hl_cl_light_bytes_read(l, &one);
+        hl_result res = measure(l, reps, &one);
         if (res != HL_OK) return res;
-        *bytes += one;
+        *sum += one;
     }
     return HL_OK;
 }
 
-/* One of the timings below over every plane. */
-static hl_result time_planes(hl_relighter *r, uint32_t reps, double *seconds,
-                             hl_result (*timer)(hl_cl_light *, uint32_t, double *))
+static hl_result bytes_of(hl_cl_light *l, uint32_t reps, double *bytes)
 {
-    hl_relighter *sub[3];
-    const uint32_t n = hl_relighter_planes(r, sub);
-    *seconds = 0.0;
-    for (uint32_t c = 0; c < n; c++) {
-        hl_cl_light *l = hl_relighter_device(sub[c]); /* NULL on the reference backend */
-        if (!l) return hl_fail(NULL, HL_ERR_UNSUPPORTED, "no OpenCL device behind this relighter");
-        double one;
-        hl_result res = timer(l, reps, &one);
-        if (res != HL_OK) return res;
-        *seconds += one;
-    }
-    return HL_OK;
+    (void)reps;
+    return hl_cl_light_bytes_read(l, bytes);
 }
+
+hl_result hl_bench_bytes_read(hl_relighter *r, double *bytes) { return sum_planes(r, 0, bytes, bytes_of); }
 
 hl_result hl_bench_time_dots(hl_relighter *r, uint32_t reps, double *seconds)
 {
-    return time_planes(r, reps, seconds, hl_cl_light_time_relight);
+    return sum_planes(r, reps, seconds, hl_cl_light_time_relight);
 }
 
 hl_result hl_bench_time_capture(hl_relighter *r, uint32_t reps, double *seconds)
 {
-    return time_planes(r, reps, seconds, hl_cl_light_time_capture);
+    return sum_planes(r, reps, seconds, hl_cl_light_time_capture);
 }
 
 hl_result hl_bench_read_bandwidth(hl_context *ctx, size_t bytes, uint32_t reps, double *bytes_per_s)
