@@ -782,10 +782,17 @@ typedef struct hl_dynamic hl_dynamic;
  *   shadow_res   R: shadow map size, a multiple of 16 from 16 to 1024
  *                (0: 128)
  *   order        M: convolution shadow map order, 4..16 (0: 16)
+ *   shadow       the filterable shadow map: HL_DYNAMIC_SHADOW_CSM (0, the
+ *                default: the Fourier series of order M) or
+ *                HL_DYNAMIC_SHADOW_MOMENTS (four moments of depth, Peters
+ *                and Klein 2015; order is then unused)
  */
+#define HL_DYNAMIC_SHADOW_CSM 0u
+#define HL_DYNAMIC_SHADOW_MOMENTS 1u
 typedef struct hl_dynamic_desc {
     uint32_t shadow_res;
     uint32_t order;
+    uint32_t shadow;
 } hl_dynamic_desc;
 
 /* A dynamic scene from a mesh (copied): body "object", and with ground

@@ -209,9 +209,9 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
         uint64_t left = (uint64_t)((double)(ctx->cl->limit - ctx->cl->used) * HL_FRAME_DEVICE_SHARE);
         if (left < budget) budget = left;
     }
-    uint32_t fit = hl_csm_batch_fit(s.R, s.M, s.Mb, budget);
+    uint32_t fit = hl_csm_batch_fit_rep(s.shadow, s.R, s.M, s.Mb, budget);
     st->Kb = fit < max_lights ? fit : max_lights;
-    if (r == HL_OK) r = hl_csm_create(ctx, s.R, s.M, s.Mb, st->Kb, &st->csm);
+    if (r == HL_OK) r = hl_csm_create_rep(ctx, s.shadow, s.R, s.M, s.Mb, st->Kb, &st->csm);
     if (r != HL_OK) { hl_frame_state_destroy(st); return r; }
     size_t n3 = 3 * (size_t)N, RR = (size_t)s.R * s.R;
     st->vstart = malloc(nobj * sizeof *st->vstart);

@@ -61,6 +61,7 @@ typedef struct hl_frame_settings {
     uint64_t budget;      /* bytes for one batch's CSM; 0: HL_FRAME_DEFAULT_BUDGET */
     float min_share;      /* < 0: HL_FRAME_MIN_SHARE; 0: shadow every light */
     hl_shadow_method method; /* HL_SHADOW_RASTER by default */
+    hl_shadow_rep shadow;    /* the filterable representation: HL_SHADOW_REP_CSM (0) by default */
 } hl_frame_settings;
 
 /* Seconds per stage of the last frame (lights are given: the split is
