@@ -72,7 +72,12 @@ static const char *const usage_dyn =
     "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 128)\n"
     "  --order M            convolution shadow map order, 4 to 16 (default 16): lower is\n"
     "                       cheaper (memory and time in proportion) with softer, leakier\n"
-    "                       shadows\n"
+    "                       shadows; CSM only\n"
+    "  --shadow S           the filterable shadow map: csm (the default: convolution\n"
+    "                       shadow maps, 4M + 1 images a light) or moments (moment shadow\n"
+    "                       maps, Peters and Klein 2015: 4 images a light, x to x^4 of the\n"
+    "                       depth, and the blocker depth from the same moments; about 3\n"
+    "                       times as fast a frame, its error in docs/DYNAMIC.md)\n"
     "output:\n"
     "  --reference R        write a reference instead of the frame, and print the frame's\n"
     "                       relative L2 error against it: exact (each vertex integrates\n"
@@ -94,6 +99,7 @@ typedef struct dyn_opts {
     int reference; /* 0: the frame; 1: exact; 2: K lights traced */
     float time, threshold;
     uint32_t lights, R, M, nmoves;
+    int shadow; /* 0: unset (CSM), 1: csm, 2: moments */
     char *move_name[DYN_MAX_MOVES];
     float move[DYN_MAX_MOVES][3];
 } dyn_opts;
@@ -121,7 +127,7 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
     const char *a = argv[*i], *v = NULL;
     static const char *const with_value[] = {"-o",     "--output",          "--env",        "--time", "--move",
                                              "--lights", "--split-threshold", "--shadow-res", "--order",
-                                             "--reference", "--ground-size", NULL};
+                                             "--reference", "--ground-size", "--shadow", NULL};
     for (int k = 0; with_value[k]; k++)
         if (!strcmp(a, with_value[k])) {
             if (*i + 1 >= argc) return -usage_error(usage_dyn, "option %s needs a value", a);
@@ -158,6 +164,10 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
         if (!strcmp(v, "exact")) d->reference = 1;
         else if (!strcmp(v, "lights")) d->reference = 2;
         else return -usage_error(usage_dyn, "--reference %s: expected exact or lights", v);
+    } else if (!strcmp(a, "--shadow")) {
+        if (!strcmp(v, "csm")) d->shadow = 1;
+        else if (!strcmp(v, "moments")) d->shadow = 2;
+        else return -usage_error(usage_dyn, "--shadow %s: expected csm or moments", v);
     } else if (!strcmp(a, "--order")) {
         if (!parse_u32(v, &d->M) || d->M < 4 || d->M > 16)
             return -usage_error(usage_dyn, "--order %s: expected 4 to 16", v);
@@ -186,6 +196,8 @@ static int parse_args(int argc, char **argv, dyn_opts *d, cli_scene_opts *o)
     if (!d->scene) return usage_error(usage_dyn, "%s", "no MESH or SCENE given");
     if (!d->out) return usage_error(usage_dyn, "%s", "no output given (-o OUT.ply|.glb|.exr|.png)");
     if (d->env && d->sky) return usage_error(usage_dyn, "%s", "--env and the sky options contradict each other");
+    if (d->M && d->shadow == 2)
+        return usage_error(usage_dyn, "%s", "--order is the CSM's order: --shadow moments takes four moments, no order");
     if (d->reference && o->rd.rotate_deg != 0.0f)
         return usage_error(usage_dyn, "%s", "--reference integrates the map as given: drop --rotate");
     const char *ext = cli_ext_of(d->out);
@@ -195,17 +207,17 @@ static int parse_args(int argc, char **argv, dyn_opts *d, cli_scene_opts *o)
 }
 
 static void report(const char *scene, const char *env, hl_context *ctx, const hl_dynamic_lights *li,
-                   const hl_dynamic_stats *st)
+                   const hl_dynamic_stats *st, const char *rep)
 {
     fprintf(stderr,
             "relit %s under %s on %s: %u vertices; lights %u kept of %u (%u folded, %.2f%% of the energy), "
             "%u shadowed, %u skipped below every horizon, %u negligible; %u batch(es); split %.1f ms, "
-            "irradiance %.1f ms, shadow maps %.1f ms, CSM build %.1f ms, CSM eval %.1f ms, shading %.1f ms; "
+            "irradiance %.1f ms, shadow maps %.1f ms, %s build %.1f ms, %s eval %.1f ms, shading %.1f ms; "
             "frame %.1f ms\n",
             scene, env ? env : "the procedural sky", hl_context_device_name(ctx), st->vertices, li->lights_kept,
             li->lights_made, li->folded, 100.0 * li->folded_share, st->shadowed, st->skipped_horizon,
             st->skipped_negligible, st->batches, 1e3 * li->seconds, 1e3 * st->t_irradiance, 1e3 * st->t_shadow_maps,
-            1e3 * st->t_csm_build, 1e3 * st->t_csm_eval, 1e3 * st->t_shading, 1e3 * st->t_total);
+            rep, 1e3 * st->t_csm_build, rep, 1e3 * st->t_csm_eval, 1e3 * st->t_shading, 1e3 * st->t_total);
 }
 
 /* --reference: the reference's colours of the frame's geometry in *ref,
@@ -242,7 +254,7 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
     hl_env *env = NULL;
     hl_image *img = NULL;
     float *rgb = NULL, *ref = NULL, exposure = o->exposure;
-    hl_dynamic_desc desc = {d->R, d->M};
+    hl_dynamic_desc desc = {d->R, d->M, d->shadow == 2 ? HL_DYNAMIC_SHADOW_MOMENTS : HL_DYNAMIC_SHADOW_CSM};
     hl_dynamic_lights li;
     hl_dynamic_stats st;
     int rc = 0;
@@ -263,7 +275,7 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
             r = hl_dynamic_set_env(dy, env, d->lights ? (int32_t)d->lights : DYN_DEFAULT_LIGHTS, d->threshold,
                                    o->rd.rotate_deg, &li);
         if (r == HL_OK) r = hl_dynamic_render(dy, (double)d->time, &rgb, &st);
-        if (r == HL_OK && !o->cd.quiet) report(d->scene, d->env, ctx, &li, &st);
+        if (r == HL_OK && !o->cd.quiet) report(d->scene, d->env, ctx, &li, &st, d->shadow == 2 ? "moments" : "CSM");
         /* the frame's exposure, so that a reference and its frame look alike */
         if (r == HL_OK && !o->exposure_set) exposure = hl_exposure_auto(hl_dynamic_mesh(dy), rgb);
         if (r == HL_OK && d->reference) r = swap_in_reference(ctx, dy, env, d->reference, o->cd.quiet, &rgb, &ref);

@@ -855,6 +855,9 @@ static void timing(uint64_t budget, uint32_t R)
     hl_light_split *s = split_of(ctx, env, 32);
     hl_frame_state *st = NULL;
     hl_frame_settings set = {.R = R, .M = 16, .budget = budget, .min_share = -1.0f};
+    /* HL_TEST_SHADOW=moments: the moment shadow maps instead of CSM */
+    const char *rep = getenv("HL_TEST_SHADOW");
+    set.shadow = rep && !strcmp(rep, "moments") ? HL_SHADOW_REP_MOMENTS : HL_SHADOW_REP_CSM;
     if (!s || !bunny_open(ctx, &b) || hl_frame_state_create(ctx, b.obj, 2, s->count, &set, &st) != HL_OK) {
         fprintf(stderr, "%s\n", hl_context_last_error(ctx));
         return;
