@@ -26,24 +26,25 @@ static const char *const usage_dyn =
     "\n"
     "Relights a mesh or a scene of rigid bodies with the dynamic method (Annen et al.\n"
     "2008), with no precompute: the environment is split into area lights, the K\n"
-    "strongest each get a shadow map filtered as a convolution shadow map of order M,\n"
-    "the rest are folded into one unshadowed spherical-harmonic term, and every vertex\n"
-    "is shaded diffusely. Every node of the file that holds triangles is a body,\n"
+    "strongest each get a shadow map filtered as a moment shadow map (the default) or\n"
+    "a convolution shadow map of order M (--shadow csm), the rest are folded into one\n"
+    "unshadowed spherical-harmonic term, and every vertex is shaded diffusely. Every node of the file that holds triangles is a body,\n"
     "moving by the file's first animation (one that is not rigid, skinned or morphing,\n"
     "is refused: --rest-pose). OUT by extension: .ply, .glb, .exr or .png, as\n"
     "`haarlight relight`.\n"
     "\n"
-    "Limits: the visibility approximates the exact one (smooth shadow test, filter\n"
+    "Limits: the visibility approximates the exact one (filtered shadow test, filter\n"
     "width from the average blocker depth and the light's spread). On the bunny with\n"
-    "its ground under eight HDR maps it is 2.6 to 5.1% (relative L2) from the exact\n"
-    "result at rest and 2.0 to 4.1% with the bunny moved; --reference exact prints it\n"
-    "for a frame. Blockers closer to a receiver than about 0.75/M of the casters' depth\n"
-    "range are not seen, so contact shadows leak a little. A flat body with the others\n"
-    "on one side (a ground) stays out of the shadow maps, and what it hides is worked\n"
-    "out from its plane. Light beyond the K kept lights casts no shadow. Each kept\n"
-    "light costs a shadow map and 4M + 1 filtered images of R x R texels a frame\n"
-    "(4.6 MB a light at R = 128, M = 16, processed in batches) and about 6M + 1 reads\n"
-    "per vertex.\n"
+    "its ground under eight HDR maps and the sky it is 1.8 to 3.9% (relative L2) from\n"
+    "the exact result at rest and 1.3 to 2.8% with the bunny moved with moments (CSM:\n"
+    "2.0 to 4.1% and 1.5 to 3.4%); --reference exact prints it for a frame. Moments\n"
+    "leak light where a receiver lies behind casters of several depths (a tenth of it\n"
+    "is cut off); CSM misses blockers closer to a receiver than about 0.75/M of the\n"
+    "casters' depth range. A flat body with the others on one side (a ground) stays\n"
+    "out of the shadow maps, and what it hides is worked out from its plane. Light\n"
+    "beyond the K kept lights casts no shadow. Each kept light costs a shadow map and\n"
+    "5 filtered images of R x R texels a frame with moments (4M + 1 with CSM: 4.6 MB\n"
+    "a light at R = 128, M = 16, processed in batches).\n"
     "\n"
     "scene:\n"
     "  --ground             a ground plane under the object (body \"ground\"). A file with\n"
@@ -72,12 +73,12 @@ static const char *const usage_dyn =
     "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 128)\n"
     "  --order M            convolution shadow map order, 4 to 16 (default 16): lower is\n"
     "                       cheaper (memory and time in proportion) with softer, leakier\n"
-    "                       shadows; CSM only\n"
-    "  --shadow S           the filterable shadow map: csm (the default: convolution\n"
-    "                       shadow maps, 4M + 1 images a light) or moments (moment shadow\n"
-    "                       maps, Peters and Klein 2015: 4 images a light, x to x^4 of the\n"
-    "                       depth, and the blocker depth from the same moments; about 3\n"
-    "                       times as fast a frame, its error in docs/DYNAMIC.md)\n"
+    "                       shadows; CSM only (given alone, it asks for CSM)\n"
+    "  --shadow S           the filterable shadow map: moments (the default: moment\n"
+    "                       shadow maps, Peters and Klein 2015, four powers of the depth\n"
+    "                       and the coverage a texel, the blocker depth from the same\n"
+    "                       moments) or csm (convolution shadow maps, 4M + 1 images a\n"
+    "                       light, about 3 times the frame time); docs/DYNAMIC.md\n"
     "output:\n"
     "  --reference R        write a reference instead of the frame, and print the frame's\n"
     "                       relative L2 error against it: exact (each vertex integrates\n"
@@ -254,7 +255,9 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
     hl_env *env = NULL;
     hl_image *img = NULL;
     float *rgb = NULL, *ref = NULL, exposure = o->exposure;
-    hl_dynamic_desc desc = {d->R, d->M, d->shadow == 2 ? HL_DYNAMIC_SHADOW_MOMENTS : HL_DYNAMIC_SHADOW_CSM};
+    /* --order alone asks for the CSM it is the order of */
+    const int csm = d->shadow == 1 || (d->shadow == 0 && d->M);
+    hl_dynamic_desc desc = {d->R, d->M, csm ? HL_DYNAMIC_SHADOW_CSM : HL_DYNAMIC_SHADOW_MOMENTS};
     hl_dynamic_lights li;
     hl_dynamic_stats st;
     int rc = 0;
@@ -275,7 +278,7 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
             r = hl_dynamic_set_env(dy, env, d->lights ? (int32_t)d->lights : DYN_DEFAULT_LIGHTS, d->threshold,
                                    o->rd.rotate_deg, &li);
         if (r == HL_OK) r = hl_dynamic_render(dy, (double)d->time, &rgb, &st);
-        if (r == HL_OK && !o->cd.quiet) report(d->scene, d->env, ctx, &li, &st, d->shadow == 2 ? "moments" : "CSM");
+        if (r == HL_OK && !o->cd.quiet) report(d->scene, d->env, ctx, &li, &st, csm ? "CSM" : "moments");
         /* the frame's exposure, so that a reference and its frame look alike */
         if (r == HL_OK && !o->exposure_set) exposure = hl_exposure_auto(hl_dynamic_mesh(dy), rgb);
         if (r == HL_OK && d->reference) r = swap_in_reference(ctx, dy, env, d->reference, o->cd.quiet, &rgb, &ref);

@@ -782,13 +782,14 @@ typedef struct hl_dynamic hl_dynamic;
  *   shadow_res   R: shadow map size, a multiple of 16 from 16 to 1024
  *                (0: 128)
  *   order        M: convolution shadow map order, 4..16 (0: 16)
- *   shadow       the filterable shadow map: HL_DYNAMIC_SHADOW_CSM (0, the
- *                default: the Fourier series of order M) or
- *                HL_DYNAMIC_SHADOW_MOMENTS (four moments of depth, Peters
- *                and Klein 2015; order is then unused)
+ *   shadow       the filterable shadow map: HL_DYNAMIC_SHADOW_MOMENTS (the
+ *                default, 0 gives it: four moments of depth and the
+ *                coverage, Peters and Klein 2015; order is then unused)
+ *                or HL_DYNAMIC_SHADOW_CSM (the Fourier series of order M)
  */
-#define HL_DYNAMIC_SHADOW_CSM 0u
-#define HL_DYNAMIC_SHADOW_MOMENTS 1u
+#define HL_DYNAMIC_SHADOW_DEFAULT 0u
+#define HL_DYNAMIC_SHADOW_CSM 1u
+#define HL_DYNAMIC_SHADOW_MOMENTS 2u
 typedef struct hl_dynamic_desc {
     uint32_t shadow_res;
     uint32_t order;

@@ -27,18 +27,19 @@
  * Twin: host/src/dynamic/twins/msm_eval.c. Depends on: hl_shared.h.
  */
 
-/* Box average of the four moments over [cx - wu, cx + wu] x [cy - wv,
- * cy + wv] into m, outside the map counting as empty (moments 1). */
+/* Box average of the four moments and the coverage over [cx - wu, cx +
+ * wu] x [cy - wv, cy + wv] into m[0..4], outside the map counting as
+ * empty (moments 1, coverage 0). */
 static void hl_msm_box(__global const float *sat, __global const float *mean, __global const float *zsc, uint R,
                        float cx, float cy, float wu, float wv, float dh, float *m)
 {
     float fR = (float)R;
     float u0 = fmax(cx - wu, 0.0f), u1 = fmin(cx + wu, fR);
     float v0 = fmax(cy - wv, 0.0f), v1 = fmin(cy + wv, fR);
-    if (!(u1 > u0 && v1 > v0)) { m[0] = 1.0f; m[1] = 1.0f; m[2] = 1.0f; m[3] = 1.0f; return; }
+    if (!(u1 > u0 && v1 > v0)) { m[0] = 1.0f; m[1] = 1.0f; m[2] = 1.0f; m[3] = 1.0f; m[4] = 0.0f; return; }
     float full = (2.0f * wu) * (2.0f * wv), area = (u1 - u0) * (v1 - v0);
     float outside = fmax(full - area, 0.0f), inv = 1.0f / full;
-    float a[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    float a[5] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
     if (wu <= dh && wv <= dh) {
         uint i0 = (uint)u0, i1 = min((uint)ceil(u1), R), j0 = (uint)v0, j1 = min((uint)ceil(v1), R);
         for (uint j = j0; j < j1; j++) {
@@ -47,9 +48,11 @@ static void hl_msm_box(__global const float *sat, __global const float *mean, __
                 float ov = (fmin((float)(i + 1), u1) - fmax((float)i, u0)) * wy;
                 __global const float *t4 = zsc + 4 * ((size_t)j * R + i);
                 for (uint p = 0; p < 4; p++) a[p] += ov * t4[p];
+                a[4] += t4[0] < 1.0f ? ov : 0.0f; /* a caster's x is below 1 */
             }
         }
         for (uint p = 0; p < 4; p++) m[p] = (a[p] + outside) * inv;
+        m[4] = a[4] * inv;
         return;
     }
     /* the tables: corner (x, y) of the box read bilinearly between the
@@ -65,11 +68,12 @@ static void hl_msm_box(__global const float *sat, __global const float *mean, __
             uint xi = X + (t & 1), yi = Y + (t >> 1);
             if (xi == 0 || yi == 0) continue;
             float w = sg * (((t & 1) ? fx : 1.0f - fx) * ((t >> 1) ? fy : 1.0f - fy));
-            __global const float *e = sat + 4 * ((size_t)(yi - 1) * R + (xi - 1));
-            for (uint p = 0; p < 4; p++) a[p] += w * e[p];
+            __global const float *e = sat + 5 * ((size_t)(yi - 1) * R + (xi - 1));
+            for (uint p = 0; p < 5; p++) a[p] += w * e[p];
         }
     }
     for (uint p = 0; p < 4; p++) m[p] = ((a[p] + mean[p]) * area + outside) * inv;
+    m[4] = ((a[4] + mean[4]) * area) * inv;
 }
 
 /* The Hamburger 4MSM bound of moments m (of x) at the receiver x_f, with
@@ -119,28 +123,50 @@ static float hl_msm_bound(const float *m, float xf, float alpha, float *wb, floa
     return G;
 }
 
+/* The casters' own moments from a box's (m: four moments and coverage
+ * c): the box is c of casters and 1 - c of empty texels at x = 1, so the
+ * casters' k-th moment is (m_k - (1 - c)) / c. Taking the empty texels'
+ * mass out leaves the four moments to describe the casters alone, where
+ * the empty texels were usually most of the box and set the bound's
+ * leaks. Below a coverage of alpha the division is not attempted (lit:
+ * the callers test c first). The rounding of m is divided by c too, so
+ * the blend is alpha / c (callers), the same margin against it. */
+static void hl_msm_casters(const float *m, float alpha, float *g)
+{
+    float c = fmax(m[4], alpha), e = 1.0f - c, ic = 1.0f / c;
+    for (uint p = 0; p < 4; p++) g[p] = (m[p] - e) * ic;
+}
+
 /* Receiver (cx, cy, dt) of light `light` (parameters prm, the map's
  * nearest depth zmin) into o[0] = V, o[1] = z_avg (-1: no blocker). */
 static void hl_msm_eval_one(__global const float *sats, __global const float *means, __global const float *zscs,
                             uint light, uint R, float zmin, __constant float *prm, float cx, float cy, float dt, float *o)
 {
-    __global const float *sat = sats + (size_t)light * 4 * R * R, *mean = means + (size_t)light * 4;
+    __global const float *sat = sats + (size_t)light * 5 * R * R, *mean = means + (size_t)light * 5;
     __global const float *zsc = zscs + (size_t)light * 4 * R * R;
     float su = prm[1], sv = prm[2], bias = prm[3], eps = prm[4], wmin = prm[5], alpha = prm[6];
     float la = prm[7], lb = prm[8], lbr = prm[9], dh = prm[10], kb = prm[11];
     float d = fmin(dt, 1.0f); /* beyond the far plane: on it, for z_avg */
     if (!(d > zmin)) { o[0] = 1.0f; o[1] = -1.0f; return; }
     float zr = fmin(dt * kb, 1.0f - 0.5f * (1.0f - kb));
-    float fR = (float)R, xf = 2.0f * (zr - bias * kb) - 1.0f, m[4], wb, xb;
+    float fR = (float)R, xf = 2.0f * (zr - bias * kb) - 1.0f, m[5], g[4], wb, xb;
     float ws = dt - zmin;
     hl_msm_box(sat, mean, zsc, R, cx, cy, clamp(ws * su, wmin, fR),
                clamp(ws * sv, wmin, fR), dh, m);
-    hl_msm_bound(m, xf, alpha, &wb, &xb);
-    if (!(wb >= eps)) { o[0] = 1.0f; o[1] = -1.0f; return; }
+    float cov = m[4];
+    if (!(cov >= eps)) { o[0] = 1.0f; o[1] = -1.0f; return; } /* no caster in the region */
+    hl_msm_casters(m, alpha, g);
+    hl_msm_bound(g, xf, fmin(alpha / cov, 1.0f), &wb, &xb);
+    if (!(cov * wb >= eps)) { o[0] = 1.0f; o[1] = -1.0f; return; }
     float za = clamp(0.5f * (xb + 1.0f) / kb, zmin, d);
     float wp = dt - za;
     hl_msm_box(sat, mean, zsc, R, cx, cy, clamp(wp * su, wmin, fR), clamp(wp * sv, wmin, fR), dh, m);
-    float V = 1.0f - hl_msm_bound(m, xf, alpha, NULL, NULL);
+    cov = m[4];
+    float V = 1.0f;
+    if (cov > 0.0f) {
+        hl_msm_casters(m, alpha, g);
+        V = 1.0f - fmin(cov, 1.0f) * hl_msm_bound(g, xf, fmin(alpha / cov, 1.0f), NULL, NULL);
+    }
     /* light-leak reduction: visibility below lbr is taken as none */
     if (lbr > 0.0f) V = (V - lbr) / (1.0f - lbr);
     V = clamp(V, 0.0f, 1.0f);

@@ -86,11 +86,11 @@ static void case_twin(void)
     if (!c || !cr) return;
     uint32_t P = 0;
     hl_csm_sizes(c, NULL, NULL, NULL, &P);
-    HL_CHECK(P == 4, "moments take 4 planes, not %u", P);
+    HL_CHECK(P == HL_MSM_PLANES, "moments take %u planes, not %u", HL_MSM_PLANES, P);
     float *z = malloc(K * R2 * 4), *uvd = malloc(n * 12), *V = malloc(n * 4), *za = malloc(n * 4);
     float *Vr = malloc(n * 4), *zar = malloc(n * 4);
-    float *sat = malloc(4 * R2 * 4), *mean = malloc(16), *t4 = malloc(R2 * 16);
-    float *satr = malloc(4 * R2 * 4), *meanr = malloc(16), *t4r = malloc(R2 * 16);
+    float *sat = malloc(5 * R2 * 4), *mean = malloc(20), *t4 = malloc(R2 * 16);
+    float *satr = malloc(5 * R2 * 4), *meanr = malloc(20), *t4r = malloc(R2 * 16);
     mixed_map(z, R);
     for (size_t i = 0; i < R2; i++) z[R2 + i] = (float)(0.2 + 0.8 * hl_rng_unit());
     HL_CHECK(hl_csm_build(c, z, K) == HL_OK, "%s", hl_context_last_error(ctx));
@@ -108,8 +108,8 @@ static void case_twin(void)
         HL_CHECK(hl_csm_visibility(cr, k, theta, &f, uvd, n, Vr, zar) == HL_OK, "%s", hl_context_last_error(ref));
         hl_csm_read_planes(c, k, sat, mean, t4);
         hl_csm_read_planes(cr, k, satr, meanr, t4r);
-        w_tab = fmax(w_tab, maxdiff(sat, satr, 4 * R2));
-        w_mean = fmax(w_mean, maxdiff(mean, meanr, 4));
+        w_tab = fmax(w_tab, maxdiff(sat, satr, 5 * R2));
+        w_mean = fmax(w_mean, maxdiff(mean, meanr, 5));
         w_t4 = fmax(w_t4, maxdiff(t4, t4r, 4 * R2));
         float zmin = 1.0f;
         for (size_t i = 0; i < R2; i++) zmin = fminf(zmin, z[k * R2 + i]);
@@ -256,8 +256,8 @@ static void case_precision(void)
         hl_csm *c = NULL;
         HL_CHECK(hl_csm_create_rep(ref, HL_SHADOW_REP_MOMENTS, R, 0, 0, 1, &c) == HL_OK, "%s", hl_context_last_error(ref));
         if (!c) continue;
-        float *z = malloc(R2 * 4), *sat = malloc(4 * R2 * 4), *mean = malloc(16), *t4 = malloc(R2 * 16);
-        double *pre = calloc(4 * (R + 1) * (R + 1), sizeof(double));
+        float *z = malloc(R2 * 4), *sat = malloc(5 * R2 * 4), *mean = malloc(20), *t4 = malloc(R2 * 16);
+        double *pre = calloc(5 * (R + 1) * (R + 1), sizeof(double));
         mixed_map(z, R);
         hl_csm_build(c, z, 1);
         hl_csm_read_planes(c, 0, sat, mean, t4);
@@ -266,10 +266,11 @@ static void case_precision(void)
             for (uint32_t i = 0; i < R; i++) {
                 double zz = z[(size_t)j * R + i];
                 double x = zz >= 1.0 ? 1.0 : 2.0 * (double)(float)(zz * (1.0f - HL_MSM_FAR_BAND)) - 1.0, p = x;
-                for (int k = 0; k < 4; k++, p *= x) {
-                    size_t at = 4 * ((size_t)(j + 1) * (R + 1) + (i + 1)) + k;
-                    pre[at] = p + pre[4 * ((size_t)j * (R + 1) + (i + 1)) + k] + pre[4 * ((size_t)(j + 1) * (R + 1) + i) + k] -
-                              pre[4 * ((size_t)j * (R + 1) + i) + k];
+                for (int k = 0; k < 5; k++, p *= x) {
+                    size_t at = 5 * ((size_t)(j + 1) * (R + 1) + (i + 1)) + k;
+                    double v = k < 4 ? p : zz >= 1.0 ? 0.0 : 1.0; /* plane 4: the coverage */
+                    pre[at] = v + pre[5 * ((size_t)j * (R + 1) + (i + 1)) + k] + pre[5 * ((size_t)(j + 1) * (R + 1) + i) + k] -
+                              pre[5 * ((size_t)j * (R + 1) + i) + k];
                 }
             }
         double worst = 0;
@@ -283,7 +284,7 @@ static void case_precision(void)
             uint32_t i0 = (uint32_t)(hl_rng_unit() * (R - w + 1)), j0 = (uint32_t)(hl_rng_unit() * (R - h + 1));
             if (i0 + w > R) i0 = R - w;
             if (j0 + h > R) j0 = R - h;
-            for (int k = 0; k < 4; k++) {
+            for (int k = 0; k < 5; k++) {
                 /* as msm_eval.cl forms it: corner sums / area + mean */
                 float ia = 1.0f / ((float)w * (float)h), acc = 0.0f;
                 uint32_t xs[2] = {i0, i0 + w}, ys[2] = {j0, j0 + h};
@@ -291,16 +292,16 @@ static void case_precision(void)
                     uint32_t X = xs[q & 1], Y = ys[q >> 1];
                     if (X == 0 || Y == 0) continue;
                     float sg = (q == 0 || q == 3) ? ia : -ia;
-                    acc += sg * sat[4 * ((size_t)(Y - 1) * R + (X - 1)) + k];
+                    acc += sg * sat[5 * ((size_t)(Y - 1) * R + (X - 1)) + k];
                 }
                 double got = (double)(acc + mean[k]);
-                size_t A = 4 * ((size_t)(j0 + h) * (R + 1) + (i0 + w)) + k, B = 4 * ((size_t)j0 * (R + 1) + (i0 + w)) + k;
-                size_t C = 4 * ((size_t)(j0 + h) * (R + 1) + i0) + k, D = 4 * ((size_t)j0 * (R + 1) + i0) + k;
+                size_t A = 5 * ((size_t)(j0 + h) * (R + 1) + (i0 + w)) + k, B = 5 * ((size_t)j0 * (R + 1) + (i0 + w)) + k;
+                size_t C = 5 * ((size_t)(j0 + h) * (R + 1) + i0) + k, D = 5 * ((size_t)j0 * (R + 1) + i0) + k;
                 double want = (pre[A] - pre[B] - pre[C] + pre[D]) / ((double)w * h);
                 worst = fmax(worst, fabs(got - want));
             }
         }
-        printf("R = %u: worst box average error of the four moments from the float tables: %.3g\n", R, worst);
+        printf("R = %u: worst box average error of the four moments and the coverage from the float tables: %.3g\n", R, worst);
         if (R == 128) worst_all = worst;
         free(z); free(sat); free(mean); free(t4); free(pre);
         hl_csm_destroy(c);

@@ -211,7 +211,7 @@ hl_result hl_csm_create_rep(hl_context *ctx, hl_shadow_rep rep, uint32_t R, uint
                        "convolution shadow maps: map size R = %u must be a multiple of %u in %u..%u", R,
                        HL_CSM_SCAN_LANES, HL_CSM_R_MIN, HL_CSM_R_MAX);
     if (rep != HL_SHADOW_REP_CSM && rep != HL_SHADOW_REP_MOMENTS)
-        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "shadow maps: representation %d is neither CSM (0) nor moments (1)",
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "shadow maps: representation %d is neither CSM (1) nor moments (2)",
                        (int)rep);
     if (K_max == 0 || (uint64_t)K_max * hl_csm_bytes_per_light_rep(rep, R, M, Mb) > ((uint64_t)1 << 40))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,

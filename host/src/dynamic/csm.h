@@ -101,12 +101,15 @@
 /* ---- moment shadow maps (Peters and Klein 2015), the lighter form ----
  *
  * The same module holds either representation (hl_csm_create_rep): for
- * moments P = 4 planes, the moments x, x^2, x^3, x^4 of x = 2 z - 1,
+ * moments P = 5 planes, the moments x, x^2, x^3, x^4 of x = 2 z - 1 and
+ * the coverage (1 for a caster's texel, 0 for an empty one),
  * interleaved by texel, with the same mean-subtracted summed-area tables
  * (csm_sat.cl); zsc holds each texel's four moments (msm_basis.cl). The
  * visibility is msm_eval.cl's (DYNAMIC.md section 3b). */
-typedef enum hl_shadow_rep { HL_SHADOW_REP_CSM = 0, HL_SHADOW_REP_MOMENTS = 1 } hl_shadow_rep;
-#define HL_MSM_PLANES 4u
+/* DEFAULT (0) is resolved by the frame (dyn_frame.h, HL_FRAME_DEFAULT_SHADOW);
+ * the module itself takes CSM or MOMENTS. */
+typedef enum hl_shadow_rep { HL_SHADOW_REP_DEFAULT = 0, HL_SHADOW_REP_CSM = 1, HL_SHADOW_REP_MOMENTS = 2 } hl_shadow_rep;
+#define HL_MSM_PLANES 5u
 /* Moment bias alpha: the moments are blended with weight alpha towards
  * the uniform distribution's on [-1, 1], (0, 1/3, 0, 1/5), whose Hankel
  * matrix has smallest eigenvalue 0.079, so the blended matrix's is at
@@ -122,10 +125,10 @@ typedef enum hl_shadow_rep { HL_SHADOW_REP_CSM = 0, HL_SHADOW_REP_MOMENTS = 1 } 
  * the moments' rounding and alpha's spread, not the Fourier series' band
  * (CSM's 1/M = 0.0625); the receiver-plane bias (hl_dyn_receiver) covers
  * the receiver's own slope. Chosen in test_dyn_reference accuracy. */
-#define HL_MSM_BIAS 0.01f
+#define HL_MSM_BIAS 0.005f
 /* Light-leak reduction: V below this is taken as 0 and V rescaled
  * (V - l) / (1 - l). 0: off. */
-#define HL_MSM_LBR 0.0f
+#define HL_MSM_LBR 0.1f
 /* The contact exponent V^p, p = 1 + A exp(-B (d - z_avg)), as CSM's; A = 0
  * turns it off. */
 #define HL_MSM_LEAK_A 0.0f

@@ -121,6 +121,10 @@ static hl_result check_settings(hl_context *ctx, hl_frame_settings *s, uint32_t 
     if (s->Mb == 0) s->Mb = s->M;
     if (s->budget == 0) s->budget = HL_FRAME_DEFAULT_BUDGET;
     if (s->min_share < 0.0f) s->min_share = HL_FRAME_MIN_SHARE;
+    if (s->shadow == HL_SHADOW_REP_DEFAULT) s->shadow = HL_FRAME_DEFAULT_SHADOW;
+    if (s->shadow != HL_SHADOW_REP_CSM && s->shadow != HL_SHADOW_REP_MOMENTS)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: shadow representation %d is not csm (1) or moments (2) (--shadow)",
+                       (int)s->shadow);
     if (!(s->min_share < 1.0f)) /* NaN too */
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: negligible share %g is not in [0, 1)",
                        (double)s->min_share);

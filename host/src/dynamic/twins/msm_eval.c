@@ -16,10 +16,10 @@ static void box(const float *sat, const float *mean, const float *zsc, uint32_t 
     float fR = (float)R;
     float u0 = fmaxf(cx - wu, 0.0f), u1 = fminf(cx + wu, fR);
     float v0 = fmaxf(cy - wv, 0.0f), v1 = fminf(cy + wv, fR);
-    if (!(u1 > u0 && v1 > v0)) { m[0] = 1.0f; m[1] = 1.0f; m[2] = 1.0f; m[3] = 1.0f; return; }
+    if (!(u1 > u0 && v1 > v0)) { m[0] = 1.0f; m[1] = 1.0f; m[2] = 1.0f; m[3] = 1.0f; m[4] = 0.0f; return; }
     float full = (2.0f * wu) * (2.0f * wv), area = (u1 - u0) * (v1 - v0);
     float outside = fmaxf(full - area, 0.0f), inv = 1.0f / full;
-    float a[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    float a[5] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
     if (wu <= dh && wv <= dh) {
         uint32_t i0 = (uint32_t)u0, i1 = (uint32_t)ceilf(u1), j0 = (uint32_t)v0, j1 = (uint32_t)ceilf(v1);
         if (i1 > R) i1 = R;
@@ -30,9 +30,11 @@ static void box(const float *sat, const float *mean, const float *zsc, uint32_t 
                 float ov = (fminf((float)(i + 1), u1) - fmaxf((float)i, u0)) * wy;
                 const float *t4 = zsc + 4 * ((size_t)j * R + i);
                 for (uint32_t p = 0; p < 4; p++) a[p] += ov * t4[p];
+                a[4] += t4[0] < 1.0f ? ov : 0.0f;
             }
         }
         for (uint32_t p = 0; p < 4; p++) m[p] = (a[p] + outside) * inv;
+        m[4] = a[4] * inv;
         return;
     }
     float ia = 1.0f / area, xs[2] = {u0, u1}, ys[2] = {v0, v1};
@@ -45,11 +47,19 @@ static void box(const float *sat, const float *mean, const float *zsc, uint32_t 
             uint32_t xi = X + (t & 1), yi = Y + (t >> 1);
             if (xi == 0 || yi == 0) continue;
             float w = sg * (((t & 1) ? fx : 1.0f - fx) * ((t >> 1) ? fy : 1.0f - fy));
-            const float *e = sat + 4 * ((size_t)(yi - 1) * R + (xi - 1));
-            for (uint32_t p = 0; p < 4; p++) a[p] += w * e[p];
+            const float *e = sat + 5 * ((size_t)(yi - 1) * R + (xi - 1));
+            for (uint32_t p = 0; p < 5; p++) a[p] += w * e[p];
         }
     }
     for (uint32_t p = 0; p < 4; p++) m[p] = ((a[p] + mean[p]) * area + outside) * inv;
+    m[4] = ((a[4] + mean[4]) * area) * inv;
+}
+
+/* the kernel's hl_msm_casters */
+static void casters(const float *m, float alpha, float *g)
+{
+    float c = fmaxf(m[4], alpha), e = 1.0f - c, ic = 1.0f / c;
+    for (uint32_t p = 0; p < 4; p++) g[p] = (m[p] - e) * ic;
 }
 
 float hl_ref_msm_bound(const float m[4], float xf, float alpha, float *wb, float *xb)
@@ -99,15 +109,23 @@ void hl_ref_msm_eval(const float *sat, const float *mean, const float *zsc, cons
     out[1] = -1.0f;
     if (!(d > p->zmin)) return;
     float zr = fminf(dt * kb, 1.0f - 0.5f * (1.0f - kb));
-    float fR = (float)R, xf = 2.0f * (zr - p->bias * kb) - 1.0f, m[4], wb, xb;
+    float fR = (float)R, xf = 2.0f * (zr - p->bias * kb) - 1.0f, m[5], g[4], wb, xb;
     float ws = dt - p->zmin;
     box(sat, mean, zsc, R, cx, cy, clampf(ws * p->su, p->wmin, fR), clampf(ws * p->sv, p->wmin, fR), p->direct_half, m);
-    hl_ref_msm_bound(m, xf, p->alpha, &wb, &xb);
-    if (!(wb >= p->eps)) return;
+    float cov = m[4];
+    if (!(cov >= p->eps)) return;
+    casters(m, p->alpha, g);
+    hl_ref_msm_bound(g, xf, fminf(p->alpha / cov, 1.0f), &wb, &xb);
+    if (!(cov * wb >= p->eps)) return;
     float za = clampf(0.5f * (xb + 1.0f) / kb, p->zmin, d);
     float wp = dt - za;
     box(sat, mean, zsc, R, cx, cy, clampf(wp * p->su, p->wmin, fR), clampf(wp * p->sv, p->wmin, fR), p->direct_half, m);
-    float V = 1.0f - hl_ref_msm_bound(m, xf, p->alpha, NULL, NULL);
+    cov = m[4];
+    float V = 1.0f;
+    if (cov > 0.0f) {
+        casters(m, p->alpha, g);
+        V = 1.0f - fminf(cov, 1.0f) * hl_ref_msm_bound(g, xf, fminf(p->alpha / cov, 1.0f), NULL, NULL);
+    }
     if (p->lbr > 0.0f) V = (V - p->lbr) / (1.0f - p->lbr);
     V = clampf(V, 0.0f, 1.0f);
     if (p->leak_a > 0.0f) {
