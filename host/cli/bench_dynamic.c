@@ -458,7 +458,7 @@ static hl_result bench_env_all(bd *b, int e)
     for (uint32_t k = 0; k < b->o.nset && r == HL_OK; k++) {
         bd_row *w = new_row(b, e, 0, BD_DYNAMIC, b->o.K[k], b->o.M[k], 0);
         r = dyn_frame(b, k, w);
-        if (r == HL_OK) fprintf(stderr, "bench-dynamic:   dynamic K %u M %u: %.2f%% in %.1f ms\n", w->K, w->M, 100 * w->l2, w->ms);
+        if (r == HL_OK) fprintf(stderr, "bench-dynamic:   dynamic K %u %s%.0u: %.2f%% in %.1f ms\n", w->K, w->M ? "M " : "moments", w->M, 100 * w->l2, w->ms);
     }
     /* moved: lifted and pushed sideways, by the object's own size */
     const hl_mesh *m = hl_dynamic_mesh(b->dyn[0]);
@@ -477,7 +477,7 @@ static hl_result bench_env_all(bd *b, int e)
         r = dyn_frame(b, k, w);
         double dummy;
         if (r == HL_OK) errors(b->B, b->lights[index_of_K(b, w->K)], b->V, &w->l2_lights, &dummy);
-        if (r == HL_OK) fprintf(stderr, "bench-dynamic:   moved dynamic K %u M %u: %.2f%% in %.1f ms\n", w->K, w->M, 100 * w->l2, w->ms);
+        if (r == HL_OK) fprintf(stderr, "bench-dynamic:   moved dynamic K %u %s%.0u: %.2f%% in %.1f ms\n", w->K, w->M ? "M " : "moments", w->M, 100 * w->l2, w->ms);
     }
     if (r == HL_OK) r = place(b, rest, 0.0f);
     return r;

@@ -4,14 +4,16 @@
  * (hl_msm_eval_one). The steps of csm_eval.cl with four moments in place
  * of the Fourier series:
  *   1. the box average of the moments (x, x^2, x^3, x^4), x = 2 z - 1,
- *      over the search region (d - z_near) tan(theta);
+ *      and of the coverage c over the search region (d - z_near)
+ *      tan(theta); the casters' own moments from them (hl_msm_casters);
  *   2. the three-point distribution with those moments and one point at
  *      the receiver (the canonical representation through x_f): its
- *      weight below x_f is the blocker share, its mean there the
- *      average blocker depth;
+ *      weight below x_f, times c, is the blocker share, its mean there
+ *      the average blocker depth;
  *   3. the box average over (d - z_avg) tan(theta) and the Hamburger
- *      4MSM bound there: the smallest shadowed share any distribution
- *      with those moments can have, V = 1 - that.
+ *      4MSM bound of the casters' moments there: the smallest shadowed
+ *      share any distribution with those moments can have, times c;
+ *      V = 1 - that, then V below lbr taken as 0 (light-leak reduction).
  * Boxes read the summed-area tables (csm_sat.cl, P = 4) at fractional
  * corners (16 taps, exact for a piecewise-constant image), or texel by
  * texel (zsc: each texel's four moments) up to dh texels of half-width,

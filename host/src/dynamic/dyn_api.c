@@ -116,9 +116,11 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
     d->nb = hl_dyn_scene_body_count(scene);
     d->set.min_share = -1.0f;
     d->set.R = R, d->set.M = M;
-    d->set.shadow = shadow == HL_DYNAMIC_SHADOW_MOMENTS ? HL_SHADOW_REP_MOMENTS
-                    : shadow == HL_DYNAMIC_SHADOW_CSM   ? HL_SHADOW_REP_CSM
-                                                        : HL_SHADOW_REP_DEFAULT;
+    /* an order given with the default asks for the CSM it is the order of
+       (the viewer's and older callers' --order) */
+    d->set.shadow = shadow == HL_DYNAMIC_SHADOW_MOMENTS              ? HL_SHADOW_REP_MOMENTS
+                    : shadow == HL_DYNAMIC_SHADOW_CSM || M != 0      ? HL_SHADOW_REP_CSM
+                                                                     : HL_SHADOW_REP_DEFAULT;
     d->obj = calloc(d->nb, sizeof *d->obj);
     d->alb = calloc(d->nb, sizeof *d->alb);
     d->rgbs = calloc(d->nb, sizeof *d->rgbs);
