@@ -2,8 +2,9 @@
  * msm_eval.cl, twins host/src/dynamic/twins/msm_*.c, module csm.c with
  * HL_SHADOW_REP_MOMENTS), suite "msm".
  *
- * msm.twin       the device's moment planes, means, tables and texel
- *                moments against the reference backend's (the twins), and
+ * msm.twin       the device's planes (four moments and the coverage),
+ *                means, tables and texel moments against the reference
+ *                backend's (the twins), and
  *                the evaluation kernel against its twin on the device's
  *                own tables, V and z_avg; also through a batch of lights.
  * msm.bound      the Hamburger 4MSM bound (twin) on distributions whose
@@ -12,7 +13,8 @@
  *                float against a double version of the same steps), two
  *                blocker depths (a lower bound), a receiver in front
  *                (at most alpha of shadow).
- * msm.precision  box averages of the four moments from the float tables
+ * msm.precision  box averages of the four moments and the coverage from
+ *                the float tables
  *                against double sums, boxes wider than the texel-by-texel
  *                limit, R = 128 and 256: the worst error must stay below
  *                the margin that alpha buys (0.079 alpha / 3), the reason

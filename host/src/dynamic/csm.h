@@ -1,7 +1,9 @@
 /* csm.h - convolution shadow maps (Annen et al. EGSR 2007) with the filter
- * width from the average blocker depth (Annen et al. SIGGRAPH 2008): the
+ * width from the average blocker depth (Annen et al. SIGGRAPH 2008), and
+ * moment shadow maps (Peters and Klein 2015) in the same module: the
  * module's API, its named constants and the plain-C twins of its kernels
- * (kernels/dynamic/csm_basis.cl, csm_sat.cl, csm_eval.cl).
+ * (kernels/dynamic/csm_basis.cl, csm_sat.cl, csm_eval.cl, msm_basis.cl,
+ * msm_eval.cl).
  *
  * The shadow test f(d, z) = [z >= d] is expanded as
  *     f ~= 1/2 + sum_k s_k (2 / (h c_k)) sin(c_k (z - d)),  c_k = pi (2k - 1) / h
