@@ -23,7 +23,8 @@
  *                z = 0.4: lit outside, dark in the umbra, monotone across
  *                the penumbra, z_avg = 0.4, no acne where the plane itself
  *                is in the map.
- * msm.bad_input  an unknown representation, --shadow out of range.
+ * msm.bad_input  an unknown representation, a map size the tables refuse,
+ *                --shadow out of range, an order with moments.
  * Depends on: csm.h, hl_test.h.
  */
 #include <float.h>
@@ -385,6 +386,10 @@ static void case_bad_input(void)
         hl_dynamic *d = NULL;
         HL_CHECK(hl_dynamic_create_from_mesh(ref, m, 1, &dd, &d) != HL_OK && !d, "shadow 5 accepted");
         HL_CHECK(strstr(hl_context_last_error(ref), "--shadow") != NULL, "message: %s", hl_context_last_error(ref));
+        /* an order is CSM's: refused with moments asked for */
+        hl_dynamic_desc om = {0, 8, HL_DYNAMIC_SHADOW_MOMENTS};
+        HL_CHECK(hl_dynamic_create_from_mesh(ref, m, 1, &om, &d) != HL_OK && !d, "order 8 with moments accepted");
+        HL_CHECK(strstr(hl_context_last_error(ref), "--order") != NULL, "message: %s", hl_context_last_error(ref));
         hl_mesh_destroy(m);
     }
     hl_context_destroy(ref);

@@ -109,6 +109,11 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--shadow %u: expected the default (%u), csm (%u) or moments (%u)",
                        shadow, HL_DYNAMIC_SHADOW_DEFAULT, HL_DYNAMIC_SHADOW_CSM, HL_DYNAMIC_SHADOW_MOMENTS);
     }
+    if (shadow == HL_DYNAMIC_SHADOW_MOMENTS && M) {
+        hl_dyn_scene_destroy(scene);
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "--order %u is the CSM's order: --shadow moments takes four moments, no order", M);
+    }
     hl_dynamic *d = hl_calloc(ctx, 1, sizeof *d, "the dynamic scene");
     if (!d) { hl_dyn_scene_destroy(scene); return HL_ERR_OUT_OF_MEMORY; }
     d->ctx = ctx;
