@@ -64,7 +64,7 @@ int vw_dyn_opt(viewer *v, int argc, char **argv, int *i, const char *usage)
     if (!strcmp(a, "--rest-pose")) return y->rest_pose = 1;
     if (!strcmp(a, "--play")) return y->play = 1;
     static const char *const with_value[] = {"--hlt", "--lights", "--order", "--shadow-res", "--time",
-                                             "--move", "--drag", NULL};
+                                             "--move", "--drag", "--shadow", NULL};
     int k = 0;
     while (with_value[k] && strcmp(a, with_value[k])) k++;
     if (!with_value[k]) return 0;
@@ -78,6 +78,10 @@ int vw_dyn_opt(viewer *v, int argc, char **argv, int *i, const char *usage)
     } else if (!strcmp(a, "--order")) {
         if (!parse_u32(val, &y->desc.order) || y->desc.order < 4 || y->desc.order > 16)
             return -usage_error(usage, "--order %s: expected 4 to 16", val);
+    } else if (!strcmp(a, "--shadow")) {
+        if (!strcmp(val, "moments")) y->desc.shadow = HL_DYNAMIC_SHADOW_MOMENTS;
+        else if (!strcmp(val, "csm")) y->desc.shadow = HL_DYNAMIC_SHADOW_CSM;
+        else return -usage_error(usage, "--shadow %s: expected csm or moments", val);
     } else if (!strcmp(a, "--shadow-res")) {
         uint32_t r = 0;
         if (!parse_u32(val, &r) || r < 16 || r > 1024 || r % 16)

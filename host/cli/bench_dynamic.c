@@ -70,13 +70,18 @@ static const char *const usage_bd =
     "  -o, --output DIR     where the files go (default bench-dynamic-out; each is\n"
     "                       written whole or not at all)\n"
     "  --terms LIST         PRT terms M, comma-separated (default 50,100,200,500,1000,all)\n"
-    "  --settings LIST      dynamic K:M pairs, comma-separated (default\n"
-    "                       8:16,16:16,32:16,32:8,32:4; at most 8); the first with\n"
-    "                       K = 32 and M = 16, else the first, is the goal setting\n"
+    "  --settings LIST      dynamic K:M pairs, comma-separated, M an order of CSM (4 to 16)\n"
+    "                       or \"moments\" for the moment shadow maps (at most 8); the\n"
+    "                       first with K = 32 and the default representation (moments),\n"
+    "                       else the first, is the goal setting. Default by --shadow\n"
+    "  --shadow S           which representations the default settings take: both (the\n"
+    "                       default: 32:moments,16:moments,8:moments,32:16,16:16,8:16,\n"
+    "                       32:8,32:4), moments (32:moments,16:moments,8:moments) or csm\n"
+    "                       (8:16,16:16,32:16,32:8,32:4)\n"
     "  --samples LIST       traced rays a light S, comma-separated, 1 to 1024 (default\n"
     "                       1,4,16; at most 8), at every K of the settings\n"
-    "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 256,\n"
-    "                       where the speed goal is stated; relight-dynamic's default is 128)\n"
+    "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 128,\n"
+    "                       relight-dynamic's, where the speed goal is stated)\n"
     "  --reps R             timed frames per PRT and dynamic row (default 5, 1 to 100)\n"
     "  --traced-reps R      timed frames per traced row (default 3, 1 to 100)\n"
     "  --device cl|ref|cl:P:D   the device both methods run on (default: OpenCL's first, or\n"
@@ -146,8 +151,10 @@ static int parse_list(const char *opt, const char *v, uint32_t max, uint32_t lo,
         char msg[160];
         snprintf(msg, sizeof msg, "%s: %s is not a whole number from %u to %u", opt, tok, lo, hi);
         if (!parse_u32(tok, &a[*n]) || a[*n] < lo || a[*n] > hi) return usage_error(usage_bd, "%s", msg);
-        snprintf(msg, sizeof msg, "%s: order %s, expected 4 to 16", opt, colon ? colon + 1 : "");
-        if (colon && (!parse_u32(colon + 1, &m[*n]) || m[*n] < 4 || m[*n] > 16)) return usage_error(usage_bd, "%s", msg);
+        snprintf(msg, sizeof msg, "%s: order %s, expected 4 to 16 or moments", opt, colon ? colon + 1 : "");
+        /* K:moments: the moment shadow maps, kept as order 0 in the rows */
+        if (colon && !strcmp(colon + 1, "moments")) m[*n] = 0;
+        else if (colon && (!parse_u32(colon + 1, &m[*n]) || m[*n] < 4 || m[*n] > 16)) return usage_error(usage_bd, "%s", msg);
         (*n)++;
     }
     return *n ? 0 : usage_error(usage_bd, "%s: no values", opt);
@@ -173,8 +180,9 @@ static int parse_bd(int argc, char **argv, bd *b)
     bd_opts *o = &b->o;
     *o = (bd_opts){.outdir = "bench-dynamic-out", .terms = {50, 100, 200, 500, 1000, HL_TERMS_ALL}, .nterms = 6,
                    .K = {8, 16, 32, 32, 32}, .M = {16, 16, 16, 8, 4}, .nset = 5, .S = {1, 4, 16}, .nS = 3,
-                   .R = 256, .reps = 5, .treps = 3,
+                   .R = 128, .reps = 5, .treps = 3,
                    .cd = {.backend = HL_BACKEND_OPENCL, .cl_platform = -1, .cl_device = -1, .quiet = 1}};
+    int settings_given = 0, shadow = 0; /* 0 both, 1 csm, 2 moments */
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i], *v = NULL;
         int e = 0;
@@ -189,7 +197,14 @@ static int parse_bd(int argc, char **argv, bd *b)
         } else if (!strcmp(a, "--sky")) o->want_sky = 1;
         else if (!strcmp(a, "-o") || !strcmp(a, "--output")) { NEED(); o->outdir = v; }
         else if (!strcmp(a, "--terms")) { NEED(); if ((e = parse_terms_list(v, o))) return e; }
-        else if (!strcmp(a, "--settings")) { NEED(); if ((e = parse_list("--settings", v, BD_MAX_SETTINGS, 1, BD_MAX_K, o->K, o->M, &o->nset))) return e; }
+        else if (!strcmp(a, "--settings")) { NEED(); settings_given = 1; if ((e = parse_list("--settings", v, BD_MAX_SETTINGS, 1, BD_MAX_K, o->K, o->M, &o->nset))) return e; }
+        else if (!strcmp(a, "--shadow")) {
+            NEED();
+            if (!strcmp(v, "both")) shadow = 0;
+            else if (!strcmp(v, "moments")) shadow = 2;
+            else if (!strcmp(v, "csm")) shadow = 1;
+            else return usage_error(usage_bd, "--shadow %s: expected both, moments or csm", v);
+        }
         else if (!strcmp(a, "--samples")) { NEED(); if ((e = parse_list("--samples", v, BD_MAX_SAMPLES, 1, HL_BENCH_TRACED_MAX_S, o->S, NULL, &o->nS))) return e; }
         else if (!strcmp(a, "--shadow-res")) { NEED(); if (!parse_u32(v, &o->R) || o->R < 16 || o->R > 1024 || o->R % 16) return usage_error(usage_bd, "--shadow-res %s: expected a multiple of 16 from 16 to 1024", v); }
         else if (!strcmp(a, "--reps")) { NEED(); if (!parse_u32(v, &o->reps) || o->reps < 1 || o->reps > BD_MAX_REPS) return usage_error(usage_bd, "--reps %s: expected 1 to 100", v); }
@@ -202,13 +217,21 @@ static int parse_bd(int argc, char **argv, bd *b)
 #undef NEED
     }
     if (!o->file) return usage_error(usage_bd, "%s", "no SCENE.hlt given");
+    if (settings_given && shadow)
+        return usage_error(usage_bd, "%s", "--shadow picks the default settings: give it or --settings, not both");
+    if (!settings_given && shadow != 1) { /* moments first: the default representation */
+        static const uint32_t mk[8] = {32, 16, 8, 32, 16, 8, 32, 32}, mm[8] = {0, 0, 0, 16, 16, 16, 8, 4};
+        o->nset = shadow == 2 ? 3 : 8;
+        memcpy(o->K, mk, sizeof mk);
+        memcpy(o->M, mm, sizeof mm);
+    }
     if (o->want_sky || o->nenvs == 0) {
         b->envs[o->nenvs].name = "sky";
         b->envs[o->nenvs++].path = NULL;
     }
     b->goal = 0;
     for (uint32_t k = o->nset; k-- > 0;)
-        if (o->K[k] == 32 && o->M[k] == 16) b->goal = k;
+        if (o->K[k] == 32 && o->M[k] == 0) b->goal = k;
     return -1;
 }
 
@@ -239,7 +262,8 @@ static hl_result load(bd *b)
         fprintf(stderr, "bench-dynamic: %s has no ground: the dynamic scene gets the default one, PRT none\n", o->file);
     for (uint32_t k = 0; k < o->nset && r == HL_OK; k++) {
         if (dyn_of(b, o->M[k])) continue;
-        hl_dynamic_desc dd = {.shadow_res = o->R, .order = o->M[k]};
+        hl_dynamic_desc dd = {.shadow_res = o->R, .order = o->M[k],
+                              .shadow = o->M[k] ? HL_DYNAMIC_SHADOW_CSM : HL_DYNAMIC_SHADOW_MOMENTS};
         r = hl_dynamic_create_from_mesh(b->ctx, tm, 1, &dd, &b->dyn[b->ndyn]);
         if (r != HL_OK) break;
         b->dyn_M[b->ndyn++] = o->M[k];
@@ -434,7 +458,7 @@ static hl_result bench_env_all(bd *b, int e)
     for (uint32_t k = 0; k < b->o.nset && r == HL_OK; k++) {
         bd_row *w = new_row(b, e, 0, BD_DYNAMIC, b->o.K[k], b->o.M[k], 0);
         r = dyn_frame(b, k, w);
-        if (r == HL_OK) fprintf(stderr, "bench-dynamic:   dynamic K %u M %u: %.2f%% in %.1f ms\n", w->K, w->M, 100 * w->l2, w->ms);
+        if (r == HL_OK) fprintf(stderr, "bench-dynamic:   dynamic K %u %s%.0u: %.2f%% in %.1f ms\n", w->K, w->M ? "M " : "moments", w->M, 100 * w->l2, w->ms);
     }
     /* moved: lifted and pushed sideways, by the object's own size */
     const hl_mesh *m = hl_dynamic_mesh(b->dyn[0]);
@@ -453,7 +477,7 @@ static hl_result bench_env_all(bd *b, int e)
         r = dyn_frame(b, k, w);
         double dummy;
         if (r == HL_OK) errors(b->B, b->lights[index_of_K(b, w->K)], b->V, &w->l2_lights, &dummy);
-        if (r == HL_OK) fprintf(stderr, "bench-dynamic:   moved dynamic K %u M %u: %.2f%% in %.1f ms\n", w->K, w->M, 100 * w->l2, w->ms);
+        if (r == HL_OK) fprintf(stderr, "bench-dynamic:   moved dynamic K %u %s%.0u: %.2f%% in %.1f ms\n", w->K, w->M ? "M " : "moments", w->M, 100 * w->l2, w->ms);
     }
     if (r == HL_OK) r = place(b, rest, 0.0f);
     return r;

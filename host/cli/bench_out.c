@@ -340,18 +340,28 @@ static void bd_split(char *buf, size_t n, const bd_row *w)
 {
     buf[0] = '\0';
     if (w->method == BD_DYNAMIC)
-        snprintf(buf, n, "irradiance %.1f, shadow maps %.1f, CSM build %.1f, CSM eval %.1f, shading %.1f (frame %.1f)",
-                 w->stage[0], w->stage[1], w->stage[2], w->stage[3], w->stage[4], w->stage[5]);
+        snprintf(buf, n, "irradiance %.1f, shadow maps %.1f, %s build %.1f, %s eval %.1f, shading %.1f (frame %.1f)",
+                 w->stage[0], w->stage[1], w->M ? "CSM" : "moments", w->stage[2], w->M ? "CSM" : "moments", w->stage[3], w->stage[4], w->stage[5]);
     else if (w->method == BD_TRACED)
         snprintf(buf, n, "BVH %.1f, rays %.1f, occlusion %.1f, shading %.1f", w->stage[0], w->stage[1], w->stage[2],
                  w->stage[3]);
 }
 
+/* A dynamic row's representation: "M 16" for CSM of order 16, "moments"
+ * for the moment shadow maps (M 0 in the rows). */
+static const char *bd_dyn_m(uint32_t M, char *buf, size_t n)
+{
+    if (M == 0) return "moments";
+    snprintf(buf, n, "M %u", M);
+    return buf;
+}
+
 static void bd_setting(char *buf, size_t n, const bd_row *w)
 {
+    char mb[16];
     if (w->method == BD_PRT && w->M == 0) snprintf(buf, n, "M all");
     else if (w->method == BD_PRT) snprintf(buf, n, "M %u", w->M);
-    else if (w->method == BD_DYNAMIC) snprintf(buf, n, "K %u, M %u", w->K, w->M);
+    else if (w->method == BD_DYNAMIC) snprintf(buf, n, "K %u, %s", w->K, bd_dyn_m(w->M, mb, sizeof mb));
     else if (w->method == BD_LIGHTS) snprintf(buf, n, "K %u", w->K);
     else snprintf(buf, n, "K %u, S %u", w->K, w->S);
 }
@@ -443,20 +453,21 @@ static void bd_verdicts(FILE *md, const bd_report *rep)
         const bd_row *gm = bd_find(rep, e, 1, BD_DYNAMIC, rep->goal_K, rep->goal_M);
         if (!g || !gm) continue;
         const bd_row *at = NULL;
-        char line[3][600], mname[16];
+        char line[3][600], mname[16], gmb[16];
+        const char *gmn = bd_dyn_m(rep->goal_M, gmb, sizeof gmb);
         int cheap = 0;
         double tp = bd_time_at(rep, e, 0, BD_PRT, 0, g->l2, &at, &cheap);
         if (at && at->M) snprintf(mname, sizeof mname, "%u", at->M);
         else snprintf(mname, sizeof mname, "all");
         if (at)
-            snprintf(line[0], sizeof line[0], "at rest, PRT reaches the dynamic method's %.2f%% (K %u, M %u: %.1f ms) %s %.2f ms (%s: M %s, %.2f%%): %s, %.1f times %s",
-                     100 * g->l2, g->K, g->M, g->ms, cheap ? "in at most" : "at about", tp,
+            snprintf(line[0], sizeof line[0], "at rest, PRT reaches the dynamic method's %.2f%% (K %u, %s: %.1f ms) %s %.2f ms (%s: M %s, %.2f%%): %s, %.1f times %s",
+                     100 * g->l2, g->K, gmn, g->ms, cheap ? "in at most" : "at about", tp,
                      cheap ? "its cheapest row is already below" : "first at or below", mname, 100 * at->l2,
                      tp < g->ms ? "PRT wins" : cheap ? "undecided (fewer terms would be cheaper)" : "the dynamic method wins",
                      tp < g->ms ? g->ms / tp : tp / g->ms, tp < g->ms ? "faster" : "the dynamic method's time");
         else
-            snprintf(line[0], sizeof line[0], "at rest, no PRT row reaches the dynamic method's %.2f%% (K %u, M %u: %.1f ms): the dynamic method wins on error",
-                     100 * g->l2, g->K, g->M, g->ms);
+            snprintf(line[0], sizeof line[0], "at rest, no PRT row reaches the dynamic method's %.2f%% (K %u, %s: %.1f ms): the dynamic method wins on error",
+                     100 * g->l2, g->K, gmn, g->ms);
         double tt = bd_time_at(rep, e, 1, BD_TRACED, rep->goal_K, gm->l2, &at, &cheap);
         if (at && cheap && at->S == 1) /* S = 1 is the least the traced method can cast */
             snprintf(line[1], sizeof line[1], "moved, the traced method (K %u) is below the dynamic method's %.2f%% (%.1f ms) at its least, S 1: %.2f%% in %.1f ms: dynamic : traced speed %.2f",
@@ -477,12 +488,13 @@ static void bd_verdicts(FILE *md, const bd_report *rep)
             snprintf(rtext, sizeof rtext, "%s%.2f times the traced method's speed at equal error, goal %.0f: %s",
                      bound ? "at most " : "", ratio, BD_GOAL_RATIO_V,
                      ratio < BD_GOAL_RATIO_V ? "below" : bound ? "undecided" : "at or above");
-        snprintf(line[2], sizeof line[2], "goal: %.1f frames/s at rest (K %u, R %u, M %u: %.1f ms), goal %.0f: %s; %s",
-                 fps, rep->goal_K, rep->R, rep->goal_M, g->ms, BD_GOAL_FPS_V, fps >= BD_GOAL_FPS_V ? "at or above" : "below",
+        snprintf(line[2], sizeof line[2], "goal: %.1f frames/s at rest (K %u, R %u, %s: %.1f ms), goal %.0f: %s; %s",
+                 fps, rep->goal_K, rep->R, gmn, g->ms, BD_GOAL_FPS_V, fps >= BD_GOAL_FPS_V ? "at or above" : "below",
                  rtext);
         fprintf(md, "- **%s**: %s.\n  %s.\n  %s. Where the time goes (ms), at rest: irradiance %.1f, shadow maps %.1f, "
-                    "CSM build %.1f, CSM eval %.1f, shading %.1f; moved: %.1f, %.1f, %.1f, %.1f, %.1f.\n",
-                name, line[0], line[1], line[2], g->stage[0], g->stage[1], g->stage[2], g->stage[3], g->stage[4],
+                    "%s build %.1f, %s eval %.1f, shading %.1f; moved: %.1f, %.1f, %.1f, %.1f, %.1f.\n",
+                name, line[0], line[1], line[2], g->stage[0], g->stage[1], rep->goal_M ? "CSM" : "moments", g->stage[2],
+                rep->goal_M ? "CSM" : "moments", g->stage[3], g->stage[4],
                 gm->stage[0], gm->stage[1], gm->stage[2], gm->stage[3], gm->stage[4]);
         printf("bench-dynamic: %s: %s\nbench-dynamic: %s: %s\nbench-dynamic: %s: %s\n", name, line[0], name, line[1], name,
                line[2]);
@@ -522,7 +534,8 @@ static void bd_plot(FILE *gp, const bd_report *rep)
         }
         fprintf(gp, "EOD\n");
         if (w->method == BD_PRT) snprintf(titles[nb], sizeof titles[nb], "PRT (M terms)");
-        else if (w->method == BD_DYNAMIC) snprintf(titles[nb], sizeof titles[nb], "dynamic, order %u (K)", grp);
+        else if (w->method == BD_DYNAMIC && grp == 0) snprintf(titles[nb], sizeof titles[nb], "dynamic, moments (K)");
+        else if (w->method == BD_DYNAMIC) snprintf(titles[nb], sizeof titles[nb], "dynamic, CSM order %u (K)", grp);
         else if (w->method == BD_TRACED) snprintf(titles[nb], sizeof titles[nb], "traced, K %u (S)", grp);
         else snprintf(titles[nb], sizeof titles[nb], "K-lights reference (K)");
         /* a method's curves in one family of colours on every panel: PRT

@@ -26,24 +26,25 @@ static const char *const usage_dyn =
     "\n"
     "Relights a mesh or a scene of rigid bodies with the dynamic method (Annen et al.\n"
     "2008), with no precompute: the environment is split into area lights, the K\n"
-    "strongest each get a shadow map filtered as a convolution shadow map of order M,\n"
-    "the rest are folded into one unshadowed spherical-harmonic term, and every vertex\n"
-    "is shaded diffusely. Every node of the file that holds triangles is a body,\n"
+    "strongest each get a shadow map filtered as a moment shadow map (the default) or\n"
+    "a convolution shadow map of order M (--shadow csm), the rest are folded into one\n"
+    "unshadowed spherical-harmonic term, and every vertex is shaded diffusely. Every node of the file that holds triangles is a body,\n"
     "moving by the file's first animation (one that is not rigid, skinned or morphing,\n"
     "is refused: --rest-pose). OUT by extension: .ply, .glb, .exr or .png, as\n"
     "`haarlight relight`.\n"
     "\n"
-    "Limits: the visibility approximates the exact one (smooth shadow test, filter\n"
+    "Limits: the visibility approximates the exact one (filtered shadow test, filter\n"
     "width from the average blocker depth and the light's spread). On the bunny with\n"
-    "its ground under eight HDR maps it is 2.6 to 5.1% (relative L2) from the exact\n"
-    "result at rest and 2.0 to 4.1% with the bunny moved; --reference exact prints it\n"
-    "for a frame. Blockers closer to a receiver than about 0.75/M of the casters' depth\n"
-    "range are not seen, so contact shadows leak a little. A flat body with the others\n"
-    "on one side (a ground) stays out of the shadow maps, and what it hides is worked\n"
-    "out from its plane. Light beyond the K kept lights casts no shadow. Each kept\n"
-    "light costs a shadow map and 4M + 1 filtered images of R x R texels a frame\n"
-    "(4.6 MB a light at R = 128, M = 16, processed in batches) and about 6M + 1 reads\n"
-    "per vertex.\n"
+    "its ground under eight HDR maps and the sky it is 1.8 to 3.9% (relative L2) from\n"
+    "the exact result at rest and 1.3 to 2.8% with the bunny moved with moments (CSM:\n"
+    "2.0 to 4.1% and 1.5 to 3.4%); --reference exact prints it for a frame. Moments\n"
+    "leak light where a receiver lies behind casters of several depths (a tenth of it\n"
+    "is cut off); CSM misses blockers closer to a receiver than about 0.75/M of the\n"
+    "casters' depth range. A flat body with the others on one side (a ground) stays\n"
+    "out of the shadow maps, and what it hides is worked out from its plane. Light\n"
+    "beyond the K kept lights casts no shadow. Each kept light costs a shadow map and\n"
+    "5 filtered images of R x R texels a frame with moments (4M + 1 with CSM: 4.6 MB\n"
+    "a light at R = 128, M = 16, processed in batches).\n"
     "\n"
     "scene:\n"
     "  --ground             a ground plane under the object (body \"ground\"). A file with\n"
@@ -72,7 +73,12 @@ static const char *const usage_dyn =
     "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 128)\n"
     "  --order M            convolution shadow map order, 4 to 16 (default 16): lower is\n"
     "                       cheaper (memory and time in proportion) with softer, leakier\n"
-    "                       shadows\n"
+    "                       shadows; CSM only (given alone, it asks for CSM)\n"
+    "  --shadow S           the filterable shadow map: moments (the default: moment\n"
+    "                       shadow maps, Peters and Klein 2015, four powers of the depth\n"
+    "                       and the coverage a texel, the blocker depth from the same\n"
+    "                       moments) or csm (convolution shadow maps, 4M + 1 images a\n"
+    "                       light, about 3 times the frame time); docs/DYNAMIC.md\n"
     "output:\n"
     "  --reference R        write a reference instead of the frame, and print the frame's\n"
     "                       relative L2 error against it: exact (each vertex integrates\n"
@@ -94,6 +100,7 @@ typedef struct dyn_opts {
     int reference; /* 0: the frame; 1: exact; 2: K lights traced */
     float time, threshold;
     uint32_t lights, R, M, nmoves;
+    int shadow; /* 0: unset (CSM), 1: csm, 2: moments */
     char *move_name[DYN_MAX_MOVES];
     float move[DYN_MAX_MOVES][3];
 } dyn_opts;
@@ -121,7 +128,7 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
     const char *a = argv[*i], *v = NULL;
     static const char *const with_value[] = {"-o",     "--output",          "--env",        "--time", "--move",
                                              "--lights", "--split-threshold", "--shadow-res", "--order",
-                                             "--reference", "--ground-size", NULL};
+                                             "--reference", "--ground-size", "--shadow", NULL};
     for (int k = 0; with_value[k]; k++)
         if (!strcmp(a, with_value[k])) {
             if (*i + 1 >= argc) return -usage_error(usage_dyn, "option %s needs a value", a);
@@ -158,6 +165,10 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
         if (!strcmp(v, "exact")) d->reference = 1;
         else if (!strcmp(v, "lights")) d->reference = 2;
         else return -usage_error(usage_dyn, "--reference %s: expected exact or lights", v);
+    } else if (!strcmp(a, "--shadow")) {
+        if (!strcmp(v, "csm")) d->shadow = 1;
+        else if (!strcmp(v, "moments")) d->shadow = 2;
+        else return -usage_error(usage_dyn, "--shadow %s: expected csm or moments", v);
     } else if (!strcmp(a, "--order")) {
         if (!parse_u32(v, &d->M) || d->M < 4 || d->M > 16)
             return -usage_error(usage_dyn, "--order %s: expected 4 to 16", v);
@@ -186,6 +197,8 @@ static int parse_args(int argc, char **argv, dyn_opts *d, cli_scene_opts *o)
     if (!d->scene) return usage_error(usage_dyn, "%s", "no MESH or SCENE given");
     if (!d->out) return usage_error(usage_dyn, "%s", "no output given (-o OUT.ply|.glb|.exr|.png)");
     if (d->env && d->sky) return usage_error(usage_dyn, "%s", "--env and the sky options contradict each other");
+    if (d->M && d->shadow == 2)
+        return usage_error(usage_dyn, "%s", "--order is the CSM's order: --shadow moments takes four moments, no order");
     if (d->reference && o->rd.rotate_deg != 0.0f)
         return usage_error(usage_dyn, "%s", "--reference integrates the map as given: drop --rotate");
     const char *ext = cli_ext_of(d->out);
@@ -195,17 +208,17 @@ static int parse_args(int argc, char **argv, dyn_opts *d, cli_scene_opts *o)
 }
 
 static void report(const char *scene, const char *env, hl_context *ctx, const hl_dynamic_lights *li,
-                   const hl_dynamic_stats *st)
+                   const hl_dynamic_stats *st, const char *rep)
 {
     fprintf(stderr,
             "relit %s under %s on %s: %u vertices; lights %u kept of %u (%u folded, %.2f%% of the energy), "
             "%u shadowed, %u skipped below every horizon, %u negligible; %u batch(es); split %.1f ms, "
-            "irradiance %.1f ms, shadow maps %.1f ms, CSM build %.1f ms, CSM eval %.1f ms, shading %.1f ms; "
+            "irradiance %.1f ms, shadow maps %.1f ms, %s build %.1f ms, %s eval %.1f ms, shading %.1f ms; "
             "frame %.1f ms\n",
             scene, env ? env : "the procedural sky", hl_context_device_name(ctx), st->vertices, li->lights_kept,
             li->lights_made, li->folded, 100.0 * li->folded_share, st->shadowed, st->skipped_horizon,
             st->skipped_negligible, st->batches, 1e3 * li->seconds, 1e3 * st->t_irradiance, 1e3 * st->t_shadow_maps,
-            1e3 * st->t_csm_build, 1e3 * st->t_csm_eval, 1e3 * st->t_shading, 1e3 * st->t_total);
+            rep, 1e3 * st->t_csm_build, rep, 1e3 * st->t_csm_eval, 1e3 * st->t_shading, 1e3 * st->t_total);
 }
 
 /* --reference: the reference's colours of the frame's geometry in *ref,
@@ -242,7 +255,9 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
     hl_env *env = NULL;
     hl_image *img = NULL;
     float *rgb = NULL, *ref = NULL, exposure = o->exposure;
-    hl_dynamic_desc desc = {d->R, d->M};
+    /* --order alone asks for the CSM it is the order of */
+    const int csm = d->shadow == 1 || (d->shadow == 0 && d->M);
+    hl_dynamic_desc desc = {d->R, d->M, csm ? HL_DYNAMIC_SHADOW_CSM : HL_DYNAMIC_SHADOW_MOMENTS};
     hl_dynamic_lights li;
     hl_dynamic_stats st;
     int rc = 0;
@@ -263,7 +278,7 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
             r = hl_dynamic_set_env(dy, env, d->lights ? (int32_t)d->lights : DYN_DEFAULT_LIGHTS, d->threshold,
                                    o->rd.rotate_deg, &li);
         if (r == HL_OK) r = hl_dynamic_render(dy, (double)d->time, &rgb, &st);
-        if (r == HL_OK && !o->cd.quiet) report(d->scene, d->env, ctx, &li, &st);
+        if (r == HL_OK && !o->cd.quiet) report(d->scene, d->env, ctx, &li, &st, csm ? "CSM" : "moments");
         /* the frame's exposure, so that a reference and its frame look alike */
         if (r == HL_OK && !o->exposure_set) exposure = hl_exposure_auto(hl_dynamic_mesh(dy), rgb);
         if (r == HL_OK && d->reference) r = swap_in_reference(ctx, dy, env, d->reference, o->cd.quiet, &rgb, &ref);

@@ -780,18 +780,21 @@ HL_API float hl_exposure_auto(const hl_mesh *mesh, const float *vertex_rgb);
  * The second relighting method (Annen et al., SIGGRAPH 2008): no
  * precompute, so bodies may move between frames. The environment is split
  * into area lights; the K strongest each get an orthographic shadow map
- * filtered as a convolution shadow map (order M) whose width follows the
- * average blocker depth; the rest are folded into one unshadowed
- * spherical-harmonic term. Each vertex is shaded diffusely,
+ * filtered as a moment shadow map (the default) or a convolution shadow
+ * map (order M), whose width follows the average blocker depth; the
+ * rest are folded into one unshadowed spherical-harmonic term. Each
+ * vertex is shaded diffusely,
  *     B = albedo / pi * (sum_k V_k E_k(n) + ambient(n)),
  * E_k the light's exact irradiance on the vertex normal. The visibility
- * V_k approximates the exact one: blockers nearer a receiver than about
- * 0.75/M of the casters' depth range (5% at M = 16), or than the
- * receiver-plane bias at grazing light, are not seen (contact shadows
- * leak). A flat body with every other body on one side of it (a ground)
- * stays out of the shadow maps; what it hides is taken from its plane.
- * Cost per frame grows with K x R^2 x M (maps and tables) and
- * K x vertices x M (evaluation).
+ * V_k approximates the exact one: with moments, light leaks where a
+ * receiver lies behind casters of several depths; with CSM, blockers
+ * nearer a receiver than about 0.75/M of the casters' depth range (5% at
+ * M = 16) are not seen; with both, nor those nearer than the
+ * receiver-plane bias at grazing light. A flat body with every other
+ * body on one side of it (a ground) stays out of the shadow maps; what
+ * it hides is taken from its plane. Cost per frame grows with K x R^2
+ * (maps and tables, times M for CSM) and K x vertices (evaluation, times
+ * M for CSM).
  */
 
 typedef struct hl_dynamic hl_dynamic;
@@ -800,10 +803,19 @@ typedef struct hl_dynamic hl_dynamic;
  *   shadow_res   R: shadow map size, a multiple of 16 from 16 to 1024
  *                (0: 128)
  *   order        M: convolution shadow map order, 4..16 (0: 16)
+ *   shadow       the filterable shadow map: HL_DYNAMIC_SHADOW_MOMENTS (the
+ *                default, 0 gives it unless order is set: four moments of
+ *                depth and the coverage, Peters and Klein 2015; order is
+ *                then unused) or HL_DYNAMIC_SHADOW_CSM (the Fourier series
+ *                of order M; 0 with order set gives it)
  */
+#define HL_DYNAMIC_SHADOW_DEFAULT 0u
+#define HL_DYNAMIC_SHADOW_CSM 1u
+#define HL_DYNAMIC_SHADOW_MOMENTS 2u
 typedef struct hl_dynamic_desc {
     uint32_t shadow_res;
     uint32_t order;
+    uint32_t shadow;
 } hl_dynamic_desc;
 
 /* A dynamic scene from a mesh (copied): body "object", and with ground

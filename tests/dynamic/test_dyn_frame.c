@@ -453,9 +453,12 @@ static void case_twin(void)
 /* The bunny's two frames (at rest, then lifted and moved) on a new frame
  * state: batches of 5 lights at R = 64, lights under 2% of the energy
  * negligible; out[f] gets frame f's colours, both bodies. */
-static int device_frames(hl_context *ctx, bunny_scene *b, const hl_light_split *s, float *out[2], hl_frame_stats *fs)
+static int device_frames(hl_context *ctx, bunny_scene *b, const hl_light_split *s, float *out[2], hl_frame_stats *fs,
+                         hl_shadow_rep shadow)
 {
-    hl_frame_settings set = {.R = 64, .M = 16, .min_share = 0.02f, .budget = (uint64_t)6 << 20};
+    /* a budget of 5 lights of the representation's */
+    hl_frame_settings set = {.R = 64, .M = 16, .min_share = 0.02f, .shadow = shadow,
+                             .budget = 5 * (uint64_t)hl_csm_bytes_per_light_rep(shadow, 64, 16, 16) + 1};
     hl_frame_state *st = NULL;
     int ok = hl_frame_state_create(ctx, b->obj, 2, s->count, &set, &st) == HL_OK;
     const hl_dyn_object rest = b->obj[0];
@@ -486,14 +489,16 @@ static void case_device(void)
     free(px);
     bunny_scene b;
     hl_light_split *s = env && bunny_open(ctx, &b) ? split_of(ctx, env, 32) : NULL;
-    if (s) {
+    for (int q = 0; s && q < 2; q++) {
+        const hl_shadow_rep shadow = q ? HL_SHADOW_REP_MOMENTS : HL_SHADOW_REP_CSM;
+        printf("%s:\n", q ? "moments" : "CSM");
         const size_t n = 3 * ((size_t)b.obj[0].nverts + b.obj[1].nverts);
         float *dev[2] = {malloc(n * 4), malloc(n * 4)}, *host[2] = {malloc(n * 4), malloc(n * 4)};
         hl_frame_stats fd[2], fh[2];
         setenv("HL_TEST_FRAME_GROUP", "2", 1);
-        int ok = device_frames(ctx, &b, s, dev, fd);
+        int ok = device_frames(ctx, &b, s, dev, fd, shadow);
         setenv("HL_TEST_DYN_FRAME", "host", 1);
-        ok = ok && device_frames(ctx, &b, s, host, fh);
+        ok = ok && device_frames(ctx, &b, s, host, fh, shadow);
         unsetenv("HL_TEST_DYN_FRAME");
         unsetenv("HL_TEST_FRAME_GROUP");
         for (int f = 0; ok && f < 2; f++) {
@@ -508,8 +513,8 @@ static void case_device(void)
             hl_check_error("colour floats that differ, device frame vs host (tolerance 0: bit for bit)", (double)diff, 0.0);
         }
         for (int f = 0; f < 2; f++) free(dev[f]), free(host[f]);
-        bunny_close(&b);
     }
+    if (s) bunny_close(&b);
     hl_light_split_destroy(s);
     hl_env_destroy(env);
     hl_context_destroy(ctx);
@@ -734,7 +739,7 @@ static void check_reference_run(const char *path, const char *ply, const char *l
     hl_env *env = NULL;
     hl_sky_desc sd = {0}; /* the command's sky */
     HL_CHECK(hl_env_create_sky(ctx, &sd, &env) == HL_OK, "%s", hl_context_last_error(ctx));
-    hl_dynamic_desc desc = {32, 4};
+    hl_dynamic_desc desc = {32, 4, HL_DYNAMIC_SHADOW_CSM};
     float *frame = NULL, *exact = NULL, *file = NULL;
     if (hl_dynamic_create_from_file(ctx, path, 0, &desc, &d) != HL_OK || !env ||
         hl_dynamic_set_env(d, env, 2, 0.0f, 0.0f, NULL) != HL_OK || hl_dynamic_render(d, 0.0, &frame, NULL) != HL_OK) {
@@ -855,6 +860,9 @@ static void timing(uint64_t budget, uint32_t R)
     hl_light_split *s = split_of(ctx, env, 32);
     hl_frame_state *st = NULL;
     hl_frame_settings set = {.R = R, .M = 16, .budget = budget, .min_share = -1.0f};
+    /* HL_TEST_SHADOW=csm|moments: that representation, else the default */
+    const char *rep = getenv("HL_TEST_SHADOW");
+    set.shadow = !rep ? HL_SHADOW_REP_DEFAULT : !strcmp(rep, "moments") ? HL_SHADOW_REP_MOMENTS : HL_SHADOW_REP_CSM;
     if (!s || !bunny_open(ctx, &b) || hl_frame_state_create(ctx, b.obj, 2, s->count, &set, &st) != HL_OK) {
         fprintf(stderr, "%s\n", hl_context_last_error(ctx));
         return;

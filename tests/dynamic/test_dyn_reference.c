@@ -371,7 +371,30 @@ static double rel_l2_body(float *const *a, float *const *ref, const hl_dyn_objec
  * moved (lifted 0.3 of the bunny's height, sideways half its width). The
  * frame state st (made once: a fresh one pays PoCL's first-frame cost)
  * takes up to HL_LIGHTS_DEFAULT_KEEP lights. */
-static void accuracy_map(hl_context *ctx, hl_frame_state *st, const char *name, const hl_env *env, hl_dyn_object *obj,
+/* HL_TEST_ACCURACY_CACHE=DIR: the references of each map and pose kept
+ * in DIR and read back on the next run (the same S), so that settings can
+ * be compared without tracing them again. 1: read, 0: not there. */
+static int cache_io(const char *name, int moved, uint32_t S, const hl_dyn_object *obj, float *const *ex, float *const *li,
+                    int write)
+{
+    const char *dir = getenv("HL_TEST_ACCURACY_CACHE");
+    if (!dir) return 0;
+    char path[1024];
+    snprintf(path, sizeof path, "%s/%s-%d-S%u.ref", dir, name, moved, S);
+    FILE *f = fopen(path, write ? "wb" : "rb");
+    if (!f) return 0;
+    int ok = 1;
+    for (uint32_t b = 0; b < 2; b++) {
+        size_t n = 3 * (size_t)obj[b].nverts;
+        ok = ok && (write ? fwrite(ex[b], 4, n, f) == n && fwrite(li[b], 4, n, f) == n
+                          : fread(ex[b], 4, n, f) == n && fread(li[b], 4, n, f) == n);
+    }
+    fclose(f);
+    return ok;
+}
+
+static void accuracy_map(hl_context *ctx, hl_frame_state *const *sts, const char *const *st_names, uint32_t nst,
+                         const char *name, const hl_env *env, hl_dyn_object *obj,
                          const float *const *alb, float *const *fr, float *const *ex, float *const *li, uint32_t S)
 {
     hl_light_split *s = split_of(ctx, env, HL_LIGHTS_DEFAULT_KEEP);
@@ -384,11 +407,16 @@ static void accuracy_map(hl_context *ctx, hl_frame_state *st, const char *name, 
         obj[0].xf[3] = x0 + (moved ? 0.5f * (hi[0] - lo[0]) : 0.0f);
         obj[0].xf[7] = y0 + (moved ? 0.3f * (hi[1] - lo[1]) : 0.0f);
         hl_frame_stats fs;
-        hl_dyn_ref_stats es, ls;
-        int ok = hl_frame_render(st, obj, 2, alb, s, fr, &fs) == HL_OK &&
-                 hl_dyn_reference_exact(ctx, obj, 2, alb, env, 0, S, ex, &es) == HL_OK &&
+        hl_dyn_ref_stats es = {0}, ls;
+        int ok = 1;
+        if (!cache_io(name, moved, S, obj, ex, li, 0)) {
+            ok = hl_dyn_reference_exact(ctx, obj, 2, alb, env, 0, S, ex, &es) == HL_OK &&
                  hl_dyn_reference_lights(ctx, obj, 2, alb, s, S, li, &ls) == HL_OK;
+            if (ok) cache_io(name, moved, S, obj, ex, li, 1);
+        }
         if (!ok) { printf("%s: %s\n", name, hl_context_last_error(ctx)); break; }
+        for (uint32_t q = 0; q < nst; q++) {
+        if (hl_frame_render(sts[q], obj, 2, alb, s, fr, &fs) != HL_OK) { printf("%s: %s\n", name, hl_context_last_error(ctx)); break; }
         float wlo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, whi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
         for (uint32_t v = 0; v < obj[0].nverts; v++)
             for (int c = 0; c < 3; c++) {
@@ -396,15 +424,16 @@ static void accuracy_map(hl_context *ctx, hl_frame_state *st, const char *name, 
                 float w = x[0] * p[0] + x[1] * p[1] + x[2] * p[2] + x[3];
                 wlo[c] = fminf(wlo[c], w), whi[c] = fmaxf(whi[c], w);
             }
-        printf("| %-9s | %-5s | %4.1f%% | %6.2f%% | %+6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %4.0f ms "
+        printf("| %-9s | %-7s | %-5s | %4.1f%% | %6.2f%% | %+6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %6.2f%% | %4.0f ms "
                "| %.1f s, %.0fM rays |\n",
-               name, moved ? "moved" : "rest", 100 * s->stats.folded_share, 100 * rel_l2(fr, ex, obj, 2),
+               name, st_names[q], moved ? "moved" : "rest", 100 * s->stats.folded_share, 100 * rel_l2(fr, ex, obj, 2),
                100 * rel_bias(fr, ex, obj, 2),
                100 * rel_l2_body(fr, ex, obj, 0), 100 * rel_l2_body(fr, ex, obj, 1), 100 * rel_l2_far(fr, ex, obj, wlo, whi),
                100 * rel_l2(li, ex, obj, 2),
                100 * rel_l2_body(li, ex, obj, 0), 100 * rel_l2_body(li, ex, obj, 1), 1e3 * fs.t_total, es.seconds,
                1e-6 * (double)es.rays_cast);
         fflush(stdout);
+        }
     }
     obj[0].xf[3] = x0, obj[0].xf[7] = y0;
     hl_light_split_destroy(s);
@@ -438,12 +467,22 @@ static void accuracy(uint32_t S, const char *only)
            "at S = %u; relative L2 against the exact reference\n", obj[0].nverts, obj[1].nverts, HL_LIGHTS_DEFAULT_KEEP,
            HL_SHADOW_DEFAULT_R, HL_CSM_M_DEFAULT, HL_DYNREF_DEFAULT_FACE, S ? S : HL_DYNREF_DEFAULT_S,
            S ? S : HL_DYNREF_LIGHTS_DEFAULT_S);
-    printf("| map | bunny | folded | frame | frame bias | frame: bunny | frame: ground | frame: far ground | K-lights | K-lights: bunny | "
+    printf("| map | shadow | bunny | folded | frame | frame bias | frame: bunny | frame: ground | frame: far ground | K-lights | K-lights: bunny | "
            "K-lights: ground | frame time | exact time |\n");
-    hl_frame_state *st = NULL;
-    hl_frame_settings set = {.min_share = -1.0f};
-    if (hl_frame_state_create(ctx, obj, 2, HL_LIGHTS_DEFAULT_KEEP, &set, &st) != HL_OK)
-        printf("the frame state: %s\n", hl_context_last_error(ctx));
+    /* HL_TEST_SHADOW: csm (the default), moments or both, one row each */
+    const char *want = getenv("HL_TEST_SHADOW");
+    hl_frame_state *sts[2] = {NULL, NULL}, *st = NULL;
+    const char *st_names[2];
+    uint32_t nst = 0;
+    for (int rep = 0; rep < 2; rep++) {
+        const char *nm = rep ? "moments" : "csm";
+        if (want ? strcmp(want, "both") && strcmp(want, nm) : rep) continue;
+        hl_frame_settings set = {.min_share = -1.0f, .shadow = rep ? HL_SHADOW_REP_MOMENTS : HL_SHADOW_REP_CSM};
+        if (hl_frame_state_create(ctx, obj, 2, HL_LIGHTS_DEFAULT_KEEP, &set, &sts[nst]) != HL_OK)
+            printf("the frame state: %s\n", hl_context_last_error(ctx));
+        else st_names[nst++] = nm;
+    }
+    st = nst ? sts[0] : NULL;
     for (size_t m = 0; st && m <= sizeof maps / sizeof *maps; m++) {
         const char *name = m < sizeof maps / sizeof *maps ? maps[m] : "sky";
         if (only && strcmp(only, name)) continue;
@@ -456,10 +495,10 @@ static void accuracy(uint32_t S, const char *only)
             sd.width = 512;
             if (hl_env_create_sky(ctx, &sd, &env) != HL_OK) continue;
         }
-        accuracy_map(ctx, st, name, env, obj, alb, fr, ex, li, S);
+        accuracy_map(ctx, sts, st_names, nst, name, env, obj, alb, fr, ex, li, S);
         hl_env_destroy(env);
     }
-    hl_frame_state_destroy(st);
+    for (uint32_t q = 0; q < nst; q++) hl_frame_state_destroy(sts[q]);
     for (int b = 0; b < 2; b++) free(fr[b]), free(ex[b]), free(li[b]);
     hl_dyn_scene_destroy(scene);
     hl_mesh_destroy(mesh);

@@ -6,6 +6,7 @@
  * Depends on: csm.h, cl_internal.h (OpenCL: buffers, CL_TRY), dynamic.h.
  */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -21,6 +22,7 @@
 
 struct hl_csm {
     hl_context *ctx;
+    hl_shadow_rep rep;
     uint32_t R, M, Mb, P, K_max, K;
     float *zmin;  /* per light of the last build */
     float *stage; /* K_max R^2 depths, validated and clamped to [0, 1] */
@@ -31,6 +33,7 @@ struct hl_csm {
     cl_kernel kbt, krs, kss; /* the GPU shape's basis, row sums and scan (csm_*_items.cl) */
     cl_kernel keb;           /* the evaluation of several lights (hl_csm_eval_batch) */
     cl_kernel keg, kz;       /* the device frame's evaluation, the maps' nearest depths */
+    cl_kernel kmb, kmeb, kmeg; /* moments: basis, evaluation of several lights, the device frame's */
     cl_mem depth_d, img_d, rowsum_d, mean_d, zsc_d, prm_d, uvd_d, out_d, which_d, lights_d, zmin_d;
     uint32_t prm_cap; /* lights whose parameters prm_d holds (within the device's constant memory) */
     size_t io_cap;    /* receivers the uvd, out and which buffers hold */
@@ -38,17 +41,63 @@ struct hl_csm {
     uint32_t *which_h; /* each receiver's entry of the batch */
 };
 
+size_t hl_csm_bytes_per_light_rep(hl_shadow_rep rep, uint32_t R, uint32_t M, uint32_t Mb)
+{
+    size_t P = rep == HL_SHADOW_REP_MOMENTS ? HL_MSM_PLANES : hl_csm_planes(M, Mb), R2 = (size_t)R * R;
+    return 4 * (P * R2 + R2 + 4 * R2 + P * R + P);
+}
+
 size_t hl_csm_bytes_per_light(uint32_t R, uint32_t M, uint32_t Mb)
 {
-    size_t P = hl_csm_planes(M, Mb), R2 = (size_t)R * R;
-    return 4 * (P * R2 + R2 + 4 * R2 + P * R + P);
+    return hl_csm_bytes_per_light_rep(HL_SHADOW_REP_CSM, R, M, Mb);
+}
+
+uint32_t hl_csm_batch_fit_rep(hl_shadow_rep rep, uint32_t R, uint32_t M, uint32_t Mb, uint64_t bytes)
+{
+    uint64_t per = hl_csm_bytes_per_light_rep(rep, R, M ? M : HL_CSM_M_DEFAULT, Mb ? Mb : (M ? M : HL_CSM_M_DEFAULT));
+    uint64_t k = bytes / per;
+    return k < 1 ? 1u : k > UINT32_MAX ? UINT32_MAX : (uint32_t)k;
 }
 
 uint32_t hl_csm_batch_fit(uint32_t R, uint32_t M, uint32_t Mb, uint64_t bytes)
 {
-    uint64_t per = hl_csm_bytes_per_light(R, M ? M : HL_CSM_M_DEFAULT, Mb ? Mb : (M ? M : HL_CSM_M_DEFAULT));
-    uint64_t k = bytes / per;
-    return k < 1 ? 1u : k > UINT32_MAX ? UINT32_MAX : (uint32_t)k;
+    return hl_csm_batch_fit_rep(HL_SHADOW_REP_CSM, R, M, Mb, bytes);
+}
+
+hl_shadow_rep hl_csm_rep(const hl_csm *c) { return c->rep; }
+
+void hl_msm_params(hl_msm_eval_params *p, uint32_t R, float zmin, float su, float sv)
+{
+    memset(p, 0, sizeof *p);
+    p->R = R;
+    p->zmin = zmin;
+    p->su = su;
+    p->sv = sv;
+    p->bias = HL_MSM_BIAS;
+    p->eps = HL_CSM_BLOCKER_EPS; /* above alpha's spurious share (at most alpha) */
+    p->wmin = HL_CSM_MIN_HALF_WIDTH;
+    p->alpha = HL_MSM_ALPHA;
+    p->leak_a = HL_MSM_LEAK_A;
+    p->leak_b = HL_MSM_LEAK_B;
+    p->lbr = HL_MSM_LBR;
+    p->direct_half = HL_CSM_DIRECT_HALF;
+    p->kb = 1.0f - HL_MSM_FAR_BAND;
+    /* tests and tuning: HL_TEST_MSM=alpha,bias,lbr,leak_a overrides */
+    const char *t = getenv("HL_TEST_MSM");
+    if (t) {
+        float a, b, l, la;
+        if (sscanf(t, "%f,%f,%f,%f", &a, &b, &l, &la) == 4 && a >= 0.0f && a < 1.0f && b >= 0.0f && b < 1.0f &&
+            l >= 0.0f && l < 1.0f && la >= 0.0f)
+            p->alpha = a, p->bias = b, p->lbr = l, p->leak_a = la;
+    }
+}
+
+/* The parameter block of msm_eval.cl (prm) from p. */
+static void pack_msm_params(const hl_msm_eval_params *p, float *prm)
+{
+    const float v[HL_MSM_PRM_FLOATS] = {p->zmin, p->su, p->sv, p->bias, p->eps, p->wmin, p->alpha, p->leak_a,
+                                        p->leak_b, p->lbr, p->direct_half, p->kb};
+    memcpy(prm, v, sizeof v);
 }
 
 void hl_csm_params(hl_csm_eval_params *p, uint32_t R, uint32_t M, uint32_t Mb, float zmin, float su, float sv)
@@ -85,7 +134,7 @@ void hl_csm_destroy(hl_csm *c)
         cl_mem *all[] = {&c->depth_d, &c->img_d,   &c->rowsum_d, &c->mean_d,   &c->zsc_d, &c->prm_d,
                          &c->uvd_d,   &c->out_d,   &c->which_d,  &c->lights_d, &c->zmin_d};
         for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(cl, all[i]);
-        cl_kernel ks[] = {c->kb, c->km, c->ks, c->kbt, c->krs, c->kss, c->keb, c->keg, c->kz};
+        cl_kernel ks[] = {c->kb, c->km, c->ks, c->kbt, c->krs, c->kss, c->keb, c->keg, c->kz, c->kmb, c->kmeb, c->kmeg};
         for (size_t i = 0; i < sizeof ks / sizeof ks[0]; i++)
             if (ks[i]) clReleaseKernel(ks[i]);
     }
@@ -105,11 +154,13 @@ static hl_result create_device(hl_csm *c)
     hl_context *ctx = c->ctx;
     struct hl_cl *cl = ctx->cl;
     cl_int e;
-    const char *names[9] = {"hl_csm_basis",         "hl_csm_sat_mean",       "hl_csm_sat_scan",
-                            "hl_csm_basis_texels",  "hl_csm_basis_rowsums",  "hl_csm_sat_scan_items",
-                            "hl_csm_eval_batch",    "hl_csm_eval_grid",      "hl_csm_zmin"};
-    cl_kernel *ks[9] = {&c->kb, &c->km, &c->ks, &c->kbt, &c->krs, &c->kss, &c->keb, &c->keg, &c->kz};
-    for (int i = 0; i < 9; i++) {
+    const char *names[12] = {"hl_csm_basis",         "hl_csm_sat_mean",       "hl_csm_sat_scan",
+                             "hl_csm_basis_texels",  "hl_csm_basis_rowsums",  "hl_csm_sat_scan_items",
+                             "hl_csm_eval_batch",    "hl_csm_eval_grid",      "hl_csm_zmin",
+                             "hl_msm_basis",         "hl_msm_eval_batch",     "hl_msm_eval_grid"};
+    cl_kernel *ks[12] = {&c->kb,  &c->km, &c->ks, &c->kbt, &c->krs,  &c->kss,
+                         &c->keb, &c->keg, &c->kz, &c->kmb, &c->kmeb, &c->kmeg};
+    for (int i = 0; i < 12; i++) {
         *ks[i] = clCreateKernel(cl->program, names[i], &e);
         CL_TRY(ctx, e, names[i]);
     }
@@ -137,6 +188,12 @@ static hl_result create_device(hl_csm *c)
 
 hl_result hl_csm_create(hl_context *ctx, uint32_t R, uint32_t M, uint32_t Mb, uint32_t K_max, hl_csm **out)
 {
+    return hl_csm_create_rep(ctx, HL_SHADOW_REP_CSM, R, M, Mb, K_max, out);
+}
+
+hl_result hl_csm_create_rep(hl_context *ctx, hl_shadow_rep rep, uint32_t R, uint32_t M, uint32_t Mb, uint32_t K_max,
+                            hl_csm **out)
+{
     if (!out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_csm_create: no output pointer");
     *out = NULL;
     if (!ctx) return HL_ERR_INVALID_ARGUMENT;
@@ -153,7 +210,10 @@ hl_result hl_csm_create(hl_context *ctx, uint32_t R, uint32_t M, uint32_t Mb, ui
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "convolution shadow maps: map size R = %u must be a multiple of %u in %u..%u", R,
                        HL_CSM_SCAN_LANES, HL_CSM_R_MIN, HL_CSM_R_MAX);
-    if (K_max == 0 || (uint64_t)K_max * hl_csm_bytes_per_light(R, M, Mb) > ((uint64_t)1 << 40))
+    if (rep != HL_SHADOW_REP_CSM && rep != HL_SHADOW_REP_MOMENTS)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "shadow maps: representation %d is neither CSM (1) nor moments (2)",
+                       (int)rep);
+    if (K_max == 0 || (uint64_t)K_max * hl_csm_bytes_per_light_rep(rep, R, M, Mb) > ((uint64_t)1 << 40))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "convolution shadow maps: a batch of %u lights is impossible (at least 1, at most 1 TiB)", K_max);
     hl_csm *c = calloc(1, sizeof *c);
@@ -162,7 +222,8 @@ hl_result hl_csm_create(hl_context *ctx, uint32_t R, uint32_t M, uint32_t Mb, ui
     c->R = R;
     c->M = M;
     c->Mb = Mb;
-    c->P = hl_csm_planes(M, Mb);
+    c->rep = rep;
+    c->P = rep == HL_SHADOW_REP_MOMENTS ? HL_MSM_PLANES : hl_csm_planes(M, Mb);
     c->K_max = K_max;
     size_t R2 = (size_t)R * R, KP = (size_t)K_max * c->P;
     hl_result r = HL_OK;
@@ -224,7 +285,12 @@ static hl_result build_device(hl_csm *c, uint32_t K, int upto, cl_mem depth)
         depth = c->depth_d;
     }
     const int gpu = cl->gpu_shape;
-    if (gpu) { /* a work-item a texel, then a work-item a row and plane */
+    if (c->rep == HL_SHADOW_REP_MOMENTS) { /* a row a work-item on either shape: 4 planes are cheap */
+        cl_float kb = 1.0f - HL_MSM_FAR_BAND;
+        SETARG(c->kmb, 0, depth); SETARG(c->kmb, 1, R); SETARG(c->kmb, 2, kb); SETARG(c->kmb, 3, nrows);
+        SETARG(c->kmb, 4, c->img_d); SETARG(c->kmb, 5, c->rowsum_d); SETARG(c->kmb, 6, c->zsc_d);
+        TRY(hl_cl_launch(ctx, c->kmb, nrows, 0, "hl_msm_basis"));
+    } else if (gpu) { /* a work-item a texel, then a work-item a row and plane */
         cl_uint nt = K * R * R, nrs = nrows * c->P, P = c->P;
         SETARG(c->kbt, 0, depth); SETARG(c->kbt, 1, R); SETARG(c->kbt, 2, M); SETARG(c->kbt, 3, Mb);
         SETARG(c->kbt, 4, c1); SETARG(c->kbt, 5, nt); SETARG(c->kbt, 6, c->img_d); SETARG(c->kbt, 7, c->zsc_d);
@@ -272,7 +338,10 @@ static void build_ref(hl_csm *c, uint32_t K, int upto)
     for (uint32_t k = 0; k < K; k++) {
         float *img = c->img + (size_t)k * P * R2, *rs = c->rowsum + (size_t)k * P * R, *mean = c->mean + (size_t)k * P;
         float *zsc = c->zsc + 4 * k * R2;
-        for (uint32_t row = 0; row < R; row++) hl_ref_csm_basis(c->stage + k * R2, R, c->M, c->Mb, c1, row, img, rs, zsc);
+        for (uint32_t row = 0; row < R; row++) {
+            if (c->rep == HL_SHADOW_REP_MOMENTS) hl_ref_msm_basis(c->stage + k * R2, R, 1.0f - HL_MSM_FAR_BAND, row, img, rs, zsc);
+            else hl_ref_csm_basis(c->stage + k * R2, R, c->M, c->Mb, c1, row, img, rs, zsc);
+        }
         for (uint32_t p = 0; p < P; p++) {
             mean[p] = hl_ref_csm_sat_mean(rs + (size_t)p * R, R);
             for (uint32_t row = 0; upto >= 2 && row < R; row++)
@@ -424,12 +493,23 @@ static hl_result eval_device(hl_csm *c, uint32_t j0, uint32_t j1, const uint32_t
     TRY(io_room(c, n));
     for (uint32_t j = j0; j < j1; j++)
         for (size_t r = start[j]; r < start[j + 1]; r++) c->which_h[r - r0] = j - j0;
-    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->prm_d, CL_FALSE, 0, nl * CSM_PRM_FLOATS * 4, prm + j0 * CSM_PRM_FLOATS,
-                                     0, NULL, NULL), "upload");
+    const size_t np = c->rep == HL_SHADOW_REP_MOMENTS ? HL_MSM_PRM_FLOATS : CSM_PRM_FLOATS;
+    CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->prm_d, CL_FALSE, 0, nl * np * 4, prm + j0 * np, 0, NULL, NULL),
+           "upload");
     CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->lights_d, CL_FALSE, 0, nl * 4, ks + j0, 0, NULL, NULL), "upload");
     CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->which_d, CL_FALSE, 0, n * 4, c->which_h, 0, NULL, NULL), "upload");
     CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->uvd_d, CL_FALSE, 0, n * 12, uvd + 3 * r0, 0, NULL, NULL), "upload");
     cl_uint R = c->R, M = c->M, Mb = c->Mb, nprm = CSM_PRM_FLOATS, nn = (cl_uint)n;
+    if (c->rep == HL_SHADOW_REP_MOMENTS) {
+        cl_uint nm = HL_MSM_PRM_FLOATS;
+        cl_kernel k = c->kmeb;
+        SETARG(k, 0, c->img_d); SETARG(k, 1, c->mean_d); SETARG(k, 2, c->zsc_d); SETARG(k, 3, R);
+        SETARG(k, 4, c->prm_d); SETARG(k, 5, nm); SETARG(k, 6, c->lights_d); SETARG(k, 7, c->which_d);
+        SETARG(k, 8, c->uvd_d); SETARG(k, 9, nn); SETARG(k, 10, c->out_d);
+        TRY(hl_cl_launch(ctx, k, n, 0, "hl_msm_eval_batch"));
+        CL_TRY(ctx, clEnqueueReadBuffer(cl->queue, c->out_d, CL_TRUE, 0, n * 8, c->out_h, 0, NULL, NULL), "read-back");
+        return HL_OK;
+    }
     SETARG(c->keb, 0, c->img_d); SETARG(c->keb, 1, c->mean_d); SETARG(c->keb, 2, c->zsc_d); SETARG(c->keb, 3, R);
     SETARG(c->keb, 4, M); SETARG(c->keb, 5, Mb); SETARG(c->keb, 6, c->prm_d); SETARG(c->keb, 7, nprm);
     SETARG(c->keb, 8, c->lights_d); SETARG(c->keb, 9, c->which_d); SETARG(c->keb, 10, c->uvd_d); SETARG(c->keb, 11, nn);
@@ -462,17 +542,27 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
         if (!isfinite(uvd[i]))
             return hl_fail(c->ctx, HL_ERR_INVALID_ARGUMENT,
                            "convolution shadow maps: receiver %zu has a non-finite coordinate (%g)", i / 3, (double)uvd[i]);
+    const int mom = c->rep == HL_SHADOW_REP_MOMENTS;
+    const size_t np = mom ? HL_MSM_PRM_FLOATS : CSM_PRM_FLOATS;
+    hl_msm_eval_params *pm = mom ? hl_malloc(c->ctx, nl * sizeof *pm, "shadow-map parameters") : NULL;
+    if (mom && !pm) return HL_ERR_OUT_OF_MEMORY;
     hl_csm_eval_params *p = hl_malloc(c->ctx, nl * sizeof *p, "shadow-map parameters");
     float *prm = p ? hl_malloc(c->ctx, (size_t)nl * CSM_PRM_FLOATS * 4, "shadow-map parameters") : NULL;
     if (!prm) {
         free(p);
+        free(pm);
         return HL_ERR_OUT_OF_MEMORY;
     }
     for (uint32_t j = 0; j < nl; j++) {
         const hl_shadow_frame *f = frames[j];
         double t = tan((double)thetas[j]) * f->depth_range * c->R;
-        hl_csm_params(&p[j], c->R, c->M, c->Mb, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
-        pack_params(&p[j], prm + (size_t)j * CSM_PRM_FLOATS);
+        if (mom) {
+            hl_msm_params(&pm[j], c->R, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
+            pack_msm_params(&pm[j], prm + (size_t)j * np);
+        } else {
+            hl_csm_params(&p[j], c->R, c->M, c->Mb, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
+            pack_params(&p[j], prm + (size_t)j * np);
+        }
     }
     hl_result r = HL_OK;
     for (uint32_t j0 = 0; j0 < nl && r == HL_OK; j0 += c->ctx->cl ? c->prm_cap : nl) {
@@ -484,6 +574,8 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
                 float o[2];
                 const float *oi = o;
                 if (c->ctx->cl) oi = c->out_h + 2 * (i - start[j0]);
+                else if (mom)
+                    hl_ref_msm_eval(c->img + lp * R2, c->mean + lp, c->zsc + 4 * (size_t)ks[j] * R2, &pm[j], uvd + 3 * i, o);
                 else hl_ref_csm_eval(c->img + lp * R2, c->mean + lp, c->zsc + 4 * (size_t)ks[j] * R2, &p[j], uvd + 3 * i, o);
                 V[i] = oi[0];
                 if (zavg) zavg[i] = oi[1];
@@ -492,6 +584,7 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
     }
     free(prm);
     free(p);
+    free(pm);
     return r;
 }
 
@@ -505,6 +598,8 @@ hl_result hl_csm_eval_grid(hl_csm *c, uint32_t nl, const uint32_t *ks, const flo
     if (!ctx->cl || !uvd || !V || !ks || !thetas || !frames)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: a device evaluation without its arrays");
     float prm[CSM_PRM_FLOATS * 64];
+    const int mom = c->rep == HL_SHADOW_REP_MOMENTS;
+    const size_t np = mom ? HL_MSM_PRM_FLOATS : CSM_PRM_FLOATS;
     for (uint32_t j0 = 0; j0 < nl; j0 += c->prm_cap < 64 ? c->prm_cap : 64) {
         const uint32_t cap = c->prm_cap < 64 ? c->prm_cap : 64, n = nl - j0 < cap ? nl - j0 : cap;
         for (uint32_t j = j0; j < j0 + n; j++) {
@@ -514,17 +609,32 @@ hl_result hl_csm_eval_grid(hl_csm *c, uint32_t nl, const uint32_t *ks, const flo
             TRY(check_frame(c, thetas[j], frames[j]));
             const hl_shadow_frame *f = frames[j];
             double t = tan((double)thetas[j]) * f->depth_range * c->R;
-            hl_csm_eval_params p;
-            hl_csm_params(&p, c->R, c->M, c->Mb, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
-            pack_params(&p, prm + (size_t)(j - j0) * CSM_PRM_FLOATS);
+            if (mom) {
+                hl_msm_eval_params pm;
+                hl_msm_params(&pm, c->R, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
+                pack_msm_params(&pm, prm + (size_t)(j - j0) * np);
+            } else {
+                hl_csm_eval_params p;
+                hl_csm_params(&p, c->R, c->M, c->Mb, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
+                pack_params(&p, prm + (size_t)(j - j0) * np);
+            }
         }
         /* written before the next chunk's: the host arrays are reused */
-        CL_TRY(ctx, clEnqueueWriteBuffer(ctx->cl->queue, c->prm_d, CL_TRUE, 0, (size_t)n * CSM_PRM_FLOATS * 4, prm, 0, NULL,
-                                         NULL), "upload");
+        CL_TRY(ctx, clEnqueueWriteBuffer(ctx->cl->queue, c->prm_d, CL_TRUE, 0, (size_t)n * np * 4, prm, 0, NULL, NULL),
+               "upload");
         CL_TRY(ctx, clEnqueueWriteBuffer(ctx->cl->queue, c->lights_d, CL_TRUE, 0, (size_t)n * 4, ks + j0, 0, NULL, NULL),
                "upload");
         cl_uint R = c->R, M = c->M, Mb = c->Mb, nprm = CSM_PRM_FLOATS, nn = N, jj = j0, cnt = n;
         cl_mem u = uvd, v = V;
+        if (mom) {
+            cl_uint nm = HL_MSM_PRM_FLOATS;
+            cl_kernel k = c->kmeg;
+            SETARG(k, 0, c->img_d); SETARG(k, 1, c->mean_d); SETARG(k, 2, c->zsc_d); SETARG(k, 3, R);
+            SETARG(k, 4, c->prm_d); SETARG(k, 5, nm); SETARG(k, 6, c->lights_d); SETARG(k, 7, c->zmin_d);
+            SETARG(k, 8, u); SETARG(k, 9, nn); SETARG(k, 10, jj); SETARG(k, 11, cnt); SETARG(k, 12, v);
+            TRY(hl_cl_launch(ctx, k, (size_t)n * N, 0, "hl_msm_eval_grid"));
+            continue;
+        }
         SETARG(c->keg, 0, c->img_d); SETARG(c->keg, 1, c->mean_d); SETARG(c->keg, 2, c->zsc_d); SETARG(c->keg, 3, R);
         SETARG(c->keg, 4, M); SETARG(c->keg, 5, Mb); SETARG(c->keg, 6, c->prm_d); SETARG(c->keg, 7, nprm);
         SETARG(c->keg, 8, c->lights_d); SETARG(c->keg, 9, c->zmin_d); SETARG(c->keg, 10, u); SETARG(c->keg, 11, nn);

@@ -1,7 +1,9 @@
 /* csm.h - convolution shadow maps (Annen et al. EGSR 2007) with the filter
- * width from the average blocker depth (Annen et al. SIGGRAPH 2008): the
+ * width from the average blocker depth (Annen et al. SIGGRAPH 2008), and
+ * moment shadow maps (Peters and Klein 2015) in the same module: the
  * module's API, its named constants and the plain-C twins of its kernels
- * (kernels/dynamic/csm_basis.cl, csm_sat.cl, csm_eval.cl).
+ * (kernels/dynamic/csm_basis.cl, csm_sat.cl, csm_eval.cl, msm_basis.cl,
+ * msm_eval.cl).
  *
  * The shadow test f(d, z) = [z >= d] is expanded as
  *     f ~= 1/2 + sum_k s_k (2 / (h c_k)) sin(c_k (z - d)),  c_k = pi (2k - 1) / h
@@ -98,6 +100,52 @@
 #define HL_CSM_LEAK_A 30.0f
 #define HL_CSM_LEAK_B 20.0f
 
+/* ---- moment shadow maps (Peters and Klein 2015), the lighter form ----
+ *
+ * The same module holds either representation (hl_csm_create_rep): for
+ * moments P = 5 planes, the moments x, x^2, x^3, x^4 of x = 2 z - 1 and
+ * the coverage (1 for a caster's texel, 0 for an empty one),
+ * interleaved by texel, with the same mean-subtracted summed-area tables
+ * (csm_sat.cl); zsc holds each texel's four moments (msm_basis.cl). The
+ * visibility is msm_eval.cl's (DYNAMIC.md section 3b). */
+/* DEFAULT (0) is resolved by the frame (dyn_frame.h, HL_FRAME_DEFAULT_SHADOW);
+ * the module itself takes CSM or MOMENTS. */
+typedef enum hl_shadow_rep { HL_SHADOW_REP_DEFAULT = 0, HL_SHADOW_REP_CSM = 1, HL_SHADOW_REP_MOMENTS = 2 } hl_shadow_rep;
+#define HL_MSM_PLANES 5u
+/* Moment bias alpha: the moments are blended with weight alpha towards
+ * the uniform distribution's on [-1, 1], (0, 1/3, 0, 1/5), whose Hankel
+ * matrix has smallest eigenvalue 0.079, so the blended matrix's is at
+ * least 0.079 alpha. That must exceed the moments' rounding, or the
+ * Cholesky sees a matrix that is not positive definite: the worst box
+ * average's error from the float tables, measured in test_msm.c
+ * (precision), times a margin; see the value's note in msm.c's
+ * hl_msm_params. Peters and Klein's 3e-5 is for 16-bit moments (rounding
+ * 1.5e-5) on [0, 1]. Larger alpha leaks more light (the bound loosens). */
+#define HL_MSM_ALPHA 1e-4f
+/* Receiver depth bias (normalised depth): the bound is a sharp step at
+ * the receiver when the moments are exact, so the bias only has to cover
+ * the moments' rounding and alpha's spread, not the Fourier series' band
+ * (CSM's 1/M = 0.0625); the receiver-plane bias (hl_dyn_receiver) covers
+ * the receiver's own slope. Chosen in test_dyn_reference accuracy. */
+#define HL_MSM_BIAS 0.005f
+/* Light-leak reduction: V below this is taken as 0 and V rescaled
+ * (V - l) / (1 - l). 0: off. */
+#define HL_MSM_LBR 0.1f
+/* The contact exponent V^p, p = 1 + A exp(-B (d - z_avg)), as CSM's; A = 0
+ * turns it off. */
+#define HL_MSM_LEAK_A 0.0f
+#define HL_MSM_LEAK_B 20.0f
+/* The far band: casters' depths z map to x = 2 z (1 - band) - 1 and
+ * empty texels to x = 1, so the band (1 - band, 1] of z' = (x + 1) / 2
+ * holds no caster; receivers beyond the far plane (the ground under the
+ * bodies) are put at its middle, 1 - band / 2. Without it they sat at
+ * 1 - bias, just in front of the empty texels' mass at 1, and the bound
+ * let light leak from that mass through the bodies' contact shadows
+ * (test_dyn_reference accuracy: the ground near the bunny). */
+#define HL_MSM_FAR_BAND 0.125f
+/* floats of msm_eval.cl's parameter block */
+#define HL_MSM_PRM_FLOATS 12u
+
 /* planes of one light */
 static inline uint32_t hl_csm_planes(uint32_t M, uint32_t Mb) { return 2 * M + 2 * Mb + 1; }
 /* bytes of one light on the device: tables, depth map, texel phases
@@ -122,6 +170,13 @@ typedef struct hl_csm hl_csm;
  * build and evaluate the lights K_max at a time (18.4 MB a light at
  * R = 256, M = Mb = 16: 32 lights would need 589 MB). */
 hl_result hl_csm_create(hl_context *ctx, uint32_t R, uint32_t M, uint32_t Mb, uint32_t K_max, hl_csm **out);
+/* hl_csm_create for either representation (M and Mb are checked and kept
+ * for CSM only; moments take 4 planes whatever they are). */
+hl_result hl_csm_create_rep(hl_context *ctx, hl_shadow_rep rep, uint32_t R, uint32_t M, uint32_t Mb, uint32_t K_max,
+                            hl_csm **out);
+size_t hl_csm_bytes_per_light_rep(hl_shadow_rep rep, uint32_t R, uint32_t M, uint32_t Mb);
+uint32_t hl_csm_batch_fit_rep(hl_shadow_rep rep, uint32_t R, uint32_t M, uint32_t Mb, uint64_t bytes);
+hl_shadow_rep hl_csm_rep(const hl_csm *c);
 /* The most lights a batch can hold within `bytes` (at least 1). */
 uint32_t hl_csm_batch_fit(uint32_t R, uint32_t M, uint32_t Mb, uint64_t bytes);
 void hl_csm_destroy(hl_csm *c);
@@ -219,6 +274,27 @@ void hl_ref_csm_sat_scan(float *base, size_t step, uint32_t R, float sub);
  * and texels' (z, sin(c1 z), cos(c1 z), 0) (zsc); out[0] = V, out[1] =
  * z_avg or -1. */
 void hl_ref_csm_eval(const float *sat, const float *mean, const float *zsc, const hl_csm_eval_params *p,
+                     const float uvd[3], float out[2]);
+
+/* ---- moment twins (kernels/dynamic/msm_*.cl) ---- */
+
+typedef struct hl_msm_eval_params {
+    uint32_t R;
+    float zmin, su, sv; /* as hl_csm_eval_params */
+    float bias, eps, wmin, alpha, leak_a, leak_b, lbr, direct_half;
+    float kb; /* 1 - HL_MSM_FAR_BAND */
+} hl_msm_eval_params;
+
+void hl_msm_params(hl_msm_eval_params *p, uint32_t R, float zmin, float su, float sv);
+/* hl_msm_basis: one row of one map to its texels' four moments (img and
+ * zsc, 4 floats a texel) and each plane's row sum (rowsum[plane R + row]). */
+void hl_ref_msm_basis(const float *depth, uint32_t R, float kb, uint32_t row, float *img, float *rowsum, float *zsc);
+/* The Hamburger 4MSM bound (msm_eval.cl, hl_msm_bound): the least
+ * shadowed share of moments m at receiver xf (x = 2 z - 1) after the
+ * blend alpha; wb and xb (may be NULL) the blocker weight and mean x. */
+float hl_ref_msm_bound(const float m[4], float xf, float alpha, float *wb, float *xb);
+/* hl_msm_eval_one: out[0] = V, out[1] = z_avg or -1. */
+void hl_ref_msm_eval(const float *sat, const float *mean, const float *zsc, const hl_msm_eval_params *p,
                      const float uvd[3], float out[2]);
 
 #endif

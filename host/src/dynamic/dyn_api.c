@@ -103,6 +103,17 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--shadow-res %u: expected a multiple of %u from %u to %u", R,
                        HL_CSM_SCAN_LANES, HL_CSM_R_MIN, HL_CSM_R_MAX);
     }
+    uint32_t shadow = desc ? desc->shadow : HL_DYNAMIC_SHADOW_DEFAULT;
+    if (shadow != HL_DYNAMIC_SHADOW_DEFAULT && shadow != HL_DYNAMIC_SHADOW_CSM && shadow != HL_DYNAMIC_SHADOW_MOMENTS) {
+        hl_dyn_scene_destroy(scene);
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--shadow %u: expected the default (%u), csm (%u) or moments (%u)",
+                       shadow, HL_DYNAMIC_SHADOW_DEFAULT, HL_DYNAMIC_SHADOW_CSM, HL_DYNAMIC_SHADOW_MOMENTS);
+    }
+    if (shadow == HL_DYNAMIC_SHADOW_MOMENTS && M) {
+        hl_dyn_scene_destroy(scene);
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "--order %u is the CSM's order: --shadow moments takes four moments, no order", M);
+    }
     hl_dynamic *d = hl_calloc(ctx, 1, sizeof *d, "the dynamic scene");
     if (!d) { hl_dyn_scene_destroy(scene); return HL_ERR_OUT_OF_MEMORY; }
     d->ctx = ctx;
@@ -110,6 +121,11 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
     d->nb = hl_dyn_scene_body_count(scene);
     d->set.min_share = -1.0f;
     d->set.R = R, d->set.M = M;
+    /* an order given with the default asks for the CSM it is the order of
+       (the viewer's and older callers' --order) */
+    d->set.shadow = shadow == HL_DYNAMIC_SHADOW_MOMENTS              ? HL_SHADOW_REP_MOMENTS
+                    : shadow == HL_DYNAMIC_SHADOW_CSM || M != 0      ? HL_SHADOW_REP_CSM
+                                                                     : HL_SHADOW_REP_DEFAULT;
     d->obj = calloc(d->nb, sizeof *d->obj);
     d->alb = calloc(d->nb, sizeof *d->alb);
     d->rgbs = calloc(d->nb, sizeof *d->rgbs);

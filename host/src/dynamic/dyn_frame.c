@@ -121,6 +121,10 @@ static hl_result check_settings(hl_context *ctx, hl_frame_settings *s, uint32_t 
     if (s->Mb == 0) s->Mb = s->M;
     if (s->budget == 0) s->budget = HL_FRAME_DEFAULT_BUDGET;
     if (s->min_share < 0.0f) s->min_share = HL_FRAME_MIN_SHARE;
+    if (s->shadow == HL_SHADOW_REP_DEFAULT) s->shadow = HL_FRAME_DEFAULT_SHADOW;
+    if (s->shadow != HL_SHADOW_REP_CSM && s->shadow != HL_SHADOW_REP_MOMENTS)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: shadow representation %d is not csm (1) or moments (2) (--shadow)",
+                       (int)s->shadow);
     if (!(s->min_share < 1.0f)) /* NaN too */
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: negligible share %g is not in [0, 1)",
                        (double)s->min_share);
@@ -209,9 +213,9 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
         uint64_t left = (uint64_t)((double)(ctx->cl->limit - ctx->cl->used) * HL_FRAME_DEVICE_SHARE);
         if (left < budget) budget = left;
     }
-    uint32_t fit = hl_csm_batch_fit(s.R, s.M, s.Mb, budget);
+    uint32_t fit = hl_csm_batch_fit_rep(s.shadow, s.R, s.M, s.Mb, budget);
     st->Kb = fit < max_lights ? fit : max_lights;
-    if (r == HL_OK) r = hl_csm_create(ctx, s.R, s.M, s.Mb, st->Kb, &st->csm);
+    if (r == HL_OK) r = hl_csm_create_rep(ctx, s.shadow, s.R, s.M, s.Mb, st->Kb, &st->csm);
     if (r != HL_OK) { hl_frame_state_destroy(st); return r; }
     size_t n3 = 3 * (size_t)N, RR = (size_t)s.R * s.R;
     st->vstart = malloc(nobj * sizeof *st->vstart);
