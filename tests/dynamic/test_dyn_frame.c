@@ -594,7 +594,7 @@ static void case_api(void)
     hl_mesh *m = NULL;
     hl_dynamic *d = NULL;
     hl_env *env = sky(ctx);
-    hl_dynamic_desc bad = {0, 3}, small = {64, 8};
+    hl_dynamic_desc bad = {.shadow_res = 0, .order = 3}, small = {.shadow_res = 64, .order = 8};
     float *rgb = NULL;
     HL_CHECK(hl_mesh_load(ctx, path, NULL, &m, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
     EXPECT_FAIL(hl_dynamic_create_from_mesh(ctx, m, 1, &bad, &d), "order 3");
