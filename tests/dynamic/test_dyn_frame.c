@@ -796,7 +796,7 @@ static void case_file(void)
     HL_CHECK(sg_write_gltf(path, &sc) == 0, "cannot write %s", path);
     hl_dynamic *d = NULL;
     hl_env *env = sky(ctx);
-    hl_dynamic_desc small = {64, 8};
+    hl_dynamic_desc small = {.shadow_res = 64, .order = 8};
     float *rgb = NULL;
     HL_CHECK(hl_dynamic_create_from_file(ctx, path, 0, &small, &d) == HL_OK, "%s", hl_context_last_error(ctx));
     if (!d || !env) goto done;
