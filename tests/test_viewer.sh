@@ -196,6 +196,22 @@ dynamic_moved)
   same_picture "moved, then b (back to rest)" "$tmp/view3.exr" "$tmp/prt.exr" 0.5
   hud_says "moved, then b" "PRT at rest"
   ;;
+dynamic_moments)
+  # the default representation, moment shadow maps (dyn's --order asks for
+  # CSM): the viewer's moved frame against relight-dynamic's, and its HUD
+  # names the moments' stages
+  dyn_scene
+  mom=(--sky --lights 4 --shadow-res 64 --shadow moments)
+  mv=(--move object:3,0,2)
+  "$bin" relight-dynamic "$data/bunny_lowres.obj" --ground "${mom[@]}" "${dcam[@]}" "${mv[@]}" -q -o "$tmp/rd.exr" ||
+    fail "relight-dynamic --shadow moments"
+  view --dynamic "$tmp/d.hlt" "${mom[@]}" "${dcam[@]}" "${mv[@]}" --no-glare --frames 2 --screenshot "$tmp/view.exr" ||
+    fail "view --dynamic --shadow moments exited with an error"
+  same_picture "--dynamic --shadow moments, object moved by 3,0,2" "$tmp/view.exr" "$tmp/rd.exr" 0.5
+  hud_says "--dynamic --shadow moments, object moved" "dynamic K 4"
+  grep -i "moment" "$tmp/view.txt" | head -n 3
+  grep -qi "moment" "$tmp/view.txt" || fail "the viewer's report does not name the moment shadow maps"
+  ;;
 dynamic_drag)
   dyn_scene
   # from the bunny's flank (pixel 130,100) to the left and down

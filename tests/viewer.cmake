@@ -6,7 +6,7 @@
 # (exit 77) where the viewer is not built or no X server can start.
 hl_test_exe(test_viewer test_viewer.c)
 hl_test_exe(viewer_scene viewer/viewer_scene.c)
-foreach(c capture_sky capture_bounced capture_env drop bad_input dynamic_rest dynamic_moved dynamic_drag dynamic_anim dynamic_bad
+foreach(c capture_sky capture_bounced capture_env drop bad_input dynamic_rest dynamic_moved dynamic_moments dynamic_drag dynamic_anim dynamic_bad
           surroundings_capture surroundings_drag surroundings_unchanged surroundings_bad textured)
   add_test(NAME hl.viewer.${c} COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_viewer.sh ${c})
   set_tests_properties(hl.viewer.${c} PROPERTIES

@@ -442,12 +442,18 @@ void vw_dyn_hud(const viewer *v, char *buf, size_t size)
                      v->st.terms_kept, 100.0 * v->st.energy_kept);
     else if (s->reused)
         n = snprintf(buf, size, "dynamic: reused (nothing moved)");
-    else
+    else {
+        /* as hl_dynamic_create resolves it: an order alone asks for CSM */
+        const char *rep = y->desc.shadow == HL_DYNAMIC_SHADOW_CSM ||
+                                  (y->desc.shadow == HL_DYNAMIC_SHADOW_DEFAULT && y->desc.order)
+                              ? "CSM"
+                              : "moments";
         n = snprintf(buf, size,
-                     "dynamic K %u: irradiance %.0f + shadow maps %.0f + CSM build %.0f + CSM eval %.0f + "
+                     "dynamic K %u: irradiance %.0f + shadow maps %.0f + %s build %.0f + %s eval %.0f + "
                      "shading %.0f = %.0f ms",
-                     y->li.lights_kept, 1e3 * s->t_irradiance, 1e3 * s->t_shadow_maps, 1e3 * s->t_csm_build,
+                     y->li.lights_kept, 1e3 * s->t_irradiance, 1e3 * s->t_shadow_maps, rep, 1e3 * s->t_csm_build, rep,
                      1e3 * s->t_csm_eval, 1e3 * s->t_shading, 1e3 * s->t_total);
+    }
     if (n < 0 || (size_t)n >= size) return;
     if (animated(y))
         n += snprintf(buf + n, size - (size_t)n, ", t %.2f s of %.2f-%.2f %s", y->time, y->t_start, y->t_end,
