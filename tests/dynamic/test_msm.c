@@ -35,6 +35,7 @@
 #include "cl_internal.h"
 #include "csm.h"
 #include "hl_test.h"
+#include "shadow_map_util.h"
 
 /* whether the device divides and takes square roots correctly rounded
  * (cl_program.c then builds with -cl-fp32-correctly-rounded-divide-sqrt) */
@@ -43,18 +44,6 @@ static int hl_cl_correct_divide(hl_context *ctx)
     cl_device_fp_config fp = 0;
     if (!ctx->cl || clGetDeviceInfo(ctx->cl->device, CL_DEVICE_SINGLE_FP_CONFIG, sizeof fp, &fp, NULL) != CL_SUCCESS) return 0;
     return (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) != 0;
-}
-
-static hl_shadow_frame frame_of(uint32_t R)
-{
-    hl_shadow_frame f = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, 10.0f, 10.0f, 10.0f, R, 0};
-    return f;
-}
-
-static void square_map(float *z, uint32_t R, uint32_t i0, uint32_t i1, float z_in, float z_out)
-{
-    for (uint32_t j = 0; j < R; j++)
-        for (uint32_t i = 0; i < R; i++) z[(size_t)j * R + i] = (i >= i0 && i < i1 && j >= i0 && j < i1) ? z_in : z_out;
 }
 
 /* a blocker square, a ramp and noise: the maps of test_csm_eval twin */
