@@ -108,8 +108,8 @@ same_picture() {
 }
 
 case "${1:-}" in
-capture_sky|capture_env|drop|dynamic_rest|dynamic_moved|dynamic_drag|dynamic_anim|surroundings_capture|\
-surroundings_drag|surroundings_unchanged|textured)
+capture_sky|capture_bounced|capture_env|drop|dynamic_rest|dynamic_moved|dynamic_moments|dynamic_drag|dynamic_anim|\
+surroundings_capture|surroundings_drag|surroundings_unchanged|textured)
   [ "${HL_VIEWER_BUILT:-OFF}" = ON ] || skip "haarlight was built without the viewer (HL_WITH_VIEWER=OFF or no GLFW/OpenGL)"
   ;;
 esac

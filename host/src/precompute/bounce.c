@@ -445,9 +445,10 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
                        direct_path);
     }
     if (ti->bounces) {
+        const uint32_t held = ti->bounces; /* ti goes with t */
         hl_transport_destroy(t);
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: already holds %u bounces; the bounces start from direct rows",
-                       direct_path, ti->bounces);
+                       direct_path, held);
     }
     bounce_run u = {.ctx = ctx, .t = t, .m = t->mesh, .V = t->info.vertex_count};
     u.K = d->bounce_rays ? d->bounce_rays : HL_DEFAULT_BOUNCE_RAYS;
