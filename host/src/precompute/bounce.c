@@ -422,6 +422,39 @@ static hl_result first_rows(bounce_run *u)
     return HL_OK;
 }
 
+/* Channel c's bounces (of channels): S_1 .. S_B gathered with its albedo
+ * over every vertex, the last one over [lo, hi) only, truncated, coded
+ * and appended to w; *kept gets its coefficients. */
+static hl_result bounce_channel(bounce_run *u, const hl_precompute_desc *d, hl_tfile_writer *w, uint32_t c,
+                                uint32_t channels, uint32_t lo, uint32_t hi, uint64_t *kept)
+{
+    static const char *const cname[3] = {" (red)", " (green)", " (blue)"};
+    hl_context *ctx = u->ctx;
+    bounce_albedo(u, (int)c);
+    hl_result r = u->k ? device_albedo(u) : HL_OK;
+    if (r == HL_OK) r = first_rows(u);
+    for (uint32_t b = 1; b <= d->bounces && r == HL_OK; b++) {
+        const double tb = hl_now();
+        const int last = b == d->bounces;
+        if (u->k) r = device_rows(u);
+        const uint32_t from = last ? lo : 0, to = last ? hi : u->V;
+        for (uint32_t first = from; first < to && r == HL_OK; first += u->R) {
+            const uint32_t count = to - first < u->R ? to - first : u->R;
+            r = run_chunk(u, first, count, last);
+            if (r == HL_OK && last) {
+                r = hl_tfile_writer_append(w, count, u->rq, u->bc, u->entries, (size_t)u->g->ncoef * 2, u->nnz);
+                for (uint32_t i = 0; i < count; i++) *kept += u->nnz[i];
+            }
+            if (r == HL_OK && hl_context_cancelled(ctx)) r = HL_ERR_INTERRUPTED;
+        }
+        if (r == HL_OK && !last) pack_next(u);
+        if (r == HL_OK && !ctx->quiet)
+            fprintf(stderr, "precompute: bounce %u/%u%s: %u vertices x %u rays, the %u largest terms of each hit row, %.1f s\n",
+                    b, d->bounces, channels == 3 ? cname[c] : "", last ? hi - lo : u->V, u->K, u->G, hl_now() - tb);
+    }
+    return r;
+}
+
 hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_mesh *mesh, const char *direct_path,
                          uint32_t shard_index, uint32_t shard_count, const char *out_path, double *seconds,
                          uint64_t *kept_out)
@@ -484,35 +517,10 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     if (shard_count && shard_index) info.rays_cast = info.rays_culled = 0;
     if (r == HL_OK) r = hl_tfile_writer_open_shard(ctx, out_path, &info, t->mesh, shard_index, shard_count, &w);
     uint64_t kept = 0;
-    static const char *const cname[3] = {" (red)", " (green)", " (blue)"};
     /* each channel's bounces alone (its rows are a plane of the file),
        from the same rays */
-    for (uint32_t c = 0; c < info.channels && r == HL_OK; c++) {
-        bounce_albedo(&u, (int)c);
-        if (u.k) r = device_albedo(&u);
-        if (r == HL_OK) r = first_rows(&u);
-        for (uint32_t b = 1; b <= d->bounces && r == HL_OK; b++) {
-            const double tb = hl_now();
-            const int last = b == d->bounces;
-            if (u.k) r = device_rows(&u);
-            const uint32_t from = last ? lo : 0, to = last ? hi : u.V;
-            for (uint32_t first = from; first < to && r == HL_OK; first += u.R) {
-                const uint32_t count = to - first < u.R ? to - first : u.R;
-                r = run_chunk(&u, first, count, last);
-                if (r == HL_OK && last) {
-                    r = hl_tfile_writer_append(w, count, u.rq, u.bc, u.entries, (size_t)g->ncoef * 2, u.nnz);
-                    for (uint32_t i = 0; i < count; i++) kept += u.nnz[i];
-                }
-                if (r == HL_OK && hl_context_cancelled(ctx)) r = HL_ERR_INTERRUPTED;
-            }
-            if (r == HL_OK && !last) pack_next(&u);
-            if (r == HL_OK && !ctx->quiet)
-                fprintf(stderr,
-                        "precompute: bounce %u/%u%s: %u vertices x %u rays, the %u largest terms of each hit row, %.1f s\n",
-                        b, d->bounces, info.channels == 3 ? cname[c] : "", last ? hi - lo : u.V, u.K, u.G,
-                        hl_now() - tb);
-        }
-    }
+    for (uint32_t c = 0; c < info.channels && r == HL_OK; c++)
+        r = bounce_channel(&u, d, w, c, info.channels, lo, hi, &kept);
     if (r == HL_OK) {
         info.coefficients_kept = kept;
         r = hl_tfile_writer_finish(w, &info);

@@ -434,6 +434,22 @@ static hl_result run_close(pc_run *u, hl_result r, hl_precompute_stats *stats)
 static hl_result precompute_bounced(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *d,
                                     const char *out_path, hl_precompute_stats *stats);
 
+/* --bounces with --direct-rows: the bounce phase alone, from that finished
+ * direct file (which stays), for the whole mesh or one shard. */
+static hl_result bounces_from(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *d, uint32_t shard_index,
+                              uint32_t shard_count, const char *out_path, hl_precompute_stats *stats)
+{
+    double sec = 0.0;
+    uint64_t kept = 0;
+    hl_result r = hl_bounce_check_albedo(ctx, mesh);
+    if (r == HL_OK) r = hl_bounce_file(ctx, d, mesh, d->direct_rows, shard_index, shard_count, out_path, &sec, &kept);
+    if (stats) {
+        stats->seconds_bounces = stats->seconds_total = sec;
+        if (r == HL_OK) stats->coefficients_kept = kept;
+    }
+    return r;
+}
+
 hl_result hl_precompute_shard(hl_context *ctx, const hl_mesh *mesh, const hl_precompute_desc *desc,
                               uint32_t shard_index, uint32_t shard_count, const char *out_path,
                               hl_precompute_stats *stats)
@@ -453,34 +469,16 @@ hl_result hl_precompute_shard(hl_context *ctx, const hl_mesh *mesh, const hl_pre
                        "--bounces with --shard: the bounces read every vertex's direct rows, so they shard as a second "
                        "phase: shard and merge the direct precompute (no --bounces), then run --bounces B --direct-rows "
                        "MERGED.hlt --shard I/N and merge those (docs/BOUNCES.md)");
-    if (u.d.bounces && shard_count && (shard_index >= shard_count || shard_count > mesh->vertex_count))
+    if (shard_count && (shard_index >= shard_count || shard_count > mesh->vertex_count))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "shard %u/%u: the index must be below the count, and the count from 1 to the mesh's %u "
                        "vertices", shard_index, shard_count, mesh->vertex_count);
-    if (u.d.bounces && u.d.direct_rows) {
-        if (stats) memset(stats, 0, sizeof *stats);
-        double sec = 0.0;
-        uint64_t kept = 0;
-        r = hl_bounce_check_albedo(ctx, mesh);
-        if (r == HL_OK)
-            r = hl_bounce_file(ctx, &u.d, mesh, u.d.direct_rows, shard_index, shard_count, out_path, &sec, &kept);
-        if (stats) {
-            stats->seconds_bounces = stats->seconds_total = sec;
-            if (r == HL_OK) stats->coefficients_kept = kept;
-        }
-        return r;
-    }
+    if (u.d.bounces && u.d.direct_rows) return bounces_from(ctx, mesh, &u.d, shard_index, shard_count, out_path, stats);
     if (u.d.bounces) return precompute_bounced(ctx, mesh, &u.d, out_path, stats);
     u.V = mesh->vertex_count;
     u.lo = 0;
     u.hi = u.V;
-    if (shard_count) {
-        if (shard_index >= shard_count || shard_count > u.V)
-            return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
-                           "shard %u/%u: the index must be below the count, and the count from 1 to the mesh's %u "
-                           "vertices", shard_index, shard_count, u.V);
-        hl_shard_range(u.V, shard_index, shard_count, &u.lo, &u.hi);
-    }
+    if (shard_count) hl_shard_range(u.V, shard_index, shard_count, &u.lo, &u.hi);
     u.t_start = u.t_shown = hl_now();
     u.start = u.lo;
     u.R = u.d.chunk < u.hi - u.lo ? u.d.chunk : u.hi - u.lo;
