@@ -506,10 +506,10 @@ hl_result hl_transport_load(hl_context *ctx, const char *path, hl_transport **ou
     if (r == HL_OK) {
         /* Every size below is bounded by the file size checked in
          * read_header: rows need >= 10 bytes per vertex on disk. */
-        size_t V = hl_transport_rows(&h.info), B = h.info.block_count;
-        t->row_quant = hl_malloc(ctx, V * sizeof *t->row_quant, "row quantisation parameters");
-        t->block_counts = hl_alloc_big(ctx, V * B * sizeof *t->block_counts, "block counts");
-        t->row_offset = hl_malloc(ctx, (V + 1) * sizeof *t->row_offset, "row offsets");
+        size_t R = hl_transport_rows(&h.info), B = h.info.block_count;
+        t->row_quant = hl_malloc(ctx, R * sizeof *t->row_quant, "row quantisation parameters");
+        t->block_counts = hl_alloc_big(ctx, R * B * sizeof *t->block_counts, "block counts");
+        t->row_offset = hl_malloc(ctx, (R + 1) * sizeof *t->row_offset, "row offsets");
         t->entries = hl_alloc_big(ctx, (size_t)h.sec[SEC_ENTRIES].size, "transport entries");
         if (!t->row_quant || !t->block_counts || !t->row_offset || !t->entries) r = HL_ERR_OUT_OF_MEMORY;
     }

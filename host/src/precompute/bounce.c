@@ -160,44 +160,48 @@ void hl_bounce_dirs(const hl_mesh *m, uint32_t v, uint32_t key, uint32_t K, floa
     }
 }
 
-/* Every vertex's K hits, in chunks of vertices. A hit on a surface's back
- * (its interpolated normal along the ray) counts as a miss. */
+hl_result hl_bounce_cast(hl_rt *rt, const hl_mesh *m, const uint32_t *list, uint32_t first, uint32_t count, uint32_t K,
+                         uint32_t salt, float *org, float *dir, uint32_t *prim, float *hu, float *hv)
+{
+    for (uint32_t i = 0; i < count; i++) {
+        const uint32_t v = list ? list[first + i] : first + i;
+        const float *p = m->positions + 3 * (size_t)v, *n = m->normals + 3 * (size_t)v;
+        const float off = hl_rt_robust_offset(rt, v);
+        hl_bounce_dirs(m, v, v ^ salt, K, dir + (size_t)i * K * 3);
+        for (uint32_t k = 0; k < K; k++)
+            for (int c = 0; c < 3; c++) org[((size_t)i * K + k) * 3 + c] = hl_rt_origin_coord(p[c], n[c], off);
+    }
+    hl_result r = hl_rt_trace_primary(rt, count * K, org, dir, prim, hu, hv);
+    for (size_t q = 0; q < (size_t)count * K && r == HL_OK; q++) {
+        if (prim[q] == HL_BOUNCE_MISS) continue;
+        const uint32_t *c = m->indices + 3 * (size_t)prim[q];
+        const float w0 = 1.0f - hu[q] - hv[q];
+        float dot = 0.0f;
+        for (int a = 0; a < 3; a++)
+            dot += (w0 * m->normals[3 * (size_t)c[0] + a] + hu[q] * m->normals[3 * (size_t)c[1] + a] +
+                    hv[q] * m->normals[3 * (size_t)c[2] + a]) *
+                   dir[3 * q + a];
+        if (!(dot < 0.0f)) prim[q] = HL_BOUNCE_MISS;
+    }
+    return r;
+}
+
+/* The hits of vertices [lo, hi), K each, in chunks of vertices, kept in
+ * u for every bounce. */
 static hl_result cast_hits(bounce_run *u, hl_rt *rt, uint32_t lo, uint32_t hi)
 {
-    const uint32_t R = u->R, K = u->K;
-    float *org = hl_alloc_big(u->ctx, (size_t)R * K * 12, "the bounce rays"), *dir = org ? hl_alloc_big(u->ctx, (size_t)R * K * 12, "the bounce rays") : NULL;
-    float *hu = dir ? hl_alloc_big(u->ctx, (size_t)R * K * 8, "the bounce hits") : NULL;
-    if (!hu) {
-        hl_free_big(org);
-        hl_free_big(dir);
-        return HL_ERR_OUT_OF_MEMORY;
-    }
-    hl_result r = HL_OK;
-    for (uint32_t first = lo; first < hi && r == HL_OK; first += R) {
-        const uint32_t count = hi - first < R ? hi - first : R;
-        for (uint32_t i = 0; i < count; i++) {
-            const uint32_t v = first + i;
-            const float *p = u->m->positions + 3 * (size_t)v, *n = u->m->normals + 3 * (size_t)v;
-            const float off = hl_rt_robust_offset(rt, v);
-            hl_bounce_dirs(u->m, v, v, K, dir + (size_t)i * K * 3);
-            for (uint32_t k = 0; k < K; k++)
-                for (int c = 0; c < 3; c++) org[((size_t)i * K + k) * 3 + c] = hl_rt_origin_coord(p[c], n[c], off);
-        }
-        uint32_t *prim = u->prim + (size_t)first * K;
-        r = hl_rt_trace_primary(rt, count * K, org, dir, prim, hu, hu + (size_t)R * K);
-        for (uint32_t q = 0; q < count * K && r == HL_OK; q++) {
-            float *uv = u->uv + ((size_t)first * K + q) * 2;
+    const size_t RK = (size_t)u->R * u->K;
+    float *org = hl_alloc_big(u->ctx, RK * 12, "the bounce rays");
+    float *dir = org ? hl_alloc_big(u->ctx, RK * 12, "the bounce rays") : NULL;
+    float *hu = dir ? hl_alloc_big(u->ctx, RK * 8, "the bounce hits") : NULL;
+    hl_result r = hu ? HL_OK : HL_ERR_OUT_OF_MEMORY;
+    for (uint32_t first = lo; first < hi && r == HL_OK; first += u->R) {
+        const uint32_t count = hi - first < u->R ? hi - first : u->R;
+        r = hl_bounce_cast(rt, u->m, NULL, first, count, u->K, 0, org, dir, u->prim + (size_t)first * u->K, hu, hu + RK);
+        for (size_t q = 0; q < (size_t)count * u->K && r == HL_OK; q++) {
+            float *uv = u->uv + ((size_t)first * u->K + q) * 2;
             uv[0] = hu[q];
-            uv[1] = hu[(size_t)R * K + q];
-            if (prim[q] == UINT32_MAX) continue;
-            const uint32_t *c = u->m->indices + 3 * (size_t)prim[q];
-            const float w0 = 1.0f - uv[0] - uv[1];
-            float dot = 0.0f;
-            for (int a = 0; a < 3; a++)
-                dot += (w0 * u->m->normals[3 * (size_t)c[0] + a] + uv[0] * u->m->normals[3 * (size_t)c[1] + a] +
-                        uv[1] * u->m->normals[3 * (size_t)c[2] + a]) *
-                       dir[3 * (size_t)q + a];
-            if (!(dot < 0.0f)) prim[q] = HL_BOUNCE_MISS;
+            uv[1] = hu[RK + q];
         }
     }
     hl_free_big(org);

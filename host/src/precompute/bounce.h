@@ -20,6 +20,7 @@
 #define HL_BOUNCE_H
 
 #include "hl_internal.h"
+#include "rays.h"
 
 /* A sample that hit nothing (or a surface from behind). */
 #define HL_BOUNCE_MISS 0xffffffffu
@@ -47,6 +48,16 @@ void hl_ref_bounce_gather(const hl_bounce_src *src, const uint32_t *indices, con
  * depend on nothing else. The precompute's key is v; bench's reference
  * mixes in the bounce, for rays of its own each bounce. */
 void hl_bounce_dirs(const hl_mesh *m, uint32_t v, uint32_t key, uint32_t K, float *dir);
+
+/* The bounce rays of count vertices, list[first + i] (list NULL: first +
+ * i), K each (hl_bounce_dirs, keyed by the vertex ^ salt: 0 for the
+ * precompute's), from the vertex's robust ray origin, traced with rt:
+ * prim (HL_BOUNCE_MISS for a miss, or a surface hit from behind: its
+ * interpolated normal along the ray), hu and hv the barycentrics of the
+ * hit's corners 1 and 2, count K each; org and dir: 3 count K floats of
+ * scratch (dir then holds the directions). */
+hl_result hl_bounce_cast(hl_rt *rt, const hl_mesh *m, const uint32_t *list, uint32_t first, uint32_t count, uint32_t K,
+                         uint32_t salt, float *org, float *dir, uint32_t *prim, float *hu, float *hv);
 
 /* The rows a vertex a bounced file of m needs: 3 where some vertex's
  * albedo differs between channels, else 1. */

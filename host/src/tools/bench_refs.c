@@ -263,8 +263,6 @@ hl_result hl_bench_ref_ground(hl_bench_ref *b, double **ground)
 #define BREF_BATCH 128u
 /* Rays a chunk of the gathers casts at once (36 bytes each with the hits). */
 #define BREF_CHUNK_RAYS 262144u
-/* A ray that hit nothing (hl_rt_trace_primary's miss), or a back face. */
-#define HL_BREF_MISS UINT32_MAX
 
 typedef struct bref_run {
     hl_bench_ref *b;
@@ -350,7 +348,7 @@ static void *bref_gather_worker(void *arg)
             const uint32_t p = u->prim[q];
             /* stratum k is column k % S of the grid: k and k + 1 pair
                when k is even (S even) */
-            if (p == HL_BREF_MISS) {
+            if (p == HL_BOUNCE_MISS) {
                 memset(cur, 0, (size_t)J * sizeof(double));
             } else {
             const uint32_t *c = u->m->indices + 3 * (size_t)p;
@@ -404,30 +402,9 @@ static hl_result bref_gather(bref_run *u, hl_rt *rt, const uint32_t *list, uint3
     uint32_t shown = 0;
     for (uint32_t first = 0; first < n && r == HL_OK; first += R) {
         const uint32_t count = n - first < R ? n - first : R;
-        for (uint32_t i = 0; i < count; i++) {
-            const uint32_t v = list ? list[first + i] : first + i;
-            const float *p = u->m->positions + 3 * (size_t)v, *nv = u->m->normals + 3 * (size_t)v;
-            /* the precompute's bounce-ray origin: the robust offset */
-            const float off = hl_rt_robust_offset(rt, v);
-            /* rays of its own each bounce: the bounce in the hash */
-            hl_bounce_dirs(u->m, v, v ^ (u->bounce * 0x9e3779b9u), K, dir + (size_t)i * K * 3);
-            for (uint32_t k = 0; k < K; k++)
-                for (int c = 0; c < 3; c++) org[((size_t)i * K + k) * 3 + c] = hl_rt_origin_coord(p[c], nv[c], off);
-        }
-        r = hl_rt_trace_primary(rt, count * K, org, dir, prim, hu, hu + nr);
-        /* a miss, or a surface hit from behind (its interpolated normal
-           along the ray), adds nothing: the precompute's rule */
-        for (size_t q = 0; q < (size_t)count * K && r == HL_OK; q++) {
-            if (prim[q] == HL_BREF_MISS) continue;
-            const uint32_t *c = u->m->indices + 3 * (size_t)prim[q];
-            const float a = hu[q], bv = hu[nr + q], w0 = 1.0f - a - bv;
-            float dot = 0.0f;
-            for (int k = 0; k < 3; k++)
-                dot += (w0 * u->m->normals[3 * (size_t)c[0] + k] + a * u->m->normals[3 * (size_t)c[1] + k] +
-                        bv * u->m->normals[3 * (size_t)c[2] + k]) *
-                       dir[3 * q + k];
-            if (!(dot < 0.0f)) prim[q] = HL_BREF_MISS;
-        }
+        /* the precompute's rays (origin, back-face rule), with the bounce
+           in the hash: rays of its own each bounce */
+        r = hl_bounce_cast(rt, u->m, list, first, count, K, u->bounce * 0x9e3779b9u, org, dir, prim, hu, hu + nr);
         if (r != HL_OK) break;
         u->first = first;
         u->count = count;
