@@ -58,11 +58,7 @@ static void case_twin(void)
     hl_shadow_frame f = frame_of(R);
     double worst = 0, worst_za = 0, worst_ref = 0;
     for (uint32_t k = 0; k < 2; k++) {
-        for (uint32_t i = 0; i < n; i++) {
-            uvd[3 * i] = (float)(hl_rng_unit() * (R + 8) - 4);
-            uvd[3 * i + 1] = (float)(hl_rng_unit() * (R + 8) - 4);
-            uvd[3 * i + 2] = (float)hl_rng_unit();
-        }
+        random_receivers(uvd, n, R);
         float theta = k ? 0.02f : 0.08f;
         HL_CHECK(hl_csm_visibility(c, k, theta, &f, uvd, n, V, za) == HL_OK, "%s", hl_context_last_error(ctx));
         HL_CHECK(hl_csm_visibility(cr, k, theta, &f, uvd, n, Vr, NULL) == HL_OK, "%s", hl_context_last_error(ref));
@@ -125,11 +121,7 @@ static int batch_matches(hl_context *ctx, const char *what)
     float *z = malloc(K * R2 * 4), *uvd = malloc(n * 12), *Va = malloc(n * 4), *Vb = malloc(n * 4);
     float *za = malloc(n * 4), *zb = malloc(n * 4);
     for (uint32_t k = 0; k < K; k++) square_map(z + k * R2, R, 10 + 3 * k, 40 + 2 * k, 0.2f + 0.1f * (float)k, 1.0f);
-    for (uint32_t i = 0; i < n; i++) {
-        uvd[3 * i] = (float)(hl_rng_unit() * (R + 8) - 4);
-        uvd[3 * i + 1] = (float)(hl_rng_unit() * (R + 8) - 4);
-        uvd[3 * i + 2] = (float)hl_rng_unit();
-    }
+    random_receivers(uvd, n, R);
     int ok = hl_csm_build(c, z, K) == HL_OK;
     for (uint32_t j = 0; ok && j < K; j++)
         ok = hl_csm_visibility(c, ks[j], theta[j], fp[j], uvd + 3 * (size_t)start[j], counts[j], Va + start[j],

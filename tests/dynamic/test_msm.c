@@ -90,11 +90,7 @@ static void case_twin(void)
     hl_shadow_frame f = frame_of(R);
     double w_tab = 0, w_mean = 0, w_t4 = 0, w_V = 0, w_za = 0, w_end = 0;
     for (uint32_t k = 0; k < K; k++) {
-        for (uint32_t i = 0; i < n; i++) {
-            uvd[3 * i] = (float)(hl_rng_unit() * (R + 8) - 4);
-            uvd[3 * i + 1] = (float)(hl_rng_unit() * (R + 8) - 4);
-            uvd[3 * i + 2] = (float)hl_rng_unit();
-        }
+        random_receivers(uvd, n, R);
         float theta = k ? 0.02f : 0.08f;
         HL_CHECK(hl_csm_visibility(c, k, theta, &f, uvd, n, V, za) == HL_OK, "%s", hl_context_last_error(ctx));
         HL_CHECK(hl_csm_visibility(cr, k, theta, &f, uvd, n, Vr, zar) == HL_OK, "%s", hl_context_last_error(ref));
