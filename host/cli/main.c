@@ -91,7 +91,13 @@ static const char *const usage_precompute =
     "                       merged from shards), instead of casting the direct rays;\n"
     "                       with --shard I/N, the last bounce of shard I's vertices only\n"
     "                       (the bounces before it of every vertex), and merge joins the\n"
-    "                       shards into the bytes of one run\n"
+    "                       shards into the bytes of one run. The bounces start from\n"
+    "                       FILE.values where it exists (--keep-floats), else from the\n"
+    "                       8-bit codes (the direct light then coded twice; a warning)\n"
+    "  --keep-floats        without --bounces: also write SCENE.hlt.values, the kept\n"
+    "                       terms as the floats they were coded from (4 bytes a term),\n"
+    "                       for a later --bounces --direct-rows SCENE.hlt; merge joins\n"
+    "                       the shards' (docs/BOUNCES.md)\n"
     "truncation (per vertex):\n"
     "  --energy EPS         keep the fewest coefficients holding 1-EPS of the energy\n"
     "                       (the default rule, EPS = 1e-5)\n"
@@ -297,6 +303,8 @@ static int pre_transport_opt(int argc, char **argv, int *ip, const char *usage, 
     } else if (!strcmp(a, "--direct-rows")) {
         NEED_ARG();
         o->pd.direct_rows = v;
+    } else if (!strcmp(a, "--keep-floats")) {
+        o->pd.keep_floats = 1;
     } else if (!strcmp(a, "--bounce-rays")) {
         NEED_ARG();
         if (!parse_u32(v, &o->pd.bounce_rays) || o->pd.bounce_rays < 1 || o->pd.bounce_rays > 4096)
@@ -401,6 +409,9 @@ static int parse_pre(int argc, char **argv, const char *usage, pre_opts *o)
     if (o->ground_albedo_set) memcpy(o->gd.albedo, o->ground_albedo, sizeof o->ground_albedo);
     if (o->bounce_opt_set && !o->pd.bounces)
         return usage_error(usage, "%s", "--bounce-rays and --bounce-terms need --bounces B (B >= 1)");
+    if (o->pd.keep_floats && o->pd.bounces)
+        return usage_error(usage, "%s", "--keep-floats is for the direct rows of a later --bounces --direct-rows run; "
+                                        "--bounces keeps the floats between its own phases");
     if (o->pd.direct_rows && !o->pd.bounces)
         return usage_error(usage, "%s", "--direct-rows needs --bounces B (B >= 1): only the bounces start from it");
     if (o->pd.bounces && o->shard_count && !o->pd.direct_rows)

@@ -91,6 +91,7 @@ int cmd_merge(int argc, char **argv)
                         "written in %.2f s\n",
                 out, st.shards, st.vertices, (double)st.coefficients_kept / st.vertices, (double)st.bytes_read * 1e-6,
                 (double)st.bytes_written * 1e-6, st.seconds);
+    if (r == HL_OK && !quiet && st.values) fprintf(stderr, "wrote %s.values: the shards' direct rows' floats\n", out);
     cli_unwatch();
     hl_context_destroy(ctx);
     free(shards);

@@ -294,6 +294,9 @@ typedef struct hl_precompute_desc {
                                 direct transport (of the same mesh and options,
                                 e.g. merged from shards) instead of casting the
                                 direct rays; needed to shard the bounces */
+    int keep_floats;      /* also write out_path + ".values", the kept terms
+                             as floats, for a later direct_rows: the bounces
+                             then start from them, not from the 8-bit codes */
 } hl_precompute_desc;
 
 /* Counters and timings of one precompute. */

@@ -285,6 +285,8 @@ typedef struct hl_merge_stats {
     uint64_t coefficients_kept;
     uint64_t bytes_read, bytes_written;
     double seconds;
+    int values; /* 1: every shard had its floats (precompute --keep-floats),
+                   joined into out_path + ".values" */
 } hl_merge_stats;
 
 /* Joins the shard files (any order) of one sharded precompute into the

@@ -18,8 +18,16 @@
  *                 albedo, and relit the same bit for bit (both backends);
  *                 the OpenCL and reference files byte for byte.
  * bounce.shards   the bounces sharded as a second phase from a direct
- *                 file, merged: the bytes of one run (B = 1 and 2, three
- *                 coloured planes); bad direct files refused.
+ *                 file that was itself sharded with --keep-floats and
+ *                 merged (its floats with it): the bytes of one run
+ *                 (B = 1 and 2, three coloured planes); bad direct files
+ *                 refused.
+ * bounce.floats   the direct rows' floats between the phases: on a flat
+ *                 grid, whose bounces are exactly zero (every ray
+ *                 leaves), the bounced rows are the direct file's byte
+ *                 for byte; from the 8-bit codes alone (no values file)
+ *                 they are not. Bad values files (truncated, damaged, of
+ *                 other rows) refused, naming the file.
  * bounce.bad      an albedo above 1, too many bounces, --bounces with a
  *                 shard but no direct rows: clear errors, no file.
  *
@@ -32,6 +40,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include "bounce.h"
 #include "cavity_mesh.h"
@@ -382,9 +391,20 @@ static void case_shards(void)
     if (!ctx) return;
     hl_mesh *m = cavity(ctx, acos(1.0 - 2.0 * 0.2), 0.8f);
     for (uint32_t v = 0; m && v < m->vertex_count; v++) m->albedo[3 * v + 2] = 0.3f + 0.04f * (float)(v % 7u);
+    /* the direct rows in 2 shards with their floats, merged */
     const char *direct = strdup(hl_test_tmp_path("bounce_direct.hlt"));
-    hl_precompute_desc d0 = {.N = 16, .C = 16};
-    HL_CHECK(m && hl_precompute(ctx, m, &d0, direct, NULL) == HL_OK, "direct: %s", hl_context_last_error(ctx));
+    hl_precompute_desc d0 = {.N = 16, .C = 16, .keep_floats = 1};
+    char dpart[2][1200];
+    const char *dparts[2] = {dpart[0], dpart[1]};
+    for (uint32_t i = 0; i < 2 && m; i++) {
+        snprintf(dpart[i], sizeof dpart[i], "%s%u", hl_test_tmp_path("bounce_dpart.hlt"), i);
+        HL_CHECK(hl_precompute_shard(ctx, m, &d0, i, 2, dpart[i], NULL) == HL_OK, "direct shard %u: %s", i,
+                 hl_context_last_error(ctx));
+    }
+    hl_merge_stats ms = {0};
+    HL_CHECK(m && hl_transport_merge(ctx, direct, dparts, 2, &ms) == HL_OK, "direct merge: %s", hl_context_last_error(ctx));
+    HL_CHECK(ms.values == 1, "the direct shards' floats were not merged");
+    printf("direct rows: 2 shards with their floats, merged (values file written: %d)\n", ms.values);
     for (uint32_t B = 1; B <= 2 && m; B++) {
         hl_precompute_desc d = {.N = 16, .C = 16, .bounces = B, .bounce_rays = 16};
         char one[1200], merged[1200], part[3][1200];
@@ -433,6 +453,127 @@ static void case_shards(void)
     hl_context_destroy(ctx);
 }
 
+/* A flat n x n grid in y = 0, normals +y, albedo 0.8: no ray from it
+ * comes back to it. */
+static hl_mesh *flat_grid(hl_context *ctx, uint32_t n)
+{
+    const uint32_t nv = n * n, nt = 2 * (n - 1) * (n - 1);
+    float *p = malloc((size_t)nv * 12), *nr = malloc((size_t)nv * 12), *a = malloc((size_t)nv * 12);
+    uint32_t *ix = malloc((size_t)nt * 12), t = 0;
+    hl_mesh *m = NULL;
+    if (p && nr && a && ix) {
+        for (uint32_t v = 0; v < nv; v++) {
+            p[3 * v] = (float)(v % n) / (float)(n - 1) - 0.5f, p[3 * v + 1] = 0.0f;
+            p[3 * v + 2] = (float)(v / n) / (float)(n - 1) - 0.5f;
+            nr[3 * v] = 0.0f, nr[3 * v + 1] = 1.0f, nr[3 * v + 2] = 0.0f;
+            a[3 * v] = a[3 * v + 1] = a[3 * v + 2] = 0.8f;
+        }
+        for (uint32_t j = 0; j + 1 < n; j++)
+            for (uint32_t i = 0; i + 1 < n; i++) {
+                const uint32_t v = j * n + i;
+                ix[3 * t] = v, ix[3 * t + 1] = v + n, ix[3 * t + 2] = v + 1, t++;
+                ix[3 * t] = v + 1, ix[3 * t + 1] = v + n, ix[3 * t + 2] = v + n + 1, t++;
+            }
+        if (hl_mesh_create(ctx, nv, p, nr, a, nt, ix, &m) != HL_OK) fprintf(stderr, "grid: %s\n", hl_context_last_error(ctx));
+    }
+    free(p);
+    free(nr);
+    free(a);
+    free(ix);
+    return m;
+}
+
+/* The bounced rows of m from the direct rows at direct, at out: how many
+ * rows differ from the direct file's (UINT32_MAX on failure). */
+static uint32_t bounced_differs(hl_context *ctx, const hl_mesh *m, const char *direct, const char *out)
+{
+    hl_precompute_desc d = {.N = 16, .C = 16, .bounces = 1, .bounce_rays = 16, .direct_rows = direct};
+    hl_transport *td = NULL, *tb = NULL;
+    uint32_t diff = UINT32_MAX;
+    if (hl_precompute(ctx, m, &d, out, NULL) == HL_OK && hl_transport_load(ctx, direct, &td) == HL_OK &&
+        hl_transport_load(ctx, out, &tb) == HL_OK && tb->info.channels <= 1)
+        diff = plane_differs(tb, 0, td);
+    if (diff == UINT32_MAX)
+        fprintf(stderr, "bounces: %s\n", hl_context_last_error(ctx));
+    hl_transport_destroy(td);
+    hl_transport_destroy(tb);
+    return diff;
+}
+
+/* Writes the values file path from its bytes b (n of them) after f
+ * changed its floats, with the checksum made good again. */
+static int write_values(const char *path, uint8_t *b, size_t n, void (*f)(float *, size_t))
+{
+    if (n < 32) return 0;
+    f((float *)(void *)(b + 32), (n - 32) / 4);
+    const uint32_t crc = (uint32_t)crc32(0L, b + 32, (uInt)(n - 32));
+    for (int i = 0; i < 4; i++) b[24 + i] = (uint8_t)(crc >> (8 * i));
+    FILE *fp = fopen(path, "wb");
+    const int ok = fp && fwrite(b, 1, n, fp) == n;
+    if (fp) fclose(fp);
+    return ok;
+}
+
+static void scale_floats(float *v, size_t n)
+{
+    for (size_t i = 0; i < n; i++) v[i] *= 1.5f;
+}
+
+static void case_floats(void)
+{
+    hl_context *ctx = hl_test_cl_context(0);
+    HL_CHECK(ctx != NULL, "an OpenCL device is needed");
+    if (!ctx) return;
+    hl_mesh *m = flat_grid(ctx, 12);
+    char direct[1200], values[1300], out[1200];
+    snprintf(direct, sizeof direct, "%s", hl_test_tmp_path("bounce_flat_direct.hlt"));
+    snprintf(values, sizeof values, "%s.values", direct);
+    snprintf(out, sizeof out, "%s", hl_test_tmp_path("bounce_flat.hlt"));
+    hl_precompute_desc d0 = {.N = 16, .C = 16, .keep_floats = 1};
+    HL_CHECK(m && hl_precompute(ctx, m, &d0, direct, NULL) == HL_OK, "direct: %s", hl_context_last_error(ctx));
+    HL_CHECK(access(values, F_OK) == 0, "--keep-floats wrote no %s", values);
+    size_t nvb = 0;
+    uint8_t *vb = hl_test_read_file(values, &nvb);
+    const uint32_t V = m ? m->vertex_count : 0;
+    uint32_t diff = m ? bounced_differs(ctx, m, direct, out) : UINT32_MAX;
+    printf("flat grid, %u vertices: the bounced rows from the floats, %u differ from the direct file's (tolerance 0)\n", V,
+           diff);
+    HL_CHECK(diff == 0, "no bounces, yet the bounced rows are not the direct rows");
+    unlink(values);
+    diff = m ? bounced_differs(ctx, m, direct, out) : UINT32_MAX;
+    printf("the same from the 8-bit codes alone: %u of %u rows differ (the direct light coded twice)\n", diff, V);
+    HL_CHECK(diff != UINT32_MAX && diff > 0, "the codes alone gave the direct rows back: the floats are not needed");
+    /* bad values files: refused, naming the file; no output */
+    hl_precompute_desc d = {.N = 16, .C = 16, .bounces = 1, .bounce_rays = 16, .direct_rows = direct};
+    const char *what[3] = {"truncated", "damaged", "of other rows"};
+    for (int k = 0; k < 3 && vb && nvb > 40; k++) {
+        uint8_t *b = malloc(nvb);
+        memcpy(b, vb, nvb);
+        FILE *fp = fopen(values, "wb");
+        if (fp && k == 0) fwrite(b, 1, nvb - 4, fp);
+        if (fp && k == 1) {
+            b[nvb - 3] ^= 0x40;
+            fwrite(b, 1, nvb, fp);
+        }
+        if (fp) fclose(fp);
+        if (k == 2) write_values(values, b, nvb, scale_floats);
+        free(b);
+        unlink(out);
+        const hl_result r = hl_precompute(ctx, m, &d, out, NULL);
+        printf("values %s: %s\n", what[k], hl_context_last_error(ctx));
+        HL_CHECK(r == HL_ERR_FORMAT, "a values file %s was taken", what[k]);
+        HL_CHECK(strstr(hl_context_last_error(ctx), ".values") != NULL, "the error does not name the values file");
+        HL_CHECK(access(out, F_OK) != 0, "a file was written from values %s", what[k]);
+    }
+    /* a new direct file without --keep-floats removes the older floats */
+    HL_CHECK(m && hl_precompute(ctx, m, &(hl_precompute_desc){.N = 16, .C = 16}, direct, NULL) == HL_OK, "direct: %s",
+             hl_context_last_error(ctx));
+    HL_CHECK(access(values, F_OK) != 0, "an older run's %s stayed beside a new direct file", values);
+    free(vb);
+    hl_mesh_destroy(m);
+    hl_context_destroy(ctx);
+}
+
 static void case_bad(void)
 {
     hl_context *ctx = hl_test_ref_context(0);
@@ -459,6 +600,6 @@ int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"cavity", case_cavity}, {"furnace", case_furnace}, {"twin", case_twin},
-        {"colour", case_colour}, {"shards", case_shards}, {"bad", case_bad}, {NULL, NULL}};
+        {"colour", case_colour}, {"shards", case_shards}, {"floats", case_floats}, {"bad", case_bad}, {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

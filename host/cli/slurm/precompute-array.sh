@@ -7,7 +7,8 @@
 # --bounces B (B >= 1) among the options it runs in two phases, as the
 # bounces need every vertex's direct rows: the array and merge of the
 # direct rows (the options without --bounces, --bounce-rays and
-# --bounce-terms) into OUT.hlt.shards/direct.hlt, then a second array that
+# --bounce-terms, with --keep-floats) into OUT.hlt.shards/direct.hlt and
+# its floats direct.hlt.values, then a second array that
 # gathers each shard's bounces from it (precompute --direct-rows) and the
 # merge of those into OUT.hlt: the same bytes as one run with --bounces.
 #
@@ -266,6 +267,9 @@ submit() {
   [[ "$bounces" =~ ^[0-9]+$ ]] || die "--bounces $bounces: expected a whole number" 2
   if [ "$bounces" -gt 0 ]; then
     mapfile -t direct_opts < <(without_bounces "$@")
+    # the shards' floats too (merged into direct.hlt.values), so that the
+    # bounces start from them, not from the 8-bit codes
+    direct_opts+=(--keep-floats)
     first_out="$dir/direct.hlt"
   else
     direct_opts=("$@")

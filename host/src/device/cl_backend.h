@@ -47,6 +47,8 @@ typedef struct hl_chunk_buf {
     uint16_t *bc;
     uint8_t *entries;
     uint32_t *nnz;
+    float *coef;    /* NULL, or ncoef a row: the coefficients coded (for the
+                       values file, values_file.h) */
     uint32_t first; /* the chunk's first vertex (sqrt8's dither depends on it) */
 } hl_chunk_buf;
 

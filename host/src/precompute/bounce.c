@@ -30,11 +30,13 @@
 #include "rays.h"
 #include "transport_file.h"
 #include "twins.h"
+#include "values_file.h"
 
 /* One bounce's state, shared by the threads of a chunk. */
 typedef struct bounce_run {
     hl_context *ctx;
     const hl_transport *t;
+    const float *tval;  /* t's terms as floats (values_file.h), or NULL: decoded */
     const hl_mesh *m;
     const hl_geom *g;
     uint32_t V, K, G, R;
@@ -63,8 +65,9 @@ typedef struct bounce_run {
 
 /* --------------------------------------------------------- rows */
 
-/* The decoded row of vertex v of t, added into dense. */
-static void add_direct_row(const hl_transport *t, uint32_t v, float *dense)
+/* The direct row of vertex v of t, added into dense: its floats where
+ * the values file gave them, else decoded from its codes. */
+static void add_direct_row(const hl_transport *t, const float *tval, uint32_t v, float *dense)
 {
     const uint32_t nb = t->info.block_count;
     const hl_row_quant q = t->row_quant[v];
@@ -73,8 +76,33 @@ static void add_direct_row(const hl_transport *t, uint32_t v, float *dense)
     for (uint32_t b = 0; b < nb; b++)
         for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++) {
             const uint32_t slot = b * HL_BLOCK + en[2 * e];
-            dense[slot] += hl_dequant(t->info.quant, en[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
+            dense[slot] += tval ? tval[e] : hl_dequant(t->info.quant, en[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
         }
+}
+
+/* The last truncation of vertex v's row (dense, S_B) under the energy
+ * rule: tr, lowered where needed so that every term the direct file kept
+ * stays. The direct rows already lost their share of the energy, so the
+ * rule on S_B alone would drop about as much again (on a surface with no
+ * bounces, 213 of a row's terms would become 205); keeping the direct
+ * slots makes a row without bounces come back byte for byte, and costs
+ * the terms of rows where a bounce cancels a direct term. An energy
+ * rule's cap K still holds. */
+static hl_trunc_result keep_direct_slots(const hl_transport *t, uint32_t v, const float *dense, uint32_t ncoef,
+                                         uint32_t K, hl_trunc_result tr)
+{
+    const uint32_t nb = t->info.block_count;
+    uint32_t low = UINT32_MAX;
+    uint64_t e = t->row_offset[v];
+    for (uint32_t b = 0; b < nb; b++)
+        for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++) {
+            const uint32_t key = hl_key(dense[b * HL_BLOCK + t->entries[2 * e]]);
+            if (key && key < low) low = key;
+        }
+    if (low == UINT32_MAX || low > tr.thresh) return tr; /* all kept already */
+    hl_trunc_result w = {.thresh = low - 1, .ties = 0};
+    for (uint32_t s = 0; s < ncoef; s++) w.count += hl_key(dense[s]) > w.thresh;
+    return K && w.count > K ? tr : w;
 }
 
 /* The k-th largest of x[0 .. n) (k from 0), x reordered. */
@@ -315,11 +343,12 @@ static void *chunk_worker(void *arg)
         if (ref)
             hl_ref_bounce_gather(&u->cur, u->m->indices, u->rho, u->prim + (size_t)v * u->K,
                                  u->uv + (size_t)v * u->K * 2, u->K, g->ncoef, dense);
-        add_direct_row(u->t, v, dense);
+        add_direct_row(u->t, u->tval, v, dense);
         if (!u->last) {
             u->ncnt[v] = cap_row(dense, g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
         } else {
-            const hl_trunc_result tr = hl_ref_truncate(g, dense, u->tp, keys);
+            hl_trunc_result tr = hl_ref_truncate(g, dense, u->tp, keys);
+            if (u->tp.rule == HL_TRUNC_ENERGY) tr = keep_direct_slots(u->t, v, dense, g->ncoef, u->tp.K, tr);
             u->nnz[i] = hl_ref_quantize(g, dense, tr, u->t->info.quant, v, &u->rq[i], u->bc + (size_t)i * g->nblocks,
                                         u->entries + (size_t)i * g->ncoef * 2);
         }
@@ -417,7 +446,7 @@ static hl_result first_rows(bounce_run *u)
     }
     for (uint32_t v = 0; v < u->V; v++) {
         memset(dense, 0, (size_t)u->g->ncoef * 4);
-        add_direct_row(u->t, v, dense);
+        add_direct_row(u->t, u->tval, v, dense);
         u->ncnt[v] = cap_row(dense, u->g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
     }
     free(dense);
@@ -487,7 +516,18 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: already holds %u bounces; the bounces start from direct rows",
                        direct_path, held);
     }
-    bounce_run u = {.ctx = ctx, .t = t, .m = t->mesh, .V = t->info.vertex_count};
+    float *tval = NULL;
+    r = hl_vfile_load(ctx, direct_path, t, &tval);
+    if (r != HL_OK) {
+        hl_transport_destroy(t);
+        return r;
+    }
+    if (!tval && !ctx->quiet)
+        fprintf(stderr,
+                "precompute: warning: no %s.values: the bounces start from the direct rows' 8-bit codes, so the direct "
+                "light is coded twice (precompute the direct rows with --keep-floats to keep their floats)\n",
+                direct_path);
+    bounce_run u = {.ctx = ctx, .t = t, .tval = tval, .m = t->mesh, .V = t->info.vertex_count};
     u.K = d->bounce_rays ? d->bounce_rays : HL_DEFAULT_BOUNCE_RAYS;
     u.G = d->bounce_terms == HL_TERMS_ALL ? 2 * t->info.N * t->info.N
           : d->bounce_terms                ? d->bounce_terms
@@ -534,6 +574,7 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     if (r == HL_ERR_INTERRUPTED)
         hl_fail(ctx, r, "interrupted in the bounces: %s not written (the direct rows stay in %s)", out_path, direct_path);
     free_run(&u);
+    hl_free_big(tval);
     hl_geom_destroy(g);
     hl_transport_destroy(t);
     if (seconds) *seconds = hl_now() - t0;

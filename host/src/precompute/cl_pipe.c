@@ -232,6 +232,7 @@ hl_result hl_cl_pipe_submit(hl_cl_pipe *p, int slot, uint32_t rows, float vis_sc
     READ(p->rq, R * sizeof(hl_row_quant), io->rq, CL_FALSE, NULL);
     READ(p->bc, R * g->nblocks * 2, io->bc, CL_FALSE, NULL);
     READ(p->nnz, R * 4, io->nnz, CL_FALSE, NULL);
+    if (io->coef) READ(p->coef, R * g->ncoef * 4, io->coef, CL_FALSE, NULL);
     if (p->done[slot]) { clReleaseEvent(p->done[slot]); p->done[slot] = NULL; }
     READ(p->entries, R * g->ncoef * 2, io->entries, CL_FALSE, &p->done[slot]);
     CL_TRY(p->ctx, clFlush(p->cl->queue), "clFlush");

@@ -35,6 +35,7 @@
 #include "haarlight_tools.h"
 #include "transport_file.h"
 #include "transport_layout.h"
+#include "values_file.h"
 
 /* A section reader's buffer: larger than one vertex's largest run of
  * entries (2 x 2 N^2 bytes, 256 KiB at N = 256) and its row record, so
@@ -378,6 +379,7 @@ hl_result hl_transport_merge(hl_context *ctx, const char *out_path, const char *
         w = NULL;
     }
     hl_tfile_writer_abort(w);
+    if (r == HL_OK) r = hl_vfile_merge(ctx, out_path, shard_paths, count, &st.values);
     if (r == HL_OK) {
         st.shards = count;
         st.vertices = info.vertex_count;

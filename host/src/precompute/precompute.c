@@ -24,6 +24,7 @@
 #include <unistd.h>
 
 #include "bounce.h"
+#include "values_file.h"
 #include "cube.h"
 #include "haarlight_tools.h"
 #include "precompute.h"
@@ -127,6 +128,7 @@ void hl_chunk_buf_free(hl_chunk_buf *b)
     hl_free_big(b->bc);
     hl_free_big(b->entries);
     hl_free_big(b->nnz);
+    hl_free_big(b->coef);
     memset(b, 0, sizeof *b);
 }
 
@@ -178,6 +180,7 @@ static void *ref_worker(void *arg)
         io->tr[v] = hl_ref_truncate(g, coef, j->tp, keys);
         io->nnz[v] = hl_ref_quantize(g, coef, io->tr[v], j->scheme, io->first + v, &io->rq[v],
                                      io->bc + (size_t)v * g->nblocks, io->entries + (size_t)v * g->ncoef * 2);
+        if (io->coef) memcpy(io->coef + (size_t)v * g->ncoef, coef, (size_t)g->ncoef * sizeof(float));
     }
     free(T);
     free(coef);
@@ -249,6 +252,7 @@ typedef struct pc_run {
     hl_cl_pipe *pipe;
     float *shY;        /* spherical harmonics: the projection (hl_sh_matrix) */
     hl_tfile_writer *w;
+    hl_vfile_writer *vw; /* --keep-floats: the values file */
     hl_chunk_buf buf[2];
     uint32_t V, R;
     uint32_t shard_index, shard_count; /* count 0: the whole mesh */
@@ -316,6 +320,9 @@ static hl_result run_open(pc_run *u)
     if (r == HL_OK) r = hl_rt_create(ctx, u->mesh, &u->rt);
     if (r == HL_OK) r = hl_chunk_buf_alloc(ctx, u->g, u->R, &u->buf[0]);
     if (r == HL_OK) r = hl_chunk_buf_alloc(ctx, u->g, u->R, &u->buf[1]);
+    for (int s = 0; s < 2 && r == HL_OK && u->d.keep_floats; s++)
+        if (!(u->buf[s].coef = hl_alloc_big(ctx, (size_t)u->R * u->g->ncoef * 4, "the coefficients (--keep-floats)")))
+            r = HL_ERR_OUT_OF_MEMORY;
     if (r == HL_OK && u->d.basis == HL_TRANSPORT_BASIS_SH) r = hl_sh_matrix(ctx, u->d.N, u->d.sh_order, 1, &u->shY);
     if (r == HL_OK && ctx->backend == HL_BACKEND_OPENCL) r = hl_cl_pipe_create(ctx, u->g, u->R, &u->pipe);
     if (r == HL_OK && u->pipe && u->shY)
@@ -324,8 +331,11 @@ static hl_result run_open(pc_run *u)
     if (r == HL_OK) {
         fill_info(u);
         if (u->d.resume) r = resume_writer(u);
+        const int resumed = u->w != NULL;
         if (r == HL_OK && !u->w)
             r = hl_tfile_writer_open_shard(ctx, u->out_path, &u->info, u->mesh, u->shard_index, u->shard_count, &u->w);
+        if (r == HL_OK && u->d.keep_floats)
+            r = hl_vfile_writer_open(ctx, u->out_path, u->lo, u->hi - u->lo, resumed, u->st.coefficients_kept, &u->vw);
     }
     return r;
 }
@@ -340,6 +350,22 @@ static hl_result cast_chunk(pc_run *u, int s, uint32_t first, uint32_t count)
     return r;
 }
 
+/* The chunk's rows into the file (and their floats into the values
+ * file), then a checkpoint with the rays counted so far (vc). */
+static hl_result append_rows(pc_run *u, const hl_chunk_buf *b, uint32_t count, hl_vis_counts vc)
+{
+    const uint32_t nc = u->g->ncoef;
+    hl_result r = hl_tfile_writer_append(u->w, count, b->rq, b->bc, b->entries, (size_t)nc * 2, b->nnz);
+    if (r == HL_OK && u->vw)
+        r = hl_vfile_writer_append(u->vw, count, b->coef, nc, b->bc, u->g->nblocks, b->entries, (size_t)nc * 2, b->nnz);
+    for (uint32_t i = 0; i < count; i++) u->st.coefficients_kept += b->nnz[i];
+    u->vc_done = vc;
+    /* the floats on disk before the checkpoint that counts them */
+    if (r == HL_OK && u->vw) r = hl_vfile_writer_sync(u->vw);
+    if (r == HL_OK) r = hl_tfile_writer_checkpoint(u->w, u->vc_done.rays_cast, u->vc_done.rays_culled);
+    return r;
+}
+
 /* Waits for the device's chunk k in slot s and appends its rows; the rays
  * counted before the next chunk was cast (vc_before) are the ones its
  * checkpoint records. */
@@ -351,11 +377,8 @@ static hl_result append_device_chunk(pc_run *u, int s, uint32_t k, hl_vis_counts
     if (r != HL_OK) return r;
     const hl_chunk_buf *b = &u->buf[s];
     uint32_t pf = u->start + k * u->R, pc = u->hi - pf < u->R ? u->hi - pf : u->R;
-    r = hl_tfile_writer_append(u->w, pc, b->rq, b->bc, b->entries, (size_t)u->g->ncoef * 2, b->nnz);
-    for (uint32_t i = 0; i < pc; i++) u->st.coefficients_kept += b->nnz[i];
     /* the rays of chunk k are cast but its rows are not written */
-    u->vc_done = vc_before;
-    if (r == HL_OK) r = hl_tfile_writer_checkpoint(u->w, u->vc_done.rays_cast, u->vc_done.rays_culled);
+    r = append_rows(u, b, pc, vc_before);
     if (r != HL_OK) return r;
     progress(u->ctx, pf + pc - u->lo, u->hi - u->lo, u->vc.rays_cast, u->st.seconds_rays, u->t_start, &u->t_shown);
     return HL_OK;
@@ -372,10 +395,7 @@ static hl_result run_chunk(pc_run *u, int s, uint32_t first, uint32_t count)
     double t0 = hl_now();
     hl_result r = hl_ref_rows_basis(u->ctx, u->g, u->shY, u->d.sh_order, u->d.basis == HL_TRANSPORT_BASIS_CUBE ? u->d.cube_side : 0, count, u->vis_scale, u->tp, u->d.quant, b);
     u->st.seconds_kernels += hl_now() - t0;
-    if (r == HL_OK) r = hl_tfile_writer_append(u->w, count, b->rq, b->bc, b->entries, (size_t)u->g->ncoef * 2, b->nnz);
-    for (uint32_t i = 0; i < count; i++) u->st.coefficients_kept += b->nnz[i];
-    u->vc_done = u->vc;
-    if (r == HL_OK) r = hl_tfile_writer_checkpoint(u->w, u->vc_done.rays_cast, u->vc_done.rays_culled);
+    if (r == HL_OK) r = append_rows(u, b, count, u->vc);
     progress(u->ctx, first + count - u->lo, u->hi - u->lo, u->vc.rays_cast, u->st.seconds_rays, u->t_start, &u->t_shown);
     return r;
 }
@@ -411,8 +431,17 @@ static hl_result run_close(pc_run *u, hl_result r, hl_precompute_stats *stats)
         u->info.coefficients_kept = u->st.coefficients_kept;
         u->info.rays_cast = u->vc.rays_cast;
         u->info.rays_culled = u->vc.rays_culled;
-        r = hl_tfile_writer_finish(u->w, &u->info);
+        if (u->vw) r = hl_vfile_writer_finish(u->vw);
+        u->vw = NULL;
+        if (r == HL_OK) r = hl_tfile_writer_finish(u->w, &u->info);
+        else hl_tfile_writer_abort(u->w);
         u->w = NULL;
+    }
+    hl_vfile_writer_close(u->vw, r == HL_ERR_INTERRUPTED);
+    if (r == HL_OK && !u->d.keep_floats) {
+        /* an earlier --keep-floats run's floats are not this file's */
+        char old[4096 + 8];
+        if ((size_t)snprintf(old, sizeof old, "%s.values", u->out_path) < sizeof old) unlink(old);
     }
     /* an interrupted run keeps its partial file for --resume; any other
        failure removes it */
@@ -464,6 +493,10 @@ hl_result hl_precompute_shard(hl_context *ctx, const hl_mesh *mesh, const hl_pre
     if (u.d.direct_rows && !u.d.bounces)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--direct-rows %s: only the bounces start from direct rows "
                        "(give --bounces B)", u.d.direct_rows);
+    if (u.d.keep_floats && u.d.bounces)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "--keep-floats with --bounces: the floats are kept for the bounces of a later --direct-rows run; "
+                       "a bounced file's rows are not direct rows (--bounces keeps the floats between its own phases)");
     if (u.d.bounces && shard_count && !u.d.direct_rows)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "--bounces with --shard: the bounces read every vertex's direct rows, so they shard as a second "
@@ -511,6 +544,9 @@ static hl_result precompute_bounced(hl_context *ctx, const hl_mesh *mesh, const 
     if (r != HL_OK) return r;
     hl_precompute_desc dd = *d;
     dd.bounces = 0;
+    dd.keep_floats = 1; /* the bounces start from the floats, not the codes */
+    char values[4096 + 8];
+    snprintf(values, sizeof values, "%s.values", direct);
     const double t0 = hl_now();
     /* --resume after the direct rows were done: the bounces only */
     if (d->resume && access(direct, F_OK) == 0) {
@@ -523,7 +559,10 @@ static hl_result precompute_bounced(hl_context *ctx, const hl_mesh *mesh, const 
     uint64_t kept = 0;
     if (r == HL_OK) r = hl_bounce_file(ctx, d, mesh, direct, 0, 0, out_path, &sec, &kept);
     /* kept only for --resume after an interruption */
-    if (r != HL_ERR_INTERRUPTED) unlink(direct);
+    if (r != HL_ERR_INTERRUPTED) {
+        unlink(direct);
+        unlink(values);
+    }
     if (stats) {
         stats->seconds_bounces = sec;
         if (r == HL_OK) stats->coefficients_kept = kept;
