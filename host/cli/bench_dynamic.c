@@ -39,8 +39,10 @@
 #define BD_LIFT 0.3
 #define BD_SIDEWAYS 0.5
 /* The nudge along +X that makes each timed frame a new one (a frame with
- * nothing moved is the last one again, at no cost): 1e-6 of the scene's
- * diagonal a frame, far below anything the shading sees. */
+ * nothing moved is the last one again, at no cost, and one where only the
+ * ground moved keeps its shadow maps): 1e-6 of the scene's diagonal a
+ * frame, far below anything the shading sees. The object is a caster, so
+ * every map is made again. */
 #define BD_NUDGE 1e-6
 
 static const char *const usage_bd =
@@ -57,11 +59,11 @@ static const char *const usage_bd =
     "is); moved frames also against the same K lights with traced visibility, which\n"
     "separates the light split's error from the shadow maps'. Times are medians of\n"
     "frames that are really computed (the object nudged by 1e-6 of the scene's diagonal\n"
-    "each), with the dynamic method's split by stage. Writes bench.md, bench.csv,\n"
-    "bench.gp and bench.svg (gnuplot) to the output folder, and says per map which\n"
-    "method wins at equal error and whether the dynamic method at the goal setting\n"
-    "makes 10 frames per second and 3 times the traced method's speed at equal or\n"
-    "lower error.\n"
+    "each: every shadow map made again), with the dynamic method's split by stage.\n"
+    "Writes bench.md, bench.csv, bench.gp and bench.svg (gnuplot) to the output\n"
+    "folder, and says per map which method wins at equal error and whether the\n"
+    "dynamic method at the goal setting makes 10 frames per second and 3 times the\n"
+    "traced method's speed at equal or lower error.\n"
     "\n"
     "  --env ENV.exr        an environment, OpenEXR or .hdr (repeat for more); --sky adds\n"
     "                       the procedural sky (the default without --env)\n"
