@@ -25,7 +25,7 @@
  *                        merged mesh at a time and after a move.
  * dyn_frame.keep         the shadow maps kept from the last frame, on the
  *                        device's receivers and the host's, moments and
- *                        CSM: kept when nothing moved or only the ground
+ *                        CSM, and on the reference backend: kept when nothing moved or only the ground
  *                        did, made again when the bunny moved, the ground
  *                        went through it, the split changed or a frame
  *                        failed; each frame bit for bit a new frame
@@ -677,6 +677,17 @@ static void case_keep(void)
     bunny_close(&b);
     hl_env_destroy(env);
     hl_context_destroy(ctx);
+    /* the reference backend: maps and tables in host memory (the twins) */
+    hl_context *ref = hl_test_ref_context(2);
+    memset(&b, 0, sizeof b);
+    env = sky(ref);
+    if (env && bunny_open(ref, &b)) {
+        printf("reference backend, moments:\n");
+        keep_path(ref, &b, env, HL_SHADOW_REP_MOMENTS);
+    }
+    bunny_close(&b);
+    hl_env_destroy(env);
+    hl_context_destroy(ref);
 }
 
 /* ------------------------------------------------------------ bad input */
