@@ -450,9 +450,9 @@ void vw_dyn_hud(const viewer *v, char *buf, size_t size)
                               : "moments";
         n = snprintf(buf, size,
                      "dynamic K %u: irradiance %.0f + shadow maps %.0f + %s build %.0f + %s eval %.0f + "
-                     "shading %.0f = %.0f ms",
+                     "shading %.0f = %.0f ms, %u shadow maps kept",
                      y->li.lights_kept, 1e3 * s->t_irradiance, 1e3 * s->t_shadow_maps, rep, 1e3 * s->t_csm_build, rep,
-                     1e3 * s->t_csm_eval, 1e3 * s->t_shading, 1e3 * s->t_total);
+                     1e3 * s->t_csm_eval, 1e3 * s->t_shading, 1e3 * s->t_total, s->maps_kept);
     }
     if (n < 0 || (size_t)n >= size) return;
     if (animated(y))

@@ -340,8 +340,11 @@ static void bd_split(char *buf, size_t n, const bd_row *w)
 {
     buf[0] = '\0';
     if (w->method == BD_DYNAMIC)
-        snprintf(buf, n, "irradiance %.1f, shadow maps %.1f, %s build %.1f, %s eval %.1f, shading %.1f (frame %.1f)",
-                 w->stage[0], w->stage[1], w->M ? "CSM" : "moments", w->stage[2], w->M ? "CSM" : "moments", w->stage[3], w->stage[4], w->stage[5]);
+        snprintf(buf, n,
+                 "irradiance %.1f, shadow maps %.1f, %s build %.1f, %s eval %.1f, shading %.1f (frame %.1f; "
+                 "shadow maps kept %u)",
+                 w->stage[0], w->stage[1], w->M ? "CSM" : "moments", w->stage[2], w->M ? "CSM" : "moments", w->stage[3],
+                 w->stage[4], w->stage[5], w->maps_kept);
     else if (w->method == BD_TRACED)
         snprintf(buf, n, "BVH %.1f, rays %.1f, occlusion %.1f, shading %.1f", w->stage[0], w->stage[1], w->stage[2],
                  w->stage[3]);

@@ -311,6 +311,8 @@ typedef struct bd_row {
     double stage[6];       /* dynamic: irradiance, shadow maps, CSM build, CSM
                               evaluation, shading, total; traced: BVH, rays'
                               set-up, occlusion, shading (ms, medians) */
+    uint32_t maps_kept;    /* dynamic: the most shadow maps a timed frame kept
+                              (bench-dynamic refuses any but 0) */
 } bd_row;
 
 /* What bench_dyn_write needs besides the rows. */

@@ -897,6 +897,9 @@ typedef struct hl_dynamic_stats {
     uint32_t skipped_horizon;     /* below every vertex's horizon */
     uint32_t skipped_negligible;  /* under 1e-4 of the map's energy: unshadowed */
     uint32_t batches;             /* batches of lights within the memory budget */
+    uint32_t maps_kept;           /* shadowed lights whose maps were the last
+                                     frame's (one batch, the same lights, no
+                                     body drawn in them moved): not made again */
     double folded_share;          /* as hl_dynamic_lights */
     double t_irradiance, t_shadow_maps, t_csm_build, t_csm_eval, t_shading, t_total;
     int reused; /* nothing moved and the lights are the same: the last

@@ -23,10 +23,20 @@
  *                        a small run writes its PLY.
  * dyn_frame.file         a glTF file of two bodies, one animated: the
  *                        merged mesh at a time and after a move.
+ * dyn_frame.keep         the shadow maps kept from the last frame, on the
+ *                        device's receivers and the host's, moments and
+ *                        CSM, and on the reference backend: kept when nothing moved or only the ground
+ *                        did, made again when the bunny moved, the ground
+ *                        went through it, the split changed or a frame
+ *                        failed; each frame bit for bit a new frame
+ *                        state's at the same positions. Several batches
+ *                        keep nothing.
  * timing [MIB [R]]       not a ctest case (asserts nothing): the bunny on
  *                        its ground at K = 32, R (default 256), M = 16, a
- *                        first frame, the same again, and one with the
- *                        bunny moved; MIB: the batch budget (0: the
+ *                        first frame, then 9 rounds of three: the bunny
+ *                        nudged (every map made), the same again and the
+ *                        ground nudged (the maps kept), and each kind's
+ *                        median stages; MIB: the batch budget (0: the
  *                        default, HL_FRAME_DEFAULT_BUDGET).
  * Depends on: dyn_frame.h, scene.h, area_lights.h, hl_test.h,
  * scene_gen.h, HL_REPO_DATA (bunny_lowres.obj), HL_BIN.
@@ -520,6 +530,166 @@ static void case_device(void)
     hl_context_destroy(ctx);
 }
 
+/* ------------------------------------------------------------ keep */
+
+/* Float values of n that differ bit for bit. */
+static size_t floats_differ(const float *a, const float *b, size_t n)
+{
+    size_t d = 0;
+    for (size_t i = 0; i < n; i++) d += memcmp(a + i, b + i, 4) != 0;
+    return d;
+}
+
+/* Frame of st (both bodies' colours into out, the bunny first). */
+static int keep_frame(hl_context *ctx, hl_frame_state *st, bunny_scene *b, const hl_light_split *s, float *out,
+                      hl_frame_stats *fs)
+{
+    int ok = hl_frame_render(st, b->obj, 2, b->alb, s, b->rgb, fs) == HL_OK;
+    HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+    for (int k = 0; ok && k < 2; k++)
+        memcpy(out + (k ? 3 * (size_t)b->obj[0].nverts : 0), b->rgb[k], (size_t)b->obj[k].nverts * 12);
+    return ok;
+}
+
+/* One frame of st against what a new frame state gives at the same
+ * positions and lights: the maps kept (want_kept: 1 every shadowed
+ * light's, 0 none) and the colours bit for bit. */
+static void keep_step(hl_context *ctx, hl_frame_state *st, bunny_scene *b, const hl_light_split *s,
+                      const hl_frame_settings *set, const char *what, int want_kept, float *out, float *ref)
+{
+    const size_t n = 3 * ((size_t)b->obj[0].nverts + b->obj[1].nverts);
+    hl_frame_stats fs, ff;
+    hl_frame_state *fresh = NULL;
+    int ok = keep_frame(ctx, st, b, s, out, &fs);
+    ok = ok && hl_frame_state_create(ctx, b->obj, 2, s->count, set, &fresh) == HL_OK && keep_frame(ctx, fresh, b, s, ref, &ff);
+    HL_CHECK(ok, "%s: %s", what, hl_context_last_error(ctx));
+    hl_frame_state_destroy(fresh);
+    if (!ok) return;
+    const uint32_t want = want_kept ? fs.shadowed : 0;
+    printf("  %s: %u lights shadowed in %u batch(es), maps kept %u (want %u), fresh state's %u; shadow maps %.2f ms, "
+           "build %.2f ms, eval %.2f ms, frame %.2f ms (fresh state: %.2f ms)\n",
+           what, fs.shadowed, fs.batches, fs.maps_kept, want, ff.maps_kept, 1e3 * fs.t_shadow_maps, 1e3 * fs.t_csm_build,
+           1e3 * fs.t_csm_eval, 1e3 * fs.t_total, 1e3 * ff.t_total);
+    HL_CHECK(fs.shadowed > 0 && fs.batches == 1 && ff.maps_kept == 0, "%s: the scene must take one batch of shadowed lights", what);
+    HL_CHECK(fs.maps_kept == want, "%s: %u maps kept, want %u", what, fs.maps_kept, want);
+    char line[160];
+    snprintf(line, sizeof line, "  %s: colour floats that differ from a new state's (tolerance 0: bit for bit)", what);
+    hl_check_error(line, (double)floats_differ(out, ref, n), 0.0);
+}
+
+/* The rule of the kept maps on one path (device or host receivers) and
+ * representation: the bunny on its ground under the sky, K = 8, R = 64. */
+static void keep_path(hl_context *ctx, bunny_scene *b, const hl_env *env, hl_shadow_rep shadow)
+{
+    hl_frame_settings set = {.R = 64, .M = 16, .min_share = -1.0f, .shadow = shadow};
+    hl_light_split_params rot;
+    hl_light_split_defaults(&rot);
+    rot.lights = 8, rot.rotate_deg = 40.0f;
+    hl_light_split *s = split_of(ctx, env, 8), *same = split_of(ctx, env, 8), *turned = NULL;
+    HL_CHECK(hl_area_lights_split(ctx, env, &rot, &turned) == HL_OK, "%s", hl_context_last_error(ctx));
+    const size_t n = 3 * ((size_t)b->obj[0].nverts + b->obj[1].nverts);
+    float *first = malloc(n * 4), *out = malloc(n * 4), *ref = malloc(n * 4);
+    hl_frame_state *st = NULL;
+    const hl_dyn_object rest[2] = {b->obj[0], b->obj[1]};
+    float lo = INFINITY, hi = -INFINITY; /* the bunny's height */
+    for (uint32_t v = 0; v < b->obj[0].nverts; v++) lo = fminf(lo, b->obj[0].pos[3 * v + 1]), hi = fmaxf(hi, b->obj[0].pos[3 * v + 1]);
+    const float h = hi - lo;
+    hl_frame_stats fs;
+    if (!s || !same || !turned || hl_frame_state_create(ctx, b->obj, 2, s->count, &set, &st) != HL_OK) {
+        HL_CHECK(0, "%s", hl_context_last_error(ctx));
+        goto close;
+    }
+    /* (1) nothing changed: every map kept, the first frame's colours */
+    keep_step(ctx, st, b, s, &set, "first frame", 0, first, ref);
+    keep_frame(ctx, st, b, s, out, &fs);
+    printf("  the same again: maps kept %u of %u shadowed\n", fs.maps_kept, fs.shadowed);
+    HL_CHECK(fs.shadowed > 0 && fs.maps_kept == fs.shadowed, "nothing moved: %u maps kept of %u", fs.maps_kept, fs.shadowed);
+    hl_check_error("  nothing moved: colour floats that differ from the first frame's (tolerance 0: bit for bit)",
+                   (double)floats_differ(out, first, n), 0.0);
+    /* (2) only the ground moved (slid along x and lowered): still out of
+       every map, which are kept; its receivers are evaluated where they
+       are now */
+    b->obj[1].xf[3] += 0.2f * h, b->obj[1].xf[7] -= 0.02f * h;
+    keep_step(ctx, st, b, s, &set, "ground moved", 1, out, ref);
+    /* (3) the bunny moved: every map made again */
+    b->obj[0].xf[3] += 0.1f * h, b->obj[0].xf[11] -= 0.05f * h;
+    keep_step(ctx, st, b, s, &set, "bunny moved", 0, out, ref);
+    keep_step(ctx, st, b, s, &set, "bunny moved, the same again", 1, out, ref);
+    /* a flat body moved into the others (the ground lifted to the bunny's
+       middle): the maps would no longer leave it out, so none is kept */
+    b->obj[1].xf[7] = rest[1].xf[7] + 0.5f * h;
+    keep_step(ctx, st, b, s, &set, "ground lifted through the bunny", 0, out, ref);
+    b->obj[1] = rest[1];
+    keep_step(ctx, st, b, s, &set, "ground back under the bunny", 0, out, ref);
+    /* (4) another split: the same lights split again (its serial), and
+       the map turned by 40 degrees */
+    keep_step(ctx, st, b, same, &set, "the same map split again", 0, out, ref);
+    keep_step(ctx, st, b, turned, &set, "the map turned", 0, out, ref);
+    keep_step(ctx, st, b, turned, &set, "the map turned, the same again", 1, out, ref);
+    /* a failed frame (a body scaled: not rigid) leaves nothing kept */
+    b->obj[0].xf[0] = 2.0f;
+    HL_CHECK(hl_frame_render(st, b->obj, 2, b->alb, turned, b->rgb, NULL) != HL_OK, "a scaled body was accepted");
+    b->obj[0].xf[0] = rest[0].xf[0];
+    keep_step(ctx, st, b, turned, &set, "after a failed frame", 0, out, ref);
+close:
+    b->obj[0] = rest[0], b->obj[1] = rest[1];
+    hl_frame_state_destroy(st);
+    free(first); free(out); free(ref);
+    hl_light_split_destroy(s);
+    hl_light_split_destroy(same);
+    hl_light_split_destroy(turned);
+}
+
+static void case_keep(void)
+{
+    hl_context *ctx = hl_test_cl_context(2);
+    if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
+    bunny_scene b;
+    memset(&b, 0, sizeof b);
+    hl_env *env = sky(ctx);
+    if (env && bunny_open(ctx, &b)) {
+        for (int path = 0; path < 2; path++)
+            for (int q = 0; q < 2; q++) {
+                printf("%s receivers, %s:\n", path ? "host" : "device", q ? "CSM" : "moments");
+                if (path) setenv("HL_TEST_DYN_FRAME", "host", 1);
+                keep_path(ctx, &b, env, q ? HL_SHADOW_REP_CSM : HL_SHADOW_REP_MOMENTS);
+                unsetenv("HL_TEST_DYN_FRAME");
+            }
+        /* several batches (a budget of 3 lights): each renders into the
+           same buffers, so nothing is kept even when nothing moved */
+        hl_light_split *s = split_of(ctx, env, 8);
+        hl_frame_settings set = {.R = 64, .min_share = -1.0f,
+                                 .budget = 3 * (uint64_t)hl_csm_bytes_per_light_rep(HL_SHADOW_REP_MOMENTS, 64, 16, 16) + 1};
+        hl_frame_state *st = NULL;
+        hl_frame_stats fs[2];
+        int ok = s && hl_frame_state_create(ctx, b.obj, 2, s->count, &set, &st) == HL_OK &&
+                 hl_frame_render(st, b.obj, 2, b.alb, s, b.rgb, &fs[0]) == HL_OK &&
+                 hl_frame_render(st, b.obj, 2, b.alb, s, b.rgb, &fs[1]) == HL_OK;
+        HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+        if (ok) {
+            printf("several batches: %u lights shadowed in %u batches, the same frame again kept %u maps (want 0)\n",
+                   fs[1].shadowed, fs[1].batches, fs[1].maps_kept);
+            HL_CHECK(fs[1].batches > 1 && fs[1].maps_kept == 0, "%u batches, %u maps kept", fs[1].batches, fs[1].maps_kept);
+        }
+        hl_frame_state_destroy(st);
+        hl_light_split_destroy(s);
+    }
+    bunny_close(&b);
+    hl_env_destroy(env);
+    hl_context_destroy(ctx);
+    /* the reference backend: maps and tables in host memory (the twins) */
+    hl_context *ref = hl_test_ref_context(2);
+    memset(&b, 0, sizeof b);
+    env = sky(ref);
+    if (env && bunny_open(ref, &b)) {
+        printf("reference backend, moments:\n");
+        keep_path(ref, &b, env, HL_SHADOW_REP_MOMENTS);
+    }
+    bunny_close(&b);
+    hl_env_destroy(env);
+    hl_context_destroy(ref);
+}
+
 /* ------------------------------------------------------------ bad input */
 
 #define EXPECT_FAIL(call, what)                                                    \
@@ -851,6 +1021,15 @@ done:
 
 /* ------------------------------------------------------------ timing */
 
+static double median_of(double *v, int n)
+{
+    for (int i = 1; i < n; i++)
+        for (int k = i; k > 0 && v[k - 1] > v[k]; k--) {
+            double t = v[k]; v[k] = v[k - 1], v[k - 1] = t;
+        }
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 static void timing(uint64_t budget, uint32_t R)
 {
     hl_context *ctx = hl_test_cl_context(2);
@@ -867,21 +1046,42 @@ static void timing(uint64_t budget, uint32_t R)
         fprintf(stderr, "%s\n", hl_context_last_error(ctx));
         return;
     }
-    for (int f = 0; f < 3; f++) {
-        if (f == 2) {
-            double tr[3] = {0.05, 0, 0.05}, axis[3] = {0, 1, 0};
-            hl_dyn_scene_set_pose(b.scene, 0, tr, axis, 0.0);
-            hl_dyn_scene_at(b.scene, 0.0, b.obj);
-        }
+    /* rounds of three kinds after the first frame: the bunny nudged by
+       1e-6 of its height (a caster: every map made), the same again and
+       the ground nudged (both keep the maps) */
+    enum { ROUNDS = 9, KINDS = 3, STAGES = 6 };
+    static const char *const kinds[KINDS] = {"bunny nudged", "same again", "ground nudged"};
+    double t[KINDS][STAGES][ROUNDS];
+    uint32_t kept[KINDS] = {0, 0, 0};
+    float lo = INFINITY, hi = -INFINITY;
+    for (uint32_t v = 0; v < b.obj[0].nverts; v++) lo = fminf(lo, b.obj[0].pos[3 * v + 1]), hi = fmaxf(hi, b.obj[0].pos[3 * v + 1]);
+    const float nudge = 1e-6f * (hi - lo);
+    int ok = 1;
+    for (int f = -1; ok && f < ROUNDS * KINDS; f++) {
+        const int kind = f < 0 ? -1 : f % KINDS, round = f < 0 ? 0 : f / KINDS;
+        if (kind == 0) b.obj[0].xf[3] += nudge * (float)(round + 1);
+        if (kind == 2) b.obj[1].xf[3] += nudge * (float)(round + 1);
         hl_frame_stats fs;
-        if (hl_frame_render(st, b.obj, 2, b.alb, s, b.rgb, &fs) != HL_OK) { fprintf(stderr, "%s\n", hl_context_last_error(ctx)); break; }
+        ok = hl_frame_render(st, b.obj, 2, b.alb, s, b.rgb, &fs) == HL_OK;
+        if (!ok) { fprintf(stderr, "%s\n", hl_context_last_error(ctx)); break; }
         printf("%s frame on %s: %u receivers, %u lights (%u shadowed, %u below every horizon, %u negligible), "
-               "%u batch(es) of up to %u: total %.1f ms = irradiance %.1f + shadow maps %.1f + CSM build %.1f + "
-               "CSM eval %.1f + shading %.2f\n",
-               f == 0 ? "first" : f == 1 ? "same-pose" : "moved", hl_context_device_name(ctx), fs.receivers,
-               fs.lights, fs.shadowed, fs.skipped_horizon, fs.skipped_negligible, fs.batches, fs.batch_lights,
-               1e3 * fs.t_total, 1e3 * fs.t_irradiance, 1e3 * fs.t_shadow_maps, 1e3 * fs.t_csm_build,
-               1e3 * fs.t_csm_eval, 1e3 * fs.t_shading);
+               "%u batch(es) of up to %u, %u shadow maps kept: total %.1f ms = irradiance %.1f + shadow maps %.1f + "
+               "build %.1f + eval %.1f + shading %.2f\n",
+               kind < 0 ? "first" : kinds[kind], hl_context_device_name(ctx), fs.receivers, fs.lights, fs.shadowed,
+               fs.skipped_horizon, fs.skipped_negligible, fs.batches, fs.batch_lights, fs.maps_kept, 1e3 * fs.t_total,
+               1e3 * fs.t_irradiance, 1e3 * fs.t_shadow_maps, 1e3 * fs.t_csm_build, 1e3 * fs.t_csm_eval,
+               1e3 * fs.t_shading);
+        if (kind < 0) continue;
+        const double sv[STAGES] = {fs.t_total, fs.t_irradiance, fs.t_shadow_maps, fs.t_csm_build, fs.t_csm_eval, fs.t_shading};
+        for (int c = 0; c < STAGES; c++) t[kind][c][round] = 1e3 * sv[c];
+        if (fs.maps_kept > kept[kind]) kept[kind] = fs.maps_kept;
+    }
+    for (int k = 0; ok && k < KINDS; k++) {
+        double m[STAGES];
+        for (int c = 0; c < STAGES; c++) m[c] = median_of(t[k][c], ROUNDS);
+        printf("median of %d %s frames (most maps kept %u): total %.1f ms = irradiance %.1f + shadow maps %.2f + "
+               "build %.2f + eval %.1f + shading %.2f\n",
+               ROUNDS, kinds[k], kept[k], m[0], m[1], m[2], m[3], m[4], m[5]);
     }
     hl_frame_state_destroy(st);
     bunny_close(&b);
@@ -900,7 +1100,7 @@ int main(int argc, char **argv)
     static const hl_test_case cases[] = {{"unshadowed", case_unshadowed}, {"motion", case_motion}, {"below", case_below},
                                          {"twin", case_twin}, {"device", case_device}, {"bad_input", case_bad_input},
                                          {"api", case_api},               {"cli", case_cli},
-                                         {"file", case_file},
+                                         {"file", case_file},             {"keep", case_keep},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

@@ -3,10 +3,15 @@
  * and a convolution shadow map per light that matters (shadow_map.c,
  * csm.c) in batches that fit the memory budget, and the diffuse sum
  *     B = albedo / pi * (sum_k V_k E_k + ambient).
- * The irradiance and the final sum run as plain C on the host for now;
- * a device shading kernel with its plain-C twin is a later step. The
- * shadow maps and the CSM module live in the frame state across frames,
- * so a frame with one body moved costs its set_transform and re-render.
+ * On an OpenCL context E_k, the maps' evaluation and the sums stay on
+ * the device (irradiance.h, dyn_shade.cl), else they run as plain C, their
+ * twin; the product with the albedo is the host's. The shadow maps and
+ * the CSM module live in the frame state across frames, so a frame with
+ * one body moved costs its set_transform and re-render; and when all the
+ * shadowed lights fit in one batch, a frame whose lights are the last
+ * frame's and in which no body drawn in the maps moved (a flat ground
+ * left out of them may have) keeps the maps and their tables and only
+ * evaluates them at the receivers again (maps_still_hold).
  * Depends on: dyn_frame.h (area_lights.h, shadow_map.h, csm.h), core,
  * cl_internal.h (the device memory left, for the batch size).
  */
@@ -59,6 +64,15 @@ struct hl_frame_state {
     cl_kernel kprep, kflat, kacc, kadd;
     cl_mem wpos_d, body_d, lf_d, fl_d, fb_d, flatb_d, uvd_d, V_d, ks_d, kbs_d, list_d;
     uint32_t *list; /* max_lights: the negligible lights, or a group's split lights */
+    /* the maps kept (DYNAMIC.md, the frame): while keep_n > 0, sm and csm
+       hold the maps and tables of the last frame, made in one batch for
+       its lights keep_list (keep_n <= Kb) of split keep_serial in the
+       directions dirs, with the bodies at keep_xf (12 a body); 0 after a
+       frame that failed, so that nothing half made is taken */
+    uint32_t keep_n;
+    uint64_t keep_serial;
+    uint32_t *keep_list, *keep_mask; /* Kb each; keep_mask: this frame's skip masks */
+    float *keep_xf;
 };
 
 /* Linear Rec.709 luminance, as area_lights.c ranks its lights by. */
@@ -100,6 +114,7 @@ void hl_frame_state_destroy(hl_frame_state *st)
     if (!st) return;
     release_device(st);
     free(st->list);
+    free(st->keep_list); free(st->keep_mask); free(st->keep_xf);
     hl_shadow_maps_destroy(st->sm);
     hl_csm_destroy(st->csm);
     free(st->vstart); free(st->nverts); free(st->xf);
@@ -249,10 +264,12 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->list = malloc((size_t)max_lights * 4);
     st->shadow_list = malloc(max_lights * sizeof *st->shadow_list);
     st->any = malloc(max_lights ? max_lights : 1);
+    st->keep_list = malloc(st->Kb * sizeof *st->keep_list), st->keep_mask = malloc(st->Kb * sizeof *st->keep_mask);
+    st->keep_xf = malloc(nobj * 12 * sizeof *st->keep_xf);
     if (!st->vstart || !st->nverts || !st->xf || !st->frames || !st->dirs || !st->wpos || !st->wnrm || !st->acc ||
         (!st->on_device && (!st->depth || !st->E || !st->cpos || !st->uvd || !st->V || !st->idx || !st->gstart)) ||
         !st->shadow_list || !st->any || !st->gks || !st->gtheta || !st->gframe || !st->body || !st->lf || !st->fl || !st->fb ||
-        !st->flat_body || !st->list) {
+        !st->flat_body || !st->list || !st->keep_list || !st->keep_mask || !st->keep_xf) {
         hl_frame_state_destroy(st);
         return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the dynamic frame (%u vertices, %u lights)",
                        (uint32_t)N, max_lights);
@@ -542,6 +559,36 @@ static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *sp
     return HL_OK;
 }
 
+/* Whether sm and csm still hold this frame's maps: the last frame's one
+ * batch (keep_n lights) of the same split, the same lights in the same
+ * directions (exactly: a map is fitted to its direction), each map
+ * leaving out the same flat bodies, and no body that a map draws moved
+ * since the maps were made. A flat body left out of every map may have
+ * moved: the evaluation, which runs every frame, takes it where it is
+ * now. With several batches nothing is kept: each batch renders into the
+ * same buffers, so at the end of a frame they hold its last batch only. */
+static int maps_still_hold(hl_frame_state *st, const hl_dyn_object *objects, const hl_light_split *split,
+                           uint32_t nshadow, uint32_t keep_n)
+{
+    if (!keep_n || nshadow != keep_n || split->serial != st->keep_serial ||
+        memcmp(st->keep_list, st->shadow_list, nshadow * sizeof *st->keep_list))
+        return 0;
+    for (uint32_t i = 0; i < nshadow; i++)
+        if (memcmp(st->dirs[i], split->lights[st->shadow_list[i]].dir, 3 * sizeof(float))) return 0;
+    /* a moved flat body can change which maps leave it out (a ground
+       lifted through a body): then a map would draw other bodies */
+    hl_shadow_maps_skip_masks(st->sm, (const float(*)[3])st->dirs, nshadow, st->keep_mask);
+    uint32_t drawn = 0;
+    for (uint32_t i = 0; i < nshadow; i++) {
+        if (st->keep_mask[i] != st->frames[i].skip_mask) return 0;
+        drawn |= ~st->keep_mask[i];
+    }
+    for (uint32_t b = 0; b < st->nobj; b++)
+        if ((b >= 32 || drawn >> b & 1u) && memcmp(st->keep_xf + 12 * (size_t)b, objects[b].xf, 12 * sizeof(float)))
+            return 0;
+    return 1;
+}
+
 static hl_result check_frame(hl_frame_state *st, const hl_dyn_object *objects, uint32_t nobj, const float *const *albedo,
                              const hl_light_split *split, float *const *rgb)
 {
@@ -568,6 +615,10 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
                           const hl_light_split *split, float *const *rgb, hl_frame_stats *stats)
 {
     if (!st) return HL_ERR_INVALID_ARGUMENT;
+    /* the maps are trusted again only when this frame ends well: an error
+       may leave them half rendered or built */
+    const uint32_t keep_n = st->keep_n;
+    st->keep_n = 0;
     hl_result r = check_frame(st, objects, nobj, albedo, split, rgb);
     if (r != HL_OK) return r;
     hl_frame_stats fs = {0};
@@ -593,17 +644,22 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
         CL_TRY(ctx, clEnqueueWriteBuffer(ctx->cl->queue, st->flatb_d, CL_FALSE, 0, (size_t)st->nflat * 4, st->flat_body, 0,
                                          NULL, NULL), "upload");
     }
+    const int kept = r == HL_OK && maps_still_hold(st, objects, split, nshadow, keep_n);
     fs.t_shadow_maps += hl_now() - t;
     for (uint32_t b0 = 0; b0 < nshadow && r == HL_OK; b0 += st->Kb) {
         uint32_t K = nshadow - b0 < st->Kb ? nshadow - b0 : st->Kb;
-        for (uint32_t i = 0; i < K; i++) memcpy(st->dirs[i], split->lights[st->shadow_list[b0 + i]].dir, 3 * sizeof(float));
         t = hl_now();
-        /* on the device the maps stay there for the build */
-        r = hl_shadow_maps_render(st->sm, (const float(*)[3])st->dirs, K, st->on_device ? NULL : st->depth, st->frames);
-        t1 = hl_now(), fs.t_shadow_maps += t1 - t, t = t1;
-        if (r == HL_OK && st->on_device) r = hl_csm_build_on_device(st->csm, hl_shadow_maps_device_depth(st->sm), K);
-        else if (r == HL_OK) r = hl_csm_build(st->csm, st->depth, K);
-        t1 = hl_now(), fs.t_csm_build += t1 - t, t = t1;
+        if (!kept) {
+            for (uint32_t i = 0; i < K; i++)
+                memcpy(st->dirs[i], split->lights[st->shadow_list[b0 + i]].dir, 3 * sizeof(float));
+            /* on the device the maps stay there for the build */
+            r = hl_shadow_maps_render(st->sm, (const float(*)[3])st->dirs, K, st->on_device ? NULL : st->depth,
+                                      st->frames);
+            t1 = hl_now(), fs.t_shadow_maps += t1 - t, t = t1;
+            if (r == HL_OK && st->on_device) r = hl_csm_build_on_device(st->csm, hl_shadow_maps_device_depth(st->sm), K);
+            else if (r == HL_OK) r = hl_csm_build(st->csm, st->depth, K);
+            t1 = hl_now(), fs.t_csm_build += t1 - t, t = t1;
+        }
         if (r == HL_OK)
             r = st->on_device ? shade_batch_device(st, split, st->shadow_list + b0, K)
                               : shade_batch(st, split, st->shadow_list + b0, K);
@@ -617,6 +673,13 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
     }
     if (r != HL_OK) return r;
     fs.shadowed = nshadow;
+    fs.maps_kept = kept ? nshadow : 0;
+    if (nshadow && nshadow <= st->Kb) { /* one batch: its maps stay for the next frame */
+        st->keep_n = nshadow;
+        st->keep_serial = split->serial;
+        memcpy(st->keep_list, st->shadow_list, nshadow * sizeof *st->keep_list);
+        if (!kept) memcpy(st->keep_xf, st->xf, 12 * (size_t)nobj * sizeof(float));
+    }
     t = hl_now();
     const float inv_pi = (float)(1.0 / 3.14159265358979323846);
     for (uint32_t b = 0; b < nobj; b++) {

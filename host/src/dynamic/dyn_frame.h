@@ -81,6 +81,9 @@ typedef struct hl_frame_stats {
     uint32_t skipped_horizon;   /* E_k = 0 on every receiver */
     uint32_t skipped_negligible;/* below min_share: shaded with V = 1 */
     uint32_t batches, batch_lights; /* batches run, lights a batch holds */
+    uint32_t maps_kept;         /* shadowed lights whose maps and tables were
+                                   the last frame's, not made again (0 or
+                                   shadowed: hl_frame_render) */
     double t_irradiance;        /* E_k and ambient at every receiver */
     double t_shadow_maps;       /* set_transform and rendering */
     double t_csm_build, t_csm_eval, t_shading;
@@ -103,7 +106,10 @@ void hl_frame_state_destroy(hl_frame_state *st);
  * meshes; only their xf may change: a changed xf costs a set_transform),
  * albedo[b] 3 per vertex of body b, split's kept lights (count <= the
  * max_lights of create). rgb[b] gets 3 floats per vertex of body b,
- * linear, >= 0. stats may be NULL. */
+ * linear, >= 0. stats may be NULL. The last frame's shadow maps and
+ * their tables are used again where they still hold: one batch, the
+ * same split, lights and directions, and no body they draw moved (a
+ * flat body left out of them may have: stats->maps_kept). */
 hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint32_t nobj, const float *const *albedo,
                           const hl_light_split *split, float *const *rgb, hl_frame_stats *stats);
 

@@ -436,6 +436,13 @@ static void fit_one(hl_shadow_maps *sm, const float dir[3], double ext, hl_shado
     fr->skip_mask = mask;
 }
 
+void hl_shadow_maps_skip_masks(hl_shadow_maps *sm, const float (*dirs)[3], uint32_t K, uint32_t *masks)
+{
+    world_corners(sm);
+    double ext = scene_extent(sm);
+    for (uint32_t k = 0; k < K; k++) masks[k] = skip_mask(sm, dirs[k], ext);
+}
+
 static hl_result create_device(hl_shadow_maps *sm)
 {
     hl_context *ctx = sm->ctx;

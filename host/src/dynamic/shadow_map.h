@@ -80,6 +80,13 @@ hl_result hl_shadow_maps_render_in(hl_shadow_maps *sm, const hl_shadow_frame *fr
  * has 32 bits). */
 void hl_shadow_maps_skip_planes(hl_shadow_maps *sm, int on);
 
+/* The skip_mask that hl_shadow_maps_render would give each of K lights
+ * (dirs as there) at the current transforms, with nothing rendered: a
+ * map made earlier for the same direction still holds what a new one
+ * would when these masks are its own and no body it draws has moved
+ * (dyn_frame.c keeps its maps by that). */
+void hl_shadow_maps_skip_masks(hl_shadow_maps *sm, const float (*dirs)[3], uint32_t K, uint32_t *masks);
+
 /* A flat body's plane in world space at its current transform. */
 typedef struct hl_flat_body {
     float n[3], p[3];   /* unit normal, a point of the plane */
