@@ -231,9 +231,14 @@ static int near_code(uint32_t scheme, uint32_t q, uint32_t q2)
     return q > q2 ? q - q2 <= 1u : q2 - q <= 1u;
 }
 
-hl_result hl_vfile_load(hl_context *ctx, const char *transport_path, const hl_transport *t, float **vals)
+struct hl_vfile_reader {
+    FILE *f;
+    char *path;
+};
+
+hl_result hl_vfile_open(hl_context *ctx, const char *transport_path, const hl_transport *t, hl_vfile_reader **out)
 {
-    *vals = NULL;
+    *out = NULL;
     char *path = cat(transport_path, ".values");
     if (!path) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
     FILE *f = fopen(path, "rb");
@@ -258,19 +263,26 @@ hl_result hl_vfile_load(hl_context *ctx, const char *transport_path, const hl_tr
     if (r == HL_OK && file_size(f) != VF_HEADER + 4 * n)
         r = hl_fail(ctx, HL_ERR_FORMAT, "%s: %llu bytes, its header says %llu (truncated or padded)", path,
                     (unsigned long long)file_size(f), (unsigned long long)(VF_HEADER + 4 * n));
-    float *v = r == HL_OK ? hl_alloc_big(ctx, (size_t)n * 4 + 4, "the direct rows' floats") : NULL;
-    if (r == HL_OK && !v) r = HL_ERR_OUT_OF_MEMORY;
-    if (r == HL_OK && read_floats(f, v, (size_t)n, &got) != 0) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot read it", path);
-    if (r == HL_OK && got != crc) r = hl_fail(ctx, HL_ERR_FORMAT, "%s: checksum mismatch (damaged)", path);
-    /* the floats must be the ones t's codes were made from */
+    /* one pass through it, a buffer at a time: the checksum, and that
+       every float is the one t's code was made from */
+    float *v = r == HL_OK ? malloc(VF_CHUNK * 4) : NULL;
+    if (r == HL_OK && !v) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
     const uint32_t nb = ti->block_count;
+    uint64_t e = 0, have = 0; /* entry e; floats [have - VF_CHUNK.., have) in v */
     for (uint32_t x = 0; r == HL_OK && x < ti->vertex_count; x++) {
         const hl_row_quant q = t->row_quant[x];
-        uint64_t e = t->row_offset[x];
         for (uint32_t b = 0; r == HL_OK && b < nb; b++)
             for (uint32_t k = 0; r == HL_OK && k < t->block_counts[(size_t)x * nb + b]; k++, e++) {
+                if (e == have) {
+                    const size_t m = n - have < VF_CHUNK ? (size_t)(n - have) : VF_CHUNK;
+                    if (read_floats(f, v, m, &got) != 0) {
+                        r = hl_fail(ctx, HL_ERR_IO, "%s: cannot read it", path);
+                        break;
+                    }
+                    have += m;
+                }
                 const uint32_t slot = b * HL_BLOCK + t->entries[2 * e], code = t->entries[2 * e + 1];
-                const float y = v[e];
+                const float y = v[e % VF_CHUNK];
                 if (!isfinite(y) || !near_code(ti->quant, code, hl_quant(ti->quant, y, q.a, q.b, hl_dither_key(x, slot))))
                     r = hl_fail(ctx, HL_ERR_FORMAT,
                                 "%s: vertex %u, term %u: %g does not code to %s's stored value (these floats are of "
@@ -278,14 +290,34 @@ hl_result hl_vfile_load(hl_context *ctx, const char *transport_path, const hl_tr
                                 path, x, slot, (double)y, transport_path);
             }
     }
-    if (f) fclose(f);
-    free(path);
+    free(v);
+    if (r == HL_OK && got != crc) r = hl_fail(ctx, HL_ERR_FORMAT, "%s: checksum mismatch (damaged)", path);
+    hl_vfile_reader *rd = r == HL_OK ? malloc(sizeof *rd) : NULL;
+    if (r == HL_OK && !rd) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
     if (r != HL_OK) {
-        hl_free_big(v);
+        if (f) fclose(f);
+        free(path);
         return r;
     }
-    *vals = v;
+    rd->f = f;
+    rd->path = path;
+    *out = rd;
     return HL_OK;
+}
+
+hl_result hl_vfile_read(hl_context *ctx, hl_vfile_reader *rd, uint64_t first, size_t n, float *dst)
+{
+    if (n && (fseeko(rd->f, (off_t)(VF_HEADER + 4 * first), SEEK_SET) != 0 || fread(dst, 4, n, rd->f) != n))
+        return hl_fail(ctx, HL_ERR_IO, "%s: cannot read it: %s", rd->path, strerror(errno));
+    return HL_OK;
+}
+
+void hl_vfile_close(hl_vfile_reader *rd)
+{
+    if (!rd) return;
+    fclose(rd->f);
+    free(rd->path);
+    free(rd);
 }
 
 /* -------------------------------------------------------------- merge */

@@ -16,7 +16,7 @@
  * The writer streams into FILE.values.partial alongside the transport's
  * writer (synced before each of its checkpoints, so a resumed transport
  * never covers more entries than the values hold) and publishes it at
- * finish. The loader checks the header, the size, the checksum and that
+ * finish. The reader checks the header, the size, the checksum and that
  * every float codes to its entry's code within one step, so a values
  * file of other rows than its transport's is refused.
  * Depends on: hl_internal.h, hl_shared.h (the quantisers), zlib.
@@ -47,10 +47,16 @@ hl_result hl_vfile_writer_finish(hl_vfile_writer *w);
 /* keep: leave the partial file for --resume; else remove it. NULL: nothing. */
 void hl_vfile_writer_close(hl_vfile_writer *w, int keep);
 
-/* The floats of transport t (loaded from transport_path), from
- * transport_path + ".values": *vals NULL (HL_OK) when there is no such
- * file; HL_ERR_FORMAT naming it when it does not hold t's rows. */
-hl_result hl_vfile_load(hl_context *ctx, const char *transport_path, const hl_transport *t, float **vals);
+/* The reader of transport t's floats (t loaded from transport_path), in
+ * transport_path + ".values": *out NULL (HL_OK) when there is no such
+ * file; HL_ERR_FORMAT naming it when it does not hold t's rows, checked
+ * in one pass at open through a buffer of 1 MiB (the floats are read a
+ * chunk at a time after, not held). */
+typedef struct hl_vfile_reader hl_vfile_reader;
+hl_result hl_vfile_open(hl_context *ctx, const char *transport_path, const hl_transport *t, hl_vfile_reader **out);
+/* Floats [first, first + n) into dst. */
+hl_result hl_vfile_read(hl_context *ctx, hl_vfile_reader *rd, uint64_t first, size_t n, float *dst);
+void hl_vfile_close(hl_vfile_reader *rd);
 
 /* Joins the values of count shard files (shard_paths, any order) into
  * out_path + ".values". *written 0 (HL_OK, an older out_path + ".values"

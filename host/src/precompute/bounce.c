@@ -36,7 +36,12 @@
 typedef struct bounce_run {
     hl_context *ctx;
     const hl_transport *t;
-    const float *tval;  /* t's terms as floats (values_file.h), or NULL: decoded */
+    /* t's terms as floats (values_file.h), a chunk of rows at a time:
+       entries [ve0, ..) in vbuf; no reader: decoded from the codes */
+    hl_vfile_reader *vr;
+    float *vbuf;
+    size_t vcap;
+    uint64_t ve0;
     const hl_mesh *m;
     const hl_geom *g;
     uint32_t V, K, G, R;
@@ -66,8 +71,9 @@ typedef struct bounce_run {
 /* --------------------------------------------------------- rows */
 
 /* The direct row of vertex v of t, added into dense: its floats where
- * the values file gave them, else decoded from its codes. */
-static void add_direct_row(const hl_transport *t, const float *tval, uint32_t v, float *dense)
+ * the values file gave them (tval: entries from e0 on), else decoded
+ * from its codes. */
+static void add_direct_row(const hl_transport *t, const float *tval, uint64_t e0, uint32_t v, float *dense)
 {
     const uint32_t nb = t->info.block_count;
     const hl_row_quant q = t->row_quant[v];
@@ -76,7 +82,7 @@ static void add_direct_row(const hl_transport *t, const float *tval, uint32_t v,
     for (uint32_t b = 0; b < nb; b++)
         for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++) {
             const uint32_t slot = b * HL_BLOCK + en[2 * e];
-            dense[slot] += tval ? tval[e] : hl_dequant(t->info.quant, en[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
+            dense[slot] += tval ? tval[e - e0] : hl_dequant(t->info.quant, en[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
         }
 }
 
@@ -343,7 +349,7 @@ static void *chunk_worker(void *arg)
         if (ref)
             hl_ref_bounce_gather(&u->cur, u->m->indices, u->rho, u->prim + (size_t)v * u->K,
                                  u->uv + (size_t)v * u->K * 2, u->K, g->ncoef, dense);
-        add_direct_row(u->t, u->tval, v, dense);
+        add_direct_row(u->t, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
         if (!u->last) {
             u->ncnt[v] = cap_row(dense, g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
         } else {
@@ -358,8 +364,24 @@ static void *chunk_worker(void *arg)
     return NULL;
 }
 
+/* The floats of vertices [first, first + count) into u->vbuf. */
+static hl_result load_values(bounce_run *u, uint32_t first, uint32_t count)
+{
+    if (!u->vr) return HL_OK;
+    const uint64_t e0 = u->t->row_offset[first], n = u->t->row_offset[first + count] - e0;
+    if (n > u->vcap) {
+        float *b = realloc(u->vbuf, (size_t)n * 4);
+        if (!b) return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the direct rows' floats");
+        u->vbuf = b;
+        u->vcap = (size_t)n;
+    }
+    u->ve0 = e0;
+    return hl_vfile_read(u->ctx, u->vr, e0, (size_t)n, u->vbuf);
+}
+
 static hl_result run_chunk(bounce_run *u, uint32_t first, uint32_t count, int last)
 {
+    TRY(load_values(u, first, count));
     u->first = first;
     u->count = count;
     u->last = last;
@@ -444,15 +466,20 @@ static hl_result first_rows(bounce_run *u)
         free(mag);
         return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the bounce rows");
     }
-    for (uint32_t v = 0; v < u->V; v++) {
-        memset(dense, 0, (size_t)u->g->ncoef * 4);
-        add_direct_row(u->t, u->tval, v, dense);
-        u->ncnt[v] = cap_row(dense, u->g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
+    hl_result r = HL_OK;
+    for (uint32_t first = 0; first < u->V && r == HL_OK; first += u->R) {
+        const uint32_t count = u->V - first < u->R ? u->V - first : u->R;
+        r = load_values(u, first, count);
+        for (uint32_t v = first; v < first + count && r == HL_OK; v++) {
+            memset(dense, 0, (size_t)u->g->ncoef * 4);
+            add_direct_row(u->t, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
+            u->ncnt[v] = cap_row(dense, u->g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
+        }
     }
     free(dense);
     free(mag);
-    pack_next(u);
-    return HL_OK;
+    if (r == HL_OK) pack_next(u);
+    return r;
 }
 
 /* Channel c's bounces (of channels): S_1 .. S_B gathered with its albedo
@@ -516,18 +543,18 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: already holds %u bounces; the bounces start from direct rows",
                        direct_path, held);
     }
-    float *tval = NULL;
-    r = hl_vfile_load(ctx, direct_path, t, &tval);
+    hl_vfile_reader *vr = NULL;
+    r = hl_vfile_open(ctx, direct_path, t, &vr);
     if (r != HL_OK) {
         hl_transport_destroy(t);
         return r;
     }
-    if (!tval && !ctx->quiet)
+    if (!vr && !ctx->quiet)
         fprintf(stderr,
                 "precompute: warning: no %s.values: the bounces start from the direct rows' 8-bit codes, so the direct "
                 "light is coded twice (precompute the direct rows with --keep-floats to keep their floats)\n",
                 direct_path);
-    bounce_run u = {.ctx = ctx, .t = t, .tval = tval, .m = t->mesh, .V = t->info.vertex_count};
+    bounce_run u = {.ctx = ctx, .t = t, .vr = vr, .m = t->mesh, .V = t->info.vertex_count};
     u.K = d->bounce_rays ? d->bounce_rays : HL_DEFAULT_BOUNCE_RAYS;
     u.G = d->bounce_terms == HL_TERMS_ALL ? 2 * t->info.N * t->info.N
           : d->bounce_terms                ? d->bounce_terms
@@ -574,7 +601,8 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     if (r == HL_ERR_INTERRUPTED)
         hl_fail(ctx, r, "interrupted in the bounces: %s not written (the direct rows stay in %s)", out_path, direct_path);
     free_run(&u);
-    hl_free_big(tval);
+    hl_vfile_close(vr);
+    free(u.vbuf);
     hl_geom_destroy(g);
     hl_transport_destroy(t);
     if (seconds) *seconds = hl_now() - t0;
