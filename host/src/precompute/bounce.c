@@ -44,7 +44,7 @@ typedef struct bounce_run {
     uint64_t ve0;
     const hl_mesh *m;
     const hl_geom *g;
-    uint32_t V, K, G, R;
+    uint32_t V, K, G, R, B;
     float *rho;
     uint32_t *prim;     /* V x K */
     float *uv;          /* V x K x 2 */
@@ -253,9 +253,13 @@ static hl_result device_open(bounce_run *u)
     u->k = clCreateKernel(ctx->cl->program, "hl_bounce_gather", &e);
     if (e != CL_SUCCESS) return hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: the kernel hl_bounce_gather: %s", hl_cl_err_name(e));
     const size_t cap = (size_t)u->V * u->G * 4;
-    TRY(hl_cl_make_buf(ctx, &u->d_start, CL_MEM_READ_ONLY, ((size_t)u->V + 1) * 4, NULL, "the bounce rows"));
-    TRY(hl_cl_make_buf(ctx, &u->d_slot, CL_MEM_READ_ONLY, cap ? cap : 4, NULL, "the bounce rows"));
-    TRY(hl_cl_make_buf(ctx, &u->d_val, CL_MEM_READ_ONLY, cap ? cap : 4, NULL, "the bounce rows"));
+    /* a device in host memory reads the rows where they are
+       (device_rows), with no copy of its own */
+    if (!ctx->cl->host_memory) {
+        TRY(hl_cl_make_buf(ctx, &u->d_start, CL_MEM_READ_ONLY, ((size_t)u->V + 1) * 4, NULL, "the bounce rows"));
+        TRY(hl_cl_make_buf(ctx, &u->d_slot, CL_MEM_READ_ONLY, cap ? cap : 4, NULL, "the bounce rows"));
+        TRY(hl_cl_make_buf(ctx, &u->d_val, CL_MEM_READ_ONLY, cap ? cap : 4, NULL, "the bounce rows"));
+    }
     TRY(hl_cl_make_buf(ctx, &u->d_idx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, (size_t)u->m->triangle_count * 12,
                        u->m->indices, "the triangles"));
     TRY(hl_cl_make_buf(ctx, &u->d_rho, CL_MEM_READ_ONLY, (size_t)u->V * 4, NULL, "the albedo"));
@@ -280,11 +284,30 @@ static hl_result device_albedo(bounce_run *u)
     return HL_OK;
 }
 
-/* The rows of S_(b-1) onto the device, once a bounce. */
+/* A device in host memory: the rows' buffers let go before the host
+ * writes the next rows into their memory. */
+static void device_rows_release(bounce_run *u)
+{
+    if (!u->k || !u->ctx->cl->host_memory) return;
+    hl_cl_release_buf(u->ctx->cl, &u->d_start);
+    hl_cl_release_buf(u->ctx->cl, &u->d_slot);
+    hl_cl_release_buf(u->ctx->cl, &u->d_val);
+}
+
+/* The rows of S_(b-1) onto the device, once a bounce: copied, or (a
+ * device in host memory) buffers over the host's own arrays, made anew
+ * each bounce after the host wrote them. */
 static hl_result device_rows(bounce_run *u)
 {
     cl_command_queue q = u->ctx->cl->queue;
     const size_t n = u->cur.start[u->V];
+    if (u->ctx->cl->host_memory) {
+        device_rows_release(u);
+        const cl_mem_flags f = CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR;
+        TRY(hl_cl_make_buf(u->ctx, &u->d_start, f, ((size_t)u->V + 1) * 4, u->cur.start, "the bounce rows"));
+        TRY(hl_cl_make_buf(u->ctx, &u->d_slot, f, n * 4 + 4, u->cur.slot, "the bounce rows"));
+        return hl_cl_make_buf(u->ctx, &u->d_val, f, n * 4 + 4, u->cur.val, "the bounce rows");
+    }
     CL_TRY(u->ctx, clEnqueueWriteBuffer(q, u->d_start, CL_FALSE, 0, ((size_t)u->V + 1) * 4, u->cur.start, 0, NULL, NULL),
            "uploading the bounce rows");
     if (n) {
@@ -434,16 +457,19 @@ static hl_result alloc_run(bounce_run *u)
     u->cur.start = hl_alloc_big(ctx, ((size_t)u->V + 1) * 4, "the bounce rows");
     u->cur.slot = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
     u->cur.val = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
+    /* the next rows only where a bounce is followed by another */
+    const int next = u->B >= 2;
     u->ncnt = hl_alloc_big(ctx, (size_t)u->V * 4, "the bounce rows");
-    u->nslot = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
-    u->nval = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
+    u->nslot = next ? hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows") : NULL;
+    u->nval = next ? hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows") : NULL;
     u->dense = hl_alloc_big(ctx, (size_t)u->R * nc * 4, "the gathers");
     u->rq = hl_alloc_big(ctx, (size_t)u->R * sizeof *u->rq, "quantisation parameters");
     u->bc = hl_alloc_big(ctx, (size_t)u->R * u->g->nblocks * 2, "block counts");
     u->entries = hl_alloc_big(ctx, (size_t)u->R * nc * 2, "entries");
     u->nnz = hl_alloc_big(ctx, (size_t)u->R * 4, "entry counts");
     u->cur.V = u->V;
-    return u->rho && u->prim && u->uv && u->cur.start && u->cur.slot && u->cur.val && u->ncnt && u->nslot && u->nval &&
+    return u->rho && u->prim && u->uv && u->cur.start && u->cur.slot && u->cur.val && u->ncnt &&
+                   (!next || (u->nslot && u->nval)) &&
                    u->dense && u->rq && u->bc && u->entries && u->nnz
                ? HL_OK
                : HL_ERR_OUT_OF_MEMORY;
@@ -457,7 +483,8 @@ static void free_run(bounce_run *u)
     device_close(u);
 }
 
-/* S_0 = T_0 capped: the direct rows as the first gather reads them. */
+/* S_0 = T_0 capped: the direct rows as the first gather reads them,
+ * straight into cur. */
 static hl_result first_rows(bounce_run *u)
 {
     float *dense = malloc((size_t)u->g->ncoef * 4), *mag = malloc((size_t)u->g->ncoef * 4);
@@ -467,18 +494,20 @@ static hl_result first_rows(bounce_run *u)
         return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the bounce rows");
     }
     hl_result r = HL_OK;
+    uint32_t at = 0;
     for (uint32_t first = 0; first < u->V && r == HL_OK; first += u->R) {
         const uint32_t count = u->V - first < u->R ? u->V - first : u->R;
         r = load_values(u, first, count);
         for (uint32_t v = first; v < first + count && r == HL_OK; v++) {
             memset(dense, 0, (size_t)u->g->ncoef * 4);
             add_direct_row(u->t, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
-            u->ncnt[v] = cap_row(dense, u->g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
+            u->cur.start[v] = at;
+            at += cap_row(dense, u->g->ncoef, u->G, mag, u->cur.slot + at, u->cur.val + at);
         }
     }
+    u->cur.start[u->V] = at;
     free(dense);
     free(mag);
-    if (r == HL_OK) pack_next(u);
     return r;
 }
 
@@ -507,6 +536,7 @@ static hl_result bounce_channel(bounce_run *u, const hl_precompute_desc *d, hl_t
             }
             if (r == HL_OK && hl_context_cancelled(ctx)) r = HL_ERR_INTERRUPTED;
         }
+        device_rows_release(u);
         if (r == HL_OK && !last) pack_next(u);
         if (r == HL_OK && !ctx->quiet)
             fprintf(stderr, "precompute: bounce %u/%u%s: %u vertices x %u rays, the %u largest terms of each hit row, %.1f s\n",
@@ -554,7 +584,7 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
                 "precompute: warning: no %s.values: the bounces start from the direct rows' 8-bit codes, so the direct "
                 "light is coded twice (precompute the direct rows with --keep-floats to keep their floats)\n",
                 direct_path);
-    bounce_run u = {.ctx = ctx, .t = t, .vr = vr, .m = t->mesh, .V = t->info.vertex_count};
+    bounce_run u = {.ctx = ctx, .t = t, .vr = vr, .m = t->mesh, .V = t->info.vertex_count, .B = d->bounces};
     u.K = d->bounce_rays ? d->bounce_rays : HL_DEFAULT_BOUNCE_RAYS;
     u.G = d->bounce_terms == HL_TERMS_ALL ? 2 * t->info.N * t->info.N
           : d->bounce_terms                ? d->bounce_terms
