@@ -85,7 +85,7 @@ static const char *const usage_precompute =
     "                       of the relighting speed); relight is unchanged\n"
     "  --bounce-rays K      cosine-weighted rays a vertex for the bounces (default 256)\n"
     "  --bounce-terms G|all the largest G terms of each hit vertex's row that a bounce\n"
-    "                       reads (default 256)\n"
+    "                       reads (default 512)\n"
     "  --direct-rows FILE   with --bounces: start the bounces from FILE, a finished\n"
     "                       transport of the same mesh and options without bounces (as\n"
     "                       merged from shards), instead of casting the direct rays;\n"
