@@ -63,8 +63,11 @@ typedef struct bounce_run {
     uint32_t first, count, last;
     atomic_uint next;
     atomic_int oom;
-    /* the device's gather */
+    /* the device's gather, and its truncation and codes of the last
+       bounce (the direct stages' kernels, PIPE_ROWS rows a launch) */
     cl_kernel k;
+    hl_cl_pipe *pipe;
+    hl_trunc_result *tr; /* R */
     cl_mem d_start, d_slot, d_val, d_idx, d_rho, d_prim, d_uv, d_out;
 } bounce_run;
 
@@ -246,6 +249,10 @@ static hl_result cast_hits(bounce_run *u, hl_rt *rt, uint32_t lo, uint32_t hi)
 
 /* --------------------------------------------------------- the device */
 
+/* Rows a launch of the last bounce's truncation and codes: their
+ * buffers (a few of ncoef floats a row) stay small beside the gathers'. */
+#define PIPE_ROWS 256u
+
 static hl_result device_open(bounce_run *u)
 {
     hl_context *ctx = u->ctx;
@@ -265,11 +272,16 @@ static hl_result device_open(bounce_run *u)
     TRY(hl_cl_make_buf(ctx, &u->d_rho, CL_MEM_READ_ONLY, (size_t)u->V * 4, NULL, "the albedo"));
     TRY(hl_cl_make_buf(ctx, &u->d_prim, CL_MEM_READ_ONLY, (size_t)u->R * u->K * 4, NULL, "the bounce hits"));
     TRY(hl_cl_make_buf(ctx, &u->d_uv, CL_MEM_READ_ONLY, (size_t)u->R * u->K * 8, NULL, "the bounce hits"));
+    u->tr = hl_alloc_big(ctx, (size_t)u->R * sizeof *u->tr, "truncation results");
+    if (!u->tr) return HL_ERR_OUT_OF_MEMORY;
+    TRY(hl_cl_pipe_create(ctx, u->g, u->R < PIPE_ROWS ? u->R : PIPE_ROWS, &u->pipe));
     return hl_cl_make_buf(ctx, &u->d_out, CL_MEM_WRITE_ONLY, (size_t)u->R * u->g->ncoef * 4, NULL, "the gathers");
 }
 
 static void device_close(bounce_run *u)
 {
+    hl_cl_pipe_destroy(u->pipe);
+    hl_free_big(u->tr);
     if (!u->ctx->cl) return;
     if (u->k) clReleaseKernel(u->k);
     cl_mem *m[] = {&u->d_start, &u->d_slot, &u->d_val, &u->d_idx, &u->d_rho, &u->d_prim, &u->d_uv, &u->d_out};
@@ -351,6 +363,25 @@ static hl_result device_gather(bounce_run *u)
     return HL_OK;
 }
 
+/* The last bounce's rows of the chunk (S_B in u->dense) truncated and
+ * coded by the direct stages' kernels, the direct terms kept between
+ * the two (keep_direct_slots): the twins' bytes. */
+static hl_result device_code(bounce_run *u)
+{
+    const uint32_t nc = u->g->ncoef, nb = u->g->nblocks;
+    for (uint32_t off = 0; off < u->count; off += PIPE_ROWS) {
+        const uint32_t n = u->count - off < PIPE_ROWS ? u->count - off : PIPE_ROWS;
+        float *rows = u->dense + (size_t)off * nc;
+        TRY(hl_cl_pipe_truncate(u->pipe, n, rows, u->tp, u->tr + off));
+        if (u->tp.rule == HL_TRUNC_ENERGY)
+            for (uint32_t i = 0; i < n; i++)
+                u->tr[off + i] = keep_direct_slots(u->t, u->first + off + i, rows + (size_t)i * nc, nc, u->tp.K, u->tr[off + i]);
+        TRY(hl_cl_pipe_quantize(u->pipe, n, u->first + off, rows, u->tr + off, u->t->info.quant, u->rq + off,
+                                u->bc + (size_t)off * nb, u->entries + (size_t)off * nc * 2, u->nnz + off));
+    }
+    return HL_OK;
+}
+
 /* --------------------------------------------------------- a chunk */
 
 /* After the gather of the chunk's vertex i: S_b = T_0 + the gather, then
@@ -375,7 +406,7 @@ static void *chunk_worker(void *arg)
         add_direct_row(u->t, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
         if (!u->last) {
             u->ncnt[v] = cap_row(dense, g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
-        } else {
+        } else if (ref) { /* on the device: device_code, after */
             hl_trunc_result tr = hl_ref_truncate(g, dense, u->tp, keys);
             if (u->tp.rule == HL_TRUNC_ENERGY) tr = keep_direct_slots(u->t, v, dense, g->ncoef, u->tp.K, tr);
             u->nnz[i] = hl_ref_quantize(g, dense, tr, u->t->info.quant, v, &u->rq[i], u->bc + (size_t)i * g->nblocks,
@@ -413,7 +444,7 @@ static hl_result run_chunk(bounce_run *u, uint32_t first, uint32_t count, int la
     if (u->k) TRY(device_gather(u));
     hl_run_threads(u->ctx->threads, chunk_worker, u);
     if (atomic_load(&u->oom)) return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the bounce's scratch");
-    return HL_OK;
+    return last && u->k ? device_code(u) : HL_OK;
 }
 
 /* --------------------------------------------------------- the phase */
