@@ -5,11 +5,14 @@
  * ... + W^B T_0 without storing each bounce. The gather reads the
  * bounce_terms largest terms of each S_(b-1) row (indirect light is an
  * average of many rows, so the small terms of each weigh little:
- * docs/BOUNCES.md measures it); T_0 itself is added whole, as decoded
- * from the direct file. Every vertex's K directions are cast once, before
- * the first bounce, and reused by every bounce. The last S_B goes through
- * the precompute's own truncation and quantisation (the twins) into the
- * file.
+ * docs/BOUNCES.md measures it); T_0 itself is added whole, as the floats
+ * of the direct file's values file (values_file.h) where it has one, a
+ * chunk at a time, else decoded from its codes. Each chunk's K
+ * directions a vertex are cast again every bounce (they depend on the
+ * vertex alone), so that no bounce holds every vertex's hits. The last
+ * S_B goes through the precompute's own truncation, with every direct
+ * term kept, and quantisation (the direct stages' kernels, or their
+ * twins) into the file.
  * Depends on: bounce.h, rays.h (Embree), geom.h and twins.h (truncation,
  * quantisation), transport_file.h (the writer), cl_internal.h (the
  * gather kernel), core.
@@ -46,8 +49,13 @@ typedef struct bounce_run {
     const hl_geom *g;
     uint32_t V, K, G, R, B;
     float *rho;
-    uint32_t *prim;     /* V x K */
-    float *uv;          /* V x K x 2 */
+    /* the chunk's rays, cast again each bounce (the same rays: they
+       depend on the vertex alone), so that no bounce holds every
+       vertex's: R x K hits and their scratch */
+    hl_rt *rt;
+    uint32_t *prim;     /* R x K */
+    float *uv;          /* R x K x 2 */
+    float *org, *dir, *huv;
     hl_bounce_src cur;  /* S_(b-1), capped */
     uint32_t *ncnt;     /* next rows: counts, then V x G strided terms */
     uint32_t *nslot;
@@ -223,27 +231,15 @@ hl_result hl_bounce_cast(hl_rt *rt, const hl_mesh *m, const uint32_t *list, uint
     return r;
 }
 
-/* The hits of vertices [lo, hi), K each, in chunks of vertices, kept in
- * u for every bounce. */
-static hl_result cast_hits(bounce_run *u, hl_rt *rt, uint32_t lo, uint32_t hi)
+/* The hits of the chunk's vertices [first, first + count), K each. */
+static hl_result cast_hits(bounce_run *u, uint32_t first, uint32_t count)
 {
     const size_t RK = (size_t)u->R * u->K;
-    float *org = hl_alloc_big(u->ctx, RK * 12, "the bounce rays");
-    float *dir = org ? hl_alloc_big(u->ctx, RK * 12, "the bounce rays") : NULL;
-    float *hu = dir ? hl_alloc_big(u->ctx, RK * 8, "the bounce hits") : NULL;
-    hl_result r = hu ? HL_OK : HL_ERR_OUT_OF_MEMORY;
-    for (uint32_t first = lo; first < hi && r == HL_OK; first += u->R) {
-        const uint32_t count = hi - first < u->R ? hi - first : u->R;
-        r = hl_bounce_cast(rt, u->m, NULL, first, count, u->K, 0, org, dir, u->prim + (size_t)first * u->K, hu, hu + RK);
-        for (size_t q = 0; q < (size_t)count * u->K && r == HL_OK; q++) {
-            float *uv = u->uv + ((size_t)first * u->K + q) * 2;
-            uv[0] = hu[q];
-            uv[1] = hu[RK + q];
-        }
+    hl_result r = hl_bounce_cast(u->rt, u->m, NULL, first, count, u->K, 0, u->org, u->dir, u->prim, u->huv, u->huv + RK);
+    for (size_t q = 0; q < (size_t)count * u->K && r == HL_OK; q++) {
+        u->uv[2 * q] = u->huv[q];
+        u->uv[2 * q + 1] = u->huv[RK + q];
     }
-    hl_free_big(org);
-    hl_free_big(dir);
-    hl_free_big(hu);
     return r;
 }
 
@@ -337,9 +333,9 @@ static hl_result device_gather(bounce_run *u)
     hl_context *ctx = u->ctx;
     cl_command_queue q = ctx->cl->queue;
     const size_t ns = (size_t)u->count * u->K;
-    CL_TRY(ctx, clEnqueueWriteBuffer(q, u->d_prim, CL_FALSE, 0, ns * 4, u->prim + (size_t)u->first * u->K, 0, NULL, NULL),
+    CL_TRY(ctx, clEnqueueWriteBuffer(q, u->d_prim, CL_FALSE, 0, ns * 4, u->prim, 0, NULL, NULL),
            "uploading the bounce hits");
-    CL_TRY(ctx, clEnqueueWriteBuffer(q, u->d_uv, CL_FALSE, 0, ns * 8, u->uv + (size_t)u->first * u->K * 2, 0, NULL, NULL),
+    CL_TRY(ctx, clEnqueueWriteBuffer(q, u->d_uv, CL_FALSE, 0, ns * 8, u->uv, 0, NULL, NULL),
            "uploading the bounce hits");
     cl_uint K = u->K, nc = u->g->ncoef, count = u->count;
 #define SETARG(i, v) CL_TRY(ctx, clSetKernelArg(u->k, i, sizeof(v), &(v)), "clSetKernelArg (hl_bounce_gather)")
@@ -401,8 +397,8 @@ static void *chunk_worker(void *arg)
         const uint32_t v = u->first + i;
         float *dense = u->dense + (size_t)i * g->ncoef;
         if (ref)
-            hl_ref_bounce_gather(&u->cur, u->m->indices, u->rho, u->prim + (size_t)v * u->K,
-                                 u->uv + (size_t)v * u->K * 2, u->K, g->ncoef, dense);
+            hl_ref_bounce_gather(&u->cur, u->m->indices, u->rho, u->prim + (size_t)i * u->K,
+                                 u->uv + (size_t)i * u->K * 2, u->K, g->ncoef, dense);
         add_direct_row(u->t, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
         if (!u->last) {
             u->ncnt[v] = cap_row(dense, g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
@@ -436,6 +432,7 @@ static hl_result load_values(bounce_run *u, uint32_t first, uint32_t count)
 static hl_result run_chunk(bounce_run *u, uint32_t first, uint32_t count, int last)
 {
     TRY(load_values(u, first, count));
+    TRY(cast_hits(u, first, count));
     u->first = first;
     u->count = count;
     u->last = last;
@@ -483,8 +480,12 @@ static hl_result alloc_run(bounce_run *u)
     hl_context *ctx = u->ctx;
     const size_t VG = (size_t)u->V * u->G, nc = u->g->ncoef;
     u->rho = hl_alloc_big(ctx, (size_t)u->V * 4, "the albedo");
-    u->prim = hl_alloc_big(ctx, (size_t)u->V * u->K * 4, "the bounce hits");
-    u->uv = hl_alloc_big(ctx, (size_t)u->V * u->K * 8, "the bounce hits");
+    const size_t RK = (size_t)u->R * u->K;
+    u->prim = hl_alloc_big(ctx, RK * 4, "the bounce hits");
+    u->uv = hl_alloc_big(ctx, RK * 8, "the bounce hits");
+    u->org = hl_alloc_big(ctx, RK * 12, "the bounce rays");
+    u->dir = hl_alloc_big(ctx, RK * 12, "the bounce rays");
+    u->huv = hl_alloc_big(ctx, RK * 8, "the bounce hits");
     u->cur.start = hl_alloc_big(ctx, ((size_t)u->V + 1) * 4, "the bounce rows");
     u->cur.slot = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
     u->cur.val = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
@@ -499,7 +500,7 @@ static hl_result alloc_run(bounce_run *u)
     u->entries = hl_alloc_big(ctx, (size_t)u->R * nc * 2, "entries");
     u->nnz = hl_alloc_big(ctx, (size_t)u->R * 4, "entry counts");
     u->cur.V = u->V;
-    return u->rho && u->prim && u->uv && u->cur.start && u->cur.slot && u->cur.val && u->ncnt &&
+    return u->rho && u->prim && u->uv && u->org && u->dir && u->huv && u->cur.start && u->cur.slot && u->cur.val && u->ncnt &&
                    (!next || (u->nslot && u->nval)) &&
                    u->dense && u->rq && u->bc && u->entries && u->nnz
                ? HL_OK
@@ -508,7 +509,7 @@ static hl_result alloc_run(bounce_run *u)
 
 static void free_run(bounce_run *u)
 {
-    void *p[] = {u->rho, u->prim, u->uv, u->cur.start, u->cur.slot, u->cur.val, u->ncnt,
+    void *p[] = {u->rho, u->prim, u->uv, u->org, u->dir, u->huv, u->cur.start, u->cur.slot, u->cur.val, u->ncnt,
                  u->nslot, u->nval, u->dense, u->rq, u->bc, u->entries, u->nnz};
     for (size_t i = 0; i < sizeof p / sizeof *p; i++) hl_free_big(p[i]);
     device_close(u);
@@ -623,19 +624,16 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     if (u.G > 2 * t->info.N * t->info.N) u.G = 2 * t->info.N * t->info.N;
     u.R = d->chunk && d->chunk < u.V ? d->chunk : (u.V < HL_DEFAULT_CHUNK ? u.V : HL_DEFAULT_CHUNK);
     hl_geom *g = NULL;
-    hl_rt *rt = NULL;
     hl_tfile_writer *w = NULL;
     r = hl_geom_create(ctx, t->info.N, t->info.C, &g);
     u.g = g;
     if (r == HL_OK) r = alloc_run(&u);
     if (r == HL_OK) r = hl_bounce_check_albedo(ctx, t->mesh);
-    if (r == HL_OK) r = hl_rt_create(ctx, t->mesh, &rt);
+    if (r == HL_OK) r = hl_rt_create(ctx, t->mesh, &u.rt);
     /* a shard gathers its own vertices' last bounce, but the bounces
        before it for every vertex (each reads rows from anywhere) */
     uint32_t lo = 0, hi = u.V;
     if (shard_count) hl_shard_range(u.V, shard_index, shard_count, &lo, &hi);
-    if (r == HL_OK) r = d->bounces > 1 ? cast_hits(&u, rt, 0, u.V) : cast_hits(&u, rt, lo, hi);
-    hl_rt_destroy(rt);
     if (r == HL_OK && ctx->backend == HL_BACKEND_OPENCL) r = device_open(&u);
     hl_transport_info info = t->info;
     info.bounces = d->bounces;
@@ -662,6 +660,7 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     if (r == HL_ERR_INTERRUPTED)
         hl_fail(ctx, r, "interrupted in the bounces: %s not written (the direct rows stay in %s)", out_path, direct_path);
     free_run(&u);
+    hl_rt_destroy(u.rt);
     hl_vfile_close(vr);
     free(u.vbuf);
     hl_geom_destroy(g);
