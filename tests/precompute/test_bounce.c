@@ -27,7 +27,8 @@
  *                 leaves), the bounced rows are the direct file's byte
  *                 for byte; from the 8-bit codes alone (no values file)
  *                 they are not. Bad values files (truncated, damaged, of
- *                 other rows) refused, naming the file.
+ *                 other rows) and a direct file damaged in its entries
+ *                 refused, naming the file.
  * bounce.bad      an albedo above 1, too many bounces, --bounces with a
  *                 shard but no direct rows: clear errors, no file.
  *
@@ -565,6 +566,27 @@ static void case_floats(void)
         HL_CHECK(strstr(hl_context_last_error(ctx), ".values") != NULL, "the error does not name the values file");
         HL_CHECK(access(out, F_OK) != 0, "a file was written from values %s", what[k]);
     }
+    /* a direct file damaged in its entries (which the bounces read a chunk
+       at a time, not loaded): refused before anything is written */
+    unlink(values);
+    size_t nd = 0;
+    uint8_t *db = hl_test_read_file(direct, &nd);
+    char damaged[1300];
+    snprintf(damaged, sizeof damaged, "%s.damaged.hlt", direct);
+    if (db && nd > 64) {
+        db[nd - 7] ^= 0x10; /* the entries section ends the file */
+        FILE *fp = fopen(damaged, "wb");
+        if (fp) fwrite(db, 1, nd, fp), fclose(fp);
+        d.direct_rows = damaged;
+        unlink(out);
+        const hl_result r = hl_precompute(ctx, m, &d, out, NULL);
+        printf("direct rows damaged: %s\n", hl_context_last_error(ctx));
+        HL_CHECK(r == HL_ERR_FORMAT && strstr(hl_context_last_error(ctx), "checksum") != NULL,
+                 "damaged direct rows taken (%d)", (int)r);
+        HL_CHECK(access(out, F_OK) != 0, "a file was written from damaged direct rows");
+        d.direct_rows = direct;
+    }
+    free(db);
     /* a new direct file without --keep-floats removes the older floats */
     HL_CHECK(m && hl_precompute(ctx, m, &(hl_precompute_desc){.N = 16, .C = 16}, direct, NULL) == HL_OK, "direct: %s",
              hl_context_last_error(ctx));

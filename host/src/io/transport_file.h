@@ -115,6 +115,14 @@ hl_result hl_tfile_writer_resume_shard(hl_context *ctx, const char *path, const 
                                        const hl_mesh *mesh, uint32_t shard_index, uint32_t shard_count,
                                        hl_tfile_writer **out, hl_tfile_progress *done);
 
+/* As hl_transport_load, without the entries: t->entries is NULL and
+ * they stay in the file, whose entries section starts at
+ * *entries_offset (entry e's two bytes at *entries_offset + 2 e). They
+ * are checked as the loader checks them (checksum, every row) in one
+ * pass through a buffer of whole rows, at least 1 MiB: for a reader of a
+ * chunk of rows at a time (the bounce phase). */
+hl_result hl_transport_load_streamed(hl_context *ctx, const char *path, hl_transport **out, uint64_t *entries_offset);
+
 /* Human report of a loaded transport for `haarlight info`: parameters,
  * counts, per-vertex statistics, ray counters and sizes. path is only
  * printed (and its size queried); it may be NULL. */

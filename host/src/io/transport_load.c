@@ -439,8 +439,10 @@ static hl_result validate_rows(tf_reader *rd, hl_transport *t)
         else
             off += nnz;
     }
-    row_job j = {.t = t, .nv = first, .per = (uint32_t)test_size("HL_TEST_ROW_CHUNK", 8192)};
-    j.nchunks = (uint32_t)(((uint64_t)first + j.per - 1) / j.per);
+    /* without the entries in memory (hl_transport_load_streamed) they are
+       checked by check_entries_streamed, after */
+    row_job j = {.t = t, .nv = t->entries ? first : 0, .per = (uint32_t)test_size("HL_TEST_ROW_CHUNK", 8192)};
+    j.nchunks = (uint32_t)(((uint64_t)j.nv + j.per - 1) / j.per);
     atomic_init(&j.next, 0u);
     void *bad, *msgs;
     if (!job_tables(rd->ctx, j.nchunks, sizeof *j.bad, &bad, sizeof *j.msg, &msgs, "the row checks"))
@@ -465,8 +467,46 @@ static hl_result validate_rows(tf_reader *rd, hl_transport *t)
     return HL_OK;
 }
 
-hl_result hl_transport_load(hl_context *ctx, const char *path, hl_transport **out)
+/* The entries section of a streamed load in one pass through a buffer of
+ * whole rows: its checksum, then every row as validate_rows checks it
+ * (the first bad one reported, once the checksum holds). */
+static hl_result check_entries_streamed(tf_reader *rd, const tf_header *h, const hl_transport *t)
 {
+    const hl_transport_info *i = &t->info;
+    const uint32_t R = hl_transport_rows(i), B = i->block_count, limit = tf_slot_limit(i);
+    uint64_t most = 0;
+    for (uint32_t v = 0; v < R; v++)
+        if (t->row_offset[v + 1] - t->row_offset[v] > most) most = t->row_offset[v + 1] - t->row_offset[v];
+    const size_t cap = 2 * most > ((size_t)1 << 20) ? (size_t)(2 * most) : (size_t)1 << 20;
+    uint8_t *buf = hl_malloc(rd->ctx, cap, "the entries reader");
+    if (!buf) return HL_ERR_OUT_OF_MEMORY;
+    uint32_t crc = 0, bad = R;
+    char msg[256] = "";
+    hl_result r = HL_OK;
+    for (uint32_t v0 = 0, v1; v0 < R && r == HL_OK; v0 = v1) {
+        for (v1 = v0 + 1; v1 < R && 2 * (t->row_offset[v1 + 1] - t->row_offset[v0]) <= cap; v1++) {}
+        const uint64_t e0 = t->row_offset[v0], bytes = 2 * (t->row_offset[v1] - e0);
+        r = read_range(rd, buf, bytes, h->sec[SEC_ENTRIES].offset + 2 * e0, "entries");
+        if (r != HL_OK) break;
+        crc = crc_update(crc, buf, (size_t)bytes);
+        for (uint32_t v = v0; v < v1 && bad == R; v++) {
+            const uint16_t *counts = t->block_counts + (size_t)v * B;
+            const uint8_t *e = buf + 2 * (t->row_offset[v] - e0);
+            uint64_t nnz;
+            if (hl_tf_row_problem(i->N, counts, e, &nnz, msg, sizeof msg) ||
+                hl_tf_row_slots_problem(i->N, limit, counts, e, msg, sizeof msg))
+                bad = v;
+        }
+    }
+    free(buf);
+    if (r == HL_OK) r = check_crc(rd, SEC_ENTRIES, h->sec[SEC_ENTRIES].crc, crc);
+    if (r == HL_OK && bad < R) r = row_fail(rd, i, bad, msg);
+    return r;
+}
+
+static hl_result load(hl_context *ctx, const char *path, hl_transport **out, uint64_t *entries_offset)
+{
+    const int streamed = entries_offset != NULL;
     if (out) *out = NULL;
     if (!path || !out) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_transport_load: path and out are required");
     tf_reader *rd = hl_calloc(ctx, 1, sizeof *rd, "the transport reader");
@@ -510,14 +550,17 @@ hl_result hl_transport_load(hl_context *ctx, const char *path, hl_transport **ou
         t->row_quant = hl_malloc(ctx, R * sizeof *t->row_quant, "row quantisation parameters");
         t->block_counts = hl_alloc_big(ctx, R * B * sizeof *t->block_counts, "block counts");
         t->row_offset = hl_malloc(ctx, (R + 1) * sizeof *t->row_offset, "row offsets");
-        t->entries = hl_alloc_big(ctx, (size_t)h.sec[SEC_ENTRIES].size, "transport entries");
-        if (!t->row_quant || !t->block_counts || !t->row_offset || !t->entries) r = HL_ERR_OUT_OF_MEMORY;
+        t->entries = streamed ? NULL : hl_alloc_big(ctx, (size_t)h.sec[SEC_ENTRIES].size, "transport entries");
+        if (!t->row_quant || !t->block_counts || !t->row_offset || (!streamed && !t->entries)) r = HL_ERR_OUT_OF_MEMORY;
     }
     if (r == HL_OK) r = read_rows(rd, &h, t);
     uint32_t ecrc = 0;
-    if (r == HL_OK) r = read_entries(rd, t->entries, h.sec[SEC_ENTRIES].size, h.sec[SEC_ENTRIES].offset, &ecrc);
-    if (r == HL_OK) r = check_crc(rd, SEC_ENTRIES, h.sec[SEC_ENTRIES].crc, ecrc);
+    if (r == HL_OK && !streamed)
+        r = read_entries(rd, t->entries, h.sec[SEC_ENTRIES].size, h.sec[SEC_ENTRIES].offset, &ecrc);
+    if (r == HL_OK && !streamed) r = check_crc(rd, SEC_ENTRIES, h.sec[SEC_ENTRIES].crc, ecrc);
     if (r == HL_OK) r = validate_rows(rd, t);
+    if (r == HL_OK && streamed) r = check_entries_streamed(rd, &h, t);
+    if (r == HL_OK && streamed) *entries_offset = h.sec[SEC_ENTRIES].offset;
     close(rd->fd);
     free(rd);
     if (r != HL_OK) {
@@ -526,6 +569,17 @@ hl_result hl_transport_load(hl_context *ctx, const char *path, hl_transport **ou
     }
     *out = t;
     return HL_OK;
+}
+
+hl_result hl_transport_load(hl_context *ctx, const char *path, hl_transport **out)
+{
+    return load(ctx, path, out, NULL);
+}
+
+hl_result hl_transport_load_streamed(hl_context *ctx, const char *path, hl_transport **out, uint64_t *entries_offset)
+{
+    if (!entries_offset) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "hl_transport_load_streamed: entries_offset is required");
+    return load(ctx, path, out, entries_offset);
 }
 
 void hl_transport_destroy(hl_transport *t)

@@ -263,32 +263,13 @@ hl_result hl_vfile_open(hl_context *ctx, const char *transport_path, const hl_tr
     if (r == HL_OK && file_size(f) != VF_HEADER + 4 * n)
         r = hl_fail(ctx, HL_ERR_FORMAT, "%s: %llu bytes, its header says %llu (truncated or padded)", path,
                     (unsigned long long)file_size(f), (unsigned long long)(VF_HEADER + 4 * n));
-    /* one pass through it, a buffer at a time: the checksum, and that
-       every float is the one t's code was made from */
+    /* one pass through it, a buffer at a time, for the checksum */
     float *v = r == HL_OK ? malloc(VF_CHUNK * 4) : NULL;
     if (r == HL_OK && !v) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
-    const uint32_t nb = ti->block_count;
-    uint64_t e = 0, have = 0; /* entry e; floats [have - VF_CHUNK.., have) in v */
-    for (uint32_t x = 0; r == HL_OK && x < ti->vertex_count; x++) {
-        const hl_row_quant q = t->row_quant[x];
-        for (uint32_t b = 0; r == HL_OK && b < nb; b++)
-            for (uint32_t k = 0; r == HL_OK && k < t->block_counts[(size_t)x * nb + b]; k++, e++) {
-                if (e == have) {
-                    const size_t m = n - have < VF_CHUNK ? (size_t)(n - have) : VF_CHUNK;
-                    if (read_floats(f, v, m, &got) != 0) {
-                        r = hl_fail(ctx, HL_ERR_IO, "%s: cannot read it", path);
-                        break;
-                    }
-                    have += m;
-                }
-                const uint32_t slot = b * HL_BLOCK + t->entries[2 * e], code = t->entries[2 * e + 1];
-                const float y = v[e % VF_CHUNK];
-                if (!isfinite(y) || !near_code(ti->quant, code, hl_quant(ti->quant, y, q.a, q.b, hl_dither_key(x, slot))))
-                    r = hl_fail(ctx, HL_ERR_FORMAT,
-                                "%s: vertex %u, term %u: %g does not code to %s's stored value (these floats are of "
-                                "other rows)",
-                                path, x, slot, (double)y, transport_path);
-            }
+    for (uint64_t done = 0; r == HL_OK && done < n;) {
+        const size_t m = n - done < VF_CHUNK ? (size_t)(n - done) : VF_CHUNK;
+        if (read_floats(f, v, m, &got) != 0) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot read it", path);
+        done += m;
     }
     free(v);
     if (r == HL_OK && got != crc) r = hl_fail(ctx, HL_ERR_FORMAT, "%s: checksum mismatch (damaged)", path);
@@ -302,6 +283,29 @@ hl_result hl_vfile_open(hl_context *ctx, const char *transport_path, const hl_tr
     rd->f = f;
     rd->path = path;
     *out = rd;
+    return HL_OK;
+}
+
+hl_result hl_vfile_check(hl_context *ctx, const hl_vfile_reader *rd, const char *transport_path, const hl_transport *t,
+                         uint32_t first, uint32_t count, const uint8_t *entries, const float *vals)
+{
+    const hl_transport_info *ti = &t->info;
+    const uint32_t nb = ti->block_count;
+    const uint64_t e0 = t->row_offset[first];
+    for (uint32_t x = first; x < first + count; x++) {
+        const hl_row_quant q = t->row_quant[x];
+        uint64_t e = t->row_offset[x];
+        for (uint32_t b = 0; b < nb; b++)
+            for (uint32_t k = 0; k < t->block_counts[(size_t)x * nb + b]; k++, e++) {
+                const uint32_t slot = b * HL_BLOCK + entries[2 * (e - e0)], code = entries[2 * (e - e0) + 1];
+                const float y = vals[e - e0];
+                if (!isfinite(y) || !near_code(ti->quant, code, hl_quant(ti->quant, y, q.a, q.b, hl_dither_key(x, slot))))
+                    return hl_fail(ctx, HL_ERR_FORMAT,
+                                   "%s: vertex %u, term %u: %g does not code to %s's stored value (these floats are of "
+                                   "other rows)",
+                                   rd->path, x, slot, (double)y, transport_path);
+            }
+    }
     return HL_OK;
 }
 

@@ -16,9 +16,9 @@
  * The writer streams into FILE.values.partial alongside the transport's
  * writer (synced before each of its checkpoints, so a resumed transport
  * never covers more entries than the values hold) and publishes it at
- * finish. The reader checks the header, the size, the checksum and that
- * every float codes to its entry's code within one step, so a values
- * file of other rows than its transport's is refused.
+ * finish. The reader checks the header, the size, the checksum, and
+ * (hl_vfile_check) that every float codes to its entry's code within one
+ * step, so a values file of other rows than its transport's is refused.
  * Depends on: hl_internal.h, hl_shared.h (the quantisers), zlib.
  */
 #ifndef HL_VALUES_FILE_H
@@ -49,11 +49,18 @@ void hl_vfile_writer_close(hl_vfile_writer *w, int keep);
 
 /* The reader of transport t's floats (t loaded from transport_path), in
  * transport_path + ".values": *out NULL (HL_OK) when there is no such
- * file; HL_ERR_FORMAT naming it when it does not hold t's rows, checked
- * in one pass at open through a buffer of 1 MiB (the floats are read a
- * chunk at a time after, not held). */
+ * file; HL_ERR_FORMAT naming it when its header, size or checksum (one
+ * pass at open through a buffer of 1 MiB) is wrong or it covers other
+ * vertices or another entry count than t. The floats are read a chunk of
+ * rows at a time after (hl_vfile_read), not held. */
 typedef struct hl_vfile_reader hl_vfile_reader;
 hl_result hl_vfile_open(hl_context *ctx, const char *transport_path, const hl_transport *t, hl_vfile_reader **out);
+/* That the floats vals of vertices [first, first + count) (entries: their
+ * entries, from t->row_offset[first] on) code to their entries' codes
+ * within one step: else HL_ERR_FORMAT naming the file (floats of other
+ * rows). Every chunk once, before the floats are used. */
+hl_result hl_vfile_check(hl_context *ctx, const hl_vfile_reader *rd, const char *transport_path, const hl_transport *t,
+                         uint32_t first, uint32_t count, const uint8_t *entries, const float *vals);
 /* Floats [first, first + n) into dst. */
 hl_result hl_vfile_read(hl_context *ctx, hl_vfile_reader *rd, uint64_t first, size_t n, float *dst);
 void hl_vfile_close(hl_vfile_reader *rd);

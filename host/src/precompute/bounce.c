@@ -18,11 +18,14 @@
  * gather kernel), core.
  */
 #define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "bounce.h"
 #include "cl_internal.h"
@@ -39,12 +42,20 @@
 typedef struct bounce_run {
     hl_context *ctx;
     const hl_transport *t;
-    /* t's terms as floats (values_file.h), a chunk of rows at a time:
-       entries [ve0, ..) in vbuf; no reader: decoded from the codes */
+    /* t's rows a chunk at a time (t holds no entries: they stay in the
+       file, at eoff of descriptor efd): entries [ve0, ..) in ebuf, and
+       their floats (values_file.h) in vbuf; no reader: decoded from the
+       codes */
+    const char *direct_path;
+    int efd;
+    uint64_t eoff;
+    uint8_t *ebuf;
+    size_t ecap;
     hl_vfile_reader *vr;
     float *vbuf;
     size_t vcap;
     uint64_t ve0;
+    int values_checked;
     const hl_mesh *m;
     const hl_geom *g;
     uint32_t V, K, G, R, B;
@@ -82,18 +93,19 @@ typedef struct bounce_run {
 /* --------------------------------------------------------- rows */
 
 /* The direct row of vertex v of t, added into dense: its floats where
- * the values file gave them (tval: entries from e0 on), else decoded
- * from its codes. */
-static void add_direct_row(const hl_transport *t, const float *tval, uint64_t e0, uint32_t v, float *dense)
+ * the values file gave them, else decoded from its codes (en and tval:
+ * the chunk's entries and floats, from entry e0 on). */
+static void add_direct_row(const hl_transport *t, const uint8_t *en, const float *tval, uint64_t e0, uint32_t v,
+                           float *dense)
 {
     const uint32_t nb = t->info.block_count;
     const hl_row_quant q = t->row_quant[v];
-    const uint8_t *en = t->entries;
     uint64_t e = t->row_offset[v];
     for (uint32_t b = 0; b < nb; b++)
         for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++) {
-            const uint32_t slot = b * HL_BLOCK + en[2 * e];
-            dense[slot] += tval ? tval[e - e0] : hl_dequant(t->info.quant, en[2 * e + 1], q.a, q.b, hl_dither_key(v, slot));
+            const uint32_t slot = b * HL_BLOCK + en[2 * (e - e0)];
+            dense[slot] += tval ? tval[e - e0]
+                                : hl_dequant(t->info.quant, en[2 * (e - e0) + 1], q.a, q.b, hl_dither_key(v, slot));
         }
 }
 
@@ -105,15 +117,15 @@ static void add_direct_row(const hl_transport *t, const float *tval, uint64_t e0
  * slots makes a row without bounces come back byte for byte, and costs
  * the terms of rows where a bounce cancels a direct term. An energy
  * rule's cap K still holds. */
-static hl_trunc_result keep_direct_slots(const hl_transport *t, uint32_t v, const float *dense, uint32_t ncoef,
-                                         uint32_t K, hl_trunc_result tr)
+static hl_trunc_result keep_direct_slots(const hl_transport *t, const uint8_t *en, uint64_t e0, uint32_t v,
+                                         const float *dense, uint32_t ncoef, uint32_t K, hl_trunc_result tr)
 {
     const uint32_t nb = t->info.block_count;
     uint32_t low = UINT32_MAX;
     uint64_t e = t->row_offset[v];
     for (uint32_t b = 0; b < nb; b++)
         for (uint32_t k = 0; k < t->block_counts[(size_t)v * nb + b]; k++, e++) {
-            const uint32_t key = hl_key(dense[b * HL_BLOCK + t->entries[2 * e]]);
+            const uint32_t key = hl_key(dense[b * HL_BLOCK + en[2 * (e - e0)]]);
             if (key && key < low) low = key;
         }
     if (low == UINT32_MAX || low > tr.thresh) return tr; /* all kept already */
@@ -371,7 +383,8 @@ static hl_result device_code(bounce_run *u)
         TRY(hl_cl_pipe_truncate(u->pipe, n, rows, u->tp, u->tr + off));
         if (u->tp.rule == HL_TRUNC_ENERGY)
             for (uint32_t i = 0; i < n; i++)
-                u->tr[off + i] = keep_direct_slots(u->t, u->first + off + i, rows + (size_t)i * nc, nc, u->tp.K, u->tr[off + i]);
+                u->tr[off + i] = keep_direct_slots(u->t, u->ebuf, u->ve0, u->first + off + i, rows + (size_t)i * nc, nc,
+                                                   u->tp.K, u->tr[off + i]);
         TRY(hl_cl_pipe_quantize(u->pipe, n, u->first + off, rows, u->tr + off, u->t->info.quant, u->rq + off,
                                 u->bc + (size_t)off * nb, u->entries + (size_t)off * nc * 2, u->nnz + off));
     }
@@ -399,12 +412,13 @@ static void *chunk_worker(void *arg)
         if (ref)
             hl_ref_bounce_gather(&u->cur, u->m->indices, u->rho, u->prim + (size_t)i * u->K,
                                  u->uv + (size_t)i * u->K * 2, u->K, g->ncoef, dense);
-        add_direct_row(u->t, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
+        add_direct_row(u->t, u->ebuf, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
         if (!u->last) {
             u->ncnt[v] = cap_row(dense, g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
         } else if (ref) { /* on the device: device_code, after */
             hl_trunc_result tr = hl_ref_truncate(g, dense, u->tp, keys);
-            if (u->tp.rule == HL_TRUNC_ENERGY) tr = keep_direct_slots(u->t, v, dense, g->ncoef, u->tp.K, tr);
+            if (u->tp.rule == HL_TRUNC_ENERGY)
+                tr = keep_direct_slots(u->t, u->ebuf, u->ve0, v, dense, g->ncoef, u->tp.K, tr);
             u->nnz[i] = hl_ref_quantize(g, dense, tr, u->t->info.quant, v, &u->rq[i], u->bc + (size_t)i * g->nblocks,
                                         u->entries + (size_t)i * g->ncoef * 2);
         }
@@ -414,24 +428,37 @@ static void *chunk_worker(void *arg)
     return NULL;
 }
 
-/* The floats of vertices [first, first + count) into u->vbuf. */
-static hl_result load_values(bounce_run *u, uint32_t first, uint32_t count)
+/* The direct rows of vertices [first, first + count): their entries into
+ * u->ebuf and their floats into u->vbuf. */
+static hl_result load_direct(bounce_run *u, uint32_t first, uint32_t count)
 {
-    if (!u->vr) return HL_OK;
     const uint64_t e0 = u->t->row_offset[first], n = u->t->row_offset[first + count] - e0;
-    if (n > u->vcap) {
+    if (n > u->ecap) {
+        uint8_t *b = realloc(u->ebuf, (size_t)n * 2);
+        if (!b) return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the direct rows");
+        u->ebuf = b;
+        u->ecap = (size_t)n;
+    }
+    if (u->vr && n > u->vcap) {
         float *b = realloc(u->vbuf, (size_t)n * 4);
         if (!b) return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the direct rows' floats");
         u->vbuf = b;
         u->vcap = (size_t)n;
     }
     u->ve0 = e0;
-    return hl_vfile_read(u->ctx, u->vr, e0, (size_t)n, u->vbuf);
+    for (size_t done = 0; done < 2 * n;) {
+        const ssize_t got = pread(u->efd, u->ebuf + done, 2 * n - done, (off_t)(u->eoff + 2 * e0 + done));
+        if (got <= 0)
+            return hl_fail(u->ctx, HL_ERR_IO, "%s: cannot read its entries: %s", u->direct_path,
+                           got < 0 ? strerror(errno) : "the file shrank");
+        done += (size_t)got;
+    }
+    return u->vr ? hl_vfile_read(u->ctx, u->vr, e0, (size_t)n, u->vbuf) : HL_OK;
 }
 
 static hl_result run_chunk(bounce_run *u, uint32_t first, uint32_t count, int last)
 {
-    TRY(load_values(u, first, count));
+    TRY(load_direct(u, first, count));
     TRY(cast_hits(u, first, count));
     u->first = first;
     u->count = count;
@@ -529,15 +556,18 @@ static hl_result first_rows(bounce_run *u)
     uint32_t at = 0;
     for (uint32_t first = 0; first < u->V && r == HL_OK; first += u->R) {
         const uint32_t count = u->V - first < u->R ? u->V - first : u->R;
-        r = load_values(u, first, count);
+        r = load_direct(u, first, count);
+        if (r == HL_OK && u->vr && !u->values_checked)
+            r = hl_vfile_check(u->ctx, u->vr, u->direct_path, u->t, first, count, u->ebuf, u->vbuf);
         for (uint32_t v = first; v < first + count && r == HL_OK; v++) {
             memset(dense, 0, (size_t)u->g->ncoef * 4);
-            add_direct_row(u->t, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
+            add_direct_row(u->t, u->ebuf, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
             u->cur.start[v] = at;
             at += cap_row(dense, u->g->ncoef, u->G, mag, u->cur.slot + at, u->cur.val + at);
         }
     }
     u->cur.start[u->V] = at;
+    u->values_checked = u->vr != NULL;
     free(dense);
     free(mag);
     return r;
@@ -583,7 +613,9 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
 {
     const double t0 = hl_now();
     hl_transport *t = NULL;
-    hl_result r = hl_transport_load(ctx, direct_path, &t);
+    uint64_t eoff = 0;
+    /* the entries stay in the file, read a chunk of rows at a time */
+    hl_result r = hl_transport_load_streamed(ctx, direct_path, &t, &eoff);
     if (r != HL_OK) return r;
     const hl_transport_info *ti = &t->info;
     if (ti->vertex_count != mesh->vertex_count || ti->triangle_count != mesh->triangle_count ||
@@ -616,7 +648,15 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
                 "precompute: warning: no %s.values: the bounces start from the direct rows' 8-bit codes, so the direct "
                 "light is coded twice (precompute the direct rows with --keep-floats to keep their floats)\n",
                 direct_path);
-    bounce_run u = {.ctx = ctx, .t = t, .vr = vr, .m = t->mesh, .V = t->info.vertex_count, .B = d->bounces};
+    bounce_run u = {.ctx = ctx, .t = t, .direct_path = direct_path, .eoff = eoff, .vr = vr, .m = t->mesh,
+                    .V = t->info.vertex_count, .B = d->bounces};
+    u.efd = open(direct_path, O_RDONLY | O_CLOEXEC);
+    if (u.efd < 0) {
+        const int e = errno;
+        hl_vfile_close(vr);
+        hl_transport_destroy(t);
+        return hl_fail(ctx, HL_ERR_IO, "%s: cannot open: %s", direct_path, strerror(e));
+    }
     u.K = d->bounce_rays ? d->bounce_rays : HL_DEFAULT_BOUNCE_RAYS;
     u.G = d->bounce_terms == HL_TERMS_ALL ? 2 * t->info.N * t->info.N
           : d->bounce_terms                ? d->bounce_terms
@@ -662,7 +702,9 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     free_run(&u);
     hl_rt_destroy(u.rt);
     hl_vfile_close(vr);
+    close(u.efd);
     free(u.vbuf);
+    free(u.ebuf);
     hl_geom_destroy(g);
     hl_transport_destroy(t);
     if (seconds) *seconds = hl_now() - t0;
