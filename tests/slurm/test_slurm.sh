@@ -194,6 +194,7 @@ case_array() {
 # the bounces: two phases (the direct rows' shards and merge, then each
 # shard's bounces from them and their merge), a coloured ground so that
 # three planes of rows are merged; the result must be one run's bytes
+# (which start from the direct rows' floats, so the shards' must too)
 BOUNCE_OPTS=(--ground --ground-res 12 --ground-albedo 0.8,0.2,0.1 -C 16 -N 16 --bounces 2 --bounce-rays 16 -q)
 case_bounces() {
   start_cluster
@@ -204,6 +205,8 @@ case_bounces() {
     grep -q "bounce shard $i/3" "$tmp/out/sharded.hlt.shards/bounce-$i.out" 2>/dev/null \
       || fail "no log of the bounces' array task $i"
   done
+  # the bounces start from the direct rows' floats, merged from the shards'
+  [ -f "$tmp/out/sharded.hlt.shards/direct.hlt.values" ] || fail "no direct.hlt.values beside the merged direct rows"
   same_as_one_run 3 "${BOUNCE_OPTS[@]}"
 }
 
