@@ -376,12 +376,13 @@ static void *watcher(void *arg)
 
 /* Shard index of count (count 0: a whole run) cancelled once its
  * checkpoint holds 8 vertices, refused as the other kind of run, then
- * resumed with other chunks: the bytes of an unbroken run. */
-static void interrupt_and_resume(hl_context *ctx, const hl_mesh *m, uint32_t index, uint32_t count)
+ * resumed with other chunks: the bytes of an unbroken run (with floats:
+ * its values file's too). */
+static void interrupt_and_resume(hl_context *ctx, const hl_mesh *m, uint32_t index, uint32_t count, int floats)
 {
     /* C = 64 and one thread: about 20 ms a chunk of 8, so the watcher,
        polling every 0.2 ms, stops the run long before its last chunk */
-    hl_precompute_desc d = {.N = 16, .C = 64, .chunk = 8};
+    hl_precompute_desc d = {.N = 16, .C = 64, .chunk = 8, .keep_floats = floats};
     const char *ref = tmp_name("ref.%u", count), *res = tmp_name("res.%u", count);
     char partial[1100];
     snprintf(partial, sizeof partial, "%s.partial", res);
@@ -428,6 +429,18 @@ static void interrupt_and_resume(hl_context *ctx, const hl_mesh *m, uint32_t ind
     HL_CHECK(r == HL_OK, "resume: %s", hl_context_last_error(ctx));
     HL_CHECK(same_bytes(ref, res), "a resumed run must equal an unbroken one byte for byte");
     HL_CHECK(!exists(partial), "the partial file must be gone after the resumed run finished");
+    if (floats) {
+        char vref[1100], vres[1100], vpart[1200];
+        snprintf(vref, sizeof vref, "%s.values", ref);
+        snprintf(vres, sizeof vres, "%s.values", res);
+        snprintf(vpart, sizeof vpart, "%s.partial", vres);
+        printf("with --keep-floats: the resumed values file %s the unbroken run's\n",
+               same_bytes(vref, vres) ? "equals" : "differs from");
+        HL_CHECK(same_bytes(vref, vres), "a resumed run's floats must equal an unbroken one's byte for byte");
+        HL_CHECK(!exists(vpart), "the values' partial file must be gone after the resumed run finished");
+        remove(vref);
+        remove(vres);
+    }
     remove(ref);
     remove(res);
 }
@@ -438,8 +451,10 @@ static void case_resume(void)
     hl_mesh *m = load(ctx, "teapot_lowres.obj");
     HL_CHECK(m != NULL, "teapot");
     if (!m) return;
-    interrupt_and_resume(ctx, m, 1, 3);
-    interrupt_and_resume(ctx, m, 0, 0);
+    interrupt_and_resume(ctx, m, 1, 3, 0);
+    interrupt_and_resume(ctx, m, 0, 0, 0);
+    interrupt_and_resume(ctx, m, 1, 3, 1);
+    interrupt_and_resume(ctx, m, 0, 0, 1);
     hl_mesh_destroy(m);
     hl_context_destroy(ctx);
 }

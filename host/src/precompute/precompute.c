@@ -334,8 +334,14 @@ static hl_result run_open(pc_run *u)
         const int resumed = u->w != NULL;
         if (r == HL_OK && !u->w)
             r = hl_tfile_writer_open_shard(ctx, u->out_path, &u->info, u->mesh, u->shard_index, u->shard_count, &u->w);
-        if (r == HL_OK && u->d.keep_floats)
+        if (r == HL_OK && u->d.keep_floats) {
             r = hl_vfile_writer_open(ctx, u->out_path, u->lo, u->hi - u->lo, resumed, u->st.coefficients_kept, &u->vw);
+            /* a resume refused for its floats leaves the rows' partial file as it was */
+            if (r != HL_OK && resumed) {
+                hl_tfile_writer_keep(u->w);
+                u->w = NULL;
+            }
+        }
     }
     return r;
 }
