@@ -176,6 +176,7 @@ hl_result hl_vfile_writer_append(hl_vfile_writer *w, uint32_t count, const float
                 w->buf[e] = coef[(size_t)i * ncoef + b * HL_BLOCK + en[2 * e]];
         if (e != nnz[i])
             return hl_fail(w->ctx, HL_ERR_INVALID_ARGUMENT, "%s: a row's block counts and entry count disagree", w->tmp);
+        if (e == 0) continue; /* an empty row: nothing to write (and no buffer yet) */
         if (fwrite(w->buf, 4, e, w->f) != e)
             return hl_fail(w->ctx, HL_ERR_IO, "%s: cannot write it: %s", w->tmp, strerror(errno));
         w->crc = crc_update(w->crc, w->buf, (size_t)e * 4);
