@@ -140,17 +140,6 @@ static void writer_free(hl_tfile_writer *w)
     free(w);
 }
 
-static char *dup_string(hl_context *ctx, const char *s, const char *suffix)
-{
-    size_t a = strlen(s), b = suffix ? strlen(suffix) : 0;
-    char *p = hl_malloc(ctx, a + b + 1, "a file name");
-    if (!p) return NULL;
-    memcpy(p, s, a);
-    if (b) memcpy(p + a, suffix, b);
-    p[a + b] = 0;
-    return p;
-}
-
 static int info_params_differ(const hl_transport_info *a, const hl_transport_info *b)
 {
     return a->N != b->N || a->C != b->C || a->supersample != b->supersample || a->rule != b->rule ||
@@ -207,8 +196,8 @@ static hl_result writer_new(hl_context *ctx, const char *path, const hl_transpor
     if (!w) return HL_ERR_OUT_OF_MEMORY;
     w->ctx = ctx;
     w->fd = -1;
-    w->path = dup_string(ctx, path, NULL);
-    w->tmp_path = dup_string(ctx, path, ".partial");
+    w->path = hl_tf_path_with(ctx, path, NULL);
+    w->tmp_path = hl_tf_path_with(ctx, path, ".partial");
     if (!w->path || !w->tmp_path) {
         writer_free(w);
         return HL_ERR_OUT_OF_MEMORY;

@@ -318,6 +318,17 @@ int hl_tf_pwrite_all(int fd, const void *data, size_t n, uint64_t off)
     return 0;
 }
 
+char *hl_tf_path_with(hl_context *ctx, const char *s, const char *suffix)
+{
+    size_t a = strlen(s), b = suffix ? strlen(suffix) : 0;
+    char *p = hl_malloc(ctx, a + b + 1, "a file name");
+    if (!p) return NULL;
+    memcpy(p, s, a);
+    if (b) memcpy(p + a, suffix, b);
+    p[a + b] = 0;
+    return p;
+}
+
 int hl_tf_pread_all(int fd, void *data, size_t n, uint64_t off)
 {
     uint8_t *p = data;

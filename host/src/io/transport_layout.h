@@ -12,6 +12,7 @@
 #define HL_TRANSPORT_LAYOUT_H
 
 #include <stddef.h>
+#include <string.h>
 #include <stdint.h>
 
 #include <zlib.h>
@@ -222,5 +223,19 @@ int hl_tf_row_slots_problem(uint32_t N, uint32_t limit, const uint16_t *counts, 
 int hl_tf_pwrite_all(int fd, const void *data, size_t n, uint64_t off);
 /* 0: read all; 1: end of file first; -1: error (errno). */
 int hl_tf_pread_all(int fd, void *data, size_t n, uint64_t off);
+
+/* s with suffix (may be NULL) appended, as a new string (free); NULL,
+ * with the context told, when out of memory. For a file's companions
+ * (".partial", ".values"). */
+char *hl_tf_path_with(hl_context *ctx, const char *s, const char *suffix);
+
+/* Whether this host stores words little-endian, as the files do. */
+static inline int tf_host_little_endian(void)
+{
+    const uint16_t one = 1;
+    uint8_t b;
+    memcpy(&b, &one, 1);
+    return b == 1;
+}
 
 #endif

@@ -33,18 +33,10 @@ static const char *const section_names[SEC_COUNT] = {"mesh", "row table", "entri
 
 /* ---------------------------------------------------------------- bytes */
 
-static int host_is_little_endian(void)
-{
-    const uint16_t one = 1;
-    uint8_t b;
-    memcpy(&b, &one, 1);
-    return b == 1;
-}
-
 /* In-place conversion of 32-bit words between file order and host order. */
 static void swap_words_if_big_endian(void *data, size_t words)
 {
-    if (host_is_little_endian()) return;
+    if (tf_host_little_endian()) return;
     uint8_t *p = data;
     for (size_t i = 0; i < words; i++, p += 4) {
         uint32_t v = get_u32(p);

@@ -1,7 +1,8 @@
 /* values_file.c - the floats of a direct transport's kept terms
  * (values_file.h says what and why; host/FORMAT.md "Values files").
  * Depends on: values_file.h, hl_shared.h (hl_quant, hl_dither_key),
- * transport_layout.h (little-endian coding, crc_update), POSIX I/O.
+ * transport_layout.h (little-endian coding, crc_update, companion file
+ * names), POSIX I/O.
  */
 #define _POSIX_C_SOURCE 200809L
 #define _FILE_OFFSET_BITS 64
@@ -31,17 +32,6 @@ struct hl_vfile_writer {
     float *buf; /* one append's floats */
     size_t cap;
 };
-
-static char *cat(const char *a, const char *b)
-{
-    const size_t na = strlen(a), nb = strlen(b);
-    char *s = malloc(na + nb + 1);
-    if (s) {
-        memcpy(s, a, na);
-        memcpy(s + na, b, nb + 1);
-    }
-    return s;
-}
 
 static void header_bytes(uint8_t *h, uint32_t first, uint32_t count, uint64_t entries, uint32_t crc)
 {
@@ -75,21 +65,32 @@ static uint64_t file_size(FILE *f)
     return fstat(fileno(f), &s) == 0 ? (uint64_t)s.st_size : 0;
 }
 
-/* Reads n floats (little-endian on disk; this host's order checked at
- * open) into dst, adding them to *crc. */
-static int read_floats(FILE *f, float *dst, size_t n, uint32_t *crc)
+/* n floats of f from where it stands, a buffer at a time: their
+ * checksum into *crc (continued), and a copy appended to out (NULL:
+ * none). Little-endian on disk, as the hosts that write them (checked
+ * at open). */
+static hl_result pass_floats(hl_context *ctx, FILE *f, const char *path, uint64_t n, uint32_t *crc,
+                             hl_vfile_writer *out)
 {
-    if (fread(dst, 4, n, f) != n) return -1;
-    *crc = crc_update(*crc, dst, n * 4);
-    return 0;
-}
-
-static int host_little_endian(void)
-{
-    const uint32_t one = 1;
-    uint8_t b;
-    memcpy(&b, &one, 1);
-    return b == 1;
+    float *b = malloc(VF_CHUNK * 4);
+    if (!b) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    hl_result r = HL_OK;
+    for (uint64_t done = 0; r == HL_OK && done < n;) {
+        const size_t m = n - done < VF_CHUNK ? (size_t)(n - done) : VF_CHUNK;
+        if (fread(b, 4, m, f) != m) {
+            r = hl_fail(ctx, HL_ERR_IO, "%s: cannot read it", path);
+            break;
+        }
+        *crc = crc_update(*crc, b, m * 4);
+        if (out && fwrite(b, 4, m, out->f) != m) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write it", out->tmp);
+        if (out) {
+            out->crc = crc_update(out->crc, b, m * 4);
+            out->entries += m;
+        }
+        done += m;
+    }
+    free(b);
+    return r;
 }
 
 /* ------------------------------------------------------------- writer */
@@ -98,18 +99,18 @@ hl_result hl_vfile_writer_open(hl_context *ctx, const char *transport_path, uint
                                int resume, uint64_t resume_entries, hl_vfile_writer **out)
 {
     *out = NULL;
-    if (!host_little_endian())
+    if (!tf_host_little_endian())
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "values files are little-endian; this host is not");
     hl_vfile_writer *w = calloc(1, sizeof *w);
     if (!w) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
     w->ctx = ctx;
     w->first = first;
     w->count = count;
-    w->path = cat(transport_path, ".values");
-    w->tmp = w->path ? cat(w->path, ".partial") : NULL;
+    w->path = hl_tf_path_with(ctx, transport_path, ".values");
+    w->tmp = w->path ? hl_tf_path_with(ctx, w->path, ".partial") : NULL;
     if (!w->path || !w->tmp) {
         hl_vfile_writer_close(w, 1);
-        return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+        return HL_ERR_OUT_OF_MEMORY;
     }
     hl_result r = HL_OK;
     if (resume && resume_entries) {
@@ -130,14 +131,7 @@ hl_result hl_vfile_writer_open(hl_context *ctx, const char *transport_path, uint
                         "%s: holds fewer floats than the %llu entries resumed (run again without --resume)", w->tmp,
                         (unsigned long long)resume_entries);
         /* the running checksum of what stays */
-        float *b = r == HL_OK ? malloc(VF_CHUNK * 4) : NULL;
-        if (r == HL_OK && !b) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
-        for (uint64_t done = 0; r == HL_OK && done < resume_entries;) {
-            const size_t n = resume_entries - done < VF_CHUNK ? (size_t)(resume_entries - done) : VF_CHUNK;
-            if (read_floats(w->f, b, n, &w->crc) != 0) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot read it", w->tmp);
-            done += n;
-        }
-        free(b);
+        if (r == HL_OK) r = pass_floats(ctx, w->f, w->tmp, resume_entries, &w->crc, NULL);
         if (r == HL_OK && (fflush(w->f) != 0 || ftruncate(fileno(w->f), (off_t)(VF_HEADER + 4 * resume_entries)) != 0 ||
                            fseeko(w->f, (off_t)(VF_HEADER + 4 * resume_entries), SEEK_SET) != 0))
             r = hl_fail(ctx, HL_ERR_IO, "%s: cannot cut it to the resumed entries: %s", w->tmp, strerror(errno));
@@ -240,8 +234,8 @@ struct hl_vfile_reader {
 hl_result hl_vfile_open(hl_context *ctx, const char *transport_path, const hl_transport *t, hl_vfile_reader **out)
 {
     *out = NULL;
-    char *path = cat(transport_path, ".values");
-    if (!path) return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    char *path = hl_tf_path_with(ctx, transport_path, ".values");
+    if (!path) return HL_ERR_OUT_OF_MEMORY;
     FILE *f = fopen(path, "rb");
     if (!f && errno == ENOENT) {
         free(path);
@@ -249,7 +243,7 @@ hl_result hl_vfile_open(hl_context *ctx, const char *transport_path, const hl_tr
     }
     hl_result r = HL_OK;
     if (!f) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot open it: %s", path, strerror(errno));
-    if (r == HL_OK && !host_little_endian())
+    if (r == HL_OK && !tf_host_little_endian())
         r = hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "%s: values files are little-endian; this host is not", path);
     uint32_t first = 0, count = 0, crc = 0, got = 0;
     uint64_t n = 0;
@@ -265,14 +259,7 @@ hl_result hl_vfile_open(hl_context *ctx, const char *transport_path, const hl_tr
         r = hl_fail(ctx, HL_ERR_FORMAT, "%s: %llu bytes, its header says %llu (truncated or padded)", path,
                     (unsigned long long)file_size(f), (unsigned long long)(VF_HEADER + 4 * n));
     /* one pass through it, a buffer at a time, for the checksum */
-    float *v = r == HL_OK ? malloc(VF_CHUNK * 4) : NULL;
-    if (r == HL_OK && !v) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
-    for (uint64_t done = 0; r == HL_OK && done < n;) {
-        const size_t m = n - done < VF_CHUNK ? (size_t)(n - done) : VF_CHUNK;
-        if (read_floats(f, v, m, &got) != 0) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot read it", path);
-        done += m;
-    }
-    free(v);
+    if (r == HL_OK) r = pass_floats(ctx, f, path, n, &got, NULL);
     if (r == HL_OK && got != crc) r = hl_fail(ctx, HL_ERR_FORMAT, "%s: checksum mismatch (damaged)", path);
     hl_vfile_reader *rd = r == HL_OK ? malloc(sizeof *rd) : NULL;
     if (r == HL_OK && !rd) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
@@ -348,8 +335,8 @@ hl_result hl_vfile_merge(hl_context *ctx, const char *out_path, const char *cons
     hl_result r = HL_OK;
     uint32_t have = 0;
     for (uint32_t i = 0; i < count && r == HL_OK; i++) {
-        s[i].path = cat(shard_paths[i], ".values");
-        if (!s[i].path) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+        s[i].path = hl_tf_path_with(ctx, shard_paths[i], ".values");
+        if (!s[i].path) r = HL_ERR_OUT_OF_MEMORY;
         else have += access(s[i].path, F_OK) == 0;
     }
     if (r == HL_OK && have && have < count) {
@@ -366,7 +353,7 @@ hl_result hl_vfile_merge(hl_context *ctx, const char *out_path, const char *cons
     }
     if (r == HL_OK && !have) {
         /* an older merge's values are not this file's */
-        char *old = cat(out_path, ".values");
+        char *old = hl_tf_path_with(ctx, out_path, ".values");
         if (old) unlink(old);
         free(old);
     }
@@ -389,24 +376,14 @@ hl_result hl_vfile_merge(hl_context *ctx, const char *out_path, const char *cons
     for (uint32_t i = 0; i < count; i++) total += s[i].count;
     hl_vfile_writer *w = NULL;
     if (r == HL_OK) r = hl_vfile_writer_open(ctx, out_path, 0, total, 0, 0, &w);
-    float *b = r == HL_OK ? malloc(VF_CHUNK * 4) : NULL;
-    if (r == HL_OK && !b) r = hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
     for (uint32_t i = 0; i < count && r == HL_OK; i++) {
         FILE *f = fopen(s[i].path, "rb");
         uint32_t crc = 0;
         if (!f || fseeko(f, VF_HEADER, SEEK_SET) != 0) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot read it", s[i].path);
-        for (uint64_t done = 0; r == HL_OK && done < s[i].n;) {
-            const size_t n = s[i].n - done < VF_CHUNK ? (size_t)(s[i].n - done) : VF_CHUNK;
-            if (read_floats(f, b, n, &crc) != 0) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot read it", s[i].path);
-            else if (fwrite(b, 4, n, w->f) != n) r = hl_fail(ctx, HL_ERR_IO, "%s: cannot write it", w->tmp);
-            w->crc = crc_update(w->crc, b, n * 4);
-            done += n;
-        }
+        if (r == HL_OK) r = pass_floats(ctx, f, s[i].path, s[i].n, &crc, w);
         if (f) fclose(f);
         if (r == HL_OK && crc != s[i].crc) r = hl_fail(ctx, HL_ERR_FORMAT, "%s: checksum mismatch (damaged)", s[i].path);
-        w->entries += s[i].n;
     }
-    free(b);
     if (r == HL_OK) {
         r = hl_vfile_writer_finish(w);
         *written = r == HL_OK;

@@ -35,6 +35,7 @@
 #include "precompute.h"
 #include "rays.h"
 #include "transport_file.h"
+#include "transport_layout.h"
 #include "twins.h"
 #include "values_file.h"
 
@@ -446,13 +447,10 @@ static hl_result load_direct(bounce_run *u, uint32_t first, uint32_t count)
         u->vcap = (size_t)n;
     }
     u->ve0 = e0;
-    for (size_t done = 0; done < 2 * n;) {
-        const ssize_t got = pread(u->efd, u->ebuf + done, 2 * n - done, (off_t)(u->eoff + 2 * e0 + done));
-        if (got <= 0)
-            return hl_fail(u->ctx, HL_ERR_IO, "%s: cannot read its entries: %s", u->direct_path,
-                           got < 0 ? strerror(errno) : "the file shrank");
-        done += (size_t)got;
-    }
+    const int k = hl_tf_pread_all(u->efd, u->ebuf, (size_t)n * 2, u->eoff + 2 * e0);
+    if (k)
+        return hl_fail(u->ctx, HL_ERR_IO, "%s: cannot read its entries: %s", u->direct_path,
+                       k < 0 ? strerror(errno) : "the file shrank");
     return u->vr ? hl_vfile_read(u->ctx, u->vr, e0, (size_t)n, u->vbuf) : HL_OK;
 }
 
@@ -518,7 +516,7 @@ static hl_result alloc_run(bounce_run *u)
     u->cur.val = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
     /* the next rows only where a bounce is followed by another */
     const int next = u->B >= 2;
-    u->ncnt = hl_alloc_big(ctx, (size_t)u->V * 4, "the bounce rows");
+    u->ncnt = next ? hl_alloc_big(ctx, (size_t)u->V * 4, "the bounce rows") : NULL;
     u->nslot = next ? hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows") : NULL;
     u->nval = next ? hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows") : NULL;
     u->dense = hl_alloc_big(ctx, (size_t)u->R * nc * 4, "the gathers");
@@ -527,8 +525,8 @@ static hl_result alloc_run(bounce_run *u)
     u->entries = hl_alloc_big(ctx, (size_t)u->R * nc * 2, "entries");
     u->nnz = hl_alloc_big(ctx, (size_t)u->R * 4, "entry counts");
     u->cur.V = u->V;
-    return u->rho && u->prim && u->uv && u->org && u->dir && u->huv && u->cur.start && u->cur.slot && u->cur.val && u->ncnt &&
-                   (!next || (u->nslot && u->nval)) &&
+    return u->rho && u->prim && u->uv && u->org && u->dir && u->huv && u->cur.start && u->cur.slot && u->cur.val &&
+                   (!next || (u->ncnt && u->nslot && u->nval)) &&
                    u->dense && u->rq && u->bc && u->entries && u->nnz
                ? HL_OK
                : HL_ERR_OUT_OF_MEMORY;
