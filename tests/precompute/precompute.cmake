@@ -18,5 +18,5 @@ endif()
 # exact series, the white furnace, the gather kernel against its twin.
 hl_test_exe(test_bounce ${CMAKE_CURRENT_LIST_DIR}/test_bounce.c)
 target_link_libraries(test_bounce PRIVATE ZLIB::ZLIB) # bounce.floats rewrites a values file's checksum
-hl_test_cases(test_bounce bounce cavity furnace twin colour shards floats bad)
+hl_test_cases(test_bounce bounce cavity furnace twin colour shards floats half bad)
 hl_test_cases_gpu_shape(test_bounce bounce twin colour)

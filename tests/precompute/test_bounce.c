@@ -11,8 +11,18 @@
  *                 rises towards L with every bounce, every vertex with it.
  * bounce.twin     the OpenCL gather against its plain-C twin: the two
  *                 bounced files byte for byte (the same rays, the
- *                 kernel's sums bit for bit the twin's), and no direct
- *                 rows' file left behind.
+ *                 kernel's sums bit for bit the twin's), with the rows'
+ *                 16-bit slots and with the 32-bit ones forced
+ *                 (HL_TEST_BOUNCE_WIDE), which give the same bytes too;
+ *                 no direct rows' file and no scratch file of the next
+ *                 rows left behind.
+ * bounce.half     the gather's rows' binary16 values (hl_bounce_encode):
+ *                 each value the nearest normal binary16 times its row's
+ *                 scale (ties to even), within 2^-11 of itself down to
+ *                 2^-28 of the row's largest, those below the least
+ *                 normal binary16 zero; a row below 2^-100 all zeros;
+ *                 the decoding (hl_half_to_float) exact on every normal
+ *                 binary16 against a decoding of its fields.
  * bounce.colour   a coloured albedo: a row a channel; each channel's rows
  *                 byte for byte those of a grey bake with that channel's
  *                 albedo, and relit the same bit for bit (both backends);
@@ -35,6 +45,7 @@
  * Depends on: haarlight_core, an OpenCL device (PoCL).
  */
 #define _POSIX_C_SOURCE 200809L /* strdup */
+#include <glob.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -238,18 +249,38 @@ static void case_twin(void)
     HL_CHECK(cl != NULL, "an OpenCL device is needed");
     if (!cl) { hl_context_destroy(ref); return; }
     hl_mesh *m = cavity(ref, acos(1.0 - 2.0 * 0.2), 0.7f);
-    const char *pa = strdup(hl_test_tmp_path("bounce_ref.hlt")), *pb = strdup(hl_test_tmp_path("bounce_cl.hlt"));
+    char *p[2][2]; /* [wide][OpenCL] */
     hl_precompute_desc d = {.N = 16, .C = 16, .bounces = 2, .bounce_rays = 16};
-    HL_CHECK(m && hl_precompute(ref, m, &d, pa, NULL) == HL_OK, "reference: %s", hl_context_last_error(ref));
-    HL_CHECK(m && hl_precompute(cl, m, &d, pb, NULL) == HL_OK, "OpenCL: %s", hl_context_last_error(cl));
-    size_t na = 0, nb = 0, diff = bytes_differ(pa, pb, &na, &nb);
-    printf("bounced files: %zu and %zu bytes, %zu bytes differ\n", na, nb, diff);
-    HL_CHECK(diff == 0, "the OpenCL and reference bounced files differ");
+    for (int wide = 0; wide < 2; wide++) {
+        setenv("HL_TEST_BOUNCE_WIDE", wide ? "1" : "0", 1);
+        for (int c = 0; c < 2; c++) {
+            char name[64];
+            snprintf(name, sizeof name, "bounce_%s%s.hlt", c ? "cl" : "ref", wide ? "_wide" : "");
+            p[wide][c] = strdup(hl_test_tmp_path(name));
+            hl_context *x = c ? cl : ref;
+            HL_CHECK(m && hl_precompute(x, m, &d, p[wide][c], NULL) == HL_OK, "%s: %s", name, hl_context_last_error(x));
+        }
+        size_t na = 0, nb = 0, diff = bytes_differ(p[wide][0], p[wide][1], &na, &nb);
+        printf("%s slots: bounced files of %zu and %zu bytes, %zu bytes differ\n", wide ? "32-bit" : "16-bit", na, nb,
+               diff);
+        HL_CHECK(diff == 0, "the OpenCL and reference bounced files differ (%s slots)", wide ? "32-bit" : "16-bit");
+    }
+    unsetenv("HL_TEST_BOUNCE_WIDE");
+    size_t na = 0, nb = 0, diff = bytes_differ(p[0][1], p[1][1], &na, &nb);
+    printf("16-bit against 32-bit slots: %zu bytes differ\n", diff);
+    HL_CHECK(diff == 0, "the slots' width changed the bounced file");
     char direct[1200];
-    snprintf(direct, sizeof direct, "%s.direct.hlt", pa);
+    snprintf(direct, sizeof direct, "%s.direct.hlt", p[0][0]);
     HL_CHECK(access(direct, F_OK) != 0, "the direct rows' file %s was left behind", direct);
-    free((void *)pa);
-    free((void *)pb);
+    /* the next rows' scratch file (B = 2 spills them) is gone too */
+    char pat[1200];
+    const char *slash = strrchr(p[0][0], '/');
+    snprintf(pat, sizeof pat, "%.*s.haarlight-bounce-*", slash ? (int)(slash - p[0][0]) + 1 : 0, p[0][0]);
+    glob_t gl;
+    const int found = glob(pat, 0, NULL, &gl) == 0 ? (int)gl.gl_pathc : 0;
+    if (found) globfree(&gl);
+    HL_CHECK(found == 0, "%d scratch files %s left behind", found, pat);
+    for (int i = 0; i < 4; i++) free(p[i / 2][i % 2]);
     hl_mesh_destroy(m);
     hl_context_destroy(cl);
     hl_context_destroy(ref);
@@ -596,6 +627,87 @@ static void case_floats(void)
     hl_context_destroy(ctx);
 }
 
+/* The binary16 next to h on the side away from zero (up) or towards it. */
+static double half_step(uint16_t h, int up)
+{
+    const uint16_t mag = h & 0x7fffu;
+    if (!up && mag == 0) return 0.0;
+    const uint16_t n = (uint16_t)((h & 0x8000u) | (up ? mag + 1u : mag - 1u));
+    return hl_half_to_float(n);
+}
+
+static void case_half(void)
+{
+    enum { N = 4000 };
+    uint32_t slot[N];
+    float val[N];
+    uint16_t s16[N], half[N];
+    uint32_t s32[N];
+    uint64_t x = 0x9e3779b97f4a7c15ull;
+    for (int row = 0; row < 6; row++) {
+        /* a row's values over 40 binary orders below its largest, some
+           exactly between two binary16s, at scales from 1e-25 to 1e20 */
+        const double top = pow(10.0, -25.0 + 9.0 * row);
+        for (int i = 0; i < N; i++) {
+            x = x * 6364136223846793005ull + 1442695040888963407ull;
+            const double u = (double)(x >> 11) / 9007199254740992.0;
+            double v = top * pow(2.0, -40.0 * u);
+            if (i % 7 == 0) { /* a tie: 12 significant bits, the last set */
+                int e;
+                const double fr = frexp(v, &e);
+                v = ldexp((floor(fr * 2048.0) + 0.5) / 2048.0, e);
+            }
+            val[i] = (float)((x >> 3) & 1 ? -v : v);
+            slot[i] = (uint32_t)i;
+        }
+        val[0] = (float)top;
+        float scale = 0.0f;
+        hl_bounce_encode(N, slot, val, s16, NULL, half, &scale);
+        hl_bounce_encode(N, slot, val, NULL, s32, half, &scale);
+        double worst_rel = 0.0, worst_near = 0.0;
+        int slots_bad = 0, ties_odd = 0, ties = 0;
+        for (int i = 0; i < N; i++) {
+            slots_bad += s16[i] != slot[i] || s32[i] != slot[i];
+            if (i % 7 == 0 && i && fabs(val[i]) >= ldexp(scale, -14)) { /* a tie among normal binary16s: to even */
+                ties++;
+                ties_odd += half[i] & 1;
+            }
+            const double got = (double)hl_half_to_float(half[i]) * scale, want = val[i];
+            /* the nearest: neither neighbour is closer */
+            const double lo = half_step(half[i], 0) * scale, hi = half_step(half[i], 1) * scale;
+            const double e = fabs(got - want);
+            if (fabs(want) < ldexp(scale, -14)) { /* below the normal binary16s: zero, or the least one if nearer */
+                if (half[i] & 0x7fffu && (half[i] & 0x7fffu) != 0x400u) worst_near = fmax(worst_near, e);
+            } else if (fabs(lo - want) < e || fabs(hi - want) < e)
+                worst_near = fmax(worst_near, e);
+            if (fabs(want) >= ldexp(top, -28)) worst_rel = fmax(worst_rel, e / fabs(want));
+        }
+        printf("row of largest %.0e: scale %g, worst relative error %.3g (down to 2^-28 of the largest)\n", top,
+               (double)scale, worst_rel);
+        HL_CHECK(slots_bad == 0, "%d slots changed", slots_bad);
+        HL_CHECK(ties > 0 && ties_odd == 0, "%d of %d ties rounded to an odd binary16", ties_odd, ties);
+        hl_check_error("a value against its binary16 times the scale (relative)", worst_rel, ldexp(1.0, -11));
+        hl_check_error("a value off by more than to a closer binary16", worst_near, 0.0);
+    }
+    /* every normal binary16 (and zero) decoded exactly */
+    int bad = 0;
+    for (uint32_t h = 0; h < 0x10000u; h++) {
+        const uint32_t e = (h >> 10) & 0x1fu, m = h & 0x3ffu;
+        if (e == 31 || (e == 0 && m)) continue;
+        const double want = (h & 0x8000u ? -1.0 : 1.0) * (e ? ldexp(1.0 + m / 1024.0, (int)e - 15) : 0.0);
+        bad += (double)hl_half_to_float((uint16_t)h) != want;
+    }
+    HL_CHECK(bad == 0, "%d binary16s decoded wrong", bad);
+    /* a row too small for a normal scale: zeros */
+    val[0] = 1e-31f;
+    val[1] = -3e-32f;
+    float scale = 0.0f;
+    half[0] = half[1] = 1;
+    hl_bounce_encode(2, slot, val, s16, NULL, half, &scale);
+    HL_CHECK(half[0] == 0 && half[1] == 0 && scale == 1.0f, "a row of 1e-31 kept as %u, %u at scale %g", half[0],
+             half[1], (double)scale);
+}
+
 static void case_bad(void)
 {
     hl_context *ctx = hl_test_ref_context(0);
@@ -622,6 +734,6 @@ int main(int argc, char **argv)
 {
     static const hl_test_case cases[] = {
         {"cavity", case_cavity}, {"furnace", case_furnace}, {"twin", case_twin},
-        {"colour", case_colour}, {"shards", case_shards}, {"floats", case_floats}, {"bad", case_bad}, {NULL, NULL}};
+        {"colour", case_colour}, {"shards", case_shards}, {"floats", case_floats}, {"half", case_half}, {"bad", case_bad}, {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

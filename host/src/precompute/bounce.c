@@ -5,7 +5,8 @@
  * ... + W^B T_0 without storing each bounce. The gather reads the
  * bounce_terms largest terms of each S_(b-1) row (indirect light is an
  * average of many rows, so the small terms of each weigh little:
- * docs/BOUNCES.md measures it); T_0 itself is added whole, as the floats
+ * docs/BOUNCES.md measures it), held in four bytes a term
+ * (hl_bounce_src: a 16-bit slot and a binary16); T_0 itself is added whole, as the floats
  * of the direct file's values file (values_file.h) where it has one, a
  * chunk at a time, else decoded from its codes. Each chunk's K
  * directions a vertex are cast again every bounce (they depend on the
@@ -47,7 +48,7 @@ typedef struct bounce_run {
        file, at eoff of descriptor efd): entries [ve0, ..) in ebuf, and
        their floats (values_file.h) in vbuf; no reader: decoded from the
        codes */
-    const char *direct_path;
+    const char *direct_path, *out_path;
     int efd;
     uint64_t eoff;
     uint8_t *ebuf;
@@ -69,9 +70,16 @@ typedef struct bounce_run {
     float *uv;          /* R x K x 2 */
     float *org, *dir, *huv;
     hl_bounce_src cur;  /* S_(b-1), capped */
-    uint32_t *ncnt;     /* next rows: counts, then V x G strided terms */
-    uint32_t *nslot;
-    float *nval;
+    int wide;           /* slots of 32 bits (ncoef above 65536) */
+    /* the next rows (only where another bounce follows): their counts
+       and scales, every vertex's; their terms a chunk's (R x G strided,
+       start unused), appended to the spill file nfd as each chunk ends
+       and read back into cur after the bounce, so that two sets of
+       capped rows are never in memory at once */
+    uint32_t *ncnt;
+    hl_bounce_src next;
+    int nfd;
+    uint64_t nend;
     float *dense;       /* R x ncoef: the chunk's gathers */
     /* the last bounce: the chunk's rows for the writer */
     hl_trunc_params tp;
@@ -81,14 +89,14 @@ typedef struct bounce_run {
     uint32_t *nnz;
     /* a chunk's job */
     uint32_t first, count, last;
-    atomic_uint next;
+    atomic_uint next_row;
     atomic_int oom;
     /* the device's gather, and its truncation and codes of the last
        bounce (the direct stages' kernels, PIPE_ROWS rows a launch) */
     cl_kernel k;
     hl_cl_pipe *pipe;
     hl_trunc_result *tr; /* R */
-    cl_mem d_start, d_slot, d_val, d_idx, d_rho, d_prim, d_uv, d_out;
+    cl_mem d_start, d_slot, d_val, d_scale, d_idx, d_rho, d_prim, d_uv, d_out;
 } bounce_run;
 
 /* --------------------------------------------------------- rows */
@@ -184,18 +192,120 @@ static uint32_t cap_row(const float *dense, uint32_t ncoef, uint32_t G, float *m
     return c;
 }
 
-/* The strided next rows packed into cur (CSR), in place. */
-static void pack_next(bounce_run *u)
+/* A binary16 of x, rounded to nearest, ties to even (|x| < 65520); below
+ * the least normal one, 2^-14, zero (the gather's decoding reads normal
+ * binary16s alone: hl_bounce_src). */
+static uint16_t float_to_half(float x)
 {
+    uint32_t a;
+    memcpy(&a, &x, 4);
+    const uint16_t sign = (uint16_t)((a >> 16) & 0x8000u);
+    a &= 0x7fffffffu;
+    if (a < 0x38800000u) { /* x 2^24 rounded: 1024 (2^-14) or a subnormal */
+        const uint16_t m = (uint16_t)lrintf(fabsf(x) * 16777216.0f);
+        return m >= 0x400u ? (uint16_t)(sign | 0x400u) : 0;
+    }
+    const uint32_t m = a & 0x7fffffu, rem = m & 0x1fffu;
+    uint32_t h = (((a >> 23) - 112u) << 10) | (m >> 13);
+    if (rem > 0x1000u || (rem == 0x1000u && (h & 1u))) h++; /* a carry moves into the exponent, as it should */
+    return (uint16_t)(sign | h);
+}
+
+void hl_bounce_encode(uint32_t n, const uint32_t *slot, const float *val, uint16_t *slot16, uint32_t *slot32,
+                      uint16_t *half, float *scale)
+{
+    float top = 0.0f;
+    for (uint32_t i = 0; i < n; i++) top = fmaxf(top, fabsf(val[i]));
+    int e = 0;
+    (void)frexpf(top, &e); /* top in [2^(e-1), 2^e) */
+    const int zero = !(top >= 0x1p-100f);
+    /* the largest term into [2^14, 2^15), so that terms down to 2^-28 of
+       it keep the binary16's 11 significant bits */
+    *scale = zero ? 1.0f : ldexpf(1.0f, e - 15);
+    const float inv = zero ? 0.0f : ldexpf(1.0f, 15 - e); /* exact: a power of two */
+    for (uint32_t i = 0; i < n; i++) {
+        if (slot16) slot16[i] = (uint16_t)slot[i];
+        else slot32[i] = slot[i];
+        half[i] = float_to_half(val[i] * inv);
+    }
+}
+
+/* Row v's terms (n, in slot and val) encoded into src from term at on. */
+static void put_row(hl_bounce_src *src, size_t at, uint32_t v, uint32_t n, const uint32_t *slot, const float *val)
+{
+    hl_bounce_encode(n, slot, val, src->slot16 ? src->slot16 + at : NULL, src->slot32 ? src->slot32 + at : NULL,
+                     src->val + at, src->scale + v);
+}
+
+/* The chunk [first, first + count)'s next rows packed and appended to
+ * the spill file: its slots, then its values. */
+static hl_result spill_chunk(bounce_run *u, uint32_t first, uint32_t count)
+{
+    const size_t sb = u->wide ? 4 : 2;
+    char *ns = u->wide ? (char *)u->next.slot32 : (char *)u->next.slot16;
+    size_t at = 0;
+    for (uint32_t i = 0; i < count; i++) {
+        const size_t n = u->ncnt[first + i], from = (size_t)i * u->G;
+        memmove(ns + at * sb, ns + from * sb, n * sb);
+        memmove(u->next.val + at, u->next.val + from, n * 2);
+        at += n;
+    }
+    if (hl_tf_pwrite_all(u->nfd, ns, at * sb, u->nend) || hl_tf_pwrite_all(u->nfd, u->next.val, at * 2, u->nend + at * sb))
+        return hl_fail(u->ctx, HL_ERR_IO, "cannot write the next bounce's rows beside %s: %s", u->out_path,
+                       strerror(errno));
+    u->nend += at * (sb + 2);
+    return HL_OK;
+}
+
+/* The spilled next rows read back into cur (CSR), chunk by chunk as
+ * they were written. */
+static hl_result unspill(bounce_run *u)
+{
+    const size_t sb = u->wide ? 4 : 2;
+    char *cs = u->wide ? (char *)u->cur.slot32 : (char *)u->cur.slot16;
+    uint64_t off = 0;
     uint32_t at = 0;
-    for (uint32_t v = 0; v < u->V; v++) {
-        u->cur.start[v] = at;
-        const size_t from = (size_t)v * u->G;
-        memmove(u->cur.slot + at, u->nslot + from, (size_t)u->ncnt[v] * 4);
-        memmove(u->cur.val + at, u->nval + from, (size_t)u->ncnt[v] * 4);
-        at += u->ncnt[v];
+    for (uint32_t first = 0; first < u->V; first += u->R) {
+        const uint32_t count = u->V - first < u->R ? u->V - first : u->R;
+        const uint32_t at0 = at;
+        for (uint32_t v = first; v < first + count; v++) {
+            u->cur.start[v] = at;
+            at += u->ncnt[v];
+        }
+        const size_t n = at - at0;
+        const int k = hl_tf_pread_all(u->nfd, cs + (size_t)at0 * sb, n * sb, off);
+        const int k2 = k ? k : hl_tf_pread_all(u->nfd, u->cur.val + at0, n * 2, off + n * sb);
+        if (k || k2)
+            return hl_fail(u->ctx, HL_ERR_IO, "cannot read back the next bounce's rows beside %s: %s", u->out_path,
+                           (k ? k : k2) < 0 ? strerror(errno) : "the file shrank");
+        off += n * (sb + 2);
     }
     u->cur.start[u->V] = at;
+    memcpy(u->cur.scale, u->next.scale, (size_t)u->V * 4);
+    u->nend = 0;
+    return HL_OK;
+}
+
+/* The spill file of the next rows: in out_path's directory (where the
+ * output goes there is room for it; /tmp may be memory), unlinked at
+ * once so that nothing is left behind, however the run ends. */
+static hl_result spill_open(bounce_run *u)
+{
+    const char *slash = strrchr(u->out_path, '/');
+    const size_t dn = slash ? (size_t)(slash - u->out_path) + 1 : 0;
+    char *tmpl = malloc(dn + 32);
+    if (!tmpl) return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory");
+    memcpy(tmpl, u->out_path, dn);
+    strcpy(tmpl + dn, ".haarlight-bounce-XXXXXX");
+    u->nfd = mkstemp(tmpl);
+    const int e = errno;
+    if (u->nfd >= 0) unlink(tmpl);
+    hl_result r = HL_OK;
+    if (u->nfd < 0)
+        r = hl_fail(u->ctx, HL_ERR_IO, "cannot make a scratch file for the bounces in the directory of %s: %s",
+                    u->out_path, strerror(e));
+    free(tmpl);
+    return r;
 }
 
 /* --------------------------------------------------------- samples */
@@ -266,15 +376,17 @@ static hl_result device_open(bounce_run *u)
 {
     hl_context *ctx = u->ctx;
     cl_int e;
-    u->k = clCreateKernel(ctx->cl->program, "hl_bounce_gather", &e);
-    if (e != CL_SUCCESS) return hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: the kernel hl_bounce_gather: %s", hl_cl_err_name(e));
-    const size_t cap = (size_t)u->V * u->G * 4;
+    const char *kname = u->wide ? "hl_bounce_gather_wide" : "hl_bounce_gather";
+    u->k = clCreateKernel(ctx->cl->program, kname, &e);
+    if (e != CL_SUCCESS) return hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: the kernel %s: %s", kname, hl_cl_err_name(e));
+    const size_t cap = (size_t)u->V * u->G, sb = u->wide ? 4 : 2;
     /* a device in host memory reads the rows where they are
        (device_rows), with no copy of its own */
     if (!ctx->cl->host_memory) {
         TRY(hl_cl_make_buf(ctx, &u->d_start, CL_MEM_READ_ONLY, ((size_t)u->V + 1) * 4, NULL, "the bounce rows"));
-        TRY(hl_cl_make_buf(ctx, &u->d_slot, CL_MEM_READ_ONLY, cap ? cap : 4, NULL, "the bounce rows"));
-        TRY(hl_cl_make_buf(ctx, &u->d_val, CL_MEM_READ_ONLY, cap ? cap : 4, NULL, "the bounce rows"));
+        TRY(hl_cl_make_buf(ctx, &u->d_slot, CL_MEM_READ_ONLY, cap * sb + 4, NULL, "the bounce rows"));
+        TRY(hl_cl_make_buf(ctx, &u->d_val, CL_MEM_READ_ONLY, cap * 2 + 4, NULL, "the bounce rows"));
+        TRY(hl_cl_make_buf(ctx, &u->d_scale, CL_MEM_READ_ONLY, (size_t)u->V * 4 + 4, NULL, "the bounce rows"));
     }
     TRY(hl_cl_make_buf(ctx, &u->d_idx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, (size_t)u->m->triangle_count * 12,
                        u->m->indices, "the triangles"));
@@ -293,7 +405,7 @@ static void device_close(bounce_run *u)
     hl_free_big(u->tr);
     if (!u->ctx->cl) return;
     if (u->k) clReleaseKernel(u->k);
-    cl_mem *m[] = {&u->d_start, &u->d_slot, &u->d_val, &u->d_idx, &u->d_rho, &u->d_prim, &u->d_uv, &u->d_out};
+    cl_mem *m[] = {&u->d_start, &u->d_slot, &u->d_val, &u->d_scale, &u->d_idx, &u->d_rho, &u->d_prim, &u->d_uv, &u->d_out};
     for (size_t i = 0; i < sizeof m / sizeof *m; i++) hl_cl_release_buf(u->ctx->cl, m[i]);
 }
 
@@ -313,6 +425,7 @@ static void device_rows_release(bounce_run *u)
     hl_cl_release_buf(u->ctx->cl, &u->d_start);
     hl_cl_release_buf(u->ctx->cl, &u->d_slot);
     hl_cl_release_buf(u->ctx->cl, &u->d_val);
+    hl_cl_release_buf(u->ctx->cl, &u->d_scale);
 }
 
 /* The rows of S_(b-1) onto the device, once a bounce: copied, or (a
@@ -321,20 +434,24 @@ static void device_rows_release(bounce_run *u)
 static hl_result device_rows(bounce_run *u)
 {
     cl_command_queue q = u->ctx->cl->queue;
-    const size_t n = u->cur.start[u->V];
+    const size_t n = u->cur.start[u->V], sb = u->wide ? 4 : 2;
+    void *slot = u->wide ? (void *)u->cur.slot32 : (void *)u->cur.slot16;
     if (u->ctx->cl->host_memory) {
         device_rows_release(u);
         const cl_mem_flags f = CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR;
         TRY(hl_cl_make_buf(u->ctx, &u->d_start, f, ((size_t)u->V + 1) * 4, u->cur.start, "the bounce rows"));
-        TRY(hl_cl_make_buf(u->ctx, &u->d_slot, f, n * 4 + 4, u->cur.slot, "the bounce rows"));
-        return hl_cl_make_buf(u->ctx, &u->d_val, f, n * 4 + 4, u->cur.val, "the bounce rows");
+        TRY(hl_cl_make_buf(u->ctx, &u->d_slot, f, n * sb + 4, slot, "the bounce rows"));
+        TRY(hl_cl_make_buf(u->ctx, &u->d_val, f, n * 2 + 4, u->cur.val, "the bounce rows"));
+        return hl_cl_make_buf(u->ctx, &u->d_scale, f, (size_t)u->V * 4 + 4, u->cur.scale, "the bounce rows");
     }
     CL_TRY(u->ctx, clEnqueueWriteBuffer(q, u->d_start, CL_FALSE, 0, ((size_t)u->V + 1) * 4, u->cur.start, 0, NULL, NULL),
            "uploading the bounce rows");
+    CL_TRY(u->ctx, clEnqueueWriteBuffer(q, u->d_scale, CL_FALSE, 0, (size_t)u->V * 4, u->cur.scale, 0, NULL, NULL),
+           "uploading the bounce rows");
     if (n) {
-        CL_TRY(u->ctx, clEnqueueWriteBuffer(q, u->d_slot, CL_FALSE, 0, n * 4, u->cur.slot, 0, NULL, NULL),
+        CL_TRY(u->ctx, clEnqueueWriteBuffer(q, u->d_slot, CL_FALSE, 0, n * sb, slot, 0, NULL, NULL),
                "uploading the bounce rows");
-        CL_TRY(u->ctx, clEnqueueWriteBuffer(q, u->d_val, CL_FALSE, 0, n * 4, u->cur.val, 0, NULL, NULL),
+        CL_TRY(u->ctx, clEnqueueWriteBuffer(q, u->d_val, CL_FALSE, 0, n * 2, u->cur.val, 0, NULL, NULL),
                "uploading the bounce rows");
     }
     return HL_OK;
@@ -355,14 +472,15 @@ static hl_result device_gather(bounce_run *u)
     SETARG(0, u->d_start);
     SETARG(1, u->d_slot);
     SETARG(2, u->d_val);
-    SETARG(3, u->d_idx);
-    SETARG(4, u->d_rho);
-    SETARG(5, u->d_prim);
-    SETARG(6, u->d_uv);
-    SETARG(7, K);
-    SETARG(8, nc);
-    SETARG(9, count);
-    SETARG(10, u->d_out);
+    SETARG(3, u->d_scale);
+    SETARG(4, u->d_idx);
+    SETARG(5, u->d_rho);
+    SETARG(6, u->d_prim);
+    SETARG(7, u->d_uv);
+    SETARG(8, K);
+    SETARG(9, nc);
+    SETARG(10, count);
+    SETARG(11, u->d_out);
 #undef SETARG
     /* the device's fixed group size, so the kernel builds once per device */
     size_t local = ctx->cl->wg ? ctx->cl->wg : 1, global = ((size_t)u->count + local - 1) / local * local;
@@ -402,12 +520,14 @@ static void *chunk_worker(void *arg)
     bounce_run *u = arg;
     const hl_geom *g = u->g;
     const int ref = u->k == NULL;
-    float *mag = malloc((size_t)g->ncoef * 4);
+    float *mag = malloc((size_t)g->ncoef * 4), *cval = malloc((size_t)u->G * 4 + 4);
+    uint32_t *cslot = malloc((size_t)u->G * 4 + 4);
     hl_ref_key *keys = malloc((size_t)g->ncoef * sizeof *keys);
-    if (!mag || !keys) atomic_store(&u->oom, 1);
+    const int ok = mag && cval && cslot && keys;
+    if (!ok) atomic_store(&u->oom, 1);
     for (;;) {
-        const uint32_t i = atomic_fetch_add(&u->next, 1u);
-        if (i >= u->count || !mag || !keys) break;
+        const uint32_t i = atomic_fetch_add(&u->next_row, 1u);
+        if (i >= u->count || !ok) break;
         const uint32_t v = u->first + i;
         float *dense = u->dense + (size_t)i * g->ncoef;
         if (ref)
@@ -415,7 +535,8 @@ static void *chunk_worker(void *arg)
                                  u->uv + (size_t)i * u->K * 2, u->K, g->ncoef, dense);
         add_direct_row(u->t, u->ebuf, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
         if (!u->last) {
-            u->ncnt[v] = cap_row(dense, g->ncoef, u->G, mag, u->nslot + (size_t)v * u->G, u->nval + (size_t)v * u->G);
+            u->ncnt[v] = cap_row(dense, g->ncoef, u->G, mag, cslot, cval);
+            put_row(&u->next, (size_t)i * u->G, v, u->ncnt[v], cslot, cval);
         } else if (ref) { /* on the device: device_code, after */
             hl_trunc_result tr = hl_ref_truncate(g, dense, u->tp, keys);
             if (u->tp.rule == HL_TRUNC_ENERGY)
@@ -425,6 +546,8 @@ static void *chunk_worker(void *arg)
         }
     }
     free(mag);
+    free(cval);
+    free(cslot);
     free(keys);
     return NULL;
 }
@@ -461,12 +584,13 @@ static hl_result run_chunk(bounce_run *u, uint32_t first, uint32_t count, int la
     u->first = first;
     u->count = count;
     u->last = last;
-    atomic_store(&u->next, 0u);
+    atomic_store(&u->next_row, 0u);
     atomic_store(&u->oom, 0);
     if (u->k) TRY(device_gather(u));
     hl_run_threads(u->ctx->threads, chunk_worker, u);
     if (atomic_load(&u->oom)) return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the bounce's scratch");
-    return last && u->k ? device_code(u) : HL_OK;
+    if (!last) return spill_chunk(u, first, count);
+    return u->k ? device_code(u) : HL_OK;
 }
 
 /* --------------------------------------------------------- the phase */
@@ -512,21 +636,26 @@ static hl_result alloc_run(bounce_run *u)
     u->dir = hl_alloc_big(ctx, RK * 12, "the bounce rays");
     u->huv = hl_alloc_big(ctx, RK * 8, "the bounce hits");
     u->cur.start = hl_alloc_big(ctx, ((size_t)u->V + 1) * 4, "the bounce rows");
-    u->cur.slot = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
-    u->cur.val = hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows");
     /* the next rows only where a bounce is followed by another */
     const int next = u->B >= 2;
+    hl_bounce_src *rows[2] = {&u->cur, next ? &u->next : NULL};
+    int rows_ok = u->cur.start != NULL;
+    for (int r = 0; r < 2 && rows[r]; r++) {
+        const size_t terms = r ? (size_t)u->R * u->G : VG; /* the next rows: a chunk's */
+        if (u->wide) rows[r]->slot32 = hl_alloc_big(ctx, terms * 4 + 4, "the bounce rows");
+        else rows[r]->slot16 = hl_alloc_big(ctx, terms * 2 + 4, "the bounce rows");
+        rows[r]->val = hl_alloc_big(ctx, terms * 2 + 4, "the bounce rows");
+        rows[r]->scale = hl_alloc_big(ctx, (size_t)u->V * 4 + 4, "the bounce rows");
+        rows_ok = rows_ok && (rows[r]->slot16 || rows[r]->slot32) && rows[r]->val && rows[r]->scale;
+    }
     u->ncnt = next ? hl_alloc_big(ctx, (size_t)u->V * 4, "the bounce rows") : NULL;
-    u->nslot = next ? hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows") : NULL;
-    u->nval = next ? hl_alloc_big(ctx, VG * 4 + 4, "the bounce rows") : NULL;
     u->dense = hl_alloc_big(ctx, (size_t)u->R * nc * 4, "the gathers");
     u->rq = hl_alloc_big(ctx, (size_t)u->R * sizeof *u->rq, "quantisation parameters");
     u->bc = hl_alloc_big(ctx, (size_t)u->R * u->g->nblocks * 2, "block counts");
     u->entries = hl_alloc_big(ctx, (size_t)u->R * nc * 2, "entries");
     u->nnz = hl_alloc_big(ctx, (size_t)u->R * 4, "entry counts");
     u->cur.V = u->V;
-    return u->rho && u->prim && u->uv && u->org && u->dir && u->huv && u->cur.start && u->cur.slot && u->cur.val &&
-                   (!next || (u->ncnt && u->nslot && u->nval)) &&
+    return u->rho && u->prim && u->uv && u->org && u->dir && u->huv && rows_ok && (!next || u->ncnt) &&
                    u->dense && u->rq && u->bc && u->entries && u->nnz
                ? HL_OK
                : HL_ERR_OUT_OF_MEMORY;
@@ -534,8 +663,10 @@ static hl_result alloc_run(bounce_run *u)
 
 static void free_run(bounce_run *u)
 {
-    void *p[] = {u->rho, u->prim, u->uv, u->org, u->dir, u->huv, u->cur.start, u->cur.slot, u->cur.val, u->ncnt,
-                 u->nslot, u->nval, u->dense, u->rq, u->bc, u->entries, u->nnz};
+    void *p[] = {u->rho,          u->prim,        u->uv,          u->org,        u->dir,         u->huv,
+                 u->cur.start,    u->cur.slot16,  u->cur.slot32,  u->cur.val,    u->cur.scale,   u->ncnt,
+                 u->next.slot16,  u->next.slot32, u->next.val,    u->next.scale, u->dense,       u->rq,
+                 u->bc,           u->entries,     u->nnz};
     for (size_t i = 0; i < sizeof p / sizeof *p; i++) hl_free_big(p[i]);
     device_close(u);
 }
@@ -545,9 +676,13 @@ static void free_run(bounce_run *u)
 static hl_result first_rows(bounce_run *u)
 {
     float *dense = malloc((size_t)u->g->ncoef * 4), *mag = malloc((size_t)u->g->ncoef * 4);
-    if (!dense || !mag) {
+    float *cval = malloc((size_t)u->G * 4 + 4);
+    uint32_t *cslot = malloc((size_t)u->G * 4 + 4);
+    if (!dense || !mag || !cval || !cslot) {
         free(dense);
         free(mag);
+        free(cval);
+        free(cslot);
         return hl_fail(u->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the bounce rows");
     }
     hl_result r = HL_OK;
@@ -561,13 +696,17 @@ static hl_result first_rows(bounce_run *u)
             memset(dense, 0, (size_t)u->g->ncoef * 4);
             add_direct_row(u->t, u->ebuf, u->vr ? u->vbuf : NULL, u->ve0, v, dense);
             u->cur.start[v] = at;
-            at += cap_row(dense, u->g->ncoef, u->G, mag, u->cur.slot + at, u->cur.val + at);
+            const uint32_t n = cap_row(dense, u->g->ncoef, u->G, mag, cslot, cval);
+            put_row(&u->cur, at, v, n, cslot, cval);
+            at += n;
         }
     }
     u->cur.start[u->V] = at;
     u->values_checked = u->vr != NULL;
     free(dense);
     free(mag);
+    free(cval);
+    free(cslot);
     return r;
 }
 
@@ -586,6 +725,7 @@ static hl_result bounce_channel(bounce_run *u, const hl_precompute_desc *d, hl_t
         const double tb = hl_now();
         const int last = b == d->bounces;
         if (u->k) r = device_rows(u);
+        u->nend = 0;
         const uint32_t from = last ? lo : 0, to = last ? hi : u->V;
         for (uint32_t first = from; first < to && r == HL_OK; first += u->R) {
             const uint32_t count = to - first < u->R ? to - first : u->R;
@@ -597,7 +737,7 @@ static hl_result bounce_channel(bounce_run *u, const hl_precompute_desc *d, hl_t
             if (r == HL_OK && hl_context_cancelled(ctx)) r = HL_ERR_INTERRUPTED;
         }
         device_rows_release(u);
-        if (r == HL_OK && !last) pack_next(u);
+        if (r == HL_OK && !last) r = unspill(u);
         if (r == HL_OK && !ctx->quiet)
             fprintf(stderr, "precompute: bounce %u/%u%s: %u vertices x %u rays, the %u largest terms of each hit row, %.1f s\n",
                     b, d->bounces, channels == 3 ? cname[c] : "", last ? hi - lo : u->V, u->K, u->G, hl_now() - tb);
@@ -646,8 +786,8 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
                 "precompute: warning: no %s.values: the bounces start from the direct rows' 8-bit codes, so the direct "
                 "light is coded twice (precompute the direct rows with --keep-floats to keep their floats)\n",
                 direct_path);
-    bounce_run u = {.ctx = ctx, .t = t, .direct_path = direct_path, .eoff = eoff, .vr = vr, .m = t->mesh,
-                    .V = t->info.vertex_count, .B = d->bounces};
+    bounce_run u = {.ctx = ctx, .t = t, .direct_path = direct_path, .out_path = out_path, .eoff = eoff, .vr = vr,
+                    .m = t->mesh, .V = t->info.vertex_count, .B = d->bounces, .nfd = -1};
     u.efd = open(direct_path, O_RDONLY | O_CLOEXEC);
     if (u.efd < 0) {
         const int e = errno;
@@ -661,11 +801,16 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
                                            : HL_DEFAULT_BOUNCE_TERMS;
     if (u.G > 2 * t->info.N * t->info.N) u.G = 2 * t->info.N * t->info.N;
     u.R = d->chunk && d->chunk < u.V ? d->chunk : (u.V < HL_DEFAULT_CHUNK ? u.V : HL_DEFAULT_CHUNK);
+    /* 16-bit slots wherever they reach (N up to 128); HL_TEST_BOUNCE_WIDE=1
+       forces the 32-bit ones, so that small tests cover them too */
+    const char *tw = getenv("HL_TEST_BOUNCE_WIDE");
+    u.wide = 2ull * t->info.N * t->info.N > 65536u || (tw && strcmp(tw, "1") == 0);
     hl_geom *g = NULL;
     hl_tfile_writer *w = NULL;
     r = hl_geom_create(ctx, t->info.N, t->info.C, &g);
     u.g = g;
     if (r == HL_OK) r = alloc_run(&u);
+    if (r == HL_OK && u.B >= 2) r = spill_open(&u);
     if (r == HL_OK) r = hl_bounce_check_albedo(ctx, t->mesh);
     if (r == HL_OK) r = hl_rt_create(ctx, t->mesh, &u.rt);
     /* a shard gathers its own vertices' last bounce, but the bounces
@@ -701,6 +846,7 @@ hl_result hl_bounce_file(hl_context *ctx, const hl_precompute_desc *d, const hl_
     hl_rt_destroy(u.rt);
     hl_vfile_close(vr);
     close(u.efd);
+    if (u.nfd >= 0) close(u.nfd);
     free(u.vbuf);
     free(u.ebuf);
     hl_geom_destroy(g);

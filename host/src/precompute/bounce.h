@@ -25,14 +25,44 @@
 /* A sample that hit nothing (or a surface from behind). */
 #define HL_BOUNCE_MISS 0xffffffffu
 
-/* Rows as the gather reads them: vertex v's terms are slot[e], val[e] for
- * e in [start[v], start[v + 1]), slots ascending. */
+/* Rows as the gather reads them: vertex v's terms are e in [start[v],
+ * start[v + 1]), slots ascending: slot16[e] (slot32[e] where ncoef is
+ * above 65536; the other NULL) and the value scale[v] x val[e], val an
+ * IEEE binary16, zero or normal, and scale[v] a power of two that puts
+ * the row's largest term in [2^14, 2^15) (terms below 2^-28 of it are
+ * zero). Four bytes a term instead of eight: the gather reads the rows of
+ * every vertex, the phase's largest memory, and a binary16's relative
+ * rounding (2^-11 at most) is far below the bounce's sampling noise and
+ * the file's 8-bit codes (docs/BOUNCES.md). Normal binary16s alone, so
+ * that the gather decodes them with a shift and one exact product
+ * (hl_half_bits_to_float), no subnormals on either side. */
 typedef struct hl_bounce_src {
     uint32_t V;
     uint32_t *start;
-    uint32_t *slot;
-    float *val;
+    uint16_t *slot16;
+    uint32_t *slot32;
+    uint16_t *val;
+    float *scale;
 } hl_bounce_src;
+
+/* One row's n terms (slots ascending, values finite) into slot16 or
+ * slot32 (whichever is not NULL) and half, and *scale its scale (a row
+ * whose largest term is below 2^-100 is stored as zeros: its scale would
+ * be a float subnormal, which a device may flush). */
+void hl_bounce_encode(uint32_t n, const uint32_t *slot, const float *val, uint16_t *slot16, uint32_t *slot32,
+                      uint16_t *half, float *scale);
+
+/* The binary16 h (zero or normal) as a float, exactly: its bits moved
+ * into a float's, which is 2^-112 of it, times 2^112 (the gather's
+ * decoding, kernels/precompute/bounce.cl). */
+static inline float hl_half_to_float(uint16_t h)
+{
+    union {
+        uint32_t u;
+        float f;
+    } x = {((uint32_t)(h & 0x8000u) << 16) | ((uint32_t)(h & 0x7fffu) << 13)};
+    return x.f * 0x1p112f;
+}
 
 /* The twin of kernels/precompute/bounce.cl: one vertex's T_b into out
  * (ncoef floats, overwritten) from its K samples (prim[k] the hit

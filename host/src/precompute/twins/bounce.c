@@ -18,10 +18,12 @@ void hl_ref_bounce_gather(const hl_bounce_src *src, const uint32_t *indices, con
         const float b[3] = {w0, u, v};
         const float ry = w0 * rho[c[0]] + u * rho[c[1]] + v * rho[c[2]];
         for (int j = 0; j < 3; j++) {
-            const float w = ry * b[j] * invK;
-            for (uint32_t e = src->start[c[j]]; e < src->start[c[j] + 1]; e++) {
-                const float t = w * src->val[e];
-                out[src->slot[e]] = out[src->slot[e]] + t;
+            const float w = ry * b[j] * invK * src->scale[c[j]];
+            const uint32_t e0 = src->start[c[j]], e1 = src->start[c[j] + 1];
+            for (uint32_t e = e0; e < e1; e++) {
+                const uint32_t s = src->slot16 ? src->slot16[e] : src->slot32[e];
+                const float t = w * hl_half_to_float(src->val[e]);
+                out[s] = out[s] + t;
             }
         }
     }
