@@ -7,6 +7,8 @@
  *            bit, the ground's plane and extent in world space; also with
  *            the ground turned over, and kept with bodies on both sides;
  *            a triangle (not filling its extent) kept for lights below;
+ *            a turned body whose box dips below the ground, not its
+ *            vertices (the ground still left out);
  *            the Embree path draws every body.
  *
  * Every check prints its tolerance and worst error (hl_check_error).
@@ -154,6 +156,49 @@ static void skip_straddle(hl_context *ctx, scene *s)
     free(d);
 }
 
+/* A turned body resting on the ground: an octahedron of radius r turned
+ * 45 degrees about Z, on one of its edges. Its own box, turned with it,
+ * dips r / sqrt 2 below the ground, its vertices do not: the side
+ * test takes the vertices, so the ground is left out for lights above and
+ * below it, as for a body whose box rests on it (CesiumMilkTruck's
+ * wheels, whose boxes kept the ground in every map). */
+static void skip_turned(hl_context *ctx, scene *s)
+{
+    const float r = 0.25f * (s->gpos[3 * (size_t)GROUND_N] - s->gpos[0]);
+    float opos[18] = {r, 0, 0, -r, 0, 0, 0, r, 0, 0, -r, 0, 0, 0, r, 0, 0, -r};
+    uint32_t otri[24] = {0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4, 2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5};
+    hl_dyn_object two[2] = {{.pos = opos, .nverts = 6, .tri = otri, .ntris = 8}, s->obj[1]};
+    const float cx = 0.5f * (s->gpos[0] + s->gpos[3 * (size_t)GROUND_N]);
+    const double ax[3] = {0, 0, 1}, t[3] = {cx, (double)s->gpos[1] + r * sqrt(0.5), 0.5 * (s->gpos[2] + s->gpos[3 * (size_t)(GROUND_N + 1) * GROUND_N + 2])};
+    make_xf(ax, 0.25 * 3.14159265358979323846, t, two[0].xf);
+    enum { K = 4 };
+    float dirs[K][3], *d = malloc((size_t)K * R_TEST * R_TEST * 4);
+    light_dirs(dirs, K);
+    hl_shadow_frame fr[K];
+    hl_shadow_maps *sm = NULL;
+    HL_CHECK(hl_shadow_maps_create(ctx, two, 2, R_TEST, HL_SHADOW_RASTER, &sm) == HL_OK, "%s",
+             hl_context_last_error(ctx));
+    if (sm) {
+        hl_shadow_maps_skip_planes(sm, 1);
+        HL_CHECK(hl_shadow_maps_render(sm, (const float(*)[3])dirs, K, d, fr) == HL_OK, "%s", hl_context_last_error(ctx));
+        HL_CHECK(fr[0].skip_mask == 2u && fr[1].skip_mask == 2u && fr[2].skip_mask == 2u && fr[3].skip_mask == 0u,
+                 "turned octahedron on the ground: masks %u %u %u %u, expected 2 2 2 0", fr[0].skip_mask,
+                 fr[1].skip_mask, fr[2].skip_mask, fr[3].skip_mask);
+        /* light +Y: the octahedron's own fit, not the ground's */
+        hl_shadow_maps *alone = NULL;
+        hl_shadow_frame own;
+        HL_CHECK(hl_shadow_maps_create(ctx, two, 1, R_TEST, HL_SHADOW_RASTER, &alone) == HL_OK &&
+                 hl_shadow_maps_render(alone, (const float(*)[3])dirs, 1, d, &own) == HL_OK, "%s",
+                 hl_context_last_error(ctx));
+        HL_CHECK(own.width == fr[0].width && own.depth_range == fr[0].depth_range,
+                 "turned octahedron: the +Y map is %g wide, the octahedron's own fit %g", (double)fr[0].width,
+                 (double)own.width);
+        hl_shadow_maps_destroy(alone);
+    }
+    hl_shadow_maps_destroy(sm);
+    free(d);
+}
+
 static void case_skip(void)
 {
     hl_context *ctx = ref_ctx();
@@ -162,6 +207,7 @@ static void case_skip(void)
     skip_one(ctx, &s, "ground");
     skip_straddle(ctx, &s);
     skip_triangle(ctx, &s);
+    skip_turned(ctx, &s);
     /* the ground upside down in its own coordinates, (x, -y, 2 cz - z),
        put back in place by its transform: a half turn about X, then z
        moved by 2 cz */

@@ -56,10 +56,15 @@
  * (and must then stay in the maps). */
 #define HL_SHADOW_PLANE_TOL 1e-5
 
-/* Another body is on one side of a flat body's plane when no corner of
- * its box is more than this fraction of the scene's extent on the other:
- * a body resting on the ground touches it, and its float box may dip a
- * hair below. */
+/* Another body is on one side of a flat body's plane when none of its
+ * vertices is more than this fraction of the scene's extent on the other:
+ * a body resting on the ground touches it, and its float vertices may dip
+ * a hair below. The box's corners decide where they are all on one side
+ * (the box holds the vertices); where a corner is not, the vertices do:
+ * a turned body's box reaches beyond the body (CesiumMilkTruck's wheels,
+ * turned 10 degrees, dip 0.069 below the ground by their boxes, 29 times
+ * this tolerance, and kept the ground in every map, fitted to the ground
+ * instead of the truck). */
 #define HL_SHADOW_SIDE_TOL 1e-4
 
 /* A flat body is never left out for a light within this cosine of its
@@ -92,6 +97,8 @@ struct hl_shadow_maps {
     float *corners; /* 24 per object: the boxes' corners in world space */
     float *plane;   /* HL_SHADOW_PLANE_F per object: find_plane's record */
     float *fitpts;  /* 24 per object: the corners a map is fitted to */
+    uint32_t *vstart; /* nobj + 1: each object's first vertex in pos */
+    uint8_t *side;  /* per object: which side of its plane (flat_sides) */
     int skip_planes;
     hl_shadow_frame *frames;
     float *packed; /* 16 per map */
@@ -269,6 +276,8 @@ void hl_shadow_maps_destroy(hl_shadow_maps *sm)
     free(sm->corners);
     free(sm->fitpts);
     free(sm->plane);
+    free(sm->vstart);
+    free(sm->side);
     free(sm->frames);
     free(sm->packed);
     free(sm->ortho);
@@ -281,6 +290,7 @@ static void copy_objects(hl_shadow_maps *sm, const hl_dyn_object *objects)
     uint32_t v0 = 0, t0 = 0;
     for (uint32_t o = 0; o < sm->nobj; o++) {
         const hl_dyn_object *ob = &objects[o];
+        sm->vstart[o] = v0;
         memcpy(sm->pos + 3 * (size_t)v0, ob->pos, (size_t)ob->nverts * 12);
         for (uint32_t t = 0; t < ob->ntris; t++) {
             uint32_t *d = sm->tri + 4 * (size_t)(t0 + t);
@@ -298,6 +308,7 @@ static void copy_objects(hl_shadow_maps *sm, const hl_dyn_object *objects)
         v0 += ob->nverts;
         t0 += ob->ntris;
     }
+    sm->vstart[sm->nobj] = v0;
 }
 
 /* The plane record of a flat object (own coordinates, HL_SHADOW_PLANE_F
@@ -396,11 +407,57 @@ static double scene_extent(const hl_shadow_maps *sm)
     return fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
 }
 
-/* The bodies light dir may leave out (shadow_map.h); ext: scene_extent. */
-static uint32_t skip_mask(const hl_shadow_maps *sm, const float dir[3], double ext)
+/* Sides of flat body fb's plane that body q lies on, within tol: bit 0
+ * every vertex at or above it (h >= -tol), bit 1 every one at or below.
+ * The box's corners first, then, for a side they do not show, the
+ * vertices moved to world space (HL_SHADOW_SIDE_TOL). */
+static unsigned body_sides(const hl_shadow_maps *sm, uint32_t q, const hl_flat_body *fb, double tol)
+{
+    double lo = INFINITY, hi = -INFINITY;
+    for (int c = 0; c < 8; c++) {
+        const float *w = sm->corners + 24 * (size_t)q + 3 * c;
+        double h = fb->n[0] * (w[0] - fb->p[0]) + fb->n[1] * (w[1] - fb->p[1]) + fb->n[2] * (w[2] - fb->p[2]);
+        lo = fmin(lo, h), hi = fmax(hi, h);
+    }
+    unsigned sides = (lo >= -tol ? 1u : 0u) | (hi <= tol ? 2u : 0u);
+    if (sides == 3u || sm->vstart[q + 1] == sm->vstart[q]) return sides;
+    /* h(v) = m . v + c with m = R^T n and c = n . (t - p) */
+    const float *x = sm->xf + 12 * (size_t)q;
+    double m[3], c = 0.0;
+    for (int k = 0; k < 3; k++) {
+        m[k] = fb->n[0] * x[k] + fb->n[1] * x[4 + k] + fb->n[2] * x[8 + k];
+        c += fb->n[k] * ((double)x[4 * k + 3] - fb->p[k]);
+    }
+    lo = INFINITY, hi = -INFINITY;
+    for (uint32_t v = sm->vstart[q]; v < sm->vstart[q + 1]; v++) {
+        const float *p = sm->pos + 3 * (size_t)v;
+        double h = m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + c;
+        lo = fmin(lo, h), hi = fmax(hi, h);
+    }
+    return (lo >= -tol ? 1u : 0u) | (hi <= tol ? 2u : 0u);
+}
+
+/* Per flat body, the sides of its plane that every other body lies on
+ * (body_sides' bits, ANDed), at the bodies' current transforms: once a
+ * render, after world_corners. ext: scene_extent. */
+static void flat_sides(hl_shadow_maps *sm, double ext)
+{
+    const double tol = HL_SHADOW_SIDE_TOL * ext;
+    for (uint32_t o = 0; o < sm->nobj && o < 32; o++) {
+        hl_flat_body fb;
+        sm->side[o] = 0;
+        if (!sm->skip_planes || !hl_shadow_maps_flat(sm, o, &fb)) continue;
+        unsigned sides = 3u;
+        for (uint32_t q = 0; q < sm->nobj && sides; q++)
+            if (q != o) sides &= body_sides(sm, q, &fb, tol);
+        sm->side[o] = (uint8_t)sides;
+    }
+}
+
+/* The bodies light dir may leave out (shadow_map.h), from flat_sides. */
+static uint32_t skip_mask(const hl_shadow_maps *sm, const float dir[3])
 {
     if (!sm->skip_planes) return 0;
-    double tol = HL_SHADOW_SIDE_TOL * ext;
     uint32_t mask = 0;
     for (uint32_t o = 0; o < sm->nobj && o < 32; o++) {
         hl_flat_body fb;
@@ -408,16 +465,7 @@ static uint32_t skip_mask(const hl_shadow_maps *sm, const float dir[3], double e
         double s = fb.n[0] * dir[0] + fb.n[1] * dir[1] + fb.n[2] * dir[2];
         if (!(fabs(s) >= HL_SHADOW_PLANE_MIN_COS)) continue;
         /* every other body on one side of the plane, either one */
-        int above = 1, below = 1;
-        for (uint32_t q = 0; q < sm->nobj && (above || below); q++) {
-            if (q == o) continue;
-            for (int c = 0; c < 8; c++) {
-                const float *w = sm->corners + 24 * (size_t)q + 3 * c;
-                double h = fb.n[0] * (w[0] - fb.p[0]) + fb.n[1] * (w[1] - fb.p[1]) + fb.n[2] * (w[2] - fb.p[2]);
-                above &= h >= -tol;
-                below &= h <= tol;
-            }
-        }
+        const int above = sm->side[o] & 1u, below = (sm->side[o] >> 1) & 1u;
         /* with the others on the light's side it hides nothing from them;
            on the far side, what it hides is taken from its extent, which
            only a body filling it may have taken */
@@ -427,9 +475,9 @@ static uint32_t skip_mask(const hl_shadow_maps *sm, const float dir[3], double e
 }
 
 /* Frame k for light dir, fitted to the corners of the bodies not left out. */
-static void fit_one(hl_shadow_maps *sm, const float dir[3], double ext, hl_shadow_frame *fr)
+static void fit_one(hl_shadow_maps *sm, const float dir[3], hl_shadow_frame *fr)
 {
-    uint32_t mask = skip_mask(sm, dir, ext), n = 0;
+    uint32_t mask = skip_mask(sm, dir), n = 0;
     for (uint32_t o = 0; o < sm->nobj; o++)
         if (o >= 32 || !(mask >> o & 1u)) memcpy(sm->fitpts + 24 * (size_t)n++, sm->corners + 24 * (size_t)o, 96);
     hl_shadow_fit_frame(sm->fitpts, 8 * n, dir, sm->R, fr);
@@ -439,8 +487,8 @@ static void fit_one(hl_shadow_maps *sm, const float dir[3], double ext, hl_shado
 void hl_shadow_maps_skip_masks(hl_shadow_maps *sm, const float (*dirs)[3], uint32_t K, uint32_t *masks)
 {
     world_corners(sm);
-    double ext = scene_extent(sm);
-    for (uint32_t k = 0; k < K; k++) masks[k] = skip_mask(sm, dirs[k], ext);
+    flat_sides(sm, scene_extent(sm));
+    for (uint32_t k = 0; k < K; k++) masks[k] = skip_mask(sm, dirs[k]);
 }
 
 static hl_result create_device(hl_shadow_maps *sm)
@@ -492,7 +540,10 @@ hl_result hl_shadow_maps_create(hl_context *ctx, const hl_dyn_object *objects, u
     sm->corners = malloc((size_t)nobj * 96);
     sm->fitpts = malloc((size_t)nobj * 96);
     sm->plane = malloc((size_t)nobj * HL_SHADOW_PLANE_F * sizeof(float));
-    if (!sm->pos || !sm->tri || !sm->xf || !sm->box || !sm->corners || !sm->fitpts || !sm->plane) {
+    sm->vstart = malloc(((size_t)nobj + 1) * sizeof *sm->vstart);
+    sm->side = calloc(nobj, 1);
+    if (!sm->pos || !sm->tri || !sm->xf || !sm->box || !sm->corners || !sm->fitpts || !sm->plane || !sm->vstart ||
+        !sm->side) {
         hl_shadow_maps_destroy(sm);
         return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for %u vertices and %u triangles", sm->nverts, sm->ntris);
     }
@@ -653,9 +704,9 @@ hl_result hl_shadow_maps_render(hl_shadow_maps *sm, const float (*dirs)[3], uint
     }
     TRY(ensure_k(sm, K));
     world_corners(sm);
-    double ext = scene_extent(sm);
+    flat_sides(sm, scene_extent(sm));
     for (uint32_t k = 0; k < K; k++) {
-        fit_one(sm, dirs[k], ext, &sm->frames[k]);
+        fit_one(sm, dirs[k], &sm->frames[k]);
         hl_shadow_frame_pack(&sm->frames[k], sm->packed + 16 * (size_t)k);
     }
     if (frames) memcpy(frames, sm->frames, (size_t)K * sizeof *frames);
