@@ -16,6 +16,7 @@
  * cl_internal.h (the device memory left, for the batch size).
  */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -412,6 +413,12 @@ static void pack_map(const hl_frame_state *st, uint32_t kb, const float dir[3], 
     hl_shadow_frame_pack(f, lf);
     lf[16] = tanf(theta);
     lf[17] = fmaxf(f->width, f->height) / (float)f->R / f->depth_range;
+    /* a test hook: HL_TEST_RPB=a,b scales the receiver-plane bias's two
+       terms (hl_dyn_receiver), the filter's (a) and the texels' (b); 0,0
+       is no receiver-plane bias (DYNAMIC.md, section 6, real assets) */
+    const char *t = getenv("HL_TEST_RPB");
+    float a = 1.0f, b = 1.0f;
+    if (t && sscanf(t, "%f,%f", &a, &b) == 2) lf[16] *= a, lf[17] *= b;
     memcpy(lf + 18, dir, 3 * sizeof *lf);
 }
 
