@@ -64,17 +64,26 @@ kernel void hl_relight_items(global const uint *col, global const uint *col_star
         /* a tile that lacks the slot reads entry 0 (all zero), so that no
            load waits on a branch and the unrolled loads are in flight
            together: one at a time, each waited for, 200 slots would cost
-           200 memory latencies a work-item */
-#pragma unroll 8
-        for (uint j = 0; j < n; j++) {
-            const uint bits = sbits[j];
-            const uint e = (bits >> tile) & 1u ? sbase[j] + popcount(bits & below) : 0u;
-            const float d = vload_half(lane, (global const half *)(col + (size_t)e * (HL_TILE / 2u)));
-            const float4 l = sl[j];
-            sr = fma(d, l.x, sr);
-            sg = fma(d, l.y, sg);
-            sb = fma(d, l.z, sb);
-        }
+           200 memory latencies a work-item. Unrolled by hand, eight slots
+           a step (the inner loop's count is fixed, so the compiler
+           unrolls it whole), then the rest: "#pragma unroll 8" on the
+           loop of n steps is refused with a warning by some compilers
+           (PoCL's), and the sums are added in the same order either way */
+#define ITEMS_SLOT(j)                                                                                  \
+    {                                                                                                  \
+        const uint bits = sbits[j];                                                                    \
+        const uint e = (bits >> tile) & 1u ? sbase[j] + popcount(bits & below) : 0u;                   \
+        const float d = vload_half(lane, (global const half *)(col + (size_t)e * (HL_TILE / 2u)));     \
+        const float4 l = sl[j];                                                                        \
+        sr = fma(d, l.x, sr);                                                                          \
+        sg = fma(d, l.y, sg);                                                                          \
+        sb = fma(d, l.z, sb);                                                                          \
+    }
+        uint j = 0;
+        for (; j + 8u <= n; j += 8u)
+            for (uint q = 0; q < 8u; q++) ITEMS_SLOT(j + q)
+        for (; j < n; j++) ITEMS_SLOT(j)
+#undef ITEMS_SLOT
     }
     float lo = 0.0f, hi = 0.0f;
     uint neg = 0u;
