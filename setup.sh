@@ -76,7 +76,9 @@ case "$what" in
     # 1. the suite (valgrind memcheck of a small scene included)
     (cd build && ctest --output-on-failure)
     # 2. the suite again under AddressSanitizer and UndefinedBehaviorSanitizer
-    #    (the viewer's tests are left out: Mesa's own allocations are not ours)
+    #    (the viewer's tests are left out: Mesa's own allocations are not ours);
+    #    it runs on the kernel cache step 1 filled: LeakSanitizer crashes at
+    #    exit in a process where PoCL compiled a kernel (docs/ARCHITECTURE.md)
     cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHL_SANITIZE=ON -DHL_WITH_VIEWER=OFF
     cmake --build build-asan -j"$jobs"
     (cd build-asan && ctest --output-on-failure -j"$jobs")
