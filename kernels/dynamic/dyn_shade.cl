@@ -17,12 +17,13 @@
  */
 #pragma OPENCL FP_CONTRACT OFF
 
-/* Receiver v of entry j in its map: (u, v, d), or u = NaN where the light
- * does not reach it. zmin: each batch map's nearest depth (hl_csm_zmin),
- * kbs: entry j's batch map. */
+/* Receiver v of entry j in its map: (u, v, d) and its plane (rpl,
+ * HL_DYN_RPL floats), or u = NaN where the light does not reach it.
+ * zmin: each batch map's nearest depth (hl_csm_zmin), kbs: entry j's
+ * batch map. */
 kernel void hl_dyn_prepare(global const float *E, global const uint *ks, global const uint *kbs, uint N, uint nl,
                            global const float *wpos, global const float *wnrm, global const uint *body,
-                           global const float *lf, global const float *zmin, global float *uvd)
+                           global const float *lf, global const float *zmin, global float *uvd, global float *rpl)
 {
     const size_t id = get_global_id(0);
     if (id >= (size_t)nl * N) return;
@@ -37,11 +38,12 @@ kernel void hl_dyn_prepare(global const float *E, global const uint *ks, global 
     }
     const float p[3] = {wpos[3 * v], wpos[3 * v + 1], wpos[3 * v + 2]};
     const float n[3] = {wnrm[3 * v], wnrm[3 * v + 1], wnrm[3 * v + 2]};
-    float r[3];
-    hl_dyn_receiver(lf + (size_t)j * HL_DYN_LF, zmin[kbs[j]], p, n, body[v], r);
+    float r[3], pl[HL_DYN_RPL];
+    hl_dyn_receiver(lf + (size_t)j * HL_DYN_LF, zmin[kbs[j]], p, n, body[v], r, pl);
     o[0] = r[0];
     o[1] = r[1];
     o[2] = r[2];
+    for (uint i = 0; i < HL_DYN_RPL; i++) rpl[HL_DYN_RPL * id + i] = pl[i];
 }
 
 /* The flat rectangles (nflat of them, fb; bodies flat_body) out of entry

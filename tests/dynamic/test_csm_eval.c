@@ -126,7 +126,7 @@ static int batch_matches(hl_context *ctx, const char *what)
     for (uint32_t j = 0; ok && j < K; j++)
         ok = hl_csm_visibility(c, ks[j], theta[j], fp[j], uvd + 3 * (size_t)start[j], counts[j], Va + start[j],
                                za + start[j]) == HL_OK;
-    ok = ok && hl_csm_visibility_batch(c, K, ks, theta, fp, uvd, start, Vb, zb) == HL_OK;
+    ok = ok && hl_csm_visibility_batch(c, K, ks, theta, fp, uvd, NULL, start, Vb, zb) == HL_OK;
     HL_CHECK(ok, "%s: %s", what, hl_context_last_error(ctx));
     size_t diff = 0;
     for (uint32_t i = 0; ok && i < n; i++) diff += memcmp(Va + i, Vb + i, 4) != 0 || memcmp(za + i, zb + i, 4) != 0;

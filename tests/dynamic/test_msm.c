@@ -6,7 +6,9 @@
  *                means, tables and texel moments against the reference
  *                backend's (the twins), and
  *                the evaluation kernel against its twin on the device's
- *                own tables, V and z_avg; also through a batch of lights.
+ *                own tables, V and z_avg, with random receiver planes
+ *                (the small boxes' per-texel test) and without (NULL);
+ *                also through a batch of lights.
  * msm.bound      the Hamburger 4MSM bound (twin) on distributions whose
  *                answer is known: one blocker share over empty texels
  *                (the bound and the blocker depth are exact at alpha = 0;
@@ -80,7 +82,7 @@ static void case_twin(void)
     hl_csm_sizes(c, NULL, NULL, NULL, &P);
     HL_CHECK(P == HL_MSM_PLANES, "moments take %u planes, not %u", HL_MSM_PLANES, P);
     float *z = malloc(K * R2 * 4), *uvd = malloc(n * 12), *V = malloc(n * 4), *za = malloc(n * 4);
-    float *Vr = malloc(n * 4), *zar = malloc(n * 4);
+    float *Vr = malloc(n * 4), *zar = malloc(n * 4), *rpl = malloc(n * HL_DYN_RPL * 4);
     float *sat = malloc(5 * R2 * 4), *mean = malloc(20), *t4 = malloc(R2 * 16);
     float *satr = malloc(5 * R2 * 4), *meanr = malloc(20), *t4r = malloc(R2 * 16);
     mixed_map(z, R);
@@ -89,11 +91,27 @@ static void case_twin(void)
     HL_CHECK(hl_csm_build(cr, z, K) == HL_OK, "%s", hl_context_last_error(ref));
     hl_shadow_frame f = frame_of(R);
     double w_tab = 0, w_mean = 0, w_t4 = 0, w_V = 0, w_za = 0, w_end = 0;
-    for (uint32_t k = 0; k < K; k++) {
+    uint32_t nsmall = 0;
+    for (uint32_t pass = 0; pass < 2 * K; pass++) {
+        const uint32_t k = pass % K;
         random_receivers(uvd, n, R);
+        /* the first K passes with planes: slopes up to 0.02 of the depth
+           a texel (a receiver at about 70 degrees to the light in these
+           maps), the depth before the receiver-plane bias up to 0.03
+           behind uvd's; then without (NULL, planes facing the light) */
+        const float *pl = pass < K ? rpl : NULL;
+        for (uint32_t i = 0; i < n; i++) {
+            rpl[HL_DYN_RPL * i] = (float)(0.04 * hl_rng_unit() - 0.02);
+            rpl[HL_DYN_RPL * i + 1] = (float)(0.04 * hl_rng_unit() - 0.02);
+            rpl[HL_DYN_RPL * i + 2] = uvd[3 * i + 2] + (float)(0.03 * hl_rng_unit());
+        }
         float theta = k ? 0.02f : 0.08f;
-        HL_CHECK(hl_csm_visibility(c, k, theta, &f, uvd, n, V, za) == HL_OK, "%s", hl_context_last_error(ctx));
-        HL_CHECK(hl_csm_visibility(cr, k, theta, &f, uvd, n, Vr, zar) == HL_OK, "%s", hl_context_last_error(ref));
+        const uint32_t start[2] = {0, n};
+        const hl_shadow_frame *fp = &f;
+        HL_CHECK(hl_csm_visibility_batch(c, 1, &k, &theta, &fp, uvd, pl, start, V, za) == HL_OK, "%s",
+                 hl_context_last_error(ctx));
+        HL_CHECK(hl_csm_visibility_batch(cr, 1, &k, &theta, &fp, uvd, pl, start, Vr, zar) == HL_OK, "%s",
+                 hl_context_last_error(ref));
         hl_csm_read_planes(c, k, sat, mean, t4);
         hl_csm_read_planes(cr, k, satr, meanr, t4r);
         w_tab = fmax(w_tab, maxdiff(sat, satr, 5 * R2));
@@ -104,9 +122,12 @@ static void case_twin(void)
         double t = tan((double)theta) * f.depth_range * R;
         hl_msm_eval_params p;
         hl_msm_params(&p, R, zmin, (float)(t / f.width), (float)(t / f.height));
+        hl_msm_set_texel(&p, fmaxf(f.width, f.height) / (float)R / f.depth_range);
         for (uint32_t i = 0; i < n; i++) {
             float o[2];
-            hl_ref_msm_eval(sat, mean, t4, &p, uvd + 3 * i, o);
+            hl_ref_msm_eval(sat, mean, t4, &p, uvd + 3 * i, pl ? pl + HL_DYN_RPL * i : NULL, o);
+            /* a filter box within the per-texel limit (z_avg found) */
+            if (pl && za[i] >= 0.0f && (uvd[3 * i + 2] - za[i]) * p.su <= p.direct_half) nsmall++;
             w_V = fmax(w_V, fabs((double)o[0] - V[i]));
             w_za = fmax(w_za, fabs((double)o[1] - za[i]));
             if (!(V[i] >= 0.0f && V[i] <= 1.0f)) w_V = INFINITY;
@@ -132,6 +153,9 @@ static void case_twin(void)
     hl_check_error("V, kernel vs twin on the kernel's tables, absolute", w_V, tol);
     hl_check_error("z_avg, kernel vs twin on the kernel's tables, absolute", w_za, tol);
     hl_check_error("V and z_avg, OpenCL module vs reference backend end to end", w_end, tol);
+    printf("receivers with planes whose filter box was tested texel by texel: %u of %u\n", nsmall, K * n);
+    HL_CHECK(nsmall > n / 10, "too few small boxes (%u) to test the per-texel path", nsmall);
+    free(rpl);
     free(z); free(uvd); free(V); free(za); free(Vr); free(zar);
     free(sat); free(mean); free(t4); free(satr); free(meanr); free(t4r);
     hl_csm_destroy(c);

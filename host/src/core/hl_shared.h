@@ -556,22 +556,37 @@ HL_INLINE HL_U32 hl_quant(HL_U32 scheme, float v, float a, float b, HL_U32 key)
  * mask) gets none: its surface is not in the map. The bias grows as
  * 1 / (n.l) as a light grazes the surface while E_k shrinks as n.l, so
  * what it loses (a blocker nearer than the bias is not seen: the contact
- * leak) carries little energy at grazing angles. */
+ * leak) carries little energy at grazing angles.
+ * rpl (HL_DYN_RPL floats) = the tangent plane's slopes in the map, dd/du
+ * and dd/dv (normalised depth per texel), and d before the bias: the
+ * small boxes test each texel against the plane there instead
+ * (msm_eval.cl). 0, 0 and d for a body out of the map (no own surface to
+ * pass by) and where n.l <= 0. */
+#define HL_DYN_RPL 3u
 HL_INLINE void hl_dyn_receiver(HL_GLOBAL const float *lf, float zmin, const float *p, const float *n, HL_U32 body,
-                               float *uvd)
+                               float *uvd, float *rpl)
 {
     const float q0 = p[0] - lf[0], q1 = p[1] - lf[1], q2 = p[2] - lf[2];
     uvd[0] = (q0 * lf[3] + q1 * lf[4] + q2 * lf[5]) * lf[12];
     uvd[1] = (q0 * lf[6] + q1 * lf[7] + q2 * lf[8]) * lf[13];
     float d = (q0 * lf[9] + q1 * lf[10] + q2 * lf[11]) * lf[14];
+    rpl[0] = 0.0f;
+    rpl[1] = 0.0f;
+    rpl[2] = d;
     if (!(body < 32u && ((HL_AS_U32(lf[15]) >> body) & 1u))) {
         const float nl = n[0] * lf[18] + n[1] * lf[19] + n[2] * lf[20];
         float bias = 0.0f; /* nl <= 0: E_k = 0 there, never evaluated */
         if (nl > 0.0f) {
-            const float nr = HL_FABSF(n[0] * lf[3] + n[1] * lf[4] + n[2] * lf[5]);
-            const float nu = HL_FABSF(n[0] * lf[6] + n[1] * lf[7] + n[2] * lf[8]);
+            const float sr = n[0] * lf[3] + n[1] * lf[4] + n[2] * lf[5];
+            const float su = n[0] * lf[6] + n[1] * lf[7] + n[2] * lf[8];
+            const float nr = HL_FABSF(sr), nu = HL_FABSF(su);
             const float hw = HL_FMINF(HL_FMAXF(d - zmin, 0.0f) * lf[16], HL_FRAME_BIAS_CAP) + HL_FRAME_BIAS_TEXELS * lf[17];
             bias = (nr + nu) / nl * hw;
+            /* the plane n . (x - p) = 0 with toward_far = -l: a step a
+               along right (a R / width texels) moves the depth by
+               a (n.right) / (n.l) / depth_range */
+            rpl[0] = sr / nl * (lf[14] / lf[12]);
+            rpl[1] = su / nl * (lf[14] / lf[13]);
         }
         d = HL_FMAXF(d - bias, 0.0f);
     }

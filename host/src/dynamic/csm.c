@@ -34,11 +34,12 @@ struct hl_csm {
     cl_kernel keb;           /* the evaluation of several lights (hl_csm_eval_batch) */
     cl_kernel keg, kz;       /* the device frame's evaluation, the maps' nearest depths */
     cl_kernel kmb, kmeb, kmeg; /* moments: basis, evaluation of several lights, the device frame's */
-    cl_mem depth_d, img_d, rowsum_d, mean_d, zsc_d, prm_d, uvd_d, out_d, which_d, lights_d, zmin_d;
+    cl_mem depth_d, img_d, rowsum_d, mean_d, zsc_d, prm_d, uvd_d, rpl_d, out_d, which_d, lights_d, zmin_d;
     uint32_t prm_cap; /* lights whose parameters prm_d holds (within the device's constant memory) */
     size_t io_cap;    /* receivers the uvd, out and which buffers hold */
     float *out_h;     /* 2 per receiver, read back */
     uint32_t *which_h; /* each receiver's entry of the batch */
+    float *rpl_h;      /* HL_DYN_RPL per receiver: the planes uploaded when none are given */
 };
 
 size_t hl_csm_bytes_per_light_rep(hl_shadow_rep rep, uint32_t R, uint32_t M, uint32_t Mb)
@@ -82,7 +83,34 @@ void hl_msm_params(hl_msm_eval_params *p, uint32_t R, float zmin, float su, floa
     p->lbr = HL_MSM_LBR;
     p->direct_half = HL_CSM_DIRECT_HALF;
     p->kb = 1.0f - HL_MSM_FAR_BAND;
-    /* tests and tuning: HL_TEST_MSM=alpha,bias,lbr,leak_a overrides */
+    p->ptex = HL_MSM_PER_TEXEL;
+    p->tbias = HL_MSM_TEXEL_BIAS;
+    p->near_half = HL_MSM_NEAR_HALF;
+    p->sbias = HL_MSM_SMALL_BIAS;
+    /* tests and tuning: HL_TEST_MSM=alpha,bias,lbr,leak_a overrides;
+       HL_TEST_MSMT=on,texel_bias,small_bias the per-texel test's (on 0:
+       off, 2: with the leak reduction), HL_TEST_MSMN=half the near
+       search's */
+    const char *tt = getenv("HL_TEST_MSMT"), *tn = getenv("HL_TEST_MSMN"), *tf = getenv("HL_TEST_MSMF");
+    if (tt) {
+        float on, b, sb;
+        if (sscanf(tt, "%f,%f,%f", &on, &b, &sb) == 3 && on >= 0.0f && b >= 0.0f && sb >= 0.0f && sb < 1.0f)
+            p->ptex = on, p->tbias = b, p->sbias = sb;
+    }
+    if (tn) {
+        float h = strtof(tn, NULL);
+        if (h >= 0.0f && h <= HL_CSM_DIRECT_HALF) p->near_half = h;
+    }
+    p->tfloor = HL_MSM_TEXEL_FLOOR; /* texels until hl_msm_set_texel */
+    if (tf) {
+        float h = strtof(tf, NULL);
+        if (h >= 0.0f && h <= 16.0f) p->tfloor = h;
+    }
+}
+
+void hl_msm_set_texel(hl_msm_eval_params *p, float texel)
+{
+    p->tfloor *= texel;
     const char *t = getenv("HL_TEST_MSM");
     if (t) {
         float a, b, l, la;
@@ -96,7 +124,8 @@ void hl_msm_params(hl_msm_eval_params *p, uint32_t R, float zmin, float su, floa
 static void pack_msm_params(const hl_msm_eval_params *p, float *prm)
 {
     const float v[HL_MSM_PRM_FLOATS] = {p->zmin, p->su, p->sv, p->bias, p->eps, p->wmin, p->alpha, p->leak_a,
-                                        p->leak_b, p->lbr, p->direct_half, p->kb};
+                                        p->leak_b, p->lbr, p->direct_half, p->kb, p->ptex, p->tbias,
+                                        p->near_half, p->sbias, p->tfloor};
     memcpy(prm, v, sizeof v);
 }
 
@@ -132,7 +161,7 @@ void hl_csm_destroy(hl_csm *c)
     if (cl) {
         if (cl->queue) clFinish(cl->queue);
         cl_mem *all[] = {&c->depth_d, &c->img_d,   &c->rowsum_d, &c->mean_d,   &c->zsc_d, &c->prm_d,
-                         &c->uvd_d,   &c->out_d,   &c->which_d,  &c->lights_d, &c->zmin_d};
+                         &c->uvd_d,   &c->rpl_d,   &c->out_d,   &c->which_d,  &c->lights_d, &c->zmin_d};
         for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(cl, all[i]);
         cl_kernel ks[] = {c->kb, c->km, c->ks, c->kbt, c->krs, c->kss, c->keb, c->keg, c->kz, c->kmb, c->kmeb, c->kmeg};
         for (size_t i = 0; i < sizeof ks / sizeof ks[0]; i++)
@@ -146,6 +175,7 @@ void hl_csm_destroy(hl_csm *c)
     free(c->zmin);
     free(c->out_h);
     free(c->which_h);
+    free(c->rpl_h);
     free(c);
 }
 
@@ -464,17 +494,23 @@ static hl_result io_room(hl_csm *c, size_t n)
     hl_context *ctx = c->ctx;
     struct hl_cl *cl = ctx->cl;
     hl_cl_release_buf(cl, &c->uvd_d);
+    hl_cl_release_buf(cl, &c->rpl_d);
     hl_cl_release_buf(cl, &c->out_d);
     hl_cl_release_buf(cl, &c->which_d);
     free(c->out_h);
     free(c->which_h);
+    free(c->rpl_h);
     c->which_h = NULL;
+    c->rpl_h = NULL;
     c->io_cap = 0;
     c->out_h = hl_malloc(ctx, n * 8, "shadow-map visibility");
     if (!c->out_h) return HL_ERR_OUT_OF_MEMORY;
     c->which_h = hl_malloc(ctx, n * 4, "shadow-map receivers' lights");
     if (!c->which_h) return HL_ERR_OUT_OF_MEMORY;
+    c->rpl_h = hl_malloc(ctx, n * HL_DYN_RPL * 4, "shadow-map receivers' planes");
+    if (!c->rpl_h) return HL_ERR_OUT_OF_MEMORY;
     TRY(hl_cl_make_buf(ctx, &c->uvd_d, CL_MEM_READ_ONLY, n * 12, NULL, "CSM receivers"));
+    TRY(hl_cl_make_buf(ctx, &c->rpl_d, CL_MEM_READ_ONLY, n * HL_DYN_RPL * 4, NULL, "shadow-map receivers' planes"));
     TRY(hl_cl_make_buf(ctx, &c->out_d, CL_MEM_WRITE_ONLY, n * 8, NULL, "CSM visibility"));
     TRY(hl_cl_make_buf(ctx, &c->which_d, CL_MEM_READ_ONLY, n * 4, NULL, "CSM receivers' lights"));
     c->io_cap = n;
@@ -485,7 +521,7 @@ static hl_result io_room(hl_csm *c, size_t n)
  * blocks) on the device: one upload of each array, one launch, one
  * read-back into out_h (2 floats a receiver, from start[j0]). */
 static hl_result eval_device(hl_csm *c, uint32_t j0, uint32_t j1, const uint32_t *ks, const float *prm,
-                             const float *uvd, const uint32_t *start)
+                             const float *uvd, const float *rpl, const uint32_t *start)
 {
     hl_context *ctx = c->ctx;
     struct hl_cl *cl = ctx->cl;
@@ -503,9 +539,16 @@ static hl_result eval_device(hl_csm *c, uint32_t j0, uint32_t j1, const uint32_t
     if (c->rep == HL_SHADOW_REP_MOMENTS) {
         cl_uint nm = HL_MSM_PRM_FLOATS;
         cl_kernel k = c->kmeb;
+        const float *pl = rpl ? rpl + HL_DYN_RPL * r0 : c->rpl_h;
+        if (!rpl) /* no planes: each receiver's faces the light at its depth */
+            for (size_t i = 0; i < n; i++)
+                c->rpl_h[HL_DYN_RPL * i] = 0.0f, c->rpl_h[HL_DYN_RPL * i + 1] = 0.0f,
+                c->rpl_h[HL_DYN_RPL * i + 2] = uvd[3 * (r0 + i) + 2];
+        CL_TRY(ctx, clEnqueueWriteBuffer(cl->queue, c->rpl_d, CL_TRUE, 0, n * HL_DYN_RPL * 4, pl, 0, NULL, NULL),
+               "upload");
         SETARG(k, 0, c->img_d); SETARG(k, 1, c->mean_d); SETARG(k, 2, c->zsc_d); SETARG(k, 3, R);
         SETARG(k, 4, c->prm_d); SETARG(k, 5, nm); SETARG(k, 6, c->lights_d); SETARG(k, 7, c->which_d);
-        SETARG(k, 8, c->uvd_d); SETARG(k, 9, nn); SETARG(k, 10, c->out_d);
+        SETARG(k, 8, c->uvd_d); SETARG(k, 9, c->rpl_d); SETARG(k, 10, nn); SETARG(k, 11, c->out_d);
         TRY(hl_cl_launch(ctx, k, n, 0, "hl_msm_eval_batch"));
         CL_TRY(ctx, clEnqueueReadBuffer(cl->queue, c->out_d, CL_TRUE, 0, n * 8, c->out_h, 0, NULL, NULL), "read-back");
         return HL_OK;
@@ -520,8 +563,8 @@ static hl_result eval_device(hl_csm *c, uint32_t j0, uint32_t j1, const uint32_t
 }
 
 hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, const float *thetas,
-                                  const hl_shadow_frame *const *frames, const float *uvd, const uint32_t *start, float *V,
-                                  float *zavg)
+                                  const hl_shadow_frame *const *frames, const float *uvd, const float *rpl,
+                                  const uint32_t *start, float *V, float *zavg)
 {
     if (!c) return HL_ERR_INVALID_ARGUMENT;
     if (nl == 0) return HL_OK;
@@ -558,6 +601,7 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
         double t = tan((double)thetas[j]) * f->depth_range * c->R;
         if (mom) {
             hl_msm_params(&pm[j], c->R, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
+            hl_msm_set_texel(&pm[j], fmaxf(f->width, f->height) / (float)c->R / f->depth_range);
             pack_msm_params(&pm[j], prm + (size_t)j * np);
         } else {
             hl_csm_params(&p[j], c->R, c->M, c->Mb, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
@@ -567,7 +611,7 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
     hl_result r = HL_OK;
     for (uint32_t j0 = 0; j0 < nl && r == HL_OK; j0 += c->ctx->cl ? c->prm_cap : nl) {
         const uint32_t j1 = c->ctx->cl && nl - j0 > c->prm_cap ? j0 + c->prm_cap : nl;
-        if (c->ctx->cl) r = eval_device(c, j0, j1, ks, prm, uvd, start);
+        if (c->ctx->cl) r = eval_device(c, j0, j1, ks, prm, uvd, rpl, start);
         for (uint32_t j = j0; j < j1 && r == HL_OK; j++) {
             const size_t lp = (size_t)ks[j] * c->P, R2 = (size_t)c->R * c->R;
             for (size_t i = start[j]; i < start[j + 1]; i++) {
@@ -575,7 +619,8 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
                 const float *oi = o;
                 if (c->ctx->cl) oi = c->out_h + 2 * (i - start[j0]);
                 else if (mom)
-                    hl_ref_msm_eval(c->img + lp * R2, c->mean + lp, c->zsc + 4 * (size_t)ks[j] * R2, &pm[j], uvd + 3 * i, o);
+                    hl_ref_msm_eval(c->img + lp * R2, c->mean + lp, c->zsc + 4 * (size_t)ks[j] * R2, &pm[j], uvd + 3 * i,
+                                    rpl ? rpl + HL_DYN_RPL * i : NULL, o);
                 else hl_ref_csm_eval(c->img + lp * R2, c->mean + lp, c->zsc + 4 * (size_t)ks[j] * R2, &p[j], uvd + 3 * i, o);
                 V[i] = oi[0];
                 if (zavg) zavg[i] = oi[1];
@@ -591,11 +636,11 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
 void *hl_csm_zmin_buffer(const hl_csm *c) { return c->zmin_d; }
 
 hl_result hl_csm_eval_grid(hl_csm *c, uint32_t nl, const uint32_t *ks, const float *thetas,
-                           const hl_shadow_frame *const *frames, void *uvd, uint32_t N, void *V)
+                           const hl_shadow_frame *const *frames, void *uvd, void *rpl, uint32_t N, void *V)
 {
     if (!c) return HL_ERR_INVALID_ARGUMENT;
     hl_context *ctx = c->ctx;
-    if (!ctx->cl || !uvd || !V || !ks || !thetas || !frames)
+    if (!ctx->cl || !uvd || !V || !ks || !thetas || !frames || (c->rep == HL_SHADOW_REP_MOMENTS && !rpl))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "convolution shadow maps: a device evaluation without its arrays");
     float prm[CSM_PRM_FLOATS * 64];
     const int mom = c->rep == HL_SHADOW_REP_MOMENTS;
@@ -612,6 +657,7 @@ hl_result hl_csm_eval_grid(hl_csm *c, uint32_t nl, const uint32_t *ks, const flo
             if (mom) {
                 hl_msm_eval_params pm;
                 hl_msm_params(&pm, c->R, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
+                hl_msm_set_texel(&pm, fmaxf(f->width, f->height) / (float)c->R / f->depth_range);
                 pack_msm_params(&pm, prm + (size_t)(j - j0) * np);
             } else {
                 hl_csm_eval_params p;
@@ -625,13 +671,14 @@ hl_result hl_csm_eval_grid(hl_csm *c, uint32_t nl, const uint32_t *ks, const flo
         CL_TRY(ctx, clEnqueueWriteBuffer(ctx->cl->queue, c->lights_d, CL_TRUE, 0, (size_t)n * 4, ks + j0, 0, NULL, NULL),
                "upload");
         cl_uint R = c->R, M = c->M, Mb = c->Mb, nprm = CSM_PRM_FLOATS, nn = N, jj = j0, cnt = n;
-        cl_mem u = uvd, v = V;
+        cl_mem u = uvd, v = V, pr = rpl;
         if (mom) {
             cl_uint nm = HL_MSM_PRM_FLOATS;
             cl_kernel k = c->kmeg;
             SETARG(k, 0, c->img_d); SETARG(k, 1, c->mean_d); SETARG(k, 2, c->zsc_d); SETARG(k, 3, R);
             SETARG(k, 4, c->prm_d); SETARG(k, 5, nm); SETARG(k, 6, c->lights_d); SETARG(k, 7, c->zmin_d);
-            SETARG(k, 8, u); SETARG(k, 9, nn); SETARG(k, 10, jj); SETARG(k, 11, cnt); SETARG(k, 12, v);
+            SETARG(k, 8, u); SETARG(k, 9, pr); SETARG(k, 10, nn); SETARG(k, 11, jj); SETARG(k, 12, cnt);
+            SETARG(k, 13, v);
             TRY(hl_cl_launch(ctx, k, (size_t)n * N, 0, "hl_msm_eval_grid"));
             continue;
         }
@@ -649,5 +696,5 @@ hl_result hl_csm_visibility(hl_csm *c, uint32_t k, float theta, const hl_shadow_
 {
     if (!c) return HL_ERR_INVALID_ARGUMENT;
     const uint32_t start[2] = {0, n};
-    return hl_csm_visibility_batch(c, 1, &k, &theta, &f, uvd, start, V, zavg);
+    return hl_csm_visibility_batch(c, 1, &k, &theta, &f, uvd, NULL, start, V, zavg);
 }

@@ -143,8 +143,24 @@ typedef enum hl_shadow_rep { HL_SHADOW_REP_DEFAULT = 0, HL_SHADOW_REP_CSM = 1, H
  * let light leak from that mass through the bodies' contact shadows
  * (test_dyn_reference accuracy: the ground near the bunny). */
 #define HL_MSM_FAR_BAND 0.125f
+/* The small boxes' per-texel test (msm_eval.cl, hl_msm_count; DYNAMIC.md
+ * section 3b): boxes of half-width up to HL_CSM_DIRECT_HALF texels test
+ * each texel's caster against the receiver's tangent plane there, less
+ * HL_MSM_TEXEL_BIAS times the plane's depth change across a texel
+ * (|dz/du| + |dz/dv|), and against no constant depth bias
+ * (HL_MSM_SMALL_BIAS), in place of the bound with HL_MSM_BIAS and the
+ * receiver-plane bias's worst corner, which left blockers nearer than
+ * those biases unseen (layered parts, contact). Half a texel is the most
+ * the plane's own texels differ from it at their centres. Where the
+ * large search box finds no blocker, a near search of up to
+ * HL_MSM_NEAR_HALF texels (0: none) looks texel by texel. */
+#define HL_MSM_PER_TEXEL 2.0f
+#define HL_MSM_TEXEL_BIAS 0.5f
+#define HL_MSM_SMALL_BIAS 0.0f
+#define HL_MSM_NEAR_HALF 1.0f
+#define HL_MSM_TEXEL_FLOOR 0.5f
 /* floats of msm_eval.cl's parameter block */
-#define HL_MSM_PRM_FLOATS 12u
+#define HL_MSM_PRM_FLOATS 17u
 
 /* planes of one light */
 static inline uint32_t hl_csm_planes(uint32_t M, uint32_t Mb) { return 2 * M + 2 * Mb + 1; }
@@ -215,10 +231,13 @@ hl_result hl_csm_visibility(hl_csm *c, uint32_t k, float theta, const hl_shadow_
  * (may be NULL), each indexed by the receiver as uvd is. The same values
  * as hl_csm_visibility light by light, but on the device one upload, one
  * launch and one read-back for all of them (a frame's round trips were
- * one a light). */
+ * one a light). rpl: the receivers' planes (HL_DYN_RPL floats each,
+ * hl_dyn_receiver; the moments' small boxes read them), indexed as uvd;
+ * NULL: planes facing the light at uvd's depths. hl_csm_visibility
+ * passes NULL. */
 hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, const float *thetas,
-                                  const hl_shadow_frame *const *frames, const float *uvd, const uint32_t *start, float *V,
-                                  float *zavg);
+                                  const hl_shadow_frame *const *frames, const float *uvd, const float *rpl,
+                                  const uint32_t *start, float *V, float *zavg);
 
 
 /* On an OpenCL context, hl_csm_build of maps already in device memory
@@ -230,10 +249,12 @@ hl_result hl_csm_build_on_device(hl_csm *c, void *depth, uint32_t K);
  * group, entry j light ks[j] of the last build with half-extent thetas[j]
  * and frame frames[j], each at N receivers: uvd and V are cl_mems of
  * nl N 3 and nl N floats, entry j's receiver v at j N + v, as
- * hl_dyn_prepare leaves uvd (u = NaN: not reached, V not written).
+ * hl_dyn_prepare leaves uvd (u = NaN: not reached, V not written), rpl
+ * a cl_mem of their planes, nl N HL_DYN_RPL floats (moments need it; CSM
+ * does not read it).
  * Enqueued, not waited for. */
 hl_result hl_csm_eval_grid(hl_csm *c, uint32_t nl, const uint32_t *ks, const float *thetas,
-                           const hl_shadow_frame *const *frames, void *uvd, uint32_t N, void *V);
+                           const hl_shadow_frame *const *frames, void *uvd, void *rpl, uint32_t N, void *V);
 /* The device buffer (a cl_mem) of each map's nearest depth, K floats, as
  * the last hl_csm_build_on_device found them. */
 void *hl_csm_zmin_buffer(const hl_csm *c);
@@ -283,9 +304,18 @@ typedef struct hl_msm_eval_params {
     float zmin, su, sv; /* as hl_csm_eval_params */
     float bias, eps, wmin, alpha, leak_a, leak_b, lbr, direct_half;
     float kb; /* 1 - HL_MSM_FAR_BAND */
+    /* the small boxes' per-texel test (msm_eval.cl, hl_msm_count): on
+       above 0 (above 1: with the leak reduction too), the bias in texels
+       along the plane, the near search's half-width (texels, 0: none),
+       the constant depth bias there, and one of HL_MSM_TEXEL_FLOOR texels
+       (normalised depth: that many texels' width; hl_msm_set_texel) */
+    float ptex, tbias, near_half, sbias, tfloor;
 } hl_msm_eval_params;
 
 void hl_msm_params(hl_msm_eval_params *p, uint32_t R, float zmin, float su, float sv);
+/* p's tfloor for a map whose texel is texel (normalised depth: the
+ * frame's max(width, height) / R / depth_range). */
+void hl_msm_set_texel(hl_msm_eval_params *p, float texel);
 /* hl_msm_basis: one row of one map to its texels' four moments (img and
  * zsc, 4 floats a texel) and each plane's row sum (rowsum[plane R + row]). */
 void hl_ref_msm_basis(const float *depth, uint32_t R, float kb, uint32_t row, float *img, float *rowsum, float *zsc);
@@ -293,8 +323,10 @@ void hl_ref_msm_basis(const float *depth, uint32_t R, float kb, uint32_t row, fl
  * shadowed share of moments m at receiver xf (x = 2 z - 1) after the
  * blend alpha; wb and xb (may be NULL) the blocker weight and mean x. */
 float hl_ref_msm_bound(const float m[4], float xf, float alpha, float *wb, float *xb);
-/* hl_msm_eval_one: out[0] = V, out[1] = z_avg or -1. */
+/* hl_msm_eval_one: out[0] = V, out[1] = z_avg or -1. rpl: the
+ * receiver's plane (HL_DYN_RPL floats, hl_dyn_receiver), or NULL for a
+ * plane facing the light at uvd's depth. */
 void hl_ref_msm_eval(const float *sat, const float *mean, const float *zsc, const hl_msm_eval_params *p,
-                     const float uvd[3], float out[2]);
+                     const float uvd[3], const float *rpl, float out[2]);
 
 #endif

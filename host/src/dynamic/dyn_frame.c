@@ -42,7 +42,7 @@ struct hl_frame_state {
        after another (hl_csm_visibility_batch); room for group lights of
        N receivers each */
     uint32_t group;
-    float *cpos, *uvd, *V;     /* 3, 3, 1 a receiver */
+    float *cpos, *uvd, *rpl, *V; /* 3, 3, HL_DYN_RPL, 1 a receiver */
     uint32_t *idx;             /* its vertex */
     uint32_t *gstart, *gks;    /* group + 1, group: each light's first receiver, its batch map */
     float *gtheta;             /* group: each light's filter half-extent */
@@ -63,7 +63,7 @@ struct hl_frame_state {
        shadow maps from the rasteriser to the evaluation */
     int on_device;
     cl_kernel kprep, kflat, kacc, kadd;
-    cl_mem wpos_d, body_d, lf_d, fl_d, fb_d, flatb_d, uvd_d, V_d, ks_d, kbs_d, list_d;
+    cl_mem wpos_d, body_d, lf_d, fl_d, fb_d, flatb_d, uvd_d, rpl_d, V_d, ks_d, kbs_d, list_d;
     uint32_t *list; /* max_lights: the negligible lights, or a group's split lights */
     /* the maps kept (DYNAMIC.md, the frame): while keep_n > 0, sm and csm
        hold the maps and tables of the last frame, made in one batch for
@@ -103,7 +103,7 @@ static void release_device(hl_frame_state *st)
     struct hl_cl *cl = st->ctx->cl;
     if (!cl) return;
     cl_mem *all[] = {&st->wpos_d, &st->body_d, &st->lf_d, &st->fl_d,   &st->fb_d,
-                     &st->flatb_d, &st->uvd_d, &st->V_d,    &st->ks_d, &st->kbs_d, &st->list_d};
+                     &st->flatb_d, &st->uvd_d, &st->rpl_d, &st->V_d,    &st->ks_d, &st->kbs_d, &st->list_d};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) hl_cl_release_buf(cl, all[i]);
     cl_kernel ks[] = {st->kprep, st->kflat, st->kacc, st->kadd};
     for (size_t i = 0; i < 4; i++)
@@ -122,7 +122,7 @@ void hl_frame_state_destroy(hl_frame_state *st)
     hl_free_big(st->depth);
     free(st->frames); free(st->dirs);
     free(st->wpos); free(st->wnrm); free(st->acc); hl_free_big(st->E);
-    free(st->cpos); free(st->uvd); free(st->V); free(st->idx); free(st->shadow_list);
+    free(st->cpos); free(st->uvd); free(st->rpl); free(st->V); free(st->idx); free(st->shadow_list);
     free(st->gstart); free(st->gks); free(st->gtheta); free(st->gframe);
     free(st->body); free(st->lf); free(st->fl); free(st->fb); free(st->flat_body);
     hl_dyn_irr_destroy(st->irr);
@@ -189,6 +189,7 @@ static hl_result create_device(hl_frame_state *st)
     DB(fb_d, CL_MEM_READ_ONLY, (size_t)st->nobj * HL_DYN_FB * 4, NULL, "the flat bodies");
     DB(flatb_d, CL_MEM_READ_ONLY, (size_t)st->nobj * 4, NULL, "the flat bodies");
     DB(uvd_d, CL_MEM_READ_WRITE, g * n3, NULL, "the receivers in the maps");
+    DB(rpl_d, CL_MEM_READ_WRITE, g * N * HL_DYN_RPL * 4, NULL, "the receivers' planes");
     DB(V_d, CL_MEM_READ_WRITE, g * N * 4, NULL, "the receivers' visibility");
     DB(ks_d, CL_MEM_READ_ONLY, g * 4, NULL, "a group's lights");
     DB(kbs_d, CL_MEM_READ_ONLY, g * 4, NULL, "a group's maps");
@@ -255,6 +256,7 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     if (!st->on_device) { /* the host's receivers */
         const size_t gn = (size_t)st->group * N;
         st->cpos = malloc(3 * gn * 4), st->uvd = malloc(3 * gn * 4), st->V = malloc(gn * 4);
+        st->rpl = malloc(HL_DYN_RPL * gn * 4);
         st->idx = malloc(gn * 4), st->gstart = malloc(((size_t)st->group + 1) * 4);
     }
     st->gks = malloc((size_t)st->group * 4);
@@ -268,7 +270,7 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->keep_list = malloc(st->Kb * sizeof *st->keep_list), st->keep_mask = malloc(st->Kb * sizeof *st->keep_mask);
     st->keep_xf = malloc(nobj * 12 * sizeof *st->keep_xf);
     if (!st->vstart || !st->nverts || !st->xf || !st->frames || !st->dirs || !st->wpos || !st->wnrm || !st->acc ||
-        (!st->on_device && (!st->depth || !st->E || !st->cpos || !st->uvd || !st->V || !st->idx || !st->gstart)) ||
+        (!st->on_device && (!st->depth || !st->E || !st->cpos || !st->uvd || !st->rpl || !st->V || !st->idx || !st->gstart)) ||
         !st->shadow_list || !st->any || !st->gks || !st->gtheta || !st->gframe || !st->body || !st->lf || !st->fl || !st->fb ||
         !st->flat_body || !st->list || !st->keep_list || !st->keep_mask || !st->keep_xf) {
         hl_frame_state_destroy(st);
@@ -462,13 +464,14 @@ static void flat_occlusion(hl_frame_state *st, uint32_t j, size_t base, uint32_t
 /* The receivers batch light kb (split light k) reaches, compacted from
  * place base of the group's arrays: their positions (cpos), vertices
  * (idx) and coordinates in its map, moved towards the light by the
- * receiver-plane bias (uvd, hl_dyn_receiver); its packs, filter
+ * receiver-plane bias (uvd, hl_dyn_receiver), and their planes (rpl); its packs, filter
  * half-extent and frame into group entry j. Returns how many. */
 static uint32_t prepare_light(hl_frame_state *st, const hl_light_split *split, uint32_t kb, uint32_t k, size_t base,
                               uint32_t j)
 {
     const float *E = st->E + (size_t)k * 3 * st->N;
     float *cpos = st->cpos + 3 * base, *uvd = st->uvd + 3 * base, *lf = st->lf + (size_t)j * HL_DYN_LF;
+    float *rpl = st->rpl + HL_DYN_RPL * base;
     uint32_t *idx = st->idx + base, n = 0;
     for (uint32_t v = 0; v < st->N; v++) {
         const float *e = E + 3 * (size_t)v;
@@ -483,7 +486,7 @@ static uint32_t prepare_light(hl_frame_state *st, const hl_light_split *split, u
     for (size_t i = 0; i < (size_t)st->R * st->R; i++) zmin = fminf(zmin, map[i]);
     for (uint32_t i = 0; i < n; i++)
         hl_dyn_receiver(lf, zmin, cpos + 3 * (size_t)i, st->wnrm + 3 * (size_t)idx[i], st->body[idx[i]],
-                        uvd + 3 * (size_t)i);
+                        uvd + 3 * (size_t)i, rpl + HL_DYN_RPL * (size_t)i);
     return n;
 }
 
@@ -512,8 +515,8 @@ static hl_result shade_batch(hl_frame_state *st, const hl_light_split *split, co
         st->gstart[0] = 0;
         for (uint32_t j = 0; j < nl; j++)
             st->gstart[j + 1] = st->gstart[j] + prepare_light(st, split, i0 + j, list[i0 + j], st->gstart[j], j);
-        hl_result r = hl_csm_visibility_batch(st->csm, nl, st->gks, st->gtheta, st->gframe, st->uvd, st->gstart, st->V,
-                                              NULL);
+        hl_result r = hl_csm_visibility_batch(st->csm, nl, st->gks, st->gtheta, st->gframe, st->uvd, st->rpl, st->gstart,
+                                              st->V, NULL);
         if (r != HL_OK) return r;
         for (uint32_t j = 0; j < nl; j++)
             finish_light(st, j, list[i0 + j], st->gstart[j], st->gstart[j + 1] - st->gstart[j]);
@@ -548,9 +551,9 @@ static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *sp
         FARG(st->kprep, 0, Em); FARG(st->kprep, 1, st->ks_d); FARG(st->kprep, 2, st->kbs_d); FARG(st->kprep, 3, N);
         FARG(st->kprep, 4, nl); FARG(st->kprep, 5, st->wpos_d); FARG(st->kprep, 6, wnrm);
         FARG(st->kprep, 7, st->body_d); FARG(st->kprep, 8, st->lf_d); FARG(st->kprep, 9, zmin);
-        FARG(st->kprep, 10, st->uvd_d);
+        FARG(st->kprep, 10, st->uvd_d); FARG(st->kprep, 11, st->rpl_d);
         TRY(hl_cl_launch(ctx, st->kprep, (size_t)nl * N, 0, "hl_dyn_prepare"));
-        TRY(hl_csm_eval_grid(st->csm, nl, st->gks, st->gtheta, st->gframe, st->uvd_d, N, st->V_d));
+        TRY(hl_csm_eval_grid(st->csm, nl, st->gks, st->gtheta, st->gframe, st->uvd_d, st->rpl_d, N, st->V_d));
         if (nflat) {
             FARG(st->kflat, 0, st->uvd_d); FARG(st->kflat, 1, N); FARG(st->kflat, 2, nl); FARG(st->kflat, 3, st->lf_d);
             FARG(st->kflat, 4, st->fl_d); FARG(st->kflat, 5, st->fb_d); FARG(st->kflat, 6, st->flatb_d);

@@ -1,6 +1,7 @@
 /* msm_eval.c - twin of kernels/dynamic/msm_eval.cl: one receiver of one
  * light against its moment tables: blocker share and depth from the
- * search box's moments, the Hamburger 4MSM bound over the penumbra box;
+ * search box's moments, the Hamburger 4MSM bound over the penumbra box,
+ * or in small boxes the per-texel test against the receiver's plane;
  * the kernel's formulas and order of operations.
  * Depends on: csm.h. */
 #include <math.h>
@@ -55,6 +56,37 @@ static void box(const float *sat, const float *mean, const float *zsc, uint32_t 
     m[4] = ((a[4] + mean[4]) * area) * inv;
 }
 
+/* the kernel's hl_msm_count */
+static void count(const float *zsc, uint32_t R, float cx, float cy, float wu, float wv, float x0, float gu, float gv,
+                  float xt, float xmax, float *o)
+{
+    float fR = (float)R;
+    float u0 = fmaxf(cx - wu, 0.0f), u1 = fminf(cx + wu, fR);
+    float v0 = fmaxf(cy - wv, 0.0f), v1 = fminf(cy + wv, fR);
+    o[0] = 0.0f;
+    o[1] = x0;
+    if (!(u1 > u0 && v1 > v0)) return;
+    float inv = 1.0f / ((2.0f * wu) * (2.0f * wv)), s = 0.0f, sx = 0.0f;
+    uint32_t i0 = (uint32_t)u0, i1 = (uint32_t)ceilf(u1), j0 = (uint32_t)v0, j1 = (uint32_t)ceilf(v1);
+    if (i1 > R) i1 = R;
+    if (j1 > R) j1 = R;
+    for (uint32_t j = j0; j < j1; j++) {
+        float wy = fminf((float)(j + 1), v1) - fmaxf((float)j, v0);
+        float xj = x0 + gv * (((float)j + 0.5f) - cy);
+        for (uint32_t i = i0; i < i1; i++) {
+            float x = zsc[4 * ((size_t)j * R + i)];
+            float xr = fminf(xj + gu * (((float)i + 0.5f) - cx), xmax);
+            if (x < 1.0f && x < xr - xt) {
+                float ov = (fminf((float)(i + 1), u1) - fmaxf((float)i, u0)) * wy;
+                s += ov;
+                sx += ov * x;
+            }
+        }
+    }
+    o[0] = s * inv;
+    if (s > 0.0f) o[1] = sx / s;
+}
+
 /* the kernel's hl_msm_casters */
 static void casters(const float *m, float alpha, float *g)
 {
@@ -100,33 +132,60 @@ float hl_ref_msm_bound(const float m[4], float xf, float alpha, float *wb, float
 }
 
 void hl_ref_msm_eval(const float *sat, const float *mean, const float *zsc, const hl_msm_eval_params *p,
-                     const float uvd[3], float out[2])
+                     const float uvd[3], const float *rpl, float out[2])
 {
     const uint32_t R = p->R;
     float cx = uvd[0], cy = uvd[1], dt = uvd[2];
-    float d = fminf(dt, 1.0f), kb = p->kb;
+    const float pl[3] = {rpl ? rpl[0] : 0.0f, rpl ? rpl[1] : 0.0f, rpl ? rpl[2] : dt};
+    float d = fminf(dt, 1.0f), kb = p->kb, dh = p->direct_half, eps = p->eps;
     out[0] = 1.0f;
     out[1] = -1.0f;
     if (!(d > p->zmin)) return;
     float zr = fminf(dt * kb, 1.0f - 0.5f * (1.0f - kb));
-    float fR = (float)R, xf = 2.0f * (zr - p->bias * kb) - 1.0f, m[5], g[4], wb, xb;
-    float ws = dt - p->zmin;
-    box(sat, mean, zsc, R, cx, cy, clampf(ws * p->su, p->wmin, fR), clampf(ws * p->sv, p->wmin, fR), p->direct_half, m);
-    float cov = m[4];
-    if (!(cov >= p->eps)) return;
-    casters(m, p->alpha, g);
-    hl_ref_msm_bound(g, xf, fminf(p->alpha / cov, 1.0f), &wb, &xb);
-    if (!(cov * wb >= p->eps)) return;
-    float za = clampf(0.5f * (xb + 1.0f) / kb, p->zmin, d);
-    float wp = dt - za;
-    box(sat, mean, zsc, R, cx, cy, clampf(wp * p->su, p->wmin, fR), clampf(wp * p->sv, p->wmin, fR), p->direct_half, m);
-    cov = m[4];
-    float V = 1.0f;
-    if (cov > 0.0f) {
-        casters(m, p->alpha, g);
-        V = 1.0f - fminf(cov, 1.0f) * hl_ref_msm_bound(g, xf, fminf(p->alpha / cov, 1.0f), NULL, NULL);
+    float fR = (float)R, xf = 2.0f * (zr - p->bias * kb) - 1.0f, m[5], g[4], wb, xb, c2[2];
+    float gu = (2.0f * kb) * pl[0], gv = (2.0f * kb) * pl[1];
+    float x0 = 2.0f * ((pl[2] - p->sbias) * kb) - 1.0f, xt = p->tbias * (fabsf(gu) + fabsf(gv)) + (2.0f * kb) * p->tfloor;
+    float ws = dt - p->zmin, wsu = clampf(ws * p->su, p->wmin, fR), wsv = clampf(ws * p->sv, p->wmin, fR);
+    float za;
+    if (p->ptex > 0.0f && wsu <= dh && wsv <= dh) {
+        count(zsc, R, cx, cy, wsu, wsv, x0, gu, gv, xt, kb, c2);
+        if (!(c2[0] >= eps)) return;
+        za = clampf(0.5f * (c2[1] + 1.0f) / kb, p->zmin, d);
+    } else {
+        box(sat, mean, zsc, R, cx, cy, wsu, wsv, dh, m);
+        float cov = m[4];
+        wb = 0.0f;
+        xb = xf;
+        if (cov >= eps) {
+            casters(m, p->alpha, g);
+            hl_ref_msm_bound(g, xf, fminf(p->alpha / cov, 1.0f), &wb, &xb);
+        }
+        if (cov >= eps && cov * wb >= eps) {
+            za = clampf(0.5f * (xb + 1.0f) / kb, p->zmin, d);
+        } else if (p->ptex > 0.0f && p->near_half > 0.0f) {
+            float wn = fmaxf(fminf(p->near_half, fminf(wsu, wsv)), p->wmin);
+            count(zsc, R, cx, cy, wn, wn, x0, gu, gv, xt, kb, c2);
+            if (!(c2[0] >= eps)) return;
+            za = clampf(0.5f * (c2[1] + 1.0f) / kb, p->zmin, d);
+        } else {
+            return;
+        }
     }
-    if (p->lbr > 0.0f) V = (V - p->lbr) / (1.0f - p->lbr);
+    float wp = dt - za, wpu = clampf(wp * p->su, p->wmin, fR), wpv = clampf(wp * p->sv, p->wmin, fR);
+    float V = 1.0f;
+    if (p->ptex > 0.0f && wpu <= dh && wpv <= dh) {
+        count(zsc, R, cx, cy, wpu, wpv, x0, gu, gv, xt, kb, c2);
+        V = 1.0f - fminf(c2[0], 1.0f);
+        if (p->ptex > 1.0f && p->lbr > 0.0f) V = (V - p->lbr) / (1.0f - p->lbr);
+    } else {
+        box(sat, mean, zsc, R, cx, cy, wpu, wpv, dh, m);
+        float cov = m[4];
+        if (cov > 0.0f) {
+            casters(m, p->alpha, g);
+            V = 1.0f - fminf(cov, 1.0f) * hl_ref_msm_bound(g, xf, fminf(p->alpha / cov, 1.0f), NULL, NULL);
+        }
+        if (p->lbr > 0.0f) V = (V - p->lbr) / (1.0f - p->lbr);
+    }
     V = clampf(V, 0.0f, 1.0f);
     if (p->leak_a > 0.0f) {
         float pw = 1.0f + p->leak_a * expf(-p->leak_b * wp);
