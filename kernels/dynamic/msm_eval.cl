@@ -236,7 +236,8 @@ static void hl_msm_eval_one(__global const float *sats, __global const float *me
     if (ptex > 0.0f && wpu <= dh && wpv <= dh) {
         hl_msm_count(zsc, R, cx, cy, wpu, wpv, x0, gu, gv, xt, kb, c2);
         V = 1.0f - fmin(c2[0], 1.0f);
-        /* a count leaks nothing: the reduction only where ptex > 1 */
+        /* the reduction as for the bound where ptex > 1, so that a box
+           crossing the size limit does not change the visibility's scale */
         if (ptex > 1.0f && lbr > 0.0f) V = (V - lbr) / (1.0f - lbr);
     } else {
         hl_msm_box(sat, mean, zsc, R, cx, cy, wpu, wpv, dh, m);
