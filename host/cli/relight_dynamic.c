@@ -86,6 +86,11 @@ static const char *const usage_dyn =
     "                       against every body; seconds, not milliseconds) or lights (the\n"
     "                       same K lights with traced visibility: the light split's own\n"
     "                       error). Not with --rotate\n"
+    "  --diff DIFF          with --reference, also write the frame minus the reference:\n"
+    "                       4 x the mean of the three channels' difference, red where\n"
+    "                       the frame is brighter, blue where darker, at the frame's\n"
+    "                       exposure (DIFF by extension: .ply, .glb, .exr or .png; a\n"
+    "                       picture has no textures and a black background)\n"
     "  --exposure EV        scale by 2^EV before tone mapping (default: automatic)\n"
     "  --ply8               PLY with tone-mapped 8-bit colours instead of linear floats\n"
     CLI_USAGE_CAMERA
@@ -94,7 +99,7 @@ static const char *const usage_dyn =
     CLI_USAGE_RUNNING;
 
 typedef struct dyn_opts {
-    const char *scene, *env, *out;
+    const char *scene, *env, *out, *diff;
     int ground, rest_pose, sky, ply8, no_bg;
     float ground_margin; /* --ground-size S: (S - 1) / 2; 0 the default */
     int reference; /* 0: the frame; 1: exact; 2: K lights traced */
@@ -128,13 +133,14 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
     const char *a = argv[*i], *v = NULL;
     static const char *const with_value[] = {"-o",     "--output",          "--env",        "--time", "--move",
                                              "--lights", "--split-threshold", "--shadow-res", "--order",
-                                             "--reference", "--ground-size", "--shadow", NULL};
+                                             "--reference", "--ground-size", "--shadow", "--diff", NULL};
     for (int k = 0; with_value[k]; k++)
         if (!strcmp(a, with_value[k])) {
             if (*i + 1 >= argc) return -usage_error(usage_dyn, "option %s needs a value", a);
             v = argv[++*i];
         }
     if (!strcmp(a, "-o") || !strcmp(a, "--output")) d->out = v;
+    else if (!strcmp(a, "--diff")) d->diff = v;
     else if (!strcmp(a, "--env")) d->env = v;
     else if (!strcmp(a, "--sky")) d->sky = 1;
     else if (!strcmp(a, "--ground")) d->ground = 1;
@@ -201,9 +207,17 @@ static int parse_args(int argc, char **argv, dyn_opts *d, cli_scene_opts *o)
         return usage_error(usage_dyn, "%s", "--order is the CSM's order: --shadow moments takes four moments, no order");
     if (d->reference && o->rd.rotate_deg != 0.0f)
         return usage_error(usage_dyn, "%s", "--reference integrates the map as given: drop --rotate");
-    const char *ext = cli_ext_of(d->out);
-    if (strcasecmp(ext, ".ply") && strcasecmp(ext, ".glb") && strcasecmp(ext, ".exr") && strcasecmp(ext, ".png"))
-        return usage_error(usage_dyn, "output %s: expected a .ply, .glb, .exr or .png name", d->out);
+    if (d->diff && !d->reference)
+        return usage_error(usage_dyn, "%s", "--diff is the frame minus a reference: give --reference exact or lights");
+    if (d->diff && !strcmp(d->diff, d->out))
+        return usage_error(usage_dyn, "--diff %s: the same file as the output", d->diff);
+    const char *outs[2] = {d->out, d->diff};
+    for (int k = 0; k < 2 && outs[k]; k++) {
+        const char *ext = cli_ext_of(outs[k]);
+        if (strcasecmp(ext, ".ply") && strcasecmp(ext, ".glb") && strcasecmp(ext, ".exr") && strcasecmp(ext, ".png"))
+            return usage_error(usage_dyn, k ? "--diff %s: expected a .ply, .glb, .exr or .png name"
+                                            : "output %s: expected a .ply, .glb, .exr or .png name", outs[k]);
+    }
     return -1; /* go on */
 }
 
@@ -246,6 +260,39 @@ static hl_result swap_in_reference(hl_context *ctx, hl_dynamic *dy, const hl_env
     return HL_OK;
 }
 
+/* --diff: the frame minus the reference, a colour a vertex (see the
+ * usage), written to d->diff by its extension. */
+static hl_result write_diff(hl_context *ctx, const dyn_opts *d, cli_scene_opts *o, const hl_mesh *mesh,
+                            const float *frame, const float *ref, float exposure)
+{
+    const float gain = 4.0f;
+    size_t nv = mesh->vertex_count;
+    float *c = malloc(3 * nv * sizeof(float));
+    if (!c) return hl_tools_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the difference's colours");
+    for (size_t v = 0; v < nv; v++) {
+        const float *f = frame + 3 * v, *r = ref + 3 * v;
+        float s = gain * (((f[0] - r[0]) + (f[1] - r[1])) + (f[2] - r[2])) / 3.0f;
+        if (!isfinite(s)) s = 0.0f; /* never reached: both are finite; no output holds a NaN */
+        c[3 * v] = fmaxf(s, 0.0f);
+        c[3 * v + 1] = 0.0f;
+        c[3 * v + 2] = fmaxf(-s, 0.0f);
+    }
+    const char *ext = cli_ext_of(d->diff);
+    hl_result r;
+    hl_image *img = NULL;
+    if (!strcasecmp(ext, ".ply")) r = hl_mesh_save_ply(ctx, mesh, c, d->diff, d->ply8, exposure);
+    else if (!strcasecmp(ext, ".glb")) r = hl_mesh_save_glb_surface(ctx, mesh, c, NULL, d->diff, exposure);
+    else {
+        r = cli_camera_complete(ctx, mesh, o);
+        if (r == HL_OK) r = hl_render_surface(ctx, mesh, c, NULL, NULL, 0.0f, &o->cam, &img);
+        if (r == HL_OK) r = hl_image_save(ctx, img, d->diff, exposure);
+    }
+    if (r == HL_OK && !o->cd.quiet) fprintf(stderr, "wrote %s (the frame minus the reference)\n", d->diff);
+    hl_image_destroy(img);
+    free(c);
+    return r;
+}
+
 /* Loads, moves, lights, renders and writes; the exit code. */
 static int run(const dyn_opts *d, cli_scene_opts *o)
 {
@@ -254,7 +301,7 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
     hl_dynamic *dy = NULL;
     hl_env *env = NULL;
     hl_image *img = NULL;
-    float *rgb = NULL, *ref = NULL, exposure = o->exposure;
+    float *rgb = NULL, *ref = NULL, *frame = NULL, exposure = o->exposure;
     /* --order alone asks for the CSM it is the order of */
     const int csm = d->shadow == 1 || (d->shadow == 0 && d->M);
     hl_dynamic_desc desc = {d->R, d->M, csm ? HL_DYNAMIC_SHADOW_CSM : HL_DYNAMIC_SHADOW_MOMENTS};
@@ -281,6 +328,7 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
         if (r == HL_OK && !o->cd.quiet) report(d->scene, d->env, ctx, &li, &st, csm ? "CSM" : "moments");
         /* the frame's exposure, so that a reference and its frame look alike */
         if (r == HL_OK && !o->exposure_set) exposure = hl_exposure_auto(hl_dynamic_mesh(dy), rgb);
+        frame = rgb;
         if (r == HL_OK && d->reference) r = swap_in_reference(ctx, dy, env, d->reference, o->cd.quiet, &rgb, &ref);
         const hl_mesh *mesh = dy ? hl_dynamic_mesh(dy) : NULL;
         const char *ext = cli_ext_of(d->out);
@@ -308,6 +356,7 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
         hl_surface_destroy(loaded);
         if (r == HL_OK && is_img) r = hl_image_save(ctx, img, d->out, exposure);
         if (r == HL_OK && !o->cd.quiet) fprintf(stderr, "wrote %s\n", d->out);
+        if (r == HL_OK && d->diff) r = write_diff(ctx, d, o, mesh, frame, ref, exposure);
         rc = r == HL_OK ? 0 : cli_fail(ctx, r);
     }
     hl_image_destroy(img);

@@ -22,7 +22,8 @@
  * dyn_frame.cli          `haarlight relight-dynamic`: bad options exit 2,
  *                        a small run writes its PLY.
  * dyn_frame.file         a glTF file of two bodies, one animated: the
- *                        merged mesh at a time and after a move.
+ *                        merged mesh at a time and after a move; the
+ *                        command's --reference exact and --diff on it.
  * dyn_frame.keep         the shadow maps kept from the last frame, on the
  *                        device's receivers and the host's, moments and
  *                        CSM, and on the reference backend: kept when nothing moved or only the ground
@@ -858,7 +859,7 @@ static void case_cli(void)
     static const char *const bad[] = {"--lights 0", "--order 3", "--order 17", "--shadow-res 100", "--time -1",
                                       "--time nan", "--split-threshold 1", "--move nobody:1,0,0", "--terms 5",
                                       "--move object:1,0", "--reference truth", "--reference exact --rotate 10",
-                                      NULL};
+                                      "--diff d.ply", "--reference exact --diff d.txt", NULL};
     for (int i = 0; bad[i]; i++) {
         snprintf(cmd, sizeof cmd, "'%s' relight-dynamic '%s' --ground --device ref %s -o '%s' >/dev/null 2>&1", bin,
                  mesh, bad[i], out);
@@ -899,10 +900,11 @@ static int ply_colours(const char *path, uint32_t nv, float *rgb)
     return ok;
 }
 
-/* relight-dynamic --reference exact on path (the two-body file at time 0,
- * K 2, R 32, M 4): the PLY holds the exact reference of that frame, not
- * the frame, and the printed error is the frame's against it. */
-static void check_reference_run(const char *path, const char *ply, const char *log)
+/* relight-dynamic --reference exact --diff DIFF on path (the two-body
+ * file at time 0, K 2, R 32, M 4): the PLY holds the exact reference of
+ * that frame, not the frame, the printed error is the frame's against it,
+ * and DIFF holds 4 x the channels' mean difference, red above, blue below. */
+static void check_reference_run(const char *path, const char *ply, const char *log, const char *diff_ply)
 {
     hl_context *ctx = hl_test_ref_context(2);
     hl_dynamic *d = NULL;
@@ -910,14 +912,14 @@ static void check_reference_run(const char *path, const char *ply, const char *l
     hl_sky_desc sd = {0}; /* the command's sky */
     HL_CHECK(hl_env_create_sky(ctx, &sd, &env) == HL_OK, "%s", hl_context_last_error(ctx));
     hl_dynamic_desc desc = {32, 4, HL_DYNAMIC_SHADOW_CSM};
-    float *frame = NULL, *exact = NULL, *file = NULL;
+    float *frame = NULL, *exact = NULL, *file = NULL, *dc = NULL;
     if (hl_dynamic_create_from_file(ctx, path, 0, &desc, &d) != HL_OK || !env ||
         hl_dynamic_set_env(d, env, 2, 0.0f, 0.0f, NULL) != HL_OK || hl_dynamic_render(d, 0.0, &frame, NULL) != HL_OK) {
         HL_CHECK(0, "%s", hl_context_last_error(ctx));
         goto done;
     }
     uint32_t nv = hl_dynamic_mesh(d)->vertex_count;
-    exact = malloc((size_t)nv * 12), file = malloc((size_t)nv * 12);
+    exact = malloc((size_t)nv * 12), file = malloc((size_t)nv * 12), dc = malloc((size_t)nv * 12);
     HL_CHECK(hl_bench_dyn_exact(d, env, exact, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
     HL_CHECK(ply_colours(ply, nv, file), "%s: not a PLY of %u vertices", ply, nv);
     double worst = 0, num = 0, den = 0, diff = 0;
@@ -929,6 +931,21 @@ static void check_reference_run(const char *path, const char *ply, const char *l
     }
     /* the same rays on the same bodies: the same floats */
     hl_check_error("written reference against the exact reference made here, relative", worst, 1e-6);
+    HL_CHECK(ply_colours(diff_ply, nv, dc), "%s: not a PLY of %u vertices", diff_ply, nv);
+    double dworst = 0, dmax = 0;
+    for (uint32_t v = 0; v < nv; v++) {
+        const float *f = frame + 3 * v, *x = exact + 3 * v;
+        double m = 4.0 * (((double)f[0] - x[0]) + ((double)f[1] - x[1]) + ((double)f[2] - x[2])) / 3.0;
+        double want[3] = {fmax(m, 0.0), 0.0, fmax(-m, 0.0)};
+        for (int k = 0; k < 3; k++) {
+            dworst = fmax(dworst, fabs(dc[3 * v + k] - want[k]));
+            dmax = fmax(dmax, want[k]);
+        }
+    }
+    HL_CHECK(dmax > 0.0, "the frame and its reference differ nowhere");
+    /* float sums in another order: a few ulps of the largest */
+    hl_check_error("--diff colours against the frame minus the reference made here, relative to the largest",
+                   dworst / fmax(dmax, 1e-30), 1e-5);
     HL_CHECK(diff > 0.0, "the written colours are the frame's, not the reference's");
     char line[4096];
     double printed = -1;
@@ -942,7 +959,7 @@ static void check_reference_run(const char *path, const char *ply, const char *l
     hl_check_error("printed error against the one computed here, percentage points",
                    fabs(printed - 100.0 * sqrt(num / den)), 0.006);
 done:
-    free(exact); free(file);
+    free(exact); free(file); free(dc);
     hl_dynamic_destroy(d);
     hl_env_destroy(env);
     hl_context_destroy(ctx);
@@ -1005,13 +1022,15 @@ static void case_file(void)
            error against it printed (12 vertices: cheap); both checked
            against the same frame and reference made here */
         const char *log = hl_test_tmp_path("dyn_frame_reference.txt");
-        char ply[1024];
+        char ply[1024], dply[1024];
         snprintf(ply, sizeof ply, "%s", hl_test_tmp_path("dyn_frame_reference.ply"));
+        snprintf(dply, sizeof dply, "%s", hl_test_tmp_path("dyn_frame_reference_diff.ply"));
+        remove(dply);
         snprintf(cmd, sizeof cmd, "'%s' relight-dynamic '%s' --device ref --lights 2 --shadow-res 32 --order 4 "
-                 "--reference exact -o '%s' 2>'%s'", bin, path, ply, log);
+                 "--reference exact -o '%s' --diff '%s' 2>'%s'", bin, path, ply, dply, log);
         rc = system(cmd);
         HL_CHECK(WIFEXITED(rc) && WEXITSTATUS(rc) == 0, "relight-dynamic --reference exact: exit %d", WEXITSTATUS(rc));
-        check_reference_run(path, ply, log);
+        check_reference_run(path, ply, log, dply);
     }
 done:
     hl_dynamic_destroy(d);
