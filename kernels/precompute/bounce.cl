@@ -7,39 +7,40 @@
  */
 #pragma OPENCL FP_CONTRACT OFF
 
-/* The slots 16 bits each, or (wide) 32, as pairs of 16-bit words, low
- * first (hl_bounce_src; the device's words are little-endian, as the
- * host's: host/src/precompute/bounce.c checks it); the values binary16s, zero or normal,
- * times their row's scale: decoded as their bits moved into a float's
- * (2^-112 of the value) times 2^112, exact, and cheaper than vload_half
- * on a CPU. */
-kernel void hl_bounce_gather(global const uint *start, global const ushort *slot, uint wide, global const ushort *val,
-                             global const float *scale, global const uint *indices, global const float *rho,
-                             global const uint *prim, global const float *uv, uint K, uint ncoef, uint count,
-                             global float *out)
-{
-    const uint r = get_global_id(0);
-    if (r >= count) return;
-    global float *o = out + (size_t)r * ncoef;
-    for (uint s = 0; s < ncoef; s++) o[s] = 0.0f;
-    const float invK = 1.0f / (float)K;
-    for (uint k = 0; k < K; k++) {
-        const size_t q = (size_t)r * K + k;
-        const uint p = prim[q];
-        if (p == 0xffffffffu) continue;
-        const float u = uv[2 * q], v = uv[2 * q + 1], w0 = 1.0f - u - v;
-        const uint c[3] = {indices[3 * (size_t)p], indices[3 * (size_t)p + 1], indices[3 * (size_t)p + 2]};
-        const float b[3] = {w0, u, v};
-        const float ry = w0 * rho[c[0]] + u * rho[c[1]] + v * rho[c[2]];
-        for (int j = 0; j < 3; j++) {
-            const float w = ry * b[j] * invK * scale[c[j]];
-            const uint e1 = start[c[j] + 1];
-            for (uint e = start[c[j]]; e < e1; e++) {
-                const uint h = val[e];
-                const float t = w * (as_float(((h & 0x8000u) << 16) | ((h & 0x7fffu) << 13)) * 0x1p112f);
-                const uint sl = wide ? (uint)slot[2 * (size_t)e] | (uint)slot[2 * (size_t)e + 1] << 16 : (uint)slot[e];
-                o[sl] = o[sl] + t;
-            }
-        }
+/* SLOT: the slots' type, ushort where ncoef fits 16 bits, else uint
+ * (hl_bounce_src); the values binary16s, zero or normal, times their
+ * row's scale: decoded as their bits moved into a float's (2^-112 of the
+ * value) times 2^112, exact, and cheaper than vload_half on a CPU. */
+#define HL_BOUNCE_GATHER(NAME, SLOT)                                                                           \
+    kernel void NAME(global const uint *start, global const SLOT *slot, global const ushort *val,               \
+                     global const float *scale, global const uint *indices, global const float *rho,          \
+                     global const uint *prim, global const float *uv, uint K, uint ncoef, uint count,          \
+                     global float *out)                                                                        \
+    {                                                                                                          \
+        const uint r = get_global_id(0);                                                                       \
+        if (r >= count) return;                                                                                \
+        global float *o = out + (size_t)r * ncoef;                                                             \
+        for (uint s = 0; s < ncoef; s++) o[s] = 0.0f;                                                          \
+        const float invK = 1.0f / (float)K;                                                                    \
+        for (uint k = 0; k < K; k++) {                                                                         \
+            const size_t q = (size_t)r * K + k;                                                                \
+            const uint p = prim[q];                                                                            \
+            if (p == 0xffffffffu) continue;                                                                    \
+            const float u = uv[2 * q], v = uv[2 * q + 1], w0 = 1.0f - u - v;                                   \
+            const uint c[3] = {indices[3 * (size_t)p], indices[3 * (size_t)p + 1], indices[3 * (size_t)p + 2]}; \
+            const float b[3] = {w0, u, v};                                                                     \
+            const float ry = w0 * rho[c[0]] + u * rho[c[1]] + v * rho[c[2]];                                   \
+            for (int j = 0; j < 3; j++) {                                                                      \
+                const float w = ry * b[j] * invK * scale[c[j]];                                                \
+                const uint e1 = start[c[j] + 1];                                                               \
+                for (uint e = start[c[j]]; e < e1; e++) {                                                      \
+                    const uint h = val[e];                                                                     \
+                    const float t = w * (as_float(((h & 0x8000u) << 16) | ((h & 0x7fffu) << 13)) * 0x1p112f);    \
+                    o[slot[e]] = o[slot[e]] + t;                                                               \
+                }                                                                                              \
+            }                                                                                                  \
+        }                                                                                                      \
     }
-}
+
+HL_BOUNCE_GATHER(hl_bounce_gather, ushort)
+HL_BOUNCE_GATHER(hl_bounce_gather_wide, uint)

@@ -376,14 +376,9 @@ static hl_result device_open(bounce_run *u)
 {
     hl_context *ctx = u->ctx;
     cl_int e;
-    /* 32-bit slots reach the kernel as pairs of 16-bit words, low first */
-    cl_bool little = CL_TRUE;
-    clGetDeviceInfo(ctx->cl->device, CL_DEVICE_ENDIAN_LITTLE, sizeof little, &little, NULL);
-    if (u->wide && (!little || !tf_host_little_endian()))
-        return hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: the bounces at N = %u need a little-endian device and host "
-                       "(use --device ref)", u->g->N);
-    u->k = clCreateKernel(ctx->cl->program, "hl_bounce_gather", &e);
-    if (e != CL_SUCCESS) return hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: the kernel hl_bounce_gather: %s", hl_cl_err_name(e));
+    const char *kname = u->wide ? "hl_bounce_gather_wide" : "hl_bounce_gather";
+    u->k = clCreateKernel(ctx->cl->program, kname, &e);
+    if (e != CL_SUCCESS) return hl_fail(ctx, HL_ERR_OPENCL, "OpenCL: the kernel %s: %s", kname, hl_cl_err_name(e));
     const size_t cap = (size_t)u->V * u->G, sb = u->wide ? 4 : 2;
     /* a device in host memory reads the rows where they are
        (device_rows), with no copy of its own */
@@ -472,21 +467,20 @@ static hl_result device_gather(bounce_run *u)
            "uploading the bounce hits");
     CL_TRY(ctx, clEnqueueWriteBuffer(q, u->d_uv, CL_FALSE, 0, ns * 8, u->uv, 0, NULL, NULL),
            "uploading the bounce hits");
-    cl_uint K = u->K, nc = u->g->ncoef, count = u->count, wide = (cl_uint)u->wide;
+    cl_uint K = u->K, nc = u->g->ncoef, count = u->count;
 #define SETARG(i, v) CL_TRY(ctx, clSetKernelArg(u->k, i, sizeof(v), &(v)), "clSetKernelArg (hl_bounce_gather)")
     SETARG(0, u->d_start);
     SETARG(1, u->d_slot);
-    SETARG(2, wide);
-    SETARG(3, u->d_val);
-    SETARG(4, u->d_scale);
-    SETARG(5, u->d_idx);
-    SETARG(6, u->d_rho);
-    SETARG(7, u->d_prim);
-    SETARG(8, u->d_uv);
-    SETARG(9, K);
-    SETARG(10, nc);
-    SETARG(11, count);
-    SETARG(12, u->d_out);
+    SETARG(2, u->d_val);
+    SETARG(3, u->d_scale);
+    SETARG(4, u->d_idx);
+    SETARG(5, u->d_rho);
+    SETARG(6, u->d_prim);
+    SETARG(7, u->d_uv);
+    SETARG(8, K);
+    SETARG(9, nc);
+    SETARG(10, count);
+    SETARG(11, u->d_out);
 #undef SETARG
     /* the device's fixed group size, so the kernel builds once per device */
     size_t local = ctx->cl->wg ? ctx->cl->wg : 1, global = ((size_t)u->count + local - 1) / local * local;
