@@ -121,8 +121,7 @@ static void case_twin(void)
         for (size_t i = 0; i < R2; i++) zmin = fminf(zmin, z[k * R2 + i]);
         double t = tan((double)theta) * f.depth_range * R;
         hl_msm_eval_params p;
-        hl_msm_params(&p, R, zmin, (float)(t / f.width), (float)(t / f.height));
-        hl_msm_set_texel(&p, fmaxf(f.width, f.height) / (float)R / f.depth_range);
+        hl_msm_params(&p, R, zmin, (float)(t / f.width), (float)(t / f.height), hl_shadow_frame_texel(&f));
         for (uint32_t i = 0; i < n; i++) {
             float o[2];
             hl_ref_msm_eval(sat, mean, t4, &p, uvd + 3 * i, pl ? pl + HL_DYN_RPL * i : NULL, o);

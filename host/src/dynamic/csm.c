@@ -67,7 +67,7 @@ uint32_t hl_csm_batch_fit(uint32_t R, uint32_t M, uint32_t Mb, uint64_t bytes)
 
 hl_shadow_rep hl_csm_rep(const hl_csm *c) { return c->rep; }
 
-void hl_msm_params(hl_msm_eval_params *p, uint32_t R, float zmin, float su, float sv)
+void hl_msm_params(hl_msm_eval_params *p, uint32_t R, float zmin, float su, float sv, float texel)
 {
     memset(p, 0, sizeof *p);
     p->R = R;
@@ -101,15 +101,11 @@ void hl_msm_params(hl_msm_eval_params *p, uint32_t R, float zmin, float su, floa
         float h = strtof(tn, NULL);
         if (h >= 0.0f && h <= HL_CSM_DIRECT_HALF) p->near_half = h;
     }
-    p->tfloor = HL_MSM_TEXEL_FLOOR; /* texels until hl_msm_set_texel */
+    p->tfloor = HL_MSM_TEXEL_FLOOR;
     if (tf) {
         float h = strtof(tf, NULL);
         if (h >= 0.0f && h <= 16.0f) p->tfloor = h;
     }
-}
-
-void hl_msm_set_texel(hl_msm_eval_params *p, float texel)
-{
     p->tfloor *= texel;
     const char *t = getenv("HL_TEST_MSM");
     if (t) {
@@ -600,8 +596,8 @@ hl_result hl_csm_visibility_batch(hl_csm *c, uint32_t nl, const uint32_t *ks, co
         const hl_shadow_frame *f = frames[j];
         double t = tan((double)thetas[j]) * f->depth_range * c->R;
         if (mom) {
-            hl_msm_params(&pm[j], c->R, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
-            hl_msm_set_texel(&pm[j], fmaxf(f->width, f->height) / (float)c->R / f->depth_range);
+            hl_msm_params(&pm[j], c->R, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height),
+                          hl_shadow_frame_texel(f));
             pack_msm_params(&pm[j], prm + (size_t)j * np);
         } else {
             hl_csm_params(&p[j], c->R, c->M, c->Mb, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
@@ -656,8 +652,8 @@ hl_result hl_csm_eval_grid(hl_csm *c, uint32_t nl, const uint32_t *ks, const flo
             double t = tan((double)thetas[j]) * f->depth_range * c->R;
             if (mom) {
                 hl_msm_eval_params pm;
-                hl_msm_params(&pm, c->R, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height));
-                hl_msm_set_texel(&pm, fmaxf(f->width, f->height) / (float)c->R / f->depth_range);
+                hl_msm_params(&pm, c->R, c->zmin[ks[j]], (float)(t / f->width), (float)(t / f->height),
+                              hl_shadow_frame_texel(f));
                 pack_msm_params(&pm, prm + (size_t)(j - j0) * np);
             } else {
                 hl_csm_eval_params p;

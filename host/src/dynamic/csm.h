@@ -315,14 +315,13 @@ typedef struct hl_msm_eval_params {
        above 0 (above 1: with the leak reduction too), the bias in texels
        along the plane, the near search's half-width (texels, 0: none),
        the constant depth bias there, and one of HL_MSM_TEXEL_FLOOR texels
-       (normalised depth: that many texels' width; hl_msm_set_texel) */
+       (normalised depth: that many texels' width) */
     float ptex, tbias, near_half, sbias, tfloor;
 } hl_msm_eval_params;
 
-void hl_msm_params(hl_msm_eval_params *p, uint32_t R, float zmin, float su, float sv);
-/* p's tfloor for a map whose texel is texel (normalised depth: the
- * frame's max(width, height) / R / depth_range). */
-void hl_msm_set_texel(hl_msm_eval_params *p, float texel);
+/* texel: the map's texel in normalised depth (hl_shadow_frame_texel),
+ * the unit of the per-texel floor */
+void hl_msm_params(hl_msm_eval_params *p, uint32_t R, float zmin, float su, float sv, float texel);
 /* hl_msm_basis: one row of one map to its texels' four moments (img and
  * zsc, 4 floats a texel) and each plane's row sum (rowsum[plane R + row]). */
 void hl_ref_msm_basis(const float *depth, uint32_t R, float kb, uint32_t row, float *img, float *rowsum, float *zsc);

@@ -414,7 +414,7 @@ static void pack_map(const hl_frame_state *st, uint32_t kb, const float dir[3], 
     memset(lf, 0, HL_DYN_LF * sizeof *lf);
     hl_shadow_frame_pack(f, lf);
     lf[16] = tanf(theta);
-    lf[17] = fmaxf(f->width, f->height) / (float)f->R / f->depth_range;
+    lf[17] = hl_shadow_frame_texel(f);
     /* a test hook: HL_TEST_RPB=a,b scales the receiver-plane bias's two
        terms (hl_dyn_receiver), the filter's (a) and the texels' (b); 0,0
        is no receiver-plane bias (DYNAMIC.md, section 6, real assets) */

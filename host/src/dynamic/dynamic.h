@@ -62,4 +62,12 @@ typedef struct hl_shadow_frame {
     uint32_t skip_mask;
 } hl_shadow_frame;
 
+/* A texel's size in normalised depth: max(width, height) / R /
+ * depth_range (the receiver-plane bias and the moments' per-texel floor
+ * are counted in it). */
+static inline float hl_shadow_frame_texel(const hl_shadow_frame *f)
+{
+    return (f->width > f->height ? f->width : f->height) / (float)f->R / f->depth_range;
+}
+
 #endif
