@@ -111,8 +111,7 @@ static hl_result rt_create(hl_context *ctx, const hl_mesh *mesh, int filtered, h
     }
     rtcSetDeviceErrorFunction(rt->device, embree_error, rt);
     rt->scene = rtcNewScene(rt->device);
-    if (!getenv("HL_X_NOROBUST"))
-        rtcSetSceneFlags(rt->scene, RTC_SCENE_FLAG_ROBUST | (filtered ? RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION : 0));
+    rtcSetSceneFlags(rt->scene, RTC_SCENE_FLAG_ROBUST | (filtered ? RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION : 0));
     rtcSetSceneBuildQuality(rt->scene, RTC_BUILD_QUALITY_HIGH);
     RTCGeometry geom = rtcNewGeometry(rt->device, RTC_GEOMETRY_TYPE_TRIANGLE);
     float *vb = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
