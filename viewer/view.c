@@ -118,6 +118,7 @@ static const char *const usage_view =
     "  --rest-pose          the file's animation not followed, as relight-dynamic --rest-pose\n"
     "  --lights K           area lights with shadows (default 32)\n"
     "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 128)\n"
+    "  --sharp-res RS       the sharp lights' map size (relight-dynamic --help)\n"
     "  --order M            convolution shadow map order, 4 to 16 (default 16); given\n"
     "                       alone it asks for CSM\n"
     "  --shadow S           moments (the default) or csm: the filterable shadow map\n"

@@ -371,8 +371,10 @@ static void bd_setting(char *buf, size_t n, const bd_row *w)
 
 static void bd_tables(FILE *md, FILE *csv, const bd_report *rep)
 {
+    char sharp[96] = "";
+    if (rep->Rs) snprintf(sharp, sizeof sharp, ", the sharp lights' %u^2 (relight-dynamic --sharp-res)", rep->Rs);
     fprintf(md, "# Error against time: PRT, the dynamic method and traced rays\n\n"
-                "Scene: %s, %u vertices (%u object, %u ground). Device: %s. Shadow maps %u^2.\n"
+                "Scene: %s, %u vertices (%u object, %u ground). Device: %s. Shadow maps %u^2%s.\n"
                 "Errors: relative L2 over every vertex and channel, and the worst vertex over the brightest, against\n"
                 "the exact result (each vertex integrates the whole map, resampled on a cube of 64^2 texels a face,\n"
                 "with Embree visibility on the geometry as it is; %.1f s under the first map); moved frames also\n"
@@ -384,7 +386,7 @@ static void bd_tables(FILE *md, FILE *csv, const bd_report *rep)
                 "rebuilt as after any move (world mesh and BVH, rays, occlusion, shading); the K-lights reference,\n"
                 "one call. Times in ms. Load average of the host (/proc/loadavg) at the start: %s; at the end: %s.\n\n",
             rep->scene, rep->vertices, rep->object_vertices, rep->vertices - rep->object_vertices, rep->device, rep->R,
-            rep->ref_seconds, rep->move[0], rep->move[1], rep->move[2], rep->reps, rep->reps, rep->traced_reps, rep->load[0],
+            sharp, rep->ref_seconds, rep->move[0], rep->move[1], rep->move[2], rep->reps, rep->reps, rep->traced_reps, rep->load[0],
             rep->load[1]);
     fprintf(md, "| env | frames | method | setting | L2 exact | max exact | L2 vs K-lights | ms | frames/s | where the time goes (ms) |\n"
                 "|---|---|---|---|---|---|---|---|---|---|\n");

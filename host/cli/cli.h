@@ -322,7 +322,7 @@ typedef struct bd_report {
     const bd_row *rows;
     uint32_t nrows;
     const char *scene, *device;
-    uint32_t vertices, object_vertices, R, reps, traced_reps, goal_K, goal_M;
+    uint32_t vertices, object_vertices, R, Rs, reps, traced_reps, goal_K, goal_M; /* Rs: the sharp lights' (0: none) */
     double move[3];        /* the moved frames' translation of the object */
     double ref_seconds;    /* the exact reference's time on the first map */
     char load[2][48];      /* the host's load averages at the start and end */

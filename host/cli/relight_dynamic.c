@@ -43,8 +43,8 @@ static const char *const usage_dyn =
     "casters' depth range. A flat body with the others on one side (a ground) stays\n"
     "out of the shadow maps, and what it hides is worked out from its plane. Light\n"
     "beyond the K kept lights casts no shadow. Each kept light costs a shadow map and\n"
-    "5 filtered images of R x R texels a frame with moments (4M + 1 with CSM: 4.6 MB\n"
-    "a light at R = 128, M = 16, processed in batches).\n"
+    "5 filtered images of R x R texels a frame with moments (RS x RS for the sharp\n"
+    "lights; 4M + 1 with CSM: 4.6 MB a light at R = 128, M = 16, processed in batches).\n"
     "\n"
     "scene:\n"
     "  --ground             a ground plane under the object (body \"ground\"). A file with\n"
@@ -71,6 +71,10 @@ static const char *const usage_dyn =
     "  --split-threshold T  a light grows while a ring adds more than T of its own\n"
     "                       energy so far, 0 < T < 1 (default 0.1)\n"
     "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 128)\n"
+    "  --sharp-res RS       the map size of the sharp lights (a sun: a light whose filter\n"
+    "                       is under 4 texels of an R map), up to 4 of them, the strongest;\n"
+    "                       a multiple of 16 from R to 1024 (default 4 R, at most 1024, with\n"
+    "                       moments; R with CSM). RS = R: one size for all\n"
     "  --order M            convolution shadow map order, 4 to 16 (default 16): lower is\n"
     "                       cheaper (memory and time in proportion) with softer, leakier\n"
     "                       shadows; CSM only (given alone, it asks for CSM)\n"
@@ -104,7 +108,7 @@ typedef struct dyn_opts {
     float ground_margin; /* --ground-size S: (S - 1) / 2; 0 the default */
     int reference; /* 0: the frame; 1: exact; 2: K lights traced */
     float time, threshold;
-    uint32_t lights, R, M, nmoves;
+    uint32_t lights, R, Rs, M, nmoves;
     int shadow; /* 0: unset (CSM), 1: csm, 2: moments */
     char *move_name[DYN_MAX_MOVES];
     float move[DYN_MAX_MOVES][3];
@@ -132,7 +136,7 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
 {
     const char *a = argv[*i], *v = NULL;
     static const char *const with_value[] = {"-o",     "--output",          "--env",        "--time", "--move",
-                                             "--lights", "--split-threshold", "--shadow-res", "--order",
+                                             "--lights", "--split-threshold", "--shadow-res", "--sharp-res", "--order",
                                              "--reference", "--ground-size", "--shadow", "--diff", NULL};
     for (int k = 0; with_value[k]; k++)
         if (!strcmp(a, with_value[k])) {
@@ -167,6 +171,9 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
     } else if (!strcmp(a, "--shadow-res")) {
         if (!parse_u32(v, &d->R) || d->R < 16 || d->R > 1024 || d->R % 16)
             return -usage_error(usage_dyn, "--shadow-res %s: expected a multiple of 16 from 16 to 1024", v);
+    } else if (!strcmp(a, "--sharp-res")) {
+        if (!parse_u32(v, &d->Rs) || d->Rs < 16 || d->Rs > 1024 || d->Rs % 16)
+            return -usage_error(usage_dyn, "--sharp-res %s: expected a multiple of 16 from 16 to 1024", v);
     } else if (!strcmp(a, "--reference")) {
         if (!strcmp(v, "exact")) d->reference = 1;
         else if (!strcmp(v, "lights")) d->reference = 2;
@@ -224,13 +231,16 @@ static int parse_args(int argc, char **argv, dyn_opts *d, cli_scene_opts *o)
 static void report(const char *scene, const char *env, hl_context *ctx, const hl_dynamic_lights *li,
                    const hl_dynamic_stats *st, const char *rep)
 {
+    char sharp[64] = "";
+    if (st->sharp)
+        snprintf(sharp, sizeof sharp, " (%u sharp at %u^2, the rest at %u^2)", st->sharp, st->sharp_res, st->shadow_res);
     fprintf(stderr,
             "relit %s under %s on %s: %u vertices; lights %u kept of %u (%u folded, %.2f%% of the energy), "
-            "%u shadowed, %u skipped below every horizon, %u negligible; %u batch(es), %u shadow maps kept; "
+            "%u shadowed%s, %u skipped below every horizon, %u negligible; %u batch(es), %u shadow maps kept; "
             "split %.1f ms, irradiance %.1f ms, shadow maps %.1f ms, %s build %.1f ms, %s eval %.1f ms, "
             "shading %.1f ms; frame %.1f ms\n",
             scene, env ? env : "the procedural sky", hl_context_device_name(ctx), st->vertices, li->lights_kept,
-            li->lights_made, li->folded, 100.0 * li->folded_share, st->shadowed, st->skipped_horizon,
+            li->lights_made, li->folded, 100.0 * li->folded_share, st->shadowed, sharp, st->skipped_horizon,
             st->skipped_negligible, st->batches, st->maps_kept, 1e3 * li->seconds, 1e3 * st->t_irradiance, 1e3 * st->t_shadow_maps,
             rep, 1e3 * st->t_csm_build, rep, 1e3 * st->t_csm_eval, 1e3 * st->t_shading, 1e3 * st->t_total);
 }
@@ -304,7 +314,7 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
     float *rgb = NULL, *ref = NULL, *frame = NULL, exposure = o->exposure;
     /* --order alone asks for the CSM it is the order of */
     const int csm = d->shadow == 1 || (d->shadow == 0 && d->M);
-    hl_dynamic_desc desc = {d->R, d->M, csm ? HL_DYNAMIC_SHADOW_CSM : HL_DYNAMIC_SHADOW_MOMENTS};
+    hl_dynamic_desc desc = {d->R, d->M, csm ? HL_DYNAMIC_SHADOW_CSM : HL_DYNAMIC_SHADOW_MOMENTS, d->Rs};
     hl_dynamic_lights li;
     hl_dynamic_stats st;
     int rc = 0;

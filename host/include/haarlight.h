@@ -811,6 +811,11 @@ typedef struct hl_dynamic hl_dynamic;
  *                depth and the coverage, Peters and Klein 2015; order is
  *                then unused) or HL_DYNAMIC_SHADOW_CSM (the Fourier series
  *                of order M; 0 with order set gives it)
+ *   sharp_res    the sharp lights' map size (lights whose filter is
+ *                under 4 texels of a map of shadow_res: a sun), a multiple
+ *                of 16 from shadow_res to 1024 (0: 4 x shadow_res, at most
+ *                1024, with moments; shadow_res with CSM); shadow_res: one
+ *                size for all
  */
 #define HL_DYNAMIC_SHADOW_DEFAULT 0u
 #define HL_DYNAMIC_SHADOW_CSM 1u
@@ -819,6 +824,7 @@ typedef struct hl_dynamic_desc {
     uint32_t shadow_res;
     uint32_t order;
     uint32_t shadow;
+    uint32_t sharp_res;
 } hl_dynamic_desc;
 
 /* A dynamic scene from a mesh (copied): body "object", and with ground
@@ -904,6 +910,9 @@ typedef struct hl_dynamic_stats {
     double t_irradiance, t_shadow_maps, t_csm_build, t_csm_eval, t_shading, t_total;
     int reused; /* nothing moved and the lights are the same: the last
                    frame's colours, at no cost (the rest of st is 0) */
+    uint32_t shadow_res;          /* the map size */
+    uint32_t sharp, sharp_res;    /* shadowed lights with maps of sharp_res
+                                     (0 and 0: one size for all) */
 } hl_dynamic_stats;
 
 /* One frame at time t (seconds, finite, >= 0; clamped to the animation's

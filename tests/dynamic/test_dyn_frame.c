@@ -567,11 +567,14 @@ static void keep_step(hl_context *ctx, hl_frame_state *st, bunny_scene *b, const
     hl_frame_state_destroy(fresh);
     if (!ok) return;
     const uint32_t want = want_kept ? fs.shadowed : 0;
-    printf("  %s: %u lights shadowed in %u batch(es), maps kept %u (want %u), fresh state's %u; shadow maps %.2f ms, "
-           "build %.2f ms, eval %.2f ms, frame %.2f ms (fresh state: %.2f ms)\n",
-           what, fs.shadowed, fs.batches, fs.maps_kept, want, ff.maps_kept, 1e3 * fs.t_shadow_maps, 1e3 * fs.t_csm_build,
+    printf("  %s: %u lights shadowed (%u sharp) in %u batch(es), maps kept %u (want %u), fresh state's %u; shadow maps "
+           "%.2f ms, build %.2f ms, eval %.2f ms, frame %.2f ms (fresh state: %.2f ms)\n",
+           what, fs.shadowed, fs.sharp, fs.batches, fs.maps_kept, want, ff.maps_kept, 1e3 * fs.t_shadow_maps, 1e3 * fs.t_csm_build,
            1e3 * fs.t_csm_eval, 1e3 * fs.t_total, 1e3 * ff.t_total);
-    HL_CHECK(fs.shadowed > 0 && fs.batches == 1 && ff.maps_kept == 0, "%s: the scene must take one batch of shadowed lights", what);
+    /* one batch a map size: the sharp lights' finer maps are a batch of
+       their own (dyn_frame.h) */
+    HL_CHECK(fs.shadowed > 0 && fs.batches == 1u + (fs.sharp > 0) && ff.maps_kept == 0,
+             "%s: the scene must take one batch of shadowed lights a map size", what);
     HL_CHECK(fs.maps_kept == want, "%s: %u maps kept, want %u", what, fs.maps_kept, want);
     char line[160];
     snprintf(line, sizeof line, "  %s: colour floats that differ from a new state's (tolerance 0: bit for bit)", what);
@@ -657,7 +660,8 @@ static void case_keep(void)
                 unsetenv("HL_TEST_DYN_FRAME");
             }
         /* several batches (a budget of 3 lights): each renders into the
-           same buffers, so nothing is kept even when nothing moved */
+           same buffers, so nothing is kept even when nothing moved; but
+           the sharp lights' maps, a batch of their own, are */
         hl_light_split *s = split_of(ctx, env, 8);
         hl_frame_settings set = {.R = 64, .min_share = -1.0f,
                                  .budget = 3 * (uint64_t)hl_csm_bytes_per_light_rep(HL_SHADOW_REP_MOMENTS, 64, 16, 16) + 1};
@@ -668,9 +672,10 @@ static void case_keep(void)
                  hl_frame_render(st, b.obj, 2, b.alb, s, b.rgb, &fs[1]) == HL_OK;
         HL_CHECK(ok, "%s", hl_context_last_error(ctx));
         if (ok) {
-            printf("several batches: %u lights shadowed in %u batches, the same frame again kept %u maps (want 0)\n",
-                   fs[1].shadowed, fs[1].batches, fs[1].maps_kept);
-            HL_CHECK(fs[1].batches > 1 && fs[1].maps_kept == 0, "%u batches, %u maps kept", fs[1].batches, fs[1].maps_kept);
+            printf("several batches: %u lights shadowed in %u batches, the same frame again kept %u maps (want the %u "
+                   "sharp lights')\n", fs[1].shadowed, fs[1].batches, fs[1].maps_kept, fs[1].sharp);
+            HL_CHECK(fs[1].batches > 2 && fs[1].sharp > 0 && fs[1].maps_kept == fs[1].sharp, "%u batches, %u maps kept",
+                     fs[1].batches, fs[1].maps_kept);
         }
         hl_frame_state_destroy(st);
         hl_light_split_destroy(s);
@@ -689,6 +694,91 @@ static void case_keep(void)
     bunny_close(&b);
     hl_env_destroy(env);
     hl_context_destroy(ref);
+}
+
+/* ------------------------------------------------------------ sharp */
+
+/* Frame of a new state with settings set (both bodies into out). */
+static int sharp_frame(hl_context *ctx, bunny_scene *b, const hl_light_split *s, const hl_frame_settings *set,
+                       float *out, hl_frame_stats *fs)
+{
+    hl_frame_state *st = NULL;
+    int ok = hl_frame_state_create(ctx, b->obj, 2, s->count, set, &st) == HL_OK && keep_frame(ctx, st, b, s, out, fs);
+    HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+    hl_frame_state_destroy(st);
+    return ok;
+}
+
+/* The sharp lights' finer maps (dyn_frame.h, HL_FRAME_SHARP_*) on one
+ * path, the bunny on its ground under the sky: alone, its sun at R = 64
+ * with R_sharp = 256 is the frame at R = 256 bit for bit (the same map in
+ * the same kernels); among 8 lights the sharp ones are those whose filter
+ * is under HL_FRAME_SHARP_TEXELS texels of a 64 map, and their finer maps
+ * change the frame. */
+static void sharp_path(hl_context *ctx, bunny_scene *b, const hl_env *env)
+{
+    const size_t n = 3 * ((size_t)b->obj[0].nverts + b->obj[1].nverts);
+    float *x = malloc(n * 4), *y = malloc(n * 4);
+    hl_light_split *one = split_of(ctx, env, 1), *eight = split_of(ctx, env, 8);
+    hl_frame_settings fine = {.R = 64, .R_sharp = 256, .min_share = -1.0f, .shadow = HL_SHADOW_REP_MOMENTS};
+    hl_frame_settings all = fine, coarse = fine;
+    all.R = 256, coarse.R_sharp = 64;
+    hl_frame_stats fa, fb;
+    if (one && eight && sharp_frame(ctx, b, one, &fine, x, &fa) && sharp_frame(ctx, b, one, &all, y, &fb)) {
+        printf("  the sun alone: %u sharp at %u^2 (want 1 at 256), against one map size of 256 (%u sharp, want 0)\n",
+               fa.sharp, fa.R_sharp, fb.sharp);
+        HL_CHECK(fa.sharp == 1 && fa.R_sharp == 256 && fb.sharp == 0 && fb.R_sharp == 0, "the sun's map size");
+        hl_check_error("  the sun alone at 64 with sharp 256 vs all at 256: colour floats that differ (tolerance 0)",
+                       (double)floats_differ(x, y, n), 0.0);
+    }
+    if (one && eight && sharp_frame(ctx, b, eight, &fine, x, &fa) && sharp_frame(ctx, b, eight, &coarse, y, &fb)) {
+        uint32_t want = 0;
+        for (uint32_t k = 0; k < eight->count; k++)
+            want += tanf(fminf(fmaxf(eight->lights[k].spread, 0.0f), HL_FRAME_MAX_THETA)) * 64.0f < HL_FRAME_SHARP_TEXELS;
+        if (want > HL_FRAME_SHARP_MAX) want = HL_FRAME_SHARP_MAX;
+        const size_t d = floats_differ(x, y, n);
+        printf("  8 lights: %u sharp (want %u, at least 1), %u shadowed; %zu of %zu colour floats differ from one map "
+               "size of 64\n", fa.sharp, want, fa.shadowed, d, n);
+        HL_CHECK(fa.sharp == want && want >= 1 && fb.sharp == 0, "%u sharp lights, want %u", fa.sharp, want);
+        HL_CHECK(d > 0, "the finer maps changed nothing");
+    }
+    hl_light_split_destroy(one);
+    hl_light_split_destroy(eight);
+    free(x), free(y);
+}
+
+static void case_sharp(void)
+{
+    hl_context *ctx = hl_test_cl_context(2);
+    if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
+    bunny_scene b;
+    memset(&b, 0, sizeof b);
+    hl_env *env = sky(ctx);
+    if (env && bunny_open(ctx, &b)) {
+        for (int path = 0; path < 2; path++) {
+            printf("%s receivers:\n", path ? "host" : "device");
+            if (path) setenv("HL_TEST_DYN_FRAME", "host", 1);
+            sharp_path(ctx, &b, env);
+            unsetenv("HL_TEST_DYN_FRAME");
+        }
+        /* the defaults: 4 R with moments, one size with CSM */
+        hl_light_split *s = split_of(ctx, env, 8);
+        const size_t n = 3 * ((size_t)b.obj[0].nverts + b.obj[1].nverts);
+        float *x = malloc(n * 4);
+        hl_frame_settings m = {.R = 64, .min_share = -1.0f}, c = {.R = 64, .min_share = -1.0f, .shadow = HL_SHADOW_REP_CSM};
+        hl_frame_stats fm, fc;
+        if (s && sharp_frame(ctx, &b, s, &m, x, &fm) && sharp_frame(ctx, &b, s, &c, x, &fc)) {
+            printf("defaults at R = 64: moments %u sharp at %u^2 (want %u), CSM %u sharp at %u (want 0, 0)\n", fm.sharp,
+                   fm.R_sharp, 64 * HL_FRAME_SHARP_SCALE, fc.sharp, fc.R_sharp);
+            HL_CHECK(fm.sharp > 0 && fm.R_sharp == 64 * HL_FRAME_SHARP_SCALE && fc.sharp == 0 && fc.R_sharp == 0,
+                     "the default map sizes");
+        }
+        free(x);
+        hl_light_split_destroy(s);
+    }
+    bunny_close(&b);
+    hl_env_destroy(env);
+    hl_context_destroy(ctx);
 }
 
 /* ------------------------------------------------------------ bad input */
@@ -710,11 +800,12 @@ static void case_bad_input(void)
     hl_frame_state *st = NULL;
     if (!s || !bunny_open(ctx, &b)) goto close;
     hl_frame_settings bad[] = {{.M = 3}, {.M = 17}, {.R = 100}, {.R = 8}, {.R = 2048}, {.M = 8, .Mb = 16},
+                               {.R = 64, .R_sharp = 32}, {.R = 64, .R_sharp = 100}, {.R_sharp = 2048},
                                {.min_share = NAN}, {.min_share = 1.0f}};
     for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
         char what[96];
-        snprintf(what, sizeof what, "settings R %u M %u Mb %u share %g", bad[i].R, bad[i].M, bad[i].Mb,
-                 (double)bad[i].min_share);
+        snprintf(what, sizeof what, "settings R %u sharp %u M %u Mb %u share %g", bad[i].R, bad[i].R_sharp, bad[i].M,
+                 bad[i].Mb, (double)bad[i].min_share);
         EXPECT_FAIL(hl_frame_state_create(ctx, b.obj, 2, 4, &bad[i], &st), what);
     }
     EXPECT_FAIL(hl_frame_state_create(ctx, b.obj, 2, 0, NULL, &st), "no lights");
@@ -911,7 +1002,7 @@ static void check_reference_run(const char *path, const char *ply, const char *l
     hl_env *env = NULL;
     hl_sky_desc sd = {0}; /* the command's sky */
     HL_CHECK(hl_env_create_sky(ctx, &sd, &env) == HL_OK, "%s", hl_context_last_error(ctx));
-    hl_dynamic_desc desc = {32, 4, HL_DYNAMIC_SHADOW_CSM};
+    hl_dynamic_desc desc = {32, 4, HL_DYNAMIC_SHADOW_CSM, 0};
     float *frame = NULL, *exact = NULL, *file = NULL, *dc = NULL;
     if (hl_dynamic_create_from_file(ctx, path, 0, &desc, &d) != HL_OK || !env ||
         hl_dynamic_set_env(d, env, 2, 0.0f, 0.0f, NULL) != HL_OK || hl_dynamic_render(d, 0.0, &frame, NULL) != HL_OK) {
@@ -1120,6 +1211,7 @@ int main(int argc, char **argv)
                                          {"twin", case_twin}, {"device", case_device}, {"bad_input", case_bad_input},
                                          {"api", case_api},               {"cli", case_cli},
                                          {"file", case_file},             {"keep", case_keep},
+                                         {"sharp", case_sharp},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

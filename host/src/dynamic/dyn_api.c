@@ -93,7 +93,7 @@ static hl_result merge_surfaces(hl_dynamic *d, uint32_t nt)
 
 static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dynamic_desc *desc, hl_dynamic **out)
 {
-    uint32_t R = desc ? desc->shadow_res : 0, M = desc ? desc->order : 0;
+    uint32_t R = desc ? desc->shadow_res : 0, M = desc ? desc->order : 0, Rs = desc ? desc->sharp_res : 0;
     if (M && (M < HL_CSM_M_MIN || M > HL_CSM_M_MAX)) {
         hl_dyn_scene_destroy(scene);
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--order %u: expected %u to %u", M, HL_CSM_M_MIN, HL_CSM_M_MAX);
@@ -102,6 +102,12 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
         hl_dyn_scene_destroy(scene);
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--shadow-res %u: expected a multiple of %u from %u to %u", R,
                        HL_CSM_SCAN_LANES, HL_CSM_R_MIN, HL_CSM_R_MAX);
+    }
+    const uint32_t Rmin = R ? R : HL_SHADOW_DEFAULT_R;
+    if (Rs && (Rs < Rmin || Rs > HL_CSM_R_MAX || Rs % HL_CSM_SCAN_LANES)) {
+        hl_dyn_scene_destroy(scene);
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--sharp-res %u: expected a multiple of %u from the map size %u to %u",
+                       Rs, HL_CSM_SCAN_LANES, Rmin, HL_CSM_R_MAX);
     }
     uint32_t shadow = desc ? desc->shadow : HL_DYNAMIC_SHADOW_DEFAULT;
     if (shadow != HL_DYNAMIC_SHADOW_DEFAULT && shadow != HL_DYNAMIC_SHADOW_CSM && shadow != HL_DYNAMIC_SHADOW_MOMENTS) {
@@ -120,7 +126,7 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
     d->scene = scene;
     d->nb = hl_dyn_scene_body_count(scene);
     d->set.min_share = -1.0f;
-    d->set.R = R, d->set.M = M;
+    d->set.R = R, d->set.M = M, d->set.R_sharp = Rs;
     /* an order given with the default asks for the CSM it is the order of
        (the viewer's and older callers' --order) */
     d->set.shadow = shadow == HL_DYNAMIC_SHADOW_MOMENTS              ? HL_SHADOW_REP_MOMENTS
@@ -358,6 +364,7 @@ hl_result hl_dynamic_render(hl_dynamic *d, double t, float **rgb_out, hl_dynamic
         st->vertices = fs.receivers, st->lights = fs.lights, st->shadowed = fs.shadowed;
         st->skipped_horizon = fs.skipped_horizon, st->skipped_negligible = fs.skipped_negligible;
         st->batches = fs.batches, st->maps_kept = fs.maps_kept;
+        st->shadow_res = fs.R, st->sharp = fs.sharp, st->sharp_res = fs.R_sharp;
         st->folded_share = d->split->stats.folded_share;
         st->t_irradiance = fs.t_irradiance, st->t_shadow_maps = fs.t_shadow_maps;
         st->t_csm_build = fs.t_csm_build, st->t_csm_eval = fs.t_csm_eval, st->t_shading = fs.t_shading;

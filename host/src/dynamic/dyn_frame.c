@@ -24,18 +24,37 @@
 #include "dyn_frame.h"
 #include "irradiance.h"
 
+/* The shadow maps of one size, for a batch of Kb lights: the maps of
+ * most lights (tier 0, R) or of the sharp ones (tier 1, R_sharp > R;
+ * dyn_frame.h). Each tier keeps its maps across frames on its own. */
+typedef struct hl_frame_tier {
+    uint32_t R, Kb;
+    hl_shadow_maps *sm;
+    hl_csm *csm;
+    float *depth;              /* Kb R R, the host's frame only */
+    hl_shadow_frame *frames;   /* Kb */
+    float (*dirs)[3];          /* Kb */
+    uint32_t n, *list;         /* this frame's lights of the tier (cap of them) */
+    /* the maps kept (DYNAMIC.md, the frame): while keep_n > 0, sm and csm
+       hold the maps and tables of the last frame, made in one batch for
+       its lights keep_list (keep_n <= Kb) of split keep_serial in the
+       directions dirs, with the bodies at keep_xf (12 a body); 0 after a
+       frame that failed, so that nothing half made is taken */
+    uint32_t keep_n;
+    uint64_t keep_serial;
+    uint32_t *keep_list, *keep_mask; /* Kb each; keep_mask: this frame's skip masks */
+    float *keep_xf;
+} hl_frame_tier;
+
 struct hl_frame_state {
     hl_context *ctx;
     uint32_t nobj, N;          /* bodies, receivers (all their vertices) */
     uint32_t *vstart, *nverts; /* per body */
     float *xf;                 /* 12 per body, as last rendered */
-    uint32_t R, M, Mb, Kb, max_lights;
+    uint32_t M, Mb, max_lights;
     float min_share;
-    hl_shadow_maps *sm;
-    hl_csm *csm;
-    float *depth;              /* Kb R R */
-    hl_shadow_frame *frames;   /* Kb */
-    float (*dirs)[3];          /* Kb */
+    hl_frame_tier tier[2];
+    uint32_t ntier;            /* 2 where the sharp lights get finer maps */
     float *wpos, *wnrm, *acc;  /* 3 N each */
     float *E;                  /* 3 N per kept light */
     /* the compacted receivers of a group of a batch's lights, one light's
@@ -64,16 +83,7 @@ struct hl_frame_state {
     int on_device;
     cl_kernel kprep, kflat, kacc, kadd;
     cl_mem wpos_d, body_d, lf_d, fl_d, fb_d, flatb_d, uvd_d, rpl_d, V_d, ks_d, kbs_d, list_d;
-    uint32_t *list; /* max_lights: the negligible lights, or a group's split lights */
-    /* the maps kept (DYNAMIC.md, the frame): while keep_n > 0, sm and csm
-       hold the maps and tables of the last frame, made in one batch for
-       its lights keep_list (keep_n <= Kb) of split keep_serial in the
-       directions dirs, with the bodies at keep_xf (12 a body); 0 after a
-       frame that failed, so that nothing half made is taken */
-    uint32_t keep_n;
-    uint64_t keep_serial;
-    uint32_t *keep_list, *keep_mask; /* Kb each; keep_mask: this frame's skip masks */
-    float *keep_xf;
+    uint32_t *list; /* max_lights: the negligible lights */
 };
 
 /* Linear Rec.709 luminance, as area_lights.c ranks its lights by. */
@@ -115,12 +125,15 @@ void hl_frame_state_destroy(hl_frame_state *st)
     if (!st) return;
     release_device(st);
     free(st->list);
-    free(st->keep_list); free(st->keep_mask); free(st->keep_xf);
-    hl_shadow_maps_destroy(st->sm);
-    hl_csm_destroy(st->csm);
+    for (int i = 0; i < 2; i++) {
+        hl_frame_tier *t = &st->tier[i];
+        free(t->keep_list); free(t->keep_mask); free(t->keep_xf); free(t->list);
+        hl_shadow_maps_destroy(t->sm);
+        hl_csm_destroy(t->csm);
+        hl_free_big(t->depth);
+        free(t->frames); free(t->dirs);
+    }
     free(st->vstart); free(st->nverts); free(st->xf);
-    hl_free_big(st->depth);
-    free(st->frames); free(st->dirs);
     free(st->wpos); free(st->wnrm); free(st->acc); hl_free_big(st->E);
     free(st->cpos); free(st->uvd); free(st->rpl); free(st->V); free(st->idx); free(st->shadow_list);
     free(st->gstart); free(st->gks); free(st->gtheta); free(st->gframe);
@@ -151,6 +164,14 @@ static hl_result check_settings(hl_context *ctx, hl_frame_settings *s, uint32_t 
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "dynamic frame: shadow map size %u is not a multiple of %u from %u to %u (--shadow-res)", s->R,
                        HL_CSM_SCAN_LANES, HL_CSM_R_MIN, HL_CSM_R_MAX);
+    if (s->R_sharp == 0)
+        s->R_sharp = s->shadow == HL_SHADOW_REP_MOMENTS && s->R * HL_FRAME_SHARP_SCALE <= HL_CSM_R_MAX
+                         ? s->R * HL_FRAME_SHARP_SCALE
+                         : s->shadow == HL_SHADOW_REP_MOMENTS ? HL_CSM_R_MAX : s->R;
+    if (s->R_sharp < s->R || s->R_sharp > HL_CSM_R_MAX || s->R_sharp % HL_CSM_SCAN_LANES)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "dynamic frame: sharp lights' map size %u is not a multiple of %u from the map size %u to %u "
+                       "(--sharp-res)", s->R_sharp, HL_CSM_SCAN_LANES, s->R, HL_CSM_R_MAX);
     if (max_lights == 0) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: at least one light is needed");
     return HL_OK;
 }
@@ -198,6 +219,39 @@ static hl_result create_device(hl_frame_state *st)
     return HL_OK;
 }
 
+/* Tier t's maps of size R for up to cap lights a batch (the fewer of
+ * that and what the budget holds), with the frame's device buffers or
+ * host arrays beside. */
+static hl_result tier_create(hl_frame_state *st, hl_frame_tier *t, const hl_dyn_object *objects, uint32_t R,
+                             uint32_t cap, const hl_frame_settings *s)
+{
+    hl_context *ctx = st->ctx;
+    t->R = R;
+    TRY(hl_shadow_maps_create(ctx, objects, st->nobj, R, s->method, &t->sm));
+    /* a flat ground under the bodies stays out of the maps that it cannot
+       shadow: finer texels and depths for the casters (shadow_map.h) */
+    hl_shadow_maps_skip_planes(t->sm, 1);
+    uint64_t budget = s->budget;
+    if (ctx->cl && ctx->cl->limit > ctx->cl->used) { /* after the shadow maps' buffers */
+        uint64_t left = (uint64_t)((double)(ctx->cl->limit - ctx->cl->used) * HL_FRAME_DEVICE_SHARE);
+        if (left < budget) budget = left;
+    }
+    uint32_t fit = hl_csm_batch_fit_rep(s->shadow, R, s->M, s->Mb, budget);
+    t->Kb = fit < cap ? fit : cap;
+    TRY(hl_csm_create_rep(ctx, s->shadow, R, s->M, s->Mb, t->Kb, &t->csm));
+    if (!st->on_device) t->depth = hl_alloc_big(ctx, t->Kb * (size_t)R * R * sizeof(float), "the shadow maps of a batch");
+    t->frames = malloc(t->Kb * sizeof *t->frames);
+    t->dirs = malloc(t->Kb * sizeof *t->dirs);
+    t->list = malloc(cap * sizeof *t->list);
+    t->keep_list = malloc(t->Kb * sizeof *t->keep_list), t->keep_mask = malloc(t->Kb * sizeof *t->keep_mask);
+    t->keep_xf = malloc(st->nobj * 12 * sizeof *t->keep_xf);
+    if ((!st->on_device && !t->depth) || !t->frames || !t->dirs || !t->list || !t->keep_list || !t->keep_mask ||
+        !t->keep_xf)
+        return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the dynamic frame's shadow maps (%u lights of %u^2)",
+                       t->Kb, R);
+    return HL_OK;
+}
+
 hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, uint32_t nobj, uint32_t max_lights,
                                 const hl_frame_settings *settings, hl_frame_state **out)
 {
@@ -219,37 +273,26 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->ctx = ctx;
     st->nobj = nobj;
     st->N = (uint32_t)N;
-    st->R = s.R, st->M = s.M, st->Mb = s.Mb, st->min_share = s.min_share;
+    st->M = s.M, st->Mb = s.Mb, st->min_share = s.min_share;
     st->max_lights = max_lights;
-    r = hl_shadow_maps_create(ctx, objects, nobj, s.R, s.method, &st->sm);
-    /* a flat ground under the bodies stays out of the maps that it cannot
-       shadow: finer texels and depths for the casters (shadow_map.h) */
-    hl_shadow_maps_skip_planes(st->sm, 1);
-    uint64_t budget = s.budget;
-    if (ctx->cl && ctx->cl->limit > ctx->cl->used) { /* after the shadow maps' buffers */
-        uint64_t left = (uint64_t)((double)(ctx->cl->limit - ctx->cl->used) * HL_FRAME_DEVICE_SHARE);
-        if (left < budget) budget = left;
-    }
-    uint32_t fit = hl_csm_batch_fit_rep(s.shadow, s.R, s.M, s.Mb, budget);
-    st->Kb = fit < max_lights ? fit : max_lights;
-    if (r == HL_OK) r = hl_csm_create_rep(ctx, s.shadow, s.R, s.M, s.Mb, st->Kb, &st->csm);
-    if (r != HL_OK) { hl_frame_state_destroy(st); return r; }
-    size_t n3 = 3 * (size_t)N, RR = (size_t)s.R * s.R;
-    st->vstart = malloc(nobj * sizeof *st->vstart);
-    st->nverts = malloc(nobj * sizeof *st->nverts);
-    st->xf = malloc(nobj * 12 * sizeof *st->xf);
     /* the maps and E_k on the host only where the host takes the
        receivers; the device frame keeps them on the device */
     st->on_device = frame_on_device(ctx);
-    if (!st->on_device) {
-        st->depth = hl_alloc_big(ctx, st->Kb * RR * sizeof(float), "the shadow maps of a batch");
-        st->E = hl_alloc_big(ctx, max_lights * n3 * 4, "the lights' irradiance at the vertices");
-    }
-    st->frames = malloc(st->Kb * sizeof *st->frames);
-    st->dirs = malloc(st->Kb * sizeof *st->dirs);
+    st->ntier = s.R_sharp > s.R ? 2 : 1;
+    r = tier_create(st, &st->tier[0], objects, s.R, max_lights, &s);
+    if (r == HL_OK && st->ntier == 2)
+        r = tier_create(st, &st->tier[1], objects, s.R_sharp,
+                        max_lights < HL_FRAME_SHARP_MAX ? max_lights : HL_FRAME_SHARP_MAX, &s);
+    if (r != HL_OK) { hl_frame_state_destroy(st); return r; }
+    const uint32_t Kb = st->tier[0].Kb > st->tier[1].Kb ? st->tier[0].Kb : st->tier[1].Kb;
+    size_t n3 = 3 * (size_t)N;
+    st->vstart = malloc(nobj * sizeof *st->vstart);
+    st->nverts = malloc(nobj * sizeof *st->nverts);
+    st->xf = malloc(nobj * 12 * sizeof *st->xf);
+    if (!st->on_device) st->E = hl_alloc_big(ctx, max_lights * n3 * 4, "the lights' irradiance at the vertices");
     st->wpos = malloc(n3 * 4), st->wnrm = malloc(n3 * 4), st->acc = malloc(n3 * 4);
     st->group = (uint32_t)(HL_FRAME_GROUP_RECEIVERS / N > 1 ? HL_FRAME_GROUP_RECEIVERS / N : 1);
-    if (st->group > st->Kb) st->group = st->Kb;
+    if (st->group > Kb) st->group = Kb;
     /* tests: fewer lights a group, so that a small scene takes several */
     const char *tg = getenv("HL_TEST_FRAME_GROUP");
     if (tg && strtoul(tg, NULL, 10) > 0 && strtoul(tg, NULL, 10) < st->group) st->group = (uint32_t)strtoul(tg, NULL, 10);
@@ -267,12 +310,10 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->list = malloc((size_t)max_lights * 4);
     st->shadow_list = malloc(max_lights * sizeof *st->shadow_list);
     st->any = malloc(max_lights ? max_lights : 1);
-    st->keep_list = malloc(st->Kb * sizeof *st->keep_list), st->keep_mask = malloc(st->Kb * sizeof *st->keep_mask);
-    st->keep_xf = malloc(nobj * 12 * sizeof *st->keep_xf);
-    if (!st->vstart || !st->nverts || !st->xf || !st->frames || !st->dirs || !st->wpos || !st->wnrm || !st->acc ||
-        (!st->on_device && (!st->depth || !st->E || !st->cpos || !st->uvd || !st->rpl || !st->V || !st->idx || !st->gstart)) ||
+    if (!st->vstart || !st->nverts || !st->xf || !st->wpos || !st->wnrm || !st->acc ||
+        (!st->on_device && (!st->E || !st->cpos || !st->uvd || !st->rpl || !st->V || !st->idx || !st->gstart)) ||
         !st->shadow_list || !st->any || !st->gks || !st->gtheta || !st->gframe || !st->body || !st->lf || !st->fl || !st->fb ||
-        !st->flat_body || !st->list || !st->keep_list || !st->keep_mask || !st->keep_xf) {
+        !st->flat_body || !st->list) {
         hl_frame_state_destroy(st);
         return hl_fail(ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for the dynamic frame (%u vertices, %u lights)",
                        (uint32_t)N, max_lights);
@@ -395,7 +436,7 @@ static void pack_flat_bodies(hl_frame_state *st)
     st->nflat = 0;
     for (uint32_t o = 0; o < st->nobj && o < 32; o++) {
         hl_flat_body f;
-        if (!hl_shadow_maps_flat(st->sm, o, &f) || !f.rect) continue;
+        if (!hl_shadow_maps_flat(st->tier[0].sm, o, &f) || !f.rect) continue;
         float *b = st->fb + (size_t)st->nflat * HL_DYN_FB;
         memset(b, 0, HL_DYN_FB * sizeof *b);
         memcpy(b, f.n, 12), memcpy(b + 3, f.p, 12), memcpy(b + 6, f.u, 12), memcpy(b + 9, f.v, 12);
@@ -406,11 +447,11 @@ static void pack_flat_bodies(hl_frame_state *st)
     }
 }
 
-/* Batch light kb's map as its receivers read it (hl_shared.h, HL_DYN_LF),
- * with the filter's half-extent theta. */
-static void pack_map(const hl_frame_state *st, uint32_t kb, const float dir[3], float theta, float *lf)
+/* Tier t's batch light kb's map as its receivers read it (hl_shared.h,
+ * HL_DYN_LF), with the filter's half-extent theta. */
+static void pack_map(const hl_frame_tier *t, uint32_t kb, const float dir[3], float theta, float *lf)
 {
-    const hl_shadow_frame *f = &st->frames[kb];
+    const hl_shadow_frame *f = &t->frames[kb];
     memset(lf, 0, HL_DYN_LF * sizeof *lf);
     hl_shadow_frame_pack(f, lf);
     lf[16] = tanf(theta);
@@ -418,9 +459,9 @@ static void pack_map(const hl_frame_state *st, uint32_t kb, const float dir[3], 
     /* a test hook: HL_TEST_RPB=a,b scales the receiver-plane bias's two
        terms (hl_dyn_receiver), the filter's (a) and the texels' (b); 0,0
        is no receiver-plane bias (DYNAMIC.md, section 6, real assets) */
-    const char *t = getenv("HL_TEST_RPB");
+    const char *tr = getenv("HL_TEST_RPB");
     float a = 1.0f, b = 1.0f;
-    if (t && sscanf(t, "%f,%f", &a, &b) == 2) lf[16] *= a, lf[17] *= b;
+    if (tr && sscanf(tr, "%f,%f", &a, &b) == 2) lf[16] *= a, lf[17] *= b;
     memcpy(lf + 18, dir, 3 * sizeof *lf);
 }
 
@@ -434,14 +475,16 @@ static float filter_theta(const hl_light_split *split, uint32_t k)
     return theta > HL_FRAME_MAX_THETA ? HL_FRAME_MAX_THETA : theta;
 }
 
-/* Group entry j is batch map kb of split light k: its filter half-extent,
- * frame and packs (its blocks only where there are flat bodies). */
-static void pack_entry(hl_frame_state *st, const hl_light_split *split, uint32_t j, uint32_t kb, uint32_t k)
+/* Group entry j is tier t's batch map kb of split light k: its filter
+ * half-extent, frame and packs (its blocks only where there are flat
+ * bodies). */
+static void pack_entry(hl_frame_state *st, const hl_frame_tier *t, const hl_light_split *split, uint32_t j, uint32_t kb,
+                       uint32_t k)
 {
     st->gks[j] = kb;
     st->gtheta[j] = filter_theta(split, k);
-    st->gframe[j] = &st->frames[kb];
-    pack_map(st, kb, split->lights[k].dir, st->gtheta[j], st->lf + (size_t)j * HL_DYN_LF);
+    st->gframe[j] = &t->frames[kb];
+    pack_map(t, kb, split->lights[k].dir, st->gtheta[j], st->lf + (size_t)j * HL_DYN_LF);
     if (st->nflat) pack_flat_light(split, &split->lights[k], st->fl + (size_t)j * HL_DYN_FL);
 }
 
@@ -466,8 +509,8 @@ static void flat_occlusion(hl_frame_state *st, uint32_t j, size_t base, uint32_t
  * (idx) and coordinates in its map, moved towards the light by the
  * receiver-plane bias (uvd, hl_dyn_receiver), and their planes (rpl); its packs, filter
  * half-extent and frame into group entry j. Returns how many. */
-static uint32_t prepare_light(hl_frame_state *st, const hl_light_split *split, uint32_t kb, uint32_t k, size_t base,
-                              uint32_t j)
+static uint32_t prepare_light(hl_frame_state *st, const hl_frame_tier *t, const hl_light_split *split, uint32_t kb,
+                              uint32_t k, size_t base, uint32_t j)
 {
     const float *E = st->E + (size_t)k * 3 * st->N;
     float *cpos = st->cpos + 3 * base, *uvd = st->uvd + 3 * base, *lf = st->lf + (size_t)j * HL_DYN_LF;
@@ -480,10 +523,10 @@ static uint32_t prepare_light(hl_frame_state *st, const hl_light_split *split, u
             idx[n++] = v;
         }
     }
-    pack_entry(st, split, j, kb, k);
-    const float *map = st->depth + (size_t)kb * st->R * st->R;
+    pack_entry(st, t, split, j, kb, k);
+    const float *map = t->depth + (size_t)kb * t->R * t->R;
     float zmin = 1.0f;
-    for (size_t i = 0; i < (size_t)st->R * st->R; i++) zmin = fminf(zmin, map[i]);
+    for (size_t i = 0; i < (size_t)t->R * t->R; i++) zmin = fminf(zmin, map[i]);
     for (uint32_t i = 0; i < n; i++)
         hl_dyn_receiver(lf, zmin, cpos + 3 * (size_t)i, st->wnrm + 3 * (size_t)idx[i], st->body[idx[i]],
                         uvd + 3 * (size_t)i, rpl + HL_DYN_RPL * (size_t)i);
@@ -508,14 +551,15 @@ static void finish_light(hl_frame_state *st, uint32_t j, uint32_t k, size_t base
  * their receivers prepared, their visibility in groups of st->group
  * lights (one call of hl_csm_visibility_batch each: on the device one
  * launch and one read-back), added to acc. */
-static hl_result shade_batch(hl_frame_state *st, const hl_light_split *split, const uint32_t *list, uint32_t K)
+static hl_result shade_batch(hl_frame_state *st, const hl_frame_tier *t, const hl_light_split *split,
+                             const uint32_t *list, uint32_t K)
 {
     for (uint32_t i0 = 0; i0 < K; i0 += st->group) {
         const uint32_t nl = K - i0 < st->group ? K - i0 : st->group;
         st->gstart[0] = 0;
         for (uint32_t j = 0; j < nl; j++)
-            st->gstart[j + 1] = st->gstart[j] + prepare_light(st, split, i0 + j, list[i0 + j], st->gstart[j], j);
-        hl_result r = hl_csm_visibility_batch(st->csm, nl, st->gks, st->gtheta, st->gframe, st->uvd, st->rpl, st->gstart,
+            st->gstart[j + 1] = st->gstart[j] + prepare_light(st, t, split, i0 + j, list[i0 + j], st->gstart[j], j);
+        hl_result r = hl_csm_visibility_batch(t->csm, nl, st->gks, st->gtheta, st->gframe, st->uvd, st->rpl, st->gstart,
                                               st->V, NULL);
         if (r != HL_OK) return r;
         for (uint32_t j = 0; j < nl; j++)
@@ -528,7 +572,8 @@ static hl_result shade_batch(hl_frame_state *st, const hl_light_split *split, co
  * built last, the lights' packs uploaded, then the receivers in the maps,
  * their visibility (hl_csm_eval_grid), the flat bodies and the sums, all
  * enqueued; one wait at the end, for the stage's time. */
-static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *split, const uint32_t *list, uint32_t K)
+static hl_result shade_batch_device(hl_frame_state *st, const hl_frame_tier *t, const hl_light_split *split,
+                                    const uint32_t *list, uint32_t K)
 {
     hl_context *ctx = st->ctx;
     cl_command_queue q = ctx->cl->queue;
@@ -538,7 +583,7 @@ static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *sp
     const cl_uint N = st->N, nflat = st->nflat;
     for (uint32_t i0 = 0; i0 < K; i0 += st->group) {
         const cl_uint nl = K - i0 < st->group ? K - i0 : st->group;
-        for (uint32_t j = 0; j < nl; j++) pack_entry(st, split, j, i0 + j, list[i0 + j]);
+        for (uint32_t j = 0; j < nl; j++) pack_entry(st, t, split, j, i0 + j, list[i0 + j]);
         /* blocking: the next group rewrites these host arrays */
         CL_TRY(ctx, clEnqueueWriteBuffer(q, st->lf_d, CL_TRUE, 0, (size_t)nl * HL_DYN_LF * 4, st->lf, 0, NULL, NULL), "upload");
         if (nflat)
@@ -546,14 +591,14 @@ static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *sp
                    "upload");
         CL_TRY(ctx, clEnqueueWriteBuffer(q, st->ks_d, CL_TRUE, 0, (size_t)nl * 4, list + i0, 0, NULL, NULL), "upload");
         CL_TRY(ctx, clEnqueueWriteBuffer(q, st->kbs_d, CL_TRUE, 0, (size_t)nl * 4, st->gks, 0, NULL, NULL), "upload");
-        void *zm = hl_csm_zmin_buffer(st->csm);
+        void *zm = hl_csm_zmin_buffer(t->csm);
         cl_mem zmin = zm;
         FARG(st->kprep, 0, Em); FARG(st->kprep, 1, st->ks_d); FARG(st->kprep, 2, st->kbs_d); FARG(st->kprep, 3, N);
         FARG(st->kprep, 4, nl); FARG(st->kprep, 5, st->wpos_d); FARG(st->kprep, 6, wnrm);
         FARG(st->kprep, 7, st->body_d); FARG(st->kprep, 8, st->lf_d); FARG(st->kprep, 9, zmin);
         FARG(st->kprep, 10, st->uvd_d); FARG(st->kprep, 11, st->rpl_d);
         TRY(hl_cl_launch(ctx, st->kprep, (size_t)nl * N, 0, "hl_dyn_prepare"));
-        TRY(hl_csm_eval_grid(st->csm, nl, st->gks, st->gtheta, st->gframe, st->uvd_d, st->rpl_d, N, st->V_d));
+        TRY(hl_csm_eval_grid(t->csm, nl, st->gks, st->gtheta, st->gframe, st->uvd_d, st->rpl_d, N, st->V_d));
         if (nflat) {
             FARG(st->kflat, 0, st->uvd_d); FARG(st->kflat, 1, N); FARG(st->kflat, 2, nl); FARG(st->kflat, 3, st->lf_d);
             FARG(st->kflat, 4, st->fl_d); FARG(st->kflat, 5, st->fb_d); FARG(st->kflat, 6, st->flatb_d);
@@ -569,34 +614,80 @@ static hl_result shade_batch_device(hl_frame_state *st, const hl_light_split *sp
     return HL_OK;
 }
 
-/* Whether sm and csm still hold this frame's maps: the last frame's one
- * batch (keep_n lights) of the same split, the same lights in the same
- * directions (exactly: a map is fitted to its direction), each map
- * leaving out the same flat bodies, and no body that a map draws moved
- * since the maps were made. A flat body left out of every map may have
- * moved: the evaluation, which runs every frame, takes it where it is
- * now. With several batches nothing is kept: each batch renders into the
- * same buffers, so at the end of a frame they hold its last batch only. */
-static int maps_still_hold(hl_frame_state *st, const hl_dyn_object *objects, const hl_light_split *split,
-                           uint32_t nshadow, uint32_t keep_n)
+/* Whether tier t's sm and csm still hold this frame's maps: the last
+ * frame's one batch (keep_n lights) of the same split, the same lights in
+ * the same directions (exactly: a map is fitted to its direction), each
+ * map leaving out the same flat bodies, and no body that a map draws
+ * moved since the maps were made. A flat body left out of every map may
+ * have moved: the evaluation, which runs every frame, takes it where it
+ * is now. With several batches nothing is kept: each batch renders into
+ * the same buffers, so at the end of a frame they hold its last batch
+ * only. */
+static int maps_still_hold(hl_frame_tier *t, const hl_dyn_object *objects, uint32_t nobj, const hl_light_split *split,
+                           uint32_t keep_n)
 {
-    if (!keep_n || nshadow != keep_n || split->serial != st->keep_serial ||
-        memcmp(st->keep_list, st->shadow_list, nshadow * sizeof *st->keep_list))
+    const uint32_t n = t->n;
+    if (!keep_n || n != keep_n || split->serial != t->keep_serial || memcmp(t->keep_list, t->list, n * sizeof *t->list))
         return 0;
-    for (uint32_t i = 0; i < nshadow; i++)
-        if (memcmp(st->dirs[i], split->lights[st->shadow_list[i]].dir, 3 * sizeof(float))) return 0;
+    for (uint32_t i = 0; i < n; i++)
+        if (memcmp(t->dirs[i], split->lights[t->list[i]].dir, 3 * sizeof(float))) return 0;
     /* a moved flat body can change which maps leave it out (a ground
        lifted through a body): then a map would draw other bodies */
-    hl_shadow_maps_skip_masks(st->sm, (const float(*)[3])st->dirs, nshadow, st->keep_mask);
+    hl_shadow_maps_skip_masks(t->sm, (const float(*)[3])t->dirs, n, t->keep_mask);
     uint32_t drawn = 0;
-    for (uint32_t i = 0; i < nshadow; i++) {
-        if (st->keep_mask[i] != st->frames[i].skip_mask) return 0;
-        drawn |= ~st->keep_mask[i];
+    for (uint32_t i = 0; i < n; i++) {
+        if (t->keep_mask[i] != t->frames[i].skip_mask) return 0;
+        drawn |= ~t->keep_mask[i];
     }
-    for (uint32_t b = 0; b < st->nobj; b++)
-        if ((b >= 32 || drawn >> b & 1u) && memcmp(st->keep_xf + 12 * (size_t)b, objects[b].xf, 12 * sizeof(float)))
+    for (uint32_t b = 0; b < nobj; b++)
+        if ((b >= 32 || drawn >> b & 1u) && memcmp(t->keep_xf + 12 * (size_t)b, objects[b].xf, 12 * sizeof(float)))
             return 0;
     return 1;
+}
+
+/* Whether split light k is sharp: its filter at a blocker a map's width
+ * away, tan(theta) R texels of half-width in a map of tier 0's size R,
+ * is under HL_FRAME_SHARP_TEXELS (dyn_frame.h). */
+static int light_is_sharp(const hl_light_split *split, uint32_t k, uint32_t R)
+{
+    return tanf(filter_theta(split, k)) * (float)R < HL_FRAME_SHARP_TEXELS;
+}
+
+/* Tier t's lights of the frame: its batches of maps rendered and built
+ * (unless they still hold), evaluated and added to acc. */
+static hl_result render_tier(hl_frame_state *st, hl_frame_tier *t, const hl_dyn_object *objects,
+                             const hl_light_split *split, uint32_t keep_n, hl_frame_stats *fs)
+{
+    double t0 = hl_now();
+    const int kept = maps_still_hold(t, objects, st->nobj, split, keep_n);
+    fs->t_shadow_maps += hl_now() - t0;
+    hl_result r = HL_OK;
+    for (uint32_t b0 = 0; b0 < t->n && r == HL_OK; b0 += t->Kb) {
+        uint32_t K = t->n - b0 < t->Kb ? t->n - b0 : t->Kb;
+        double a = hl_now(), b;
+        if (!kept) {
+            for (uint32_t i = 0; i < K; i++) memcpy(t->dirs[i], split->lights[t->list[b0 + i]].dir, 3 * sizeof(float));
+            /* on the device the maps stay there for the build */
+            r = hl_shadow_maps_render(t->sm, (const float(*)[3])t->dirs, K, st->on_device ? NULL : t->depth, t->frames);
+            b = hl_now(), fs->t_shadow_maps += b - a, a = b;
+            if (r == HL_OK && st->on_device) r = hl_csm_build_on_device(t->csm, hl_shadow_maps_device_depth(t->sm), K);
+            else if (r == HL_OK) r = hl_csm_build(t->csm, t->depth, K);
+            b = hl_now(), fs->t_csm_build += b - a, a = b;
+        }
+        if (r == HL_OK)
+            r = st->on_device ? shade_batch_device(st, t, split, t->list + b0, K) : shade_batch(st, t, split, t->list + b0, K);
+        fs->t_csm_eval += hl_now() - a;
+        fs->batches++;
+    }
+    if (r != HL_OK) return r;
+    if (kept) fs->maps_kept += t->n;
+    if (t->n && t->n <= t->Kb) { /* one batch: its maps stay for the next frame */
+        t->keep_n = t->n;
+        t->keep_serial = split->serial;
+        memcpy(t->keep_list, t->list, t->n * sizeof *t->keep_list);
+        if (!kept) memcpy(t->keep_xf, st->xf, 12 * (size_t)st->nobj * sizeof(float));
+    }
+    return HL_OK;
 }
 
 static hl_result check_frame(hl_frame_state *st, const hl_dyn_object *objects, uint32_t nobj, const float *const *albedo,
@@ -625,16 +716,18 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
                           const hl_light_split *split, float *const *rgb, hl_frame_stats *stats)
 {
     if (!st) return HL_ERR_INVALID_ARGUMENT;
-    /* the maps are trusted again only when this frame ends well: an error
-       may leave them half rendered or built */
-    const uint32_t keep_n = st->keep_n;
-    st->keep_n = 0;
+    /* the maps are trusted again only when their tier's part of this
+       frame ends well: an error may leave them half rendered or built */
+    uint32_t keep_n[2];
+    for (uint32_t i = 0; i < 2; i++) keep_n[i] = st->tier[i].keep_n, st->tier[i].keep_n = 0;
     hl_result r = check_frame(st, objects, nobj, albedo, split, rgb);
     if (r != HL_OK) return r;
     hl_frame_stats fs = {0};
     fs.receivers = st->N;
     fs.lights = split->count;
-    fs.batch_lights = st->Kb;
+    fs.batch_lights = st->tier[0].Kb;
+    fs.R = st->tier[0].R;
+    fs.R_sharp = st->ntier == 2 ? st->tier[1].R : 0;
     double t0 = hl_now(), t = t0, t1;
     uint32_t nshadow = 0;
     r = irradiance(st, objects, split, &fs, &nshadow);
@@ -643,7 +736,7 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
     for (uint32_t b = 0; b < nobj && r == HL_OK; b++) {
         float *old = st->xf + 12 * (size_t)b;
         if (memcmp(old, objects[b].xf, 12 * sizeof(float)) == 0) continue;
-        r = hl_shadow_maps_set_transform(st->sm, b, objects[b].xf);
+        for (uint32_t i = 0; i < st->ntier && r == HL_OK; i++) r = hl_shadow_maps_set_transform(st->tier[i].sm, b, objects[b].xf);
         if (r == HL_OK) memcpy(old, objects[b].xf, 12 * sizeof(float));
     }
     pack_flat_bodies(st);
@@ -654,28 +747,17 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
         CL_TRY(ctx, clEnqueueWriteBuffer(ctx->cl->queue, st->flatb_d, CL_FALSE, 0, (size_t)st->nflat * 4, st->flat_body, 0,
                                          NULL, NULL), "upload");
     }
-    const int kept = r == HL_OK && maps_still_hold(st, objects, split, nshadow, keep_n);
     fs.t_shadow_maps += hl_now() - t;
-    for (uint32_t b0 = 0; b0 < nshadow && r == HL_OK; b0 += st->Kb) {
-        uint32_t K = nshadow - b0 < st->Kb ? nshadow - b0 : st->Kb;
-        t = hl_now();
-        if (!kept) {
-            for (uint32_t i = 0; i < K; i++)
-                memcpy(st->dirs[i], split->lights[st->shadow_list[b0 + i]].dir, 3 * sizeof(float));
-            /* on the device the maps stay there for the build */
-            r = hl_shadow_maps_render(st->sm, (const float(*)[3])st->dirs, K, st->on_device ? NULL : st->depth,
-                                      st->frames);
-            t1 = hl_now(), fs.t_shadow_maps += t1 - t, t = t1;
-            if (r == HL_OK && st->on_device) r = hl_csm_build_on_device(st->csm, hl_shadow_maps_device_depth(st->sm), K);
-            else if (r == HL_OK) r = hl_csm_build(st->csm, st->depth, K);
-            t1 = hl_now(), fs.t_csm_build += t1 - t, t = t1;
-        }
-        if (r == HL_OK)
-            r = st->on_device ? shade_batch_device(st, split, st->shadow_list + b0, K)
-                              : shade_batch(st, split, st->shadow_list + b0, K);
-        fs.t_csm_eval += hl_now() - t;
-        fs.batches++;
+    /* the sharp lights (the strongest first, as the split ranks them) to
+       tier 1 while its one batch has room, the rest to tier 0 */
+    hl_frame_tier *t0r = &st->tier[0], *t1r = &st->tier[1];
+    t0r->n = t1r->n = 0;
+    for (uint32_t i = 0; i < nshadow; i++) {
+        const uint32_t k = st->shadow_list[i];
+        if (st->ntier == 2 && t1r->n < t1r->Kb && light_is_sharp(split, k, t0r->R)) t1r->list[t1r->n++] = k;
+        else t0r->list[t0r->n++] = k;
     }
+    for (uint32_t i = 0; i < st->ntier && r == HL_OK; i++) r = render_tier(st, &st->tier[i], objects, split, keep_n[i], &fs);
     if (r == HL_OK && st->on_device) { /* the sums, once */
         void *E, *acc;
         hl_dyn_irr_device_bufs(st->irr, &E, &acc, NULL);
@@ -683,13 +765,7 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
     }
     if (r != HL_OK) return r;
     fs.shadowed = nshadow;
-    fs.maps_kept = kept ? nshadow : 0;
-    if (nshadow && nshadow <= st->Kb) { /* one batch: its maps stay for the next frame */
-        st->keep_n = nshadow;
-        st->keep_serial = split->serial;
-        memcpy(st->keep_list, st->shadow_list, nshadow * sizeof *st->keep_list);
-        if (!kept) memcpy(st->keep_xf, st->xf, 12 * (size_t)nobj * sizeof(float));
-    }
+    fs.sharp = t1r->n;
     t = hl_now();
     const float inv_pi = (float)(1.0 / 3.14159265358979323846);
     for (uint32_t b = 0; b < nobj; b++) {

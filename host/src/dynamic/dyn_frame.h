@@ -52,6 +52,21 @@
  * 54.7 degrees, so this only guards against a malformed light. */
 #define HL_FRAME_MAX_THETA 1.5f
 
+/* Sharp lights get finer maps (a second tier of shadow maps). A light
+ * is sharp when its filter, at a blocker as far as tier 0's map is wide,
+ * is under HL_FRAME_SHARP_TEXELS texels of half-width in a map of size R:
+ * tan(theta) R < 4 (a sun of 2 degrees at R = 128: 1.3 texels; a sky
+ * light of 10 degrees: 22). Such a filter leaves the shadow's edge to the
+ * texels, so their size is the error; a wide light's filter spans many
+ * texels, and finer ones change little (DYNAMIC.md, section 6). Up to
+ * HL_FRAME_SHARP_MAX of them, the strongest, get maps of R_sharp =
+ * HL_FRAME_SHARP_SCALE R (at most HL_CSM_R_MAX) with moments; the rest
+ * stay in tier 0. CSM keeps one size unless asked (its 4M + 1 images a
+ * light would cost 16 times as much at 4 R). */
+#define HL_FRAME_SHARP_TEXELS 4.0f
+#define HL_FRAME_SHARP_MAX 4u
+#define HL_FRAME_SHARP_SCALE 4u
+
 /* HL_FRAME_BIAS_TEXELS, HL_FRAME_BIAS_CAP and HL_FRAME_FLAT_BLOCKS, shared
  * with the kernels, are in hl_shared.h beside the formulas that use them
  * (hl_dyn_receiver, hl_dyn_flat_one). */
@@ -64,6 +79,8 @@
 
 typedef struct hl_frame_settings {
     uint32_t R;           /* shadow map size; 0: HL_SHADOW_DEFAULT_R (128) */
+    uint32_t R_sharp;     /* the sharp lights' map size, R..HL_CSM_R_MAX; 0: the
+                             default above; R: no finer maps */
     uint32_t M;           /* CSM order, 4..16; 0: HL_CSM_M_DEFAULT (16) */
     uint32_t Mb;          /* blocker-search order, 4..M; 0: M */
     uint64_t budget;      /* bytes for one batch's CSM; 0: HL_FRAME_DEFAULT_BUDGET */
@@ -80,10 +97,12 @@ typedef struct hl_frame_stats {
     uint32_t shadowed;          /* lights that got a shadow map */
     uint32_t skipped_horizon;   /* E_k = 0 on every receiver */
     uint32_t skipped_negligible;/* below min_share: shaded with V = 1 */
-    uint32_t batches, batch_lights; /* batches run, lights a batch holds */
+    uint32_t batches, batch_lights; /* batches run, lights a batch holds (tier 0) */
+    uint32_t R, R_sharp;        /* the map sizes (R_sharp 0: one size) */
+    uint32_t sharp;             /* shadowed lights with maps of R_sharp */
     uint32_t maps_kept;         /* shadowed lights whose maps and tables were
-                                   the last frame's, not made again (0 or
-                                   shadowed: hl_frame_render) */
+                                   the last frame's, not made again (per
+                                   size, 0 or all its lights: hl_frame_render) */
     double t_irradiance;        /* E_k and ambient at every receiver */
     double t_shadow_maps;       /* set_transform and rendering */
     double t_csm_build, t_csm_eval, t_shading;
