@@ -913,6 +913,8 @@ typedef struct hl_dynamic_stats {
     uint32_t shadow_res;          /* the map size */
     uint32_t sharp, sharp_res;    /* shadowed lights with maps of sharp_res
                                      (0 and 0: one size for all) */
+    uint32_t covered;             /* ground vertices under a body resting on
+                                     the ground (inside its solid): dark */
 } hl_dynamic_stats;
 
 /* One frame at time t (seconds, finite, >= 0; clamped to the animation's

@@ -781,6 +781,124 @@ static void case_sharp(void)
     hl_context_destroy(ctx);
 }
 
+/* ------------------------------------------------------------ contact */
+
+enum { CT_G = 33 }; /* the ground's grid: CT_G x CT_G vertices over [-2, 2]^2 */
+
+/* A unit cube (24 vertices, face normals, outward winding) standing on
+ * y = 0 with its centre over (0, 0), or, flat, one upward quad on y = 0;
+ * and the ground grid. */
+static void contact_meshes(float *cpos, float *cnrm, uint32_t *ctri, uint32_t *ncv, uint32_t *nct, int flat, float *gpos,
+                           float *gnrm, uint32_t *gtri)
+{
+    static const float fn[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    uint32_t nv = 0, nt = 0;
+    for (int f = flat ? 2 : 0; f < (flat ? 3 : 6); f++) {
+        /* two axes in the face, u x v = n */
+        const float *n = fn[f];
+        float u[3] = {n[1] != 0 ? 1.0f : 0.0f, n[1] == 0 ? 1.0f : 0.0f, 0.0f}, v[3];
+        if (n[2] != 0) u[0] = 1.0f, u[1] = 0.0f;
+        v[0] = n[1] * u[2] - n[2] * u[1], v[1] = n[2] * u[0] - n[0] * u[2], v[2] = n[0] * u[1] - n[1] * u[0];
+        for (int c = 0; c < 4; c++) {
+            const float a = (c & 1) ? 0.5f : -0.5f, b = (c & 2) ? 0.5f : -0.5f;
+            for (int k = 0; k < 3; k++) {
+                cpos[3 * nv + k] = (flat ? 0.0f : 0.5f * n[k]) + a * u[k] + b * v[k];
+                cnrm[3 * nv + k] = n[k];
+            }
+            if (!flat) cpos[3 * nv + 1] += 0.5f; /* standing on y = 0 */
+            nv++;
+        }
+        const uint32_t q = nv - 4, t[6] = {q, q + 1, q + 3, q, q + 3, q + 2};
+        memcpy(ctri + 3 * nt, t, sizeof t);
+        nt += 2;
+    }
+    *ncv = nv, *nct = nt;
+    for (int j = 0; j < CT_G; j++)
+        for (int i = 0; i < CT_G; i++) {
+            float *p = gpos + 3 * (j * CT_G + i), *n = gnrm + 3 * (j * CT_G + i);
+            p[0] = -2.0f + 4.0f * (float)i / (CT_G - 1), p[1] = 0.0f, p[2] = -2.0f + 4.0f * (float)j / (CT_G - 1);
+            n[0] = 0.0f, n[1] = 1.0f, n[2] = 0.0f;
+        }
+    uint32_t k = 0;
+    for (uint32_t j = 0; j + 1 < CT_G; j++)
+        for (uint32_t i = 0; i + 1 < CT_G; i++) {
+            const uint32_t a = j * CT_G + i, t[6] = {a, a + CT_G, a + 1, a + 1, a + CT_G, a + CT_G + 1};
+            memcpy(gtri + 3 * k, t, sizeof t);
+            k += 2;
+        }
+}
+
+/* The ground's receivers under a body resting on it (dyn_frame.c,
+ * contact_cover): a cube on a ground grid under the sky, K = 8. The grid
+ * vertices strictly inside its footprint (7 x 7 at spacing 1/8: those on
+ * its rim are not) are black in the frame, as in the exact reference,
+ * and those on the rim and outside are not; lifted by 1% of its size, or
+ * an upward quad lying on the ground instead, darkens none. */
+static void case_contact(void)
+{
+    hl_context *ctx = hl_test_cl_context(2);
+    if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
+    hl_env *env = sky(ctx);
+    hl_light_split *s = env ? split_of(ctx, env, 8) : NULL;
+    float cpos[72], cnrm[72], gpos[3 * CT_G * CT_G], gnrm[3 * CT_G * CT_G];
+    uint32_t ctri[36], gtri[6 * (CT_G - 1) * (CT_G - 1)], ncv, nct;
+    const size_t ng = (size_t)CT_G * CT_G;
+    float *alb[2], *rgb[2], *ref[2];
+    for (int k = 0; k < 2; k++) {
+        const size_t n = k ? ng : 24;
+        alb[k] = malloc(n * 12), rgb[k] = malloc(n * 12), ref[k] = malloc(n * 12);
+        for (size_t i = 0; i < 3 * n; i++) alb[k][i] = 0.8f;
+    }
+    for (int pass = 0; s && pass < 3; pass++) {
+        contact_meshes(cpos, cnrm, ctri, &ncv, &nct, pass == 2, gpos, gnrm, gtri);
+        hl_dyn_object obj[2] = {{.pos = cpos, .normal = cnrm, .nverts = ncv, .tri = ctri, .ntris = nct,
+                                 .xf = {1, 0, 0, 0, 0, 1, 0, pass == 1 ? 0.01f : 0.0f, 0, 0, 1, 0}},
+                                {.pos = gpos, .normal = gnrm, .nverts = (uint32_t)ng, .tri = gtri,
+                                 .ntris = 2 * (CT_G - 1) * (CT_G - 1), .xf = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}}};
+        hl_frame_settings set = {.min_share = -1.0f};
+        hl_frame_state *st = NULL;
+        hl_frame_stats fs;
+        int ok = hl_frame_state_create(ctx, obj, 2, s->count, &set, &st) == HL_OK &&
+                 hl_frame_render(st, obj, 2, (const float *const *)alb, s, rgb, &fs) == HL_OK &&
+                 hl_dyn_reference_exact(ctx, obj, 2, (const float *const *)alb, env, 0, 0, ref, NULL) == HL_OK;
+        HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+        hl_frame_state_destroy(st);
+        if (!ok) break;
+        const char *what = pass == 0 ? "the cube on the ground" : pass == 1 ? "the cube lifted" : "a quad on the ground";
+        const uint32_t want = pass == 0 ? 49 : 0;
+        double top = 0, worst_in = 0, ref_in = 0, rim_min = INFINITY;
+        uint32_t inside = 0;
+        for (size_t i = 0; i < 3 * ng; i++) top = fmax(top, ref[1][i]);
+        for (size_t v = 0; v < ng; v++) {
+            const float x = fabsf(gpos[3 * v]), z = fabsf(gpos[3 * v + 2]);
+            const double f = lum(rgb[1] + 3 * v), r = lum(ref[1] + 3 * v);
+            if (x < 0.49f && z < 0.49f) {
+                inside++;
+                worst_in = fmax(worst_in, f / top);
+                ref_in = fmax(ref_in, r / top);
+            } else if (x < 0.51f && z < 0.51f) {
+                rim_min = fmin(rim_min, f / top);
+            }
+        }
+        printf("%s: %u ground vertices under it, %u dark (want %u); inside the footprint the brightest frame %.3g, exact "
+               "%.3g of the brightest; on its rim the darkest frame %.3g\n", what, inside, fs.covered, want, worst_in,
+               ref_in, rim_min);
+        HL_CHECK(fs.covered == want, "%s: %u dark, want %u", what, fs.covered, want);
+        if (pass == 0) {
+            /* the exact reference's rays from inside meet the cube */
+            hl_check_error("  the exact reference inside the footprint, of the brightest (tolerance 1e-6)", ref_in, 1e-6);
+            hl_check_error("  the frame inside the footprint, of the brightest (tolerance 0)", worst_in, 0.0);
+            HL_CHECK(rim_min > 0.0, "the footprint's rim went black");
+        } else {
+            HL_CHECK(worst_in > 0.0, "%s: the ground under it went black", what);
+        }
+    }
+    for (int k = 0; k < 2; k++) free(alb[k]), free(rgb[k]), free(ref[k]);
+    hl_light_split_destroy(s);
+    hl_env_destroy(env);
+    hl_context_destroy(ctx);
+}
+
 /* ------------------------------------------------------------ bad input */
 
 #define EXPECT_FAIL(call, what)                                                    \
@@ -1211,7 +1329,7 @@ int main(int argc, char **argv)
                                          {"twin", case_twin}, {"device", case_device}, {"bad_input", case_bad_input},
                                          {"api", case_api},               {"cli", case_cli},
                                          {"file", case_file},             {"keep", case_keep},
-                                         {"sharp", case_sharp},
+                                         {"sharp", case_sharp},           {"contact", case_contact},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

@@ -84,6 +84,12 @@ struct hl_frame_state {
     cl_kernel kprep, kflat, kacc, kadd;
     cl_mem wpos_d, body_d, lf_d, fl_d, fb_d, flatb_d, uvd_d, rpl_d, V_d, ks_d, kbs_d, list_d;
     uint32_t *list; /* max_lights: the negligible lights */
+    /* the receivers of flat bodies under another body's contact faces
+       (contact_cover): 1 where dark; valid while cover_ok */
+    uint8_t *covered;
+    uint32_t ncovered;
+    int cover_ok;
+    float *ctri; size_t ctri_cap; /* the contact triangles in a plane's axes, 6 floats each */
 };
 
 /* Linear Rec.709 luminance, as area_lights.c ranks its lights by. */
@@ -125,6 +131,7 @@ void hl_frame_state_destroy(hl_frame_state *st)
     if (!st) return;
     release_device(st);
     free(st->list);
+    free(st->covered); free(st->ctri);
     for (int i = 0; i < 2; i++) {
         hl_frame_tier *t = &st->tier[i];
         free(t->keep_list); free(t->keep_mask); free(t->keep_xf); free(t->list);
@@ -310,7 +317,8 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->list = malloc((size_t)max_lights * 4);
     st->shadow_list = malloc(max_lights * sizeof *st->shadow_list);
     st->any = malloc(max_lights ? max_lights : 1);
-    if (!st->vstart || !st->nverts || !st->xf || !st->wpos || !st->wnrm || !st->acc ||
+    st->covered = calloc((size_t)N, 1);
+    if (!st->covered ||!st->vstart || !st->nverts || !st->xf || !st->wpos || !st->wnrm || !st->acc ||
         (!st->on_device && (!st->E || !st->cpos || !st->uvd || !st->rpl || !st->V || !st->idx || !st->gstart)) ||
         !st->shadow_list || !st->any || !st->gks || !st->gtheta || !st->gframe || !st->body || !st->lf || !st->fl || !st->fb ||
         !st->flat_body || !st->list) {
@@ -712,6 +720,102 @@ static hl_result check_frame(hl_frame_state *st, const hl_dyn_object *objects, u
     return HL_OK;
 }
 
+/* Whether (a, b) lies in 2-D triangle t (6 floats), edges included. */
+static int in_tri(const float *t, double a, double b)
+{
+    const double d1 = (t[2] - t[0]) * (b - t[1]) - (t[3] - t[1]) * (a - t[0]);
+    const double d2 = (t[4] - t[2]) * (b - t[3]) - (t[5] - t[3]) * (a - t[2]);
+    const double d3 = (t[0] - t[4]) * (b - t[5]) - (t[1] - t[5]) * (a - t[4]);
+    return (d1 >= 0.0 && d2 >= 0.0 && d3 >= 0.0) || (d1 <= 0.0 && d2 <= 0.0 && d3 <= 0.0);
+}
+
+/* Whether (a, b) lies in one of the n contact triangles ct. */
+static int in_any(const float *ct, size_t n, double a, double b)
+{
+    for (size_t i = 0; i < n; i++) {
+        const float *t = ct + 6 * i;
+        if (a < fmin(t[0], fmin(t[2], t[4])) || a > fmax(t[0], fmax(t[2], t[4])) ||
+            b < fmin(t[1], fmin(t[3], t[5])) || b > fmax(t[1], fmax(t[3], t[5])))
+            continue;
+        if (in_tri(t, a, b)) return 1;
+    }
+    return 0;
+}
+
+/* The receivers of the flat bodies left out of the maps that lie under
+ * another body's contact faces, into st->covered: triangles of the other
+ * bodies within HL_FRAME_CONTACT_TOL of the scene's extent of the flat
+ * body's plane whose normals (the vertices' mean) face into it. Such a
+ * face is the underside of a solid resting on the plane, so a receiver
+ * of the plane inside it is inside that solid: every ray from it meets
+ * the solid, and it gets no light at all, where a shadow map's filter
+ * box reaches past the solid's silhouette and lets some through
+ * (DYNAMIC.md, section 5). A receiver counts when it and the four points
+ * the tolerance away along the plane's axes all lie in contact
+ * triangles, so one on the footprint's rim stays lit. */
+static hl_result contact_cover(hl_frame_state *st, const hl_dyn_object *objects)
+{
+    memset(st->covered, 0, st->N);
+    st->ncovered = 0;
+    if (!st->nflat) return HL_OK;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < st->N; i++)
+        for (int k = 0; k < 3; k++) lo[k] = fmin(lo[k], st->wpos[3 * i + k]), hi[k] = fmax(hi[k], st->wpos[3 * i + k]);
+    const double tol = HL_FRAME_CONTACT_TOL * sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                                   (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    for (uint32_t f = 0; f < st->nflat; f++) {
+        const float *fb = st->fb + (size_t)f * HL_DYN_FB;
+        const uint32_t g = st->flat_body[f], g0 = st->vstart[g], gn = st->nverts[g];
+        const float *gnrm = st->wnrm + 3 * (size_t)g0;
+        /* the plane's side its receivers face */
+        const double up = gnrm[0] * fb[0] + gnrm[1] * fb[1] + gnrm[2] * fb[2] >= 0.0 ? 1.0 : -1.0;
+        size_t nct = 0;
+        for (uint32_t b = 0; b < st->nobj; b++) {
+            if (b == g) continue;
+            const float *P = st->wpos + 3 * (size_t)st->vstart[b], *Nn = st->wnrm + 3 * (size_t)st->vstart[b];
+            for (uint32_t t = 0; t < objects[b].ntris; t++) {
+                const uint32_t *tv = objects[b].tri + 3 * (size_t)t;
+                double uv[6], nd = 0.0;
+                int on = 1;
+                for (int c = 0; c < 3 && on; c++) {
+                    const float *x = P + 3 * (size_t)tv[c], *nv = Nn + 3 * (size_t)tv[c];
+                    const double q[3] = {x[0] - fb[3], x[1] - fb[4], x[2] - fb[5]};
+                    on = fabs(q[0] * fb[0] + q[1] * fb[1] + q[2] * fb[2]) <= tol;
+                    uv[2 * c] = q[0] * fb[6] + q[1] * fb[7] + q[2] * fb[8];
+                    uv[2 * c + 1] = q[0] * fb[9] + q[1] * fb[10] + q[2] * fb[11];
+                    nd += up * (nv[0] * fb[0] + nv[1] * fb[1] + nv[2] * fb[2]);
+                }
+                if (!on || !(nd < -1.5)) continue; /* the mean normal's cosine below -0.5 */
+                if (nct == st->ctri_cap) {
+                    size_t cap = st->ctri_cap ? 2 * st->ctri_cap : 64;
+                    float *c = realloc(st->ctri, cap * 6 * sizeof *c);
+                    if (!c) return hl_fail(st->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for %zu contact faces", cap);
+                    st->ctri = c, st->ctri_cap = cap;
+                }
+                for (int c = 0; c < 6; c++) st->ctri[6 * nct + (size_t)c] = (float)uv[c];
+                nct++;
+            }
+        }
+        if (!nct) continue;
+        double blo[2] = {INFINITY, INFINITY}, bhi[2] = {-INFINITY, -INFINITY};
+        for (size_t i = 0; i < 3 * nct; i++)
+            for (int k = 0; k < 2; k++)
+                blo[k] = fmin(blo[k], st->ctri[2 * i + (size_t)k]), bhi[k] = fmax(bhi[k], st->ctri[2 * i + (size_t)k]);
+        for (uint32_t v = 0; v < gn; v++) {
+            const float *x = st->wpos + 3 * ((size_t)g0 + v);
+            const double q[3] = {x[0] - fb[3], x[1] - fb[4], x[2] - fb[5]};
+            const double a = q[0] * fb[6] + q[1] * fb[7] + q[2] * fb[8], b = q[0] * fb[9] + q[1] * fb[10] + q[2] * fb[11];
+            if (a - tol < blo[0] || a + tol > bhi[0] || b - tol < blo[1] || b + tol > bhi[1]) continue;
+            if (in_any(st->ctri, nct, a, b) && in_any(st->ctri, nct, a - tol, b) && in_any(st->ctri, nct, a + tol, b) &&
+                in_any(st->ctri, nct, a, b - tol) && in_any(st->ctri, nct, a, b + tol)) {
+                st->covered[g0 + v] = 1;
+                st->ncovered++;
+            }
+        }
+    }
+    return HL_OK;
+}
+
 hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint32_t nobj, const float *const *albedo,
                           const hl_light_split *split, float *const *rgb, hl_frame_stats *stats)
 {
@@ -736,10 +840,13 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
     for (uint32_t b = 0; b < nobj && r == HL_OK; b++) {
         float *old = st->xf + 12 * (size_t)b;
         if (memcmp(old, objects[b].xf, 12 * sizeof(float)) == 0) continue;
+        st->cover_ok = 0;
         for (uint32_t i = 0; i < st->ntier && r == HL_OK; i++) r = hl_shadow_maps_set_transform(st->tier[i].sm, b, objects[b].xf);
         if (r == HL_OK) memcpy(old, objects[b].xf, 12 * sizeof(float));
     }
     pack_flat_bodies(st);
+    if (r == HL_OK && !st->cover_ok) r = contact_cover(st, objects);
+    if (r == HL_OK) st->cover_ok = 1;
     if (r == HL_OK && st->on_device && st->nflat) {
         hl_context *ctx = st->ctx;
         CL_TRY(ctx, clEnqueueWriteBuffer(ctx->cl->queue, st->fb_d, CL_FALSE, 0, (size_t)st->nflat * HL_DYN_FB * 4, st->fb, 0,
@@ -773,7 +880,11 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
         /* the folded lights' SH9 term can dip below 0 at some normals
            when their light is directional; light is never negative */
         for (size_t i = 0; i < 3 * (size_t)st->nverts[b]; i++) rgb[b][i] = albedo[b][i] * inv_pi * fmaxf(acc[i], 0.0f);
+        const uint8_t *cov = st->covered + st->vstart[b];
+        for (size_t i = 0; st->ncovered && i < st->nverts[b]; i++)
+            if (cov[i]) rgb[b][3 * i] = rgb[b][3 * i + 1] = rgb[b][3 * i + 2] = 0.0f;
     }
+    fs.covered = st->ncovered;
     t1 = hl_now();
     fs.t_shading = t1 - t;
     fs.t_total = t1 - t0;

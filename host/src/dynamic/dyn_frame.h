@@ -67,6 +67,13 @@
 #define HL_FRAME_SHARP_MAX 4u
 #define HL_FRAME_SHARP_SCALE 4u
 
+/* A face of a body lies on a flat body's plane (a ground) when its
+ * vertices are within this share of the scene's extent of it: 1e-4, as
+ * shadow_map.c's HL_SHADOW_SIDE_TOL takes a body resting on the ground.
+ * The ground's receivers under such faces (a solid's underside) get no
+ * light (dyn_frame.c, contact_cover). */
+#define HL_FRAME_CONTACT_TOL 1e-4
+
 /* HL_FRAME_BIAS_TEXELS, HL_FRAME_BIAS_CAP and HL_FRAME_FLAT_BLOCKS, shared
  * with the kernels, are in hl_shared.h beside the formulas that use them
  * (hl_dyn_receiver, hl_dyn_flat_one). */
@@ -100,6 +107,8 @@ typedef struct hl_frame_stats {
     uint32_t batches, batch_lights; /* batches run, lights a batch holds (tier 0) */
     uint32_t R, R_sharp;        /* the map sizes (R_sharp 0: one size) */
     uint32_t sharp;             /* shadowed lights with maps of R_sharp */
+    uint32_t covered;           /* receivers of a flat body under another
+                                   body's contact faces: dark */
     uint32_t maps_kept;         /* shadowed lights whose maps and tables were
                                    the last frame's, not made again (per
                                    size, 0 or all its lights: hl_frame_render) */
