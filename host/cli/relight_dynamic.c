@@ -237,12 +237,12 @@ static void report(const char *scene, const char *env, hl_context *ctx, const hl
     fprintf(stderr,
             "relit %s under %s on %s: %u vertices; lights %u kept of %u (%u folded, %.2f%% of the energy), "
             "%u shadowed%s, %u skipped below every horizon, %u negligible; %u batch(es), %u shadow maps kept; "
-            "%u ground vertices under a body; "
+            "%u ground vertices under a body, %u inside their body; "
             "split %.1f ms, irradiance %.1f ms, shadow maps %.1f ms, %s build %.1f ms, %s eval %.1f ms, "
             "shading %.1f ms; frame %.1f ms\n",
             scene, env ? env : "the procedural sky", hl_context_device_name(ctx), st->vertices, li->lights_kept,
             li->lights_made, li->folded, 100.0 * li->folded_share, st->shadowed, sharp, st->skipped_horizon,
-            st->skipped_negligible, st->batches, st->maps_kept, st->covered, 1e3 * li->seconds, 1e3 * st->t_irradiance, 1e3 * st->t_shadow_maps,
+            st->skipped_negligible, st->batches, st->maps_kept, st->covered, st->enclosed, 1e3 * li->seconds, 1e3 * st->t_irradiance, 1e3 * st->t_shadow_maps,
             rep, 1e3 * st->t_csm_build, rep, 1e3 * st->t_csm_eval, 1e3 * st->t_shading, 1e3 * st->t_total);
 }
 

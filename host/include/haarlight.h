@@ -915,6 +915,8 @@ typedef struct hl_dynamic_stats {
                                      (0 and 0: one size for all) */
     uint32_t covered;             /* ground vertices under a body resting on
                                      the ground (inside its solid): dark */
+    uint32_t enclosed;            /* vertices inside their body's own closed
+                                     parts: dark */
 } hl_dynamic_stats;
 
 /* One frame at time t (seconds, finite, >= 0; clamped to the animation's

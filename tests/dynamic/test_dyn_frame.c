@@ -51,6 +51,7 @@
 #include "dyn_frame.h"
 #include "dyn_reference.h"
 #include "dyn_util.h"
+#include "enclosed.h"
 #include "haarlight_tools.h"
 #include "hl_test.h"
 #include "scene.h"
@@ -899,6 +900,119 @@ static void case_contact(void)
     hl_context_destroy(ctx);
 }
 
+/* ------------------------------------------------------------ enclosed */
+
+/* A cube of half-side h centred at (0, cy, 0) into pos/nrm/tri from
+ * vertex nv and triangle nt (24 vertices, 12 triangles, outward normals;
+ * flip: the winding reversed, the normals kept). */
+static void cube_at(float *pos, float *nrm, uint32_t *tri, uint32_t *nv, uint32_t *nt, float h, float cy, int flip)
+{
+    static const float fn[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    for (int f = 0; f < 6; f++) {
+        const float *n = fn[f];
+        /* u, v in the face with u x v = n */
+        const float u[3] = {n[0] == 0 ? 1.0f : 0.0f, n[0] == 0 ? 0.0f : 1.0f, 0.0f};
+        const float v[3] = {n[1] * u[2] - n[2] * u[1], n[2] * u[0] - n[0] * u[2], n[0] * u[1] - n[1] * u[0]};
+        for (int c = 0; c < 4; c++) {
+            const float a = (c & 1) ? h : -h, b = (c & 2) ? h : -h;
+            for (int k = 0; k < 3; k++) pos[3 * *nv + k] = h * n[k] + a * u[k] + b * v[k], nrm[3 * *nv + k] = n[k];
+            pos[3 * *nv + 1] += cy;
+            (*nv)++;
+        }
+        const uint32_t q = *nv - 4;
+        const uint32_t t[6] = {q, q + 1, q + 3, q, q + 3, q + 2}, tf[6] = {q, q + 3, q + 1, q, q + 2, q + 3};
+        memcpy(tri + 3 * *nt, flip ? tf : t, sizeof t);
+        *nt += 2;
+    }
+}
+
+/* The vertices inside their body's own closed parts (enclosed.h): a
+ * cube of half-side 0.25 inside one of half-side 1, one body, standing
+ * on a ground: the inner cube's 24 vertices are enclosed and black in
+ * the frame, as in the exact reference, and the outer's are not; with
+ * the winding reversed (untrusted) none is, nor on a sheet modelled with
+ * both sides (a quad and its reversed twin on the same four vertices'
+ * positions). */
+static void case_enclosed(void)
+{
+    hl_context *ctx = hl_test_cl_context(2);
+    if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
+    float pos[3 * 48], nrm[3 * 48];
+    uint32_t tri[3 * 24], nv = 0, nt = 0;
+    uint8_t enc[48];
+    uint32_t count = 0;
+    /* the winding's directions: outer cube, inner cube */
+    for (int pass = 0; pass < 2; pass++) {
+        nv = nt = 0;
+        cube_at(pos, nrm, tri, &nv, &nt, 1.0f, 1.0f, pass);
+        cube_at(pos, nrm, tri, &nv, &nt, 0.25f, 1.0f, pass);
+        hl_dyn_object o = {.pos = pos, .normal = nrm, .nverts = nv, .tri = tri, .ntris = nt,
+                           .xf = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
+        HL_CHECK(hl_dyn_enclosed(ctx, &o, enc, &count) == HL_OK, "%s", hl_context_last_error(ctx));
+        uint32_t inner = 0, outer = 0;
+        for (uint32_t v = 0; v < nv; v++) *(v < 24 ? &outer : &inner) += enc[v];
+        printf("%s: %u enclosed, the inner cube's %u of 24 (want %u), the outer's %u (want 0)\n",
+               pass ? "winding reversed" : "nested cubes", count, inner, pass ? 0u : 24u, outer);
+        HL_CHECK(inner == (pass ? 0u : 24u) && outer == 0 && count == inner, "the enclosed vertices");
+    }
+    /* a two-sided sheet: never enclosed */
+    {
+        const float sp[24] = {-1, 0, -1, 1, 0, -1, -1, 0, 1, 1, 0, 1, -1, 0, -1, 1, 0, -1, -1, 0, 1, 1, 0, 1};
+        const float sn[24] = {0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, -1, 0, 0, -1, 0, 0, -1, 0, 0, -1, 0};
+        const uint32_t st[12] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6};
+        hl_dyn_object o = {.pos = sp, .normal = sn, .nverts = 8, .tri = st, .ntris = 4,
+                           .xf = {1, 0, 0, 0, 0, 1, 0, 0.5f, 0, 0, 1, 0}};
+        HL_CHECK(hl_dyn_enclosed(ctx, &o, enc, &count) == HL_OK, "%s", hl_context_last_error(ctx));
+        printf("a two-sided sheet: %u enclosed (want 0)\n", count);
+        HL_CHECK(count == 0, "a sheet's vertices were enclosed");
+    }
+    /* the nested cubes on a ground in a frame, against the exact reference */
+    nv = nt = 0;
+    cube_at(pos, nrm, tri, &nv, &nt, 1.0f, 1.0f, 0);
+    cube_at(pos, nrm, tri, &nv, &nt, 0.25f, 1.0f, 0);
+    float gpos[3 * CT_G * CT_G], gnrm[3 * CT_G * CT_G], cp[72], cn[72];
+    uint32_t gtri[6 * (CT_G - 1) * (CT_G - 1)], ct[36], a, b2;
+    contact_meshes(cp, cn, ct, &a, &b2, 0, gpos, gnrm, gtri);
+    for (size_t i = 0; i < 3 * (size_t)CT_G * CT_G; i++) gpos[i] *= 2.0f; /* the ground 8 wide */
+    hl_env *env = sky(ctx);
+    hl_light_split *s = env ? split_of(ctx, env, 8) : NULL;
+    const size_t ng = (size_t)CT_G * CT_G;
+    float *alb[2] = {malloc(48 * 12), malloc(ng * 12)}, *rgb[2] = {malloc(48 * 12), malloc(ng * 12)};
+    float *ref[2] = {malloc(48 * 12), malloc(ng * 12)};
+    for (int k = 0; k < 2; k++)
+        for (size_t i = 0; i < 3 * (k ? ng : 48); i++) alb[k][i] = 0.8f;
+    hl_dyn_object obj[2] = {{.pos = pos, .normal = nrm, .nverts = nv, .tri = tri, .ntris = nt,
+                             .xf = {1, 0, 0, 0, 0, 1, 0, 0.5f, 0, 0, 1, 0}},
+                            {.pos = gpos, .normal = gnrm, .nverts = (uint32_t)ng, .tri = gtri,
+                             .ntris = 2 * (CT_G - 1) * (CT_G - 1), .xf = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}}};
+    hl_frame_settings set = {.min_share = -1.0f};
+    hl_frame_state *st = NULL;
+    hl_frame_stats fs;
+    int ok = s && hl_frame_state_create(ctx, obj, 2, s->count, &set, &st) == HL_OK &&
+             hl_frame_render(st, obj, 2, (const float *const *)alb, s, rgb, &fs) == HL_OK &&
+             hl_dyn_reference_exact(ctx, obj, 2, (const float *const *)alb, env, 0, 0, ref, NULL) == HL_OK;
+    HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+    if (ok) {
+        double top = 0, fin = 0, rin = 0, fout = INFINITY;
+        for (size_t i = 0; i < 3 * ng; i++) top = fmax(top, ref[1][i]);
+        for (uint32_t v = 0; v < nv; v++) {
+            const double f = lum(rgb[0] + 3 * v) / top, r = lum(ref[0] + 3 * v) / top;
+            if (v >= 24) fin = fmax(fin, f), rin = fmax(rin, r);
+            else if (nrm[3 * v + 1] > 0.5f) fout = fmin(fout, f); /* the outer cube's top */
+        }
+        printf("in a frame: %u enclosed (want 24); the inner cube's brightest frame %.3g, exact %.3g of the brightest; "
+               "the outer cube's top darkest %.3g\n", fs.enclosed, fin, rin, fout);
+        HL_CHECK(fs.enclosed == 24 && fout > 0.0, "the frame's enclosed vertices");
+        hl_check_error("  the exact reference on the inner cube, of the brightest (tolerance 1e-6)", rin, 1e-6);
+        hl_check_error("  the frame on the inner cube, of the brightest (tolerance 0)", fin, 0.0);
+    }
+    hl_frame_state_destroy(st);
+    for (int k = 0; k < 2; k++) free(alb[k]), free(rgb[k]), free(ref[k]);
+    hl_light_split_destroy(s);
+    hl_env_destroy(env);
+    hl_context_destroy(ctx);
+}
+
 /* ------------------------------------------------------------ bad input */
 
 #define EXPECT_FAIL(call, what)                                                    \
@@ -1330,6 +1444,7 @@ int main(int argc, char **argv)
                                          {"api", case_api},               {"cli", case_cli},
                                          {"file", case_file},             {"keep", case_keep},
                                          {"sharp", case_sharp},           {"contact", case_contact},
+                                         {"enclosed", case_enclosed},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

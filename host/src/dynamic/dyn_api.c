@@ -364,7 +364,7 @@ hl_result hl_dynamic_render(hl_dynamic *d, double t, float **rgb_out, hl_dynamic
         st->vertices = fs.receivers, st->lights = fs.lights, st->shadowed = fs.shadowed;
         st->skipped_horizon = fs.skipped_horizon, st->skipped_negligible = fs.skipped_negligible;
         st->batches = fs.batches, st->maps_kept = fs.maps_kept;
-        st->shadow_res = fs.R, st->sharp = fs.sharp, st->sharp_res = fs.R_sharp, st->covered = fs.covered;
+        st->shadow_res = fs.R, st->sharp = fs.sharp, st->sharp_res = fs.R_sharp, st->covered = fs.covered, st->enclosed = fs.enclosed;
         st->folded_share = d->split->stats.folded_share;
         st->t_irradiance = fs.t_irradiance, st->t_shadow_maps = fs.t_shadow_maps;
         st->t_csm_build = fs.t_csm_build, st->t_csm_eval = fs.t_csm_eval, st->t_shading = fs.t_shading;

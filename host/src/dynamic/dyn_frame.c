@@ -22,6 +22,7 @@
 
 #include "cl_internal.h"
 #include "dyn_frame.h"
+#include "enclosed.h"
 #include "irradiance.h"
 
 /* The shadow maps of one size, for a batch of Kb lights: the maps of
@@ -88,6 +89,8 @@ struct hl_frame_state {
        (contact_cover): 1 where dark; valid while cover_ok */
     uint8_t *covered;
     uint32_t ncovered;
+    uint8_t *enclosed; /* N: inside the body's own closed parts (enclosed.h) */
+    uint32_t nenclosed;
     int cover_ok;
     float *ctri; size_t ctri_cap; /* the contact triangles in a plane's axes, 6 floats each */
 };
@@ -131,7 +134,7 @@ void hl_frame_state_destroy(hl_frame_state *st)
     if (!st) return;
     release_device(st);
     free(st->list);
-    free(st->covered); free(st->ctri);
+    free(st->covered); free(st->ctri); free(st->enclosed);
     for (int i = 0; i < 2; i++) {
         hl_frame_tier *t = &st->tier[i];
         free(t->keep_list); free(t->keep_mask); free(t->keep_xf); free(t->list);
@@ -318,7 +321,8 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->shadow_list = malloc(max_lights * sizeof *st->shadow_list);
     st->any = malloc(max_lights ? max_lights : 1);
     st->covered = calloc((size_t)N, 1);
-    if (!st->covered ||!st->vstart || !st->nverts || !st->xf || !st->wpos || !st->wnrm || !st->acc ||
+    st->enclosed = calloc((size_t)N, 1);
+    if (!st->covered || !st->enclosed ||!st->vstart || !st->nverts || !st->xf || !st->wpos || !st->wnrm || !st->acc ||
         (!st->on_device && (!st->E || !st->cpos || !st->uvd || !st->rpl || !st->V || !st->idx || !st->gstart)) ||
         !st->shadow_list || !st->any || !st->gks || !st->gtheta || !st->gframe || !st->body || !st->lf || !st->fl || !st->fb ||
         !st->flat_body || !st->list) {
@@ -334,7 +338,13 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
         for (uint32_t v = 0; v < objects[b].nverts; v++) st->body[at + v] = b;
         at += objects[b].nverts;
     }
-    if (st->on_device && (r = create_device(st)) != HL_OK) {
+    for (uint32_t b = 0; b < nobj && r == HL_OK; b++) {
+        uint32_t n = 0;
+        r = hl_dyn_enclosed(ctx, &objects[b], st->enclosed + st->vstart[b], &n);
+        st->nenclosed += n;
+    }
+    if (r == HL_OK && st->on_device) r = create_device(st);
+    if (r != HL_OK) {
         hl_frame_state_destroy(st);
         return r;
     }
@@ -880,11 +890,12 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
         /* the folded lights' SH9 term can dip below 0 at some normals
            when their light is directional; light is never negative */
         for (size_t i = 0; i < 3 * (size_t)st->nverts[b]; i++) rgb[b][i] = albedo[b][i] * inv_pi * fmaxf(acc[i], 0.0f);
-        const uint8_t *cov = st->covered + st->vstart[b];
-        for (size_t i = 0; st->ncovered && i < st->nverts[b]; i++)
-            if (cov[i]) rgb[b][3 * i] = rgb[b][3 * i + 1] = rgb[b][3 * i + 2] = 0.0f;
+        const uint8_t *cov = st->covered + st->vstart[b], *enc = st->enclosed + st->vstart[b];
+        for (size_t i = 0; (st->ncovered || st->nenclosed) && i < st->nverts[b]; i++)
+            if (cov[i] || enc[i]) rgb[b][3 * i] = rgb[b][3 * i + 1] = rgb[b][3 * i + 2] = 0.0f;
     }
     fs.covered = st->ncovered;
+    fs.enclosed = st->nenclosed;
     t1 = hl_now();
     fs.t_shading = t1 - t;
     fs.t_total = t1 - t0;

@@ -109,6 +109,8 @@ typedef struct hl_frame_stats {
     uint32_t sharp;             /* shadowed lights with maps of R_sharp */
     uint32_t covered;           /* receivers of a flat body under another
                                    body's contact faces: dark */
+    uint32_t enclosed;          /* receivers inside their body's own closed
+                                   parts (enclosed.h): dark */
     uint32_t maps_kept;         /* shadowed lights whose maps and tables were
                                    the last frame's, not made again (per
                                    size, 0 or all its lights: hl_frame_render) */
