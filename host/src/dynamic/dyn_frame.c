@@ -783,6 +783,13 @@ static hl_result contact_cover(hl_frame_state *st, const hl_dyn_object *objects)
         for (uint32_t b = 0; b < st->nobj; b++) {
             if (b == g) continue;
             const float *P = st->wpos + 3 * (size_t)st->vstart[b], *Nn = st->wnrm + 3 * (size_t)st->vstart[b];
+            /* a body no vertex of which touches the plane has no contact face */
+            int near = 0;
+            for (uint32_t v = 0; v < st->nverts[b] && !near; v++) {
+                const float *x = P + 3 * (size_t)v;
+                near = fabs((x[0] - fb[3]) * fb[0] + (x[1] - fb[4]) * fb[1] + (x[2] - fb[5]) * fb[2]) <= tol;
+            }
+            if (!near) continue;
             for (uint32_t t = 0; t < objects[b].ntris; t++) {
                 const uint32_t *tv = objects[b].tri + 3 * (size_t)t;
                 double uv[6], nd = 0.0;
