@@ -174,10 +174,10 @@ static hl_result check_settings(hl_context *ctx, hl_frame_settings *s, uint32_t 
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "dynamic frame: shadow map size %u is not a multiple of %u from %u to %u (--shadow-res)", s->R,
                        HL_CSM_SCAN_LANES, HL_CSM_R_MIN, HL_CSM_R_MAX);
-    if (s->R_sharp == 0)
-        s->R_sharp = s->shadow == HL_SHADOW_REP_MOMENTS && s->R * HL_FRAME_SHARP_SCALE <= HL_CSM_R_MAX
-                         ? s->R * HL_FRAME_SHARP_SCALE
-                         : s->shadow == HL_SHADOW_REP_MOMENTS ? HL_CSM_R_MAX : s->R;
+    if (s->R_sharp == 0 && s->shadow == HL_SHADOW_REP_MOMENTS)
+        s->R_sharp = s->R * HL_FRAME_SHARP_SCALE < HL_CSM_R_MAX ? s->R * HL_FRAME_SHARP_SCALE : HL_CSM_R_MAX;
+    else if (s->R_sharp == 0)
+        s->R_sharp = s->R;
     if (s->R_sharp < s->R || s->R_sharp > HL_CSM_R_MAX || s->R_sharp % HL_CSM_SCAN_LANES)
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "dynamic frame: sharp lights' map size %u is not a multiple of %u from the map size %u to %u "
@@ -322,7 +322,7 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     st->any = malloc(max_lights ? max_lights : 1);
     st->covered = calloc((size_t)N, 1);
     st->enclosed = calloc((size_t)N, 1);
-    if (!st->covered || !st->enclosed ||!st->vstart || !st->nverts || !st->xf || !st->wpos || !st->wnrm || !st->acc ||
+    if (!st->covered || !st->enclosed || !st->vstart || !st->nverts || !st->xf || !st->wpos || !st->wnrm || !st->acc ||
         (!st->on_device && (!st->E || !st->cpos || !st->uvd || !st->rpl || !st->V || !st->idx || !st->gstart)) ||
         !st->shadow_list || !st->any || !st->gks || !st->gtheta || !st->gframe || !st->body || !st->lf || !st->fl || !st->fb ||
         !st->flat_body || !st->list) {
@@ -340,6 +340,8 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     }
     for (uint32_t b = 0; b < nobj && r == HL_OK; b++) {
         uint32_t n = 0;
+        hl_flat_body f;
+        if (hl_shadow_maps_flat(st->tier[0].sm, b, &f)) continue; /* one plane encloses nothing */
         r = hl_dyn_enclosed(ctx, &objects[b], st->enclosed + st->vstart[b], &n);
         st->nenclosed += n;
     }
