@@ -63,7 +63,7 @@ int vw_dyn_opt(viewer *v, int argc, char **argv, int *i, const char *usage)
     if (!strcmp(a, "--ground")) return y->ground = 1;
     if (!strcmp(a, "--rest-pose")) return y->rest_pose = 1;
     if (!strcmp(a, "--play")) return y->play = 1;
-    static const char *const with_value[] = {"--hlt", "--lights", "--order", "--shadow-res", "--sharp-res", "--time",
+    static const char *const with_value[] = {"--hlt", "--lights", "--order", "--shadow-res", "--sharp-res", "--sharp", "--time",
                                              "--move", "--drag", "--shadow", NULL};
     int k = 0;
     while (with_value[k] && strcmp(a, with_value[k])) k++;
@@ -87,6 +87,8 @@ int vw_dyn_opt(viewer *v, int argc, char **argv, int *i, const char *usage)
         if (!parse_u32(val, &r) || r < 16 || r > 1024 || r % 16)
             return -usage_error(usage, "--shadow-res %s: expected a multiple of 16 from 16 to 1024", val);
         y->desc.shadow_res = r;
+    } else if (!strcmp(a, "--sharp")) {
+        if (!parse_sharp(val, &y->desc.sharp)) return -usage_error(usage, "--sharp %s: expected rays, maps or off", val);
     } else if (!strcmp(a, "--sharp-res")) {
         uint32_t r = 0;
         if (!parse_u32(val, &r) || r < 16 || r > 1024 || r % 16)

@@ -84,8 +84,12 @@ static const char *const usage_bd =
     "                       1,4,16; at most 8), at every K of the settings\n"
     "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 128,\n"
     "                       relight-dynamic's, where the speed goal is stated)\n"
-    "  --sharp-res RS       the sharp lights' map size, as relight-dynamic's (default 4 R\n"
-    "                       with moments, at most 1024; R with CSM)\n"
+    "  --sharp MODE         the sharp lights (a sun), as relight-dynamic's: rays (the\n"
+    "                       default with moments), maps (of --sharp-res) or off (the\n"
+    "                       default with CSM)\n"
+    "  --sharp-res RS       the sharp lights' map size with --sharp maps, as\n"
+    "                       relight-dynamic's (default 4 R, at most 1024; given alone, it\n"
+    "                       asks for the maps)\n"
     "  --reps R             timed frames per PRT and dynamic row (default 5, 1 to 100)\n"
     "  --traced-reps R      timed frames per traced row (default 3, 1 to 100)\n"
     "  --device cl|ref|cl:P:D   the device both methods run on (default: OpenCL's first, or\n"
@@ -98,7 +102,7 @@ typedef struct bd_opts {
     uint32_t terms[BENCH_MAX_TERMS], nterms;
     uint32_t K[BD_MAX_SETTINGS], M[BD_MAX_SETTINGS], nset;
     uint32_t S[BD_MAX_SAMPLES], nS;
-    uint32_t R, Rs, reps, treps;
+    uint32_t R, Rs, sharp, reps, treps;
     hl_context_desc cd;
     hl_env_layout layout;
 } bd_opts;
@@ -120,6 +124,7 @@ typedef struct bd {
     float base[3], nudge;             /* the object's translation now */
     float moved[3];                   /* the moved frames' translation */
     uint32_t sharp_res;               /* the sharp lights' map size a frame used (0: none) */
+    int sharp_rays;                   /* a frame took its sharp lights by rays */
     double ref_seconds;
     bd_row rows[BD_MAX_ROWS];
     uint32_t nrows;
@@ -213,6 +218,7 @@ static int parse_bd(int argc, char **argv, bd *b)
         else if (!strcmp(a, "--samples")) { NEED(); if ((e = parse_list("--samples", v, BD_MAX_SAMPLES, 1, HL_BENCH_TRACED_MAX_S, o->S, NULL, &o->nS))) return e; }
         else if (!strcmp(a, "--shadow-res")) { NEED(); if (!parse_u32(v, &o->R) || o->R < 16 || o->R > 1024 || o->R % 16) return usage_error(usage_bd, "--shadow-res %s: expected a multiple of 16 from 16 to 1024", v); }
         else if (!strcmp(a, "--sharp-res")) { NEED(); if (!parse_u32(v, &o->Rs) || o->Rs < 16 || o->Rs > 1024 || o->Rs % 16) return usage_error(usage_bd, "--sharp-res %s: expected a multiple of 16 from 16 to 1024", v); }
+        else if (!strcmp(a, "--sharp")) { NEED(); if (!parse_sharp(v, &o->sharp)) return usage_error(usage_bd, "--sharp %s: expected rays, maps or off", v); }
         else if (!strcmp(a, "--reps")) { NEED(); if (!parse_u32(v, &o->reps) || o->reps < 1 || o->reps > BD_MAX_REPS) return usage_error(usage_bd, "--reps %s: expected 1 to 100", v); }
         else if (!strcmp(a, "--traced-reps")) { NEED(); if (!parse_u32(v, &o->treps) || o->treps < 1 || o->treps > BD_MAX_REPS) return usage_error(usage_bd, "--traced-reps %s: expected 1 to 100", v); }
         else if (!strcmp(a, "--device-memory")) { NEED(); if (!parse_device_memory(v, &o->cd)) return usage_error(usage_bd, "--device-memory %s: expected a byte count such as 512M or 2G", v); }
@@ -269,7 +275,8 @@ static hl_result load(bd *b)
     for (uint32_t k = 0; k < o->nset && r == HL_OK; k++) {
         if (dyn_of(b, o->M[k])) continue;
         hl_dynamic_desc dd = {.shadow_res = o->R, .order = o->M[k],
-                              .shadow = o->M[k] ? HL_DYNAMIC_SHADOW_CSM : HL_DYNAMIC_SHADOW_MOMENTS, .sharp_res = o->Rs};
+                              .shadow = o->M[k] ? HL_DYNAMIC_SHADOW_CSM : HL_DYNAMIC_SHADOW_MOMENTS, .sharp_res = o->Rs,
+                              .sharp = o->sharp};
         r = hl_dynamic_create_from_mesh(b->ctx, tm, 1, &dd, &b->dyn[b->ndyn]);
         if (r != HL_OK) break;
         b->dyn_M[b->ndyn++] = o->M[k];
@@ -360,7 +367,7 @@ static hl_result dyn_frame(bd *b, uint32_t k, bd_row *w)
     hl_dynamic *d = dyn_of(b, b->o.M[k]);
     float *rgb = NULL;
     hl_dynamic_stats st;
-    double t[6][BD_MAX_REPS], wall[BD_MAX_REPS];
+    double t[7][BD_MAX_REPS], wall[BD_MAX_REPS];
     const float base[3] = {b->base[0], b->base[1], b->base[2]};
     const hl_mesh *m = hl_dynamic_mesh(d);
     const float step = (float)(BD_NUDGE * hl_mesh_query_diagonal(m));
@@ -376,11 +383,13 @@ static hl_result dyn_frame(bd *b, uint32_t k, bd_row *w)
            one would time a frame that skipped the maps and their build */
         if (r == HL_OK && st.maps_kept > w->maps_kept) w->maps_kept = st.maps_kept;
         if (r == HL_OK && st.sharp && st.sharp_res > b->sharp_res) b->sharp_res = st.sharp_res;
+        if (r == HL_OK && st.sharp && st.sharp_mode == HL_DYNAMIC_SHARP_RAYS) b->sharp_rays = 1;
         if (r == HL_OK && st.maps_kept)
             r = hl_tools_fail(b->ctx, HL_ERR_INVALID_ARGUMENT, "bench-dynamic: a timed frame kept %u shadow maps",
                               st.maps_kept);
-        const double s[6] = {st.t_irradiance, st.t_shadow_maps, st.t_csm_build, st.t_csm_eval, st.t_shading, st.t_total};
-        for (int c = 0; c < 6; c++) t[c][i] = s[c];
+        const double s[7] = {st.t_irradiance, st.t_shadow_maps, st.t_csm_build, st.t_csm_eval,
+                             st.t_shading,   st.t_total,      st.t_sharp_rays};
+        for (int c = 0; c < 7; c++) t[c][i] = s[c];
     }
     if (r == HL_OK) r = place(b, base, 0.0f);
     if (r == HL_OK) r = hl_dynamic_render(d, 0.0, &rgb, &st);
@@ -388,7 +397,7 @@ static hl_result dyn_frame(bd *b, uint32_t k, bd_row *w)
     memcpy(b->B, rgb, 3 * (size_t)b->V * sizeof(float));
     errors(b->B, b->exact, b->V, &w->l2, &w->mx);
     w->ms = 1e3 * median(wall, b->o.reps);
-    for (int c = 0; c < 6; c++) w->stage[c] = 1e3 * median(t[c], b->o.reps);
+    for (int c = 0; c < 7; c++) w->stage[c] = 1e3 * median(t[c], b->o.reps);
     return HL_OK;
 }
 
@@ -543,7 +552,7 @@ static hl_result bd_measure(bd *b)
         const hl_mesh *m = b->t->mesh;
         bd_report rep = {.envs = b->envs, .nenvs = b->o.nenvs, .rows = b->rows, .nrows = b->nrows,
                          .scene = bench_base_name(b->o.file), .device = hl_context_device_name(b->ctx),
-                         .vertices = m->vertex_count, .object_vertices = m->object_vertex_count, .R = b->o.R, .Rs = b->sharp_res,
+                         .vertices = m->vertex_count, .object_vertices = m->object_vertex_count, .R = b->o.R, .Rs = b->sharp_res, .sharp_rays = b->sharp_rays,
                          .reps = b->o.reps, .traced_reps = b->o.treps, .goal_K = b->o.K[b->goal],
                          .goal_M = b->o.M[b->goal], .ref_seconds = b->ref_seconds,
                          .move = {b->moved[0], b->moved[1], b->moved[2]}};

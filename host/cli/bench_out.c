@@ -341,10 +341,10 @@ static void bd_split(char *buf, size_t n, const bd_row *w)
     buf[0] = '\0';
     if (w->method == BD_DYNAMIC)
         snprintf(buf, n,
-                 "irradiance %.1f, shadow maps %.1f, %s build %.1f, %s eval %.1f, shading %.1f (frame %.1f; "
-                 "shadow maps kept %u)",
+                 "irradiance %.1f, shadow maps %.1f, %s build %.1f, %s eval %.1f, sharp rays %.1f, shading %.1f "
+                 "(frame %.1f; shadow maps kept %u)",
                  w->stage[0], w->stage[1], w->M ? "CSM" : "moments", w->stage[2], w->M ? "CSM" : "moments", w->stage[3],
-                 w->stage[4], w->stage[5], w->maps_kept);
+                 w->stage[6], w->stage[4], w->stage[5], w->maps_kept);
     else if (w->method == BD_TRACED)
         snprintf(buf, n, "BVH %.1f, rays %.1f, occlusion %.1f, shading %.1f", w->stage[0], w->stage[1], w->stage[2],
                  w->stage[3]);
@@ -373,6 +373,7 @@ static void bd_tables(FILE *md, FILE *csv, const bd_report *rep)
 {
     char sharp[96] = "";
     if (rep->Rs) snprintf(sharp, sizeof sharp, ", the sharp lights' %u^2 (relight-dynamic --sharp-res)", rep->Rs);
+    else if (rep->sharp_rays) snprintf(sharp, sizeof sharp, ", the sharp lights by rays (relight-dynamic --sharp)");
     fprintf(md, "# Error against time: PRT, the dynamic method and traced rays\n\n"
                 "Scene: %s, %u vertices (%u object, %u ground). Device: %s. Shadow maps %u^2%s.\n"
                 "Errors: relative L2 over every vertex and channel, and the worst vertex over the brightest, against\n"
@@ -391,7 +392,7 @@ static void bd_tables(FILE *md, FILE *csv, const bd_report *rep)
     fprintf(md, "| env | frames | method | setting | L2 exact | max exact | L2 vs K-lights | ms | frames/s | where the time goes (ms) |\n"
                 "|---|---|---|---|---|---|---|---|---|---|\n");
     fprintf(csv, "env,frames,method,K,M,S,l2_exact,max_exact,l2_klights,ms,dyn_irradiance_ms,dyn_shadow_maps_ms,"
-                 "dyn_csm_build_ms,dyn_csm_eval_ms,dyn_shading_ms,dyn_frame_ms,traced_bvh_ms,traced_rays_ms,"
+                 "dyn_csm_build_ms,dyn_csm_eval_ms,dyn_shading_ms,dyn_frame_ms,dyn_sharp_rays_ms,traced_bvh_ms,traced_rays_ms,"
                  "traced_occlusion_ms,traced_shading_ms\n");
     for (uint32_t i = 0; i < rep->nrows; i++) {
         const bd_row *w = &rep->rows[i];
@@ -405,7 +406,7 @@ static void bd_tables(FILE *md, FILE *csv, const bd_report *rep)
         const int dy = w->method == BD_DYNAMIC, tr = w->method == BD_TRACED;
         fprintf(csv, "%s,%s,%s,%u,%u,%u,%.6g,%.6g,%.6g,%.4g", rep->envs[w->env].name, w->moving ? "moved" : "rest",
                 bd_method_names[w->method], w->K, w->M, w->S, w->l2, w->mx, w->l2_lights, w->ms);
-        for (int c = 0; c < 6; c++) fprintf(csv, ",%.4g", dy ? w->stage[c] : NAN);
+        for (int c = 0; c < 7; c++) fprintf(csv, ",%.4g", dy ? w->stage[c] : NAN);
         for (int c = 0; c < 4; c++) fprintf(csv, ",%.4g", tr ? w->stage[c] : NAN);
         fprintf(csv, "\n");
     }
@@ -497,10 +498,11 @@ static void bd_verdicts(FILE *md, const bd_report *rep)
                  fps, rep->goal_K, rep->R, gmn, g->ms, BD_GOAL_FPS_V, fps >= BD_GOAL_FPS_V ? "at or above" : "below",
                  rtext);
         fprintf(md, "- **%s**: %s.\n  %s.\n  %s. Where the time goes (ms), at rest: irradiance %.1f, shadow maps %.1f, "
-                    "%s build %.1f, %s eval %.1f, shading %.1f; moved: %.1f, %.1f, %.1f, %.1f, %.1f.\n",
+                    "%s build %.1f, %s eval %.1f, sharp rays %.1f, shading %.1f; moved: %.1f, %.1f, %.1f, %.1f, %.1f, "
+                    "%.1f.\n",
                 name, line[0], line[1], line[2], g->stage[0], g->stage[1], rep->goal_M ? "CSM" : "moments", g->stage[2],
-                rep->goal_M ? "CSM" : "moments", g->stage[3], g->stage[4],
-                gm->stage[0], gm->stage[1], gm->stage[2], gm->stage[3], gm->stage[4]);
+                rep->goal_M ? "CSM" : "moments", g->stage[3], g->stage[6], g->stage[4],
+                gm->stage[0], gm->stage[1], gm->stage[2], gm->stage[3], gm->stage[6], gm->stage[4]);
         printf("bench-dynamic: %s: %s\nbench-dynamic: %s: %s\nbench-dynamic: %s: %s\n", name, line[0], name, line[1], name,
                line[2]);
     }

@@ -20,6 +20,8 @@ int parse_device(const char *s, hl_context_desc *cd);
 int parse_device_memory(const char *s, hl_context_desc *cd);
 /* "x,y,z" of finite numbers. */
 int parse_vec3(const char *s, float v[3]);
+/* --sharp: "rays", "maps" or "off" to HL_DYNAMIC_SHARP_*; 0 when none. */
+int parse_sharp(const char *s, uint32_t *out);
 /* "transport", "area" or "unweighted" to HL_SELECT_*; 0 when none. */
 int parse_select(const char *s, uint32_t *out);
 /* auto, equirect, angular, cross-h or cross-v. */
@@ -308,8 +310,9 @@ typedef struct bd_row {
     double l2, mx;         /* relative L2 and max against the exact reference */
     double l2_lights;      /* against the K-lights reference (NAN: not measured) */
     double ms;             /* median time a frame (NAN: not timed) */
-    double stage[6];       /* dynamic: irradiance, shadow maps, CSM build, CSM
-                              evaluation, shading, total; traced: BVH, rays'
+    double stage[7];       /* dynamic: irradiance, shadow maps, CSM build, CSM
+                              evaluation, shading, total, the sharp lights'
+                              rays (within the total); traced: BVH, rays'
                               set-up, occlusion, shading (ms, medians) */
     uint32_t maps_kept;    /* dynamic: the most shadow maps a timed frame kept
                               (bench-dynamic refuses any but 0) */
@@ -323,6 +326,7 @@ typedef struct bd_report {
     uint32_t nrows;
     const char *scene, *device;
     uint32_t vertices, object_vertices, R, Rs, reps, traced_reps, goal_K, goal_M; /* Rs: the sharp lights' (0: none) */
+    int sharp_rays; /* some frame took its sharp lights by rays */
     double move[3];        /* the moved frames' translation of the object */
     double ref_seconds;    /* the exact reference's time on the first map */
     char load[2][48];      /* the host's load averages at the start and end */

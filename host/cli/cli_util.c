@@ -28,6 +28,15 @@ int parse_u32(const char *s, uint32_t *out)
     return 1;
 }
 
+int parse_sharp(const char *s, uint32_t *out)
+{
+    static const char *const names[] = {"rays", "maps", "off"};
+    static const uint32_t modes[] = {HL_DYNAMIC_SHARP_RAYS, HL_DYNAMIC_SHARP_MAPS, HL_DYNAMIC_SHARP_OFF};
+    for (int i = 0; i < 3; i++)
+        if (!strcmp(s, names[i])) { *out = modes[i]; return 1; }
+    return 0;
+}
+
 int parse_float(const char *s, float *out)
 {
     char *end;

@@ -43,8 +43,9 @@ static const char *const usage_dyn =
     "casters' depth range. A flat body with the others on one side (a ground) stays\n"
     "out of the shadow maps, and what it hides is worked out from its plane. Light\n"
     "beyond the K kept lights casts no shadow. Each kept light costs a shadow map and\n"
-    "5 filtered images of R x R texels a frame with moments (RS x RS for the sharp\n"
-    "lights; 4M + 1 with CSM: 4.6 MB a light at R = 128, M = 16, processed in batches).\n"
+    "5 filtered images of R x R texels a frame with moments (4M + 1 with CSM: 4.6 MB a\n"
+    "light at R = 128, M = 16, processed in batches); a sharp light (a sun) instead\n"
+    "costs 5 Embree rays a vertex, 16 in its penumbra (--sharp).\n"
     "\n"
     "scene:\n"
     "  --ground             a ground plane under the object (body \"ground\"). A file with\n"
@@ -71,10 +72,15 @@ static const char *const usage_dyn =
     "  --split-threshold T  a light grows while a ring adds more than T of its own\n"
     "                       energy so far, 0 < T < 1 (default 0.1)\n"
     "  --shadow-res R       shadow map size, a multiple of 16 from 16 to 1024 (default 128)\n"
-    "  --sharp-res RS       the map size of the sharp lights (a sun: a light whose filter\n"
-    "                       is under 4 texels of an R map), up to 4 of them, the strongest;\n"
-    "                       a multiple of 16 from R to 1024 (default 4 R, at most 1024, with\n"
-    "                       moments; R with CSM). RS = R: one size for all\n"
+    "  --sharp MODE         the sharp lights (a sun: a light whose filter is under 4\n"
+    "                       texels of an R map), up to 4 of them, the strongest: rays\n"
+    "                       (Embree occlusion rays from every vertex over the light's\n"
+    "                       spread, 5 a vertex and 16 in a penumbra; the default with\n"
+    "                       moments), maps (shadow maps of --sharp-res) or off (maps of\n"
+    "                       R as the rest; the default with CSM)\n"
+    "  --sharp-res RS       the sharp lights' map size with --sharp maps (given alone, it\n"
+    "                       asks for them), a multiple of 16 from R to 1024 (default 4 R,\n"
+    "                       at most 1024). RS = R: one size for all (--sharp off)\n"
     "  --order M            convolution shadow map order, 4 to 16 (default 16): lower is\n"
     "                       cheaper (memory and time in proportion) with softer, leakier\n"
     "                       shadows; CSM only (given alone, it asks for CSM)\n"
@@ -108,7 +114,7 @@ typedef struct dyn_opts {
     float ground_margin; /* --ground-size S: (S - 1) / 2; 0 the default */
     int reference; /* 0: the frame; 1: exact; 2: K lights traced */
     float time, threshold;
-    uint32_t lights, R, Rs, M, nmoves;
+    uint32_t lights, R, Rs, M, nmoves, sharp;
     int shadow; /* 0: unset (CSM), 1: csm, 2: moments */
     char *move_name[DYN_MAX_MOVES];
     float move[DYN_MAX_MOVES][3];
@@ -136,7 +142,7 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
 {
     const char *a = argv[*i], *v = NULL;
     static const char *const with_value[] = {"-o",     "--output",          "--env",        "--time", "--move",
-                                             "--lights", "--split-threshold", "--shadow-res", "--sharp-res", "--order",
+                                             "--lights", "--split-threshold", "--shadow-res", "--sharp-res", "--sharp", "--order",
                                              "--reference", "--ground-size", "--shadow", "--diff", NULL};
     for (int k = 0; with_value[k]; k++)
         if (!strcmp(a, with_value[k])) {
@@ -174,6 +180,8 @@ static int dyn_opt(int argc, char **argv, int *i, dyn_opts *d)
     } else if (!strcmp(a, "--sharp-res")) {
         if (!parse_u32(v, &d->Rs) || d->Rs < 16 || d->Rs > 1024 || d->Rs % 16)
             return -usage_error(usage_dyn, "--sharp-res %s: expected a multiple of 16 from 16 to 1024", v);
+    } else if (!strcmp(a, "--sharp")) {
+        if (!parse_sharp(v, &d->sharp)) return -usage_error(usage_dyn, "--sharp %s: expected rays, maps or off", v);
     } else if (!strcmp(a, "--reference")) {
         if (!strcmp(v, "exact")) d->reference = 1;
         else if (!strcmp(v, "lights")) d->reference = 2;
@@ -231,8 +239,11 @@ static int parse_args(int argc, char **argv, dyn_opts *d, cli_scene_opts *o)
 static void report(const char *scene, const char *env, hl_context *ctx, const hl_dynamic_lights *li,
                    const hl_dynamic_stats *st, const char *rep)
 {
-    char sharp[64] = "";
-    if (st->sharp)
+    char sharp[96] = "";
+    if (st->sharp && st->sharp_mode == HL_DYNAMIC_SHARP_RAYS)
+        snprintf(sharp, sizeof sharp, " (%u sharp by %llu rays in %.1f ms, the rest at %u^2)", st->sharp,
+                 (unsigned long long)st->sharp_rays, 1e3 * st->t_sharp_rays, st->shadow_res);
+    else if (st->sharp)
         snprintf(sharp, sizeof sharp, " (%u sharp at %u^2, the rest at %u^2)", st->sharp, st->sharp_res, st->shadow_res);
     fprintf(stderr,
             "relit %s under %s on %s: %u vertices; lights %u kept of %u (%u folded, %.2f%% of the energy), "
@@ -315,7 +326,7 @@ static int run(const dyn_opts *d, cli_scene_opts *o)
     float *rgb = NULL, *ref = NULL, *frame = NULL, exposure = o->exposure;
     /* --order alone asks for the CSM it is the order of */
     const int csm = d->shadow == 1 || (d->shadow == 0 && d->M);
-    hl_dynamic_desc desc = {d->R, d->M, csm ? HL_DYNAMIC_SHADOW_CSM : HL_DYNAMIC_SHADOW_MOMENTS, d->Rs};
+    hl_dynamic_desc desc = {d->R, d->M, csm ? HL_DYNAMIC_SHADOW_CSM : HL_DYNAMIC_SHADOW_MOMENTS, d->Rs, d->sharp};
     hl_dynamic_lights li;
     hl_dynamic_stats st;
     int rc = 0;

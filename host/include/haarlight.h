@@ -811,20 +811,31 @@ typedef struct hl_dynamic hl_dynamic;
  *                depth and the coverage, Peters and Klein 2015; order is
  *                then unused) or HL_DYNAMIC_SHADOW_CSM (the Fourier series
  *                of order M; 0 with order set gives it)
- *   sharp_res    the sharp lights' map size (lights whose filter is
- *                under 4 texels of a map of shadow_res: a sun), a multiple
- *                of 16 from shadow_res to 1024 (0: 4 x shadow_res, at most
- *                1024, with moments; shadow_res with CSM); shadow_res: one
- *                size for all
+ *   sharp        the sharp lights (up to 4, the strongest, whose filter is
+ *                under 4 texels of a map of shadow_res: a sun):
+ *                HL_DYNAMIC_SHARP_RAYS (Embree occlusion rays from every
+ *                vertex, 5 a vertex and 16 in a penumbra; the default with
+ *                moments), HL_DYNAMIC_SHARP_MAPS (finer shadow maps of
+ *                sharp_res) or HL_DYNAMIC_SHARP_OFF (the maps of the rest;
+ *                the default with CSM)
+ *   sharp_res    the sharp lights' map size with HL_DYNAMIC_SHARP_MAPS, a
+ *                multiple of 16 from shadow_res to 1024 (0: 4 x shadow_res,
+ *                at most 1024). Given above shadow_res with the default
+ *                sharp, it asks for the maps; equal to it, for none
  */
 #define HL_DYNAMIC_SHADOW_DEFAULT 0u
 #define HL_DYNAMIC_SHADOW_CSM 1u
 #define HL_DYNAMIC_SHADOW_MOMENTS 2u
+#define HL_DYNAMIC_SHARP_DEFAULT 0u
+#define HL_DYNAMIC_SHARP_RAYS 1u
+#define HL_DYNAMIC_SHARP_MAPS 2u
+#define HL_DYNAMIC_SHARP_OFF 3u
 typedef struct hl_dynamic_desc {
     uint32_t shadow_res;
     uint32_t order;
     uint32_t shadow;
     uint32_t sharp_res;
+    uint32_t sharp;
 } hl_dynamic_desc;
 
 /* A dynamic scene from a mesh (copied): body "object", and with ground
@@ -905,14 +916,19 @@ typedef struct hl_dynamic_stats {
     uint32_t batches;             /* batches of lights within the memory budget */
     uint32_t maps_kept;           /* shadowed lights whose maps were the last
                                      frame's (one batch, the same lights, no
-                                     body drawn in them moved): not made again */
+                                     body drawn in them moved), or whose
+                                     traced visibility was (no body moved):
+                                     not made again */
     double folded_share;          /* as hl_dynamic_lights */
     double t_irradiance, t_shadow_maps, t_csm_build, t_csm_eval, t_shading, t_total;
     int reused; /* nothing moved and the lights are the same: the last
                    frame's colours, at no cost (the rest of st is 0) */
     uint32_t shadow_res;          /* the map size */
-    uint32_t sharp, sharp_res;    /* shadowed lights with maps of sharp_res
-                                     (0 and 0: one size for all) */
+    uint32_t sharp_mode;          /* HL_DYNAMIC_SHARP_RAYS, _MAPS or _OFF */
+    uint32_t sharp, sharp_res;    /* shadowed lights taken by rays or by maps
+                                     of sharp_res (0 with rays or off) */
+    uint64_t sharp_rays;          /* rays cast for them this frame */
+    double t_sharp_rays;          /* their rays and sums, within t_total */
     uint32_t covered;             /* ground vertices under a body resting on
                                      the ground (inside its solid): dark */
     uint32_t enclosed;            /* vertices inside their body's own closed

@@ -32,6 +32,12 @@
  *                        failed; each frame bit for bit a new frame
  *                        state's at the same positions. Several batches
  *                        keep nothing.
+ * dyn_frame.sharp_rays   the sharp lights' rays (sharp_rays.h) under a
+ *                        square over a grid against the plane's share of
+ *                        free samples (tolerance 0); the bunny's frame with
+ *                        the sun by rays nearer the lights traced than
+ *                        with the sun in a map, host and device receivers
+ *                        bit for bit.
  * timing [MIB [R]]       not a ctest case (asserts nothing): the bunny on
  *                        its ground at K = 32, R (default 256), M = 16, a
  *                        first frame, then 9 rounds of three: the bunny
@@ -56,6 +62,7 @@
 #include "hl_test.h"
 #include "scene.h"
 #include "scene_gen.h"
+#include "sharp_rays.h"
 
 #define PI_D 3.14159265358979323846
 
@@ -555,7 +562,8 @@ static int keep_frame(hl_context *ctx, hl_frame_state *st, bunny_scene *b, const
 
 /* One frame of st against what a new frame state gives at the same
  * positions and lights: the maps kept (want_kept: 1 every shadowed
- * light's, 0 none) and the colours bit for bit. */
+ * light's, 0 none, 2 the maps but not the sharp lights' rays, which are
+ * cast again when any body moved) and the colours bit for bit. */
 static void keep_step(hl_context *ctx, hl_frame_state *st, bunny_scene *b, const hl_light_split *s,
                       const hl_frame_settings *set, const char *what, int want_kept, float *out, float *ref)
 {
@@ -567,14 +575,15 @@ static void keep_step(hl_context *ctx, hl_frame_state *st, bunny_scene *b, const
     HL_CHECK(ok, "%s: %s", what, hl_context_last_error(ctx));
     hl_frame_state_destroy(fresh);
     if (!ok) return;
-    const uint32_t want = want_kept ? fs.shadowed : 0;
+    const uint32_t by_rays = fs.sharp_mode == HL_SHARP_RAYS ? fs.sharp : 0;
+    const uint32_t want = want_kept == 1 ? fs.shadowed : want_kept == 2 ? fs.shadowed - by_rays : 0;
     printf("  %s: %u lights shadowed (%u sharp) in %u batch(es), maps kept %u (want %u), fresh state's %u; shadow maps "
            "%.2f ms, build %.2f ms, eval %.2f ms, frame %.2f ms (fresh state: %.2f ms)\n",
            what, fs.shadowed, fs.sharp, fs.batches, fs.maps_kept, want, ff.maps_kept, 1e3 * fs.t_shadow_maps, 1e3 * fs.t_csm_build,
            1e3 * fs.t_csm_eval, 1e3 * fs.t_total, 1e3 * ff.t_total);
     /* one batch a map size: the sharp lights' finer maps are a batch of
-       their own (dyn_frame.h) */
-    HL_CHECK(fs.shadowed > 0 && fs.batches == 1u + (fs.sharp > 0) && ff.maps_kept == 0,
+       their own (dyn_frame.h); rays are none */
+    HL_CHECK(fs.shadowed > 0 && fs.batches == 1u + (fs.sharp > 0 && fs.sharp_mode == HL_SHARP_MAPS) && ff.maps_kept == 0,
              "%s: the scene must take one batch of shadowed lights a map size", what);
     HL_CHECK(fs.maps_kept == want, "%s: %u maps kept, want %u", what, fs.maps_kept, want);
     char line[160];
@@ -615,7 +624,7 @@ static void keep_path(hl_context *ctx, bunny_scene *b, const hl_env *env, hl_sha
        every map, which are kept; its receivers are evaluated where they
        are now */
     b->obj[1].xf[3] += 0.2f * h, b->obj[1].xf[7] -= 0.02f * h;
-    keep_step(ctx, st, b, s, &set, "ground moved", 1, out, ref);
+    keep_step(ctx, st, b, s, &set, "ground moved", 2, out, ref);
     /* (3) the bunny moved: every map made again */
     b->obj[0].xf[3] += 0.1f * h, b->obj[0].xf[11] -= 0.05f * h;
     keep_step(ctx, st, b, s, &set, "bunny moved", 0, out, ref);
@@ -721,9 +730,11 @@ static void sharp_path(hl_context *ctx, bunny_scene *b, const hl_env *env)
     const size_t n = 3 * ((size_t)b->obj[0].nverts + b->obj[1].nverts);
     float *x = malloc(n * 4), *y = malloc(n * 4);
     hl_light_split *one = split_of(ctx, env, 1), *eight = split_of(ctx, env, 8);
-    hl_frame_settings fine = {.R = 64, .R_sharp = 256, .min_share = -1.0f, .shadow = HL_SHADOW_REP_MOMENTS};
+    hl_frame_settings fine = {.R = 64, .R_sharp = 256, .min_share = -1.0f, .shadow = HL_SHADOW_REP_MOMENTS,
+                              .sharp = HL_SHARP_MAPS};
     hl_frame_settings all = fine, coarse = fine;
     all.R = 256, coarse.R_sharp = 64;
+    all.sharp = coarse.sharp = HL_SHARP_OFF;
     hl_frame_stats fa, fb;
     if (one && eight && sharp_frame(ctx, b, one, &fine, x, &fa) && sharp_frame(ctx, b, one, &all, y, &fb)) {
         printf("  the sun alone: %u sharp at %u^2 (want 1 at 256), against one map size of 256 (%u sharp, want 0)\n",
@@ -762,17 +773,25 @@ static void case_sharp(void)
             sharp_path(ctx, &b, env);
             unsetenv("HL_TEST_DYN_FRAME");
         }
-        /* the defaults: 4 R with moments, one size with CSM */
+        /* the defaults: rays with moments, one size with CSM; a finer
+           size given asks for the maps */
         hl_light_split *s = split_of(ctx, env, 8);
         const size_t n = 3 * ((size_t)b.obj[0].nverts + b.obj[1].nverts);
         float *x = malloc(n * 4);
         hl_frame_settings m = {.R = 64, .min_share = -1.0f}, c = {.R = 64, .min_share = -1.0f, .shadow = HL_SHADOW_REP_CSM};
-        hl_frame_stats fm, fc;
-        if (s && sharp_frame(ctx, &b, s, &m, x, &fm) && sharp_frame(ctx, &b, s, &c, x, &fc)) {
-            printf("defaults at R = 64: moments %u sharp at %u^2 (want %u), CSM %u sharp at %u (want 0, 0)\n", fm.sharp,
-                   fm.R_sharp, 64 * HL_FRAME_SHARP_SCALE, fc.sharp, fc.R_sharp);
-            HL_CHECK(fm.sharp > 0 && fm.R_sharp == 64 * HL_FRAME_SHARP_SCALE && fc.sharp == 0 && fc.R_sharp == 0,
-                     "the default map sizes");
+        hl_frame_settings cm = c;
+        cm.R_sharp = 128;
+        hl_frame_stats fm, fc, fcm;
+        if (s && sharp_frame(ctx, &b, s, &m, x, &fm) && sharp_frame(ctx, &b, s, &c, x, &fc) &&
+            sharp_frame(ctx, &b, s, &cm, x, &fcm)) {
+            printf("defaults at R = 64: moments %u sharp, mode %d (want rays, %d), %llu rays; CSM %u sharp, mode %d (want "
+                   "0, off %d); CSM with R_sharp 128: %u sharp at %u^2, mode %d (want maps, %d)\n",
+                   fm.sharp, (int)fm.sharp_mode, (int)HL_SHARP_RAYS, (unsigned long long)fm.sharp_rays, fc.sharp,
+                   (int)fc.sharp_mode, (int)HL_SHARP_OFF, fcm.sharp, fcm.R_sharp, (int)fcm.sharp_mode, (int)HL_SHARP_MAPS);
+            HL_CHECK(fm.sharp > 0 && fm.sharp_mode == HL_SHARP_RAYS && fm.sharp_rays > 0 && fm.R_sharp == 0 &&
+                         fc.sharp == 0 && fc.sharp_mode == HL_SHARP_OFF && fc.R_sharp == 0 && fcm.sharp > 0 &&
+                         fcm.sharp_mode == HL_SHARP_MAPS && fcm.R_sharp == 128,
+                     "the default sharp modes");
         }
         free(x);
         hl_light_split_destroy(s);
@@ -1234,7 +1253,7 @@ static void check_reference_run(const char *path, const char *ply, const char *l
     hl_env *env = NULL;
     hl_sky_desc sd = {0}; /* the command's sky */
     HL_CHECK(hl_env_create_sky(ctx, &sd, &env) == HL_OK, "%s", hl_context_last_error(ctx));
-    hl_dynamic_desc desc = {32, 4, HL_DYNAMIC_SHADOW_CSM, 0};
+    hl_dynamic_desc desc = {32, 4, HL_DYNAMIC_SHADOW_CSM, 0, 0};
     float *frame = NULL, *exact = NULL, *file = NULL, *dc = NULL;
     if (hl_dynamic_create_from_file(ctx, path, 0, &desc, &d) != HL_OK || !env ||
         hl_dynamic_set_env(d, env, 2, 0.0f, 0.0f, NULL) != HL_OK || hl_dynamic_render(d, 0.0, &frame, NULL) != HL_OK) {
@@ -1432,6 +1451,175 @@ static void timing(uint64_t budget, uint32_t R)
     hl_context_destroy(ctx);
 }
 
+/* ------------------------------------------------------------ sharp_rays */
+
+enum { SR_G = 41 }; /* the ground's grid: SR_G x SR_G vertices over [-2, 2]^2 */
+
+/* The square light's samples blocked at ground point (x, z) by the
+ * square [cx - 1, cx + 1] x [-1, 1] at height 1, worked out here by the
+ * plane: a sample of offset (ox, oz) (the grid's centres, in units of
+ * tan spread) meets the plane at (x + ta ox, z + ta oz). The offsets are
+ * the same set whichever way the basis turns. */
+static uint32_t sr_blocked(double x, double z, double cx, double ta)
+{
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < HL_SHARP_RAYS_GRID; i++)
+        for (uint32_t j = 0; j < HL_SHARP_RAYS_GRID; j++) {
+            const double ox = (2.0 * i + 1.0) / HL_SHARP_RAYS_GRID - 1.0, oz = (2.0 * j + 1.0) / HL_SHARP_RAYS_GRID - 1.0;
+            n += fabs(x + ta * ox - cx) < 1.0 && fabs(z + ta * oz) < 1.0;
+        }
+    return n;
+}
+
+/* The sharp lights' rays alone (sharp_rays.h) on a ground grid under a
+ * square at height 1, the light straight above with tan spread 0.22:
+ * every receiver's V is the share of the 16 samples the plane leaves
+ * free (tolerance 0), umbra, penumbra and full light all occur, a
+ * receiver with E = 0 gets 0 and no ray, and the rays cast are 5 a lit
+ * receiver and 16 more in a penumbra. Then the square moved by 0.5. */
+static void rays_analytic(void)
+{
+    hl_context *ctx = hl_test_ref_context(2);
+    const uint32_t ng = SR_G * SR_G, N = ng + 4;
+    float *pos = malloc((size_t)N * 12), *nrm = malloc((size_t)N * 12), *E = malloc((size_t)N * 12), *V = malloc((size_t)N * 4);
+    uint32_t *tri = malloc((size_t)(SR_G - 1) * (SR_G - 1) * 6 * 4);
+    uint32_t nt = 0;
+    for (uint32_t j = 0; j < SR_G; j++)
+        for (uint32_t i = 0; i < SR_G; i++) {
+            float *p = pos + 3 * (size_t)(j * SR_G + i);
+            p[0] = -2.0f + 4.0f * (float)i / (SR_G - 1), p[1] = 0.0f, p[2] = -2.0f + 4.0f * (float)j / (SR_G - 1);
+            if (i + 1 < SR_G && j + 1 < SR_G) {
+                const uint32_t a = j * SR_G + i, q[6] = {a, a + SR_G, a + 1, a + 1, a + SR_G, a + SR_G + 1};
+                memcpy(tri + 6 * (size_t)nt++, q, sizeof q);
+            }
+        }
+    const float sq[12] = {-1, 1, -1, 1, 1, -1, 1, 1, 1, -1, 1, 1};
+    const uint32_t sqt[6] = {0, 2, 1, 0, 3, 2};
+    memcpy(pos + 3 * (size_t)ng, sq, sizeof sq);
+    for (uint32_t v = 0; v < N; v++) nrm[3 * v] = 0.0f, nrm[3 * v + 1] = 1.0f, nrm[3 * v + 2] = 0.0f;
+    for (size_t i = 0; i < 3 * (size_t)N; i++) E[i] = 1.0f;
+    const uint32_t dark = 5 * SR_G + 7; /* a receiver the light does not reach */
+    E[3 * dark] = E[3 * dark + 1] = E[3 * dark + 2] = 0.0f;
+    hl_dyn_object o[2] = {{.pos = pos, .normal = nrm, .nverts = ng, .tri = tri, .ntris = 2 * nt},
+                          {.pos = pos + 3 * (size_t)ng, .normal = nrm, .nverts = 4, .tri = sqt, .ntris = 2}};
+    for (int b = 0; b < 2; b++) o[b].xf[0] = o[b].xf[5] = o[b].xf[10] = 1.0f;
+    hl_sharp_rays *sr = NULL;
+    HL_CHECK(hl_sharp_rays_create(ctx, o, 2, &sr) == HL_OK, "%s", hl_context_last_error(ctx));
+    const float up[3] = {0.0f, 1.0f, 0.0f};
+    const double ta = 0.22;
+    for (int pass = 0; sr && pass < 2; pass++) {
+        const double cx = pass ? 0.5 : 0.0;
+        if (pass) {
+            o[1].xf[3] = 0.5f;
+            HL_CHECK(hl_sharp_rays_set_transform(sr, 1, o[1].xf) == HL_OK, "%s", hl_context_last_error(ctx));
+            for (uint32_t v = ng; v < N; v++) pos[3 * v] = sq[3 * (v - ng)] + 0.5f; /* its world positions */
+        }
+        uint64_t rays = 0;
+        HL_CHECK(hl_sharp_rays_visibility(sr, pos, nrm, E, up, (float)atan(ta), V, &rays) == HL_OK, "%s",
+                 hl_context_last_error(ctx));
+        double worst = 0.0;
+        uint32_t umbra = 0, pen = 0, lit = 0;
+        uint64_t want_rays = 0;
+        for (uint32_t v = 0; v < ng; v++) {
+            if (v == dark) continue;
+            const uint32_t blk = sr_blocked(pos[3 * v], pos[3 * v + 2], cx, ta);
+            const double want = 1.0 - blk / (double)(HL_SHARP_RAYS_GRID * HL_SHARP_RAYS_GRID);
+            worst = fmax(worst, fabs(V[v] - want));
+            umbra += blk == HL_SHARP_RAYS_GRID * HL_SHARP_RAYS_GRID, lit += blk == 0;
+            pen += blk > 0 && blk < HL_SHARP_RAYS_GRID * HL_SHARP_RAYS_GRID;
+        }
+        for (uint32_t v = ng; v < N; v++) worst = fmax(worst, fabs(V[v] - 1.0)); /* the square's own: free */
+        want_rays = 5ull * (N - 1) + (uint64_t)HL_SHARP_RAYS_GRID * HL_SHARP_RAYS_GRID * pen;
+        printf("square at x = %.1f: %u ground receivers in its umbra, %u in its penumbra, %u lit; V at the unlit one "
+               "%g (want 0); %llu rays (want %llu: 5 a lit receiver, 16 more in a penumbra)\n",
+               cx, umbra, pen, lit, (double)V[dark], (unsigned long long)rays, (unsigned long long)want_rays);
+        HL_CHECK(umbra > 0 && pen > 0 && lit > 0, "the grid must hold umbra, penumbra and light");
+        HL_CHECK(V[dark] == 0.0f && rays == want_rays, "V %g at E = 0, %llu rays", (double)V[dark],
+                 (unsigned long long)rays);
+        hl_check_error("  V against the plane's share of free samples", worst, 0.0);
+    }
+    hl_sharp_rays_destroy(sr);
+    free(pos); free(nrm); free(E); free(V); free(tri);
+    hl_context_destroy(ctx);
+}
+
+/* Relative L2 of the bunny scene's colours a against b (both bodies). */
+static double scene_l2(const bunny_scene *bs, float *const *a, float *const *b)
+{
+    double num = 0.0, den = 0.0;
+    for (int k = 0; k < 2; k++)
+        for (size_t i = 0; i < 3 * (size_t)bs->obj[k].nverts; i++) {
+            const double d = (double)a[k][i] - b[k][i];
+            num += d * d, den += (double)b[k][i] * b[k][i];
+        }
+    return den > 0.0 ? sqrt(num / den) : 0.0;
+}
+
+/* The bunny on its ground under the sky's sun alone (one light kept,
+ * the rest folded and unshadowed; R = 64) against the same light with
+ * traced visibility (hl_dyn_reference_lights): with the sun by rays the
+ * frame is nearer than with the sun in a map of R (off) or of 4 R
+ * (maps), on the device's receivers and the host's; and both receivers
+ * give the same colours to the bit. */
+static void rays_frame(void)
+{
+    hl_context *ctx = hl_test_cl_context(2);
+    if (!ctx) { HL_CHECK(0, "no OpenCL context"); return; }
+    bunny_scene b;
+    hl_env *env = sky(ctx);
+    hl_light_split *s = env ? split_of(ctx, env, 1) : NULL;
+    if (!s || !bunny_open(ctx, &b)) {
+        hl_light_split_destroy(s);
+        hl_env_destroy(env);
+        hl_context_destroy(ctx);
+        return;
+    }
+    const size_t n0 = 3 * (size_t)b.obj[0].nverts, n1 = 3 * (size_t)b.obj[1].nverts;
+    float *kl[2] = {malloc(n0 * 4), malloc(n1 * 4)}, *fr[2] = {malloc(n0 * 4), malloc(n1 * 4)};
+    float *dev = malloc((n0 + n1) * 4);
+    HL_CHECK(hl_dyn_reference_lights(ctx, b.obj, 2, b.alb, s, 0, kl, NULL) == HL_OK, "%s", hl_context_last_error(ctx));
+    const hl_sharp_mode modes[3] = {HL_SHARP_RAYS, HL_SHARP_OFF, HL_SHARP_MAPS};
+    const char *names[3] = {"rays", "off", "maps of 4 R"};
+    for (int path = 0; path < 2; path++) {
+        if (path) setenv("HL_TEST_DYN_FRAME", "host", 1);
+        double l2[3] = {0, 0, 0};
+        for (int m = 0; m < 3; m++) {
+            hl_frame_settings set = {.R = 64, .min_share = -1.0f, .sharp = modes[m]};
+            hl_frame_state *st = NULL;
+            hl_frame_stats fs;
+            int ok = hl_frame_state_create(ctx, b.obj, 2, s->count, &set, &st) == HL_OK &&
+                     hl_frame_render(st, b.obj, 2, b.alb, s, b.rgb, &fs) == HL_OK;
+            HL_CHECK(ok, "%s", hl_context_last_error(ctx));
+            hl_frame_state_destroy(st);
+            if (!ok) continue;
+            memcpy(fr[0], b.rgb[0], n0 * 4), memcpy(fr[1], b.rgb[1], n1 * 4);
+            l2[m] = scene_l2(&b, fr, kl);
+            printf("  %s receivers, sun %s: %u sharp, relative L2 against the lights traced %.4f\n", path ? "host" : "device",
+                   names[m], fs.sharp, l2[m]);
+            if (m == 0 && !path) memcpy(dev, fr[0], n0 * 4), memcpy(dev + n0, fr[1], n1 * 4);
+            if (m == 0 && path) {
+                size_t d = floats_differ(dev, fr[0], n0) + floats_differ(dev + n0, fr[1], n1);
+                hl_check_error("  rays: colour floats where the host's receivers differ from the device's (tolerance 0)",
+                               (double)d, 0.0);
+            }
+        }
+        HL_CHECK(l2[0] < l2[1] && l2[0] < l2[2], "the sun by rays (%.4f) is not nearer the traced lights than a map (%.4f, %.4f)",
+                 l2[0], l2[1], l2[2]);
+        unsetenv("HL_TEST_DYN_FRAME");
+    }
+    free(kl[0]); free(kl[1]); free(fr[0]); free(fr[1]); free(dev);
+    bunny_close(&b);
+    hl_light_split_destroy(s);
+    hl_env_destroy(env);
+    hl_context_destroy(ctx);
+}
+
+static void case_sharp_rays(void)
+{
+    rays_analytic();
+    rays_frame();
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1 && !strcmp(argv[1], "timing")) { /* timing [BATCH_BUDGET_MIB [R]] */
@@ -1444,7 +1632,7 @@ int main(int argc, char **argv)
                                          {"api", case_api},               {"cli", case_cli},
                                          {"file", case_file},             {"keep", case_keep},
                                          {"sharp", case_sharp},           {"contact", case_contact},
-                                         {"enclosed", case_enclosed},
+                                         {"enclosed", case_enclosed},     {"sharp_rays", case_sharp_rays},
                                          {NULL, NULL}};
     return hl_test_main(argc, argv, cases);
 }

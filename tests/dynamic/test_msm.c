@@ -390,12 +390,12 @@ static void case_bad_input(void)
     char path[1024];
     snprintf(path, sizeof path, "%s/bunny_lowres.obj", hl_test_env("HL_REPO_DATA", "data"));
     if (hl_mesh_load(ref, path, NULL, &m, NULL) == HL_OK) {
-        hl_dynamic_desc dd = {0, 0, 5, 0};
+        hl_dynamic_desc dd = {0, 0, 5, 0, 0};
         hl_dynamic *d = NULL;
         HL_CHECK(hl_dynamic_create_from_mesh(ref, m, 1, &dd, &d) != HL_OK && !d, "shadow 5 accepted");
         HL_CHECK(strstr(hl_context_last_error(ref), "--shadow") != NULL, "message: %s", hl_context_last_error(ref));
         /* an order is CSM's: refused with moments asked for */
-        hl_dynamic_desc om = {0, 8, HL_DYNAMIC_SHADOW_MOMENTS, 0};
+        hl_dynamic_desc om = {0, 8, HL_DYNAMIC_SHADOW_MOMENTS, 0, 0};
         HL_CHECK(hl_dynamic_create_from_mesh(ref, m, 1, &om, &d) != HL_OK && !d, "order 8 with moments accepted");
         HL_CHECK(strstr(hl_context_last_error(ref), "--order") != NULL, "message: %s", hl_context_last_error(ref));
         hl_mesh_destroy(m);

@@ -110,6 +110,17 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
                        Rs, HL_CSM_SCAN_LANES, Rmin, HL_CSM_R_MAX);
     }
     uint32_t shadow = desc ? desc->shadow : HL_DYNAMIC_SHADOW_DEFAULT;
+    const uint32_t sharp = desc ? desc->sharp : HL_DYNAMIC_SHARP_DEFAULT;
+    if (sharp > HL_DYNAMIC_SHARP_OFF) {
+        hl_dyn_scene_destroy(scene);
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--sharp %u: expected the default (%u), rays (%u), maps (%u) or off (%u)",
+                       sharp, HL_DYNAMIC_SHARP_DEFAULT, HL_DYNAMIC_SHARP_RAYS, HL_DYNAMIC_SHARP_MAPS, HL_DYNAMIC_SHARP_OFF);
+    }
+    if (Rs && Rs != Rmin && sharp != HL_DYNAMIC_SHARP_DEFAULT && sharp != HL_DYNAMIC_SHARP_MAPS) {
+        hl_dyn_scene_destroy(scene);
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--sharp-res %u is the sharp lights' map size: not with --sharp %s", Rs,
+                       sharp == HL_DYNAMIC_SHARP_RAYS ? "rays" : "off");
+    }
     if (shadow != HL_DYNAMIC_SHADOW_DEFAULT && shadow != HL_DYNAMIC_SHADOW_CSM && shadow != HL_DYNAMIC_SHADOW_MOMENTS) {
         hl_dyn_scene_destroy(scene);
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "--shadow %u: expected the default (%u), csm (%u) or moments (%u)",
@@ -127,6 +138,8 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
     d->nb = hl_dyn_scene_body_count(scene);
     d->set.min_share = -1.0f;
     d->set.R = R, d->set.M = M, d->set.R_sharp = Rs;
+    /* the public values are the frame's (hl_sharp_mode) */
+    d->set.sharp = (hl_sharp_mode)sharp;
     /* an order given with the default asks for the CSM it is the order of
        (the viewer's and older callers' --order) */
     d->set.shadow = shadow == HL_DYNAMIC_SHADOW_MOMENTS              ? HL_SHADOW_REP_MOMENTS
@@ -365,6 +378,7 @@ hl_result hl_dynamic_render(hl_dynamic *d, double t, float **rgb_out, hl_dynamic
         st->skipped_horizon = fs.skipped_horizon, st->skipped_negligible = fs.skipped_negligible;
         st->batches = fs.batches, st->maps_kept = fs.maps_kept;
         st->shadow_res = fs.R, st->sharp = fs.sharp, st->sharp_res = fs.R_sharp, st->covered = fs.covered, st->enclosed = fs.enclosed;
+        st->sharp_mode = fs.sharp_mode, st->sharp_rays = fs.sharp_rays, st->t_sharp_rays = fs.t_sharp_rays;
         st->folded_share = d->split->stats.folded_share;
         st->t_irradiance = fs.t_irradiance, st->t_shadow_maps = fs.t_shadow_maps;
         st->t_csm_build = fs.t_csm_build, st->t_csm_eval = fs.t_csm_eval, st->t_shading = fs.t_shading;

@@ -24,6 +24,7 @@
 #include "dyn_frame.h"
 #include "enclosed.h"
 #include "irradiance.h"
+#include "sharp_rays.h"
 
 /* The shadow maps of one size, for a batch of Kb lights: the maps of
  * most lights (tier 0, R) or of the sharp ones (tier 1, R_sharp > R;
@@ -93,6 +94,16 @@ struct hl_frame_state {
     uint32_t nenclosed;
     int cover_ok;
     float *ctri; size_t ctri_cap; /* the contact triangles in a plane's axes, 6 floats each */
+    /* the sharp lights by rays (HL_SHARP_RAYS): this frame's nray lights
+       ray_list, their visibility Vs (N each) and, on the device, their
+       E_k read back (Es, 3 N each); Vs still holds while ray_keep: made
+       for split ray_serial's lights ray_list with no body moved since */
+    hl_sharp_mode sharp;
+    hl_sharp_rays *sr;
+    uint32_t nray, ray_list[HL_FRAME_SHARP_MAX], ray_keep_n, ray_keep_list[HL_FRAME_SHARP_MAX];
+    float ray_keep_dir[HL_FRAME_SHARP_MAX][3];
+    uint64_t ray_serial;
+    float *Vs, *Es;
 };
 
 /* Linear Rec.709 luminance, as area_lights.c ranks its lights by. */
@@ -135,6 +146,8 @@ void hl_frame_state_destroy(hl_frame_state *st)
     release_device(st);
     free(st->list);
     free(st->covered); free(st->ctri); free(st->enclosed);
+    hl_sharp_rays_destroy(st->sr);
+    hl_free_big(st->Vs); hl_free_big(st->Es);
     for (int i = 0; i < 2; i++) {
         hl_frame_tier *t = &st->tier[i];
         free(t->keep_list); free(t->keep_mask); free(t->keep_xf); free(t->list);
@@ -174,14 +187,27 @@ static hl_result check_settings(hl_context *ctx, hl_frame_settings *s, uint32_t 
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "dynamic frame: shadow map size %u is not a multiple of %u from %u to %u (--shadow-res)", s->R,
                        HL_CSM_SCAN_LANES, HL_CSM_R_MIN, HL_CSM_R_MAX);
-    if (s->R_sharp == 0 && s->shadow == HL_SHADOW_REP_MOMENTS)
-        s->R_sharp = s->R * HL_FRAME_SHARP_SCALE < HL_CSM_R_MAX ? s->R * HL_FRAME_SHARP_SCALE : HL_CSM_R_MAX;
-    else if (s->R_sharp == 0)
-        s->R_sharp = s->R;
-    if (s->R_sharp < s->R || s->R_sharp > HL_CSM_R_MAX || s->R_sharp % HL_CSM_SCAN_LANES)
+    if (s->R_sharp && (s->R_sharp < s->R || s->R_sharp > HL_CSM_R_MAX || s->R_sharp % HL_CSM_SCAN_LANES))
         return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
                        "dynamic frame: sharp lights' map size %u is not a multiple of %u from the map size %u to %u "
                        "(--sharp-res)", s->R_sharp, HL_CSM_SCAN_LANES, s->R, HL_CSM_R_MAX);
+    /* a finer size given asks for the maps; the map size itself, for one
+       size for all */
+    if (s->sharp == HL_SHARP_DEFAULT)
+        s->sharp = s->R_sharp > s->R                    ? HL_SHARP_MAPS
+                   : s->R_sharp == s->R                 ? HL_SHARP_OFF
+                   : s->shadow == HL_SHADOW_REP_MOMENTS ? HL_SHARP_RAYS
+                                                        : HL_SHARP_OFF;
+    if (s->sharp != HL_SHARP_RAYS && s->sharp != HL_SHARP_MAPS && s->sharp != HL_SHARP_OFF)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "dynamic frame: sharp lights' mode %d is not rays (1), maps (2) or off (3) (--sharp)", (int)s->sharp);
+    if (s->sharp != HL_SHARP_MAPS && s->R_sharp > s->R)
+        return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT,
+                       "dynamic frame: a sharp lights' map size (%u, --sharp-res) is for their maps (--sharp maps) only",
+                       s->R_sharp);
+    if (s->sharp != HL_SHARP_MAPS) s->R_sharp = s->R;
+    else if (s->R_sharp == 0)
+        s->R_sharp = s->R * HL_FRAME_SHARP_SCALE < HL_CSM_R_MAX ? s->R * HL_FRAME_SHARP_SCALE : HL_CSM_R_MAX;
     if (max_lights == 0) return hl_fail(ctx, HL_ERR_INVALID_ARGUMENT, "dynamic frame: at least one light is needed");
     return HL_OK;
 }
@@ -288,7 +314,8 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
     /* the maps and E_k on the host only where the host takes the
        receivers; the device frame keeps them on the device */
     st->on_device = frame_on_device(ctx);
-    st->ntier = s.R_sharp > s.R ? 2 : 1;
+    st->sharp = s.sharp;
+    st->ntier = s.sharp == HL_SHARP_MAPS && s.R_sharp > s.R ? 2 : 1;
     r = tier_create(st, &st->tier[0], objects, s.R, max_lights, &s);
     if (r == HL_OK && st->ntier == 2)
         r = tier_create(st, &st->tier[1], objects, s.R_sharp,
@@ -344,6 +371,13 @@ hl_result hl_frame_state_create(hl_context *ctx, const hl_dyn_object *objects, u
         if (hl_shadow_maps_flat(st->tier[0].sm, b, &f)) continue; /* one plane encloses nothing */
         r = hl_dyn_enclosed(ctx, &objects[b], st->enclosed + st->vstart[b], &n);
         st->nenclosed += n;
+    }
+    if (r == HL_OK && st->sharp == HL_SHARP_RAYS) {
+        const uint32_t nr = max_lights < HL_FRAME_SHARP_MAX ? max_lights : HL_FRAME_SHARP_MAX;
+        st->Vs = hl_alloc_big(ctx, (size_t)nr * N * 4, "the sharp lights' visibility");
+        if (st->on_device) st->Es = hl_alloc_big(ctx, (size_t)nr * 3 * N * 4, "the sharp lights' irradiance");
+        r = !st->Vs || (st->on_device && !st->Es) ? HL_ERR_OUT_OF_MEMORY
+                                                  : hl_sharp_rays_create(ctx, objects, nobj, &st->sr);
     }
     if (r == HL_OK && st->on_device) r = create_device(st);
     if (r != HL_OK) {
@@ -710,6 +744,47 @@ static hl_result render_tier(hl_frame_state *st, hl_frame_tier *t, const hl_dyn_
     return HL_OK;
 }
 
+/* The sharp lights by rays (HL_SHARP_RAYS): each one's visibility at
+ * every receiver it reaches (sharp_rays.h), unless the last frame's still
+ * holds (the same split, lights and directions, and no body moved: keep_n
+ * of them), added to acc as V E. On the device E_k is read back and acc
+ * was, so both frames add it here, in the same order. */
+static hl_result sharp_by_rays(hl_frame_state *st, const hl_light_split *split, uint32_t keep_n, hl_frame_stats *fs)
+{
+    const double t0 = hl_now();
+    const size_t N = st->N;
+    int kept = keep_n == st->nray && split->serial == st->ray_serial &&
+               !memcmp(st->ray_keep_list, st->ray_list, st->nray * sizeof *st->ray_list);
+    for (uint32_t i = 0; kept && i < st->nray; i++)
+        kept = !memcmp(st->ray_keep_dir[i], split->lights[st->ray_list[i]].dir, 3 * sizeof(float));
+    for (uint32_t i = 0; i < st->nray; i++) {
+        const uint32_t k = st->ray_list[i];
+        const float *E = st->E ? st->E + (size_t)k * 3 * N : st->Es + (size_t)i * 3 * N;
+        if (st->on_device) {
+            void *Ed, *accd, *nrmd;
+            hl_dyn_irr_device_bufs(st->irr, &Ed, &accd, &nrmd);
+            cl_mem Em = Ed;
+            CL_TRY(st->ctx, clEnqueueReadBuffer(st->ctx->cl->queue, Em, CL_TRUE, (size_t)k * N * 12, N * 12, (void *)E, 0,
+                                                NULL, NULL), "the sharp lights' irradiance");
+        }
+        float *V = st->Vs + (size_t)i * N;
+        if (kept) fs->maps_kept++;
+        else {
+            uint64_t n = 0;
+            TRY(hl_sharp_rays_visibility(st->sr, st->wpos, st->wnrm, E, split->lights[k].dir, filter_theta(split, k), V, &n));
+            fs->sharp_rays += n;
+        }
+        for (size_t v = 0; v < N; v++)
+            for (int c = 0; c < 3; c++) st->acc[3 * v + (size_t)c] += V[v] * E[3 * v + (size_t)c];
+    }
+    st->ray_keep_n = st->nray;
+    st->ray_serial = split->serial;
+    memcpy(st->ray_keep_list, st->ray_list, st->nray * sizeof *st->ray_list);
+    for (uint32_t i = 0; i < st->nray; i++) memcpy(st->ray_keep_dir[i], split->lights[st->ray_list[i]].dir, 3 * sizeof(float));
+    fs->t_sharp_rays = hl_now() - t0;
+    return HL_OK;
+}
+
 static hl_result check_frame(hl_frame_state *st, const hl_dyn_object *objects, uint32_t nobj, const float *const *albedo,
                              const hl_light_split *split, float *const *rgb)
 {
@@ -843,6 +918,8 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
        frame ends well: an error may leave them half rendered or built */
     uint32_t keep_n[2];
     for (uint32_t i = 0; i < 2; i++) keep_n[i] = st->tier[i].keep_n, st->tier[i].keep_n = 0;
+    uint32_t ray_keep_n = st->ray_keep_n;
+    st->ray_keep_n = 0;
     hl_result r = check_frame(st, objects, nobj, albedo, split, rgb);
     if (r != HL_OK) return r;
     hl_frame_stats fs = {0};
@@ -860,7 +937,9 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
         float *old = st->xf + 12 * (size_t)b;
         if (memcmp(old, objects[b].xf, 12 * sizeof(float)) == 0) continue;
         st->cover_ok = 0;
+        ray_keep_n = 0;
         for (uint32_t i = 0; i < st->ntier && r == HL_OK; i++) r = hl_shadow_maps_set_transform(st->tier[i].sm, b, objects[b].xf);
+        if (r == HL_OK && st->sr) r = hl_sharp_rays_set_transform(st->sr, b, objects[b].xf);
         if (r == HL_OK) memcpy(old, objects[b].xf, 12 * sizeof(float));
     }
     pack_flat_bodies(st);
@@ -875,12 +954,16 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
     }
     fs.t_shadow_maps += hl_now() - t;
     /* the sharp lights (the strongest first, as the split ranks them) to
-       tier 1 while its one batch has room, the rest to tier 0 */
+       the rays or to tier 1 while there is room, the rest to tier 0 */
     hl_frame_tier *t0r = &st->tier[0], *t1r = &st->tier[1];
     t0r->n = t1r->n = 0;
+    st->nray = 0;
+    const uint32_t ray_cap = st->max_lights < HL_FRAME_SHARP_MAX ? st->max_lights : HL_FRAME_SHARP_MAX;
     for (uint32_t i = 0; i < nshadow; i++) {
         const uint32_t k = st->shadow_list[i];
-        if (st->ntier == 2 && t1r->n < t1r->Kb && light_is_sharp(split, k, t0r->R)) t1r->list[t1r->n++] = k;
+        const int sharp = st->sharp != HL_SHARP_OFF && light_is_sharp(split, k, t0r->R);
+        if (sharp && st->sr && st->nray < ray_cap) st->ray_list[st->nray++] = k;
+        else if (sharp && st->ntier == 2 && t1r->n < t1r->Kb) t1r->list[t1r->n++] = k;
         else t0r->list[t0r->n++] = k;
     }
     for (uint32_t i = 0; i < st->ntier && r == HL_OK; i++) r = render_tier(st, &st->tier[i], objects, split, keep_n[i], &fs);
@@ -889,9 +972,11 @@ hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint
         hl_dyn_irr_device_bufs(st->irr, &E, &acc, NULL);
         r = hl_cl_buffer_read(st->ctx, acc, (size_t)st->N * 12, st->acc);
     }
+    if (r == HL_OK && st->nray) r = sharp_by_rays(st, split, ray_keep_n, &fs);
     if (r != HL_OK) return r;
     fs.shadowed = nshadow;
-    fs.sharp = t1r->n;
+    fs.sharp_mode = st->sharp;
+    fs.sharp = st->sr ? st->nray : t1r->n;
     t = hl_now();
     const float inv_pi = (float)(1.0 / 3.14159265358979323846);
     for (uint32_t b = 0; b < nobj; b++) {

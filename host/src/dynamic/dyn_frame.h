@@ -52,17 +52,27 @@
  * 54.7 degrees, so this only guards against a malformed light. */
 #define HL_FRAME_MAX_THETA 1.5f
 
-/* Sharp lights get finer maps (a second tier of shadow maps). A light
- * is sharp when its filter, at a blocker as far as tier 0's map is wide,
- * is under HL_FRAME_SHARP_TEXELS texels of half-width in a map of size R:
- * tan(theta) R < 4 (a sun of 2 degrees at R = 128: 1.3 texels; a sky
- * light of 10 degrees: 22). Such a filter leaves the shadow's edge to the
- * texels, so their size is the error; a wide light's filter spans many
- * texels, and finer ones change little (DYNAMIC.md, section 6). Up to
- * HL_FRAME_SHARP_MAX of them, the strongest, get maps of R_sharp =
- * HL_FRAME_SHARP_SCALE R (at most HL_CSM_R_MAX) with moments; the rest
- * stay in tier 0. CSM keeps one size unless asked (its 4M + 1 images a
- * light would cost 16 times as much at 4 R). */
+/* Sharp lights. A light is sharp when its filter, at a blocker as far
+ * as tier 0's map is wide, is under HL_FRAME_SHARP_TEXELS texels of
+ * half-width in a map of size R: tan(theta) R < 4 (a sun of 2 degrees
+ * at R = 128: 1.3 texels; a sky light of 10 degrees: 22). Such a filter
+ * leaves the shadow's edge to the texels, so their size and phase are
+ * the error; a wide light's filter spans many texels, and finer ones
+ * change little (DYNAMIC.md, section 6). Up to HL_FRAME_SHARP_MAX of
+ * them, the strongest, are taken apart (hl_sharp_mode):
+ *   rays: Embree occlusion rays from every receiver (sharp_rays.h), 5
+ *     a receiver and 16 in a penumbra: no texels at all. The default
+ *     with moments;
+ *   maps: maps of R_sharp = HL_FRAME_SHARP_SCALE R (at most
+ *     HL_CSM_R_MAX) in a second tier;
+ *   off: they stay in tier 0. The default with CSM, the founding
+ *     method as published. */
+typedef enum hl_sharp_mode {
+    HL_SHARP_DEFAULT = 0,
+    HL_SHARP_RAYS = 1,
+    HL_SHARP_MAPS = 2,
+    HL_SHARP_OFF = 3
+} hl_sharp_mode;
 #define HL_FRAME_SHARP_TEXELS 4.0f
 #define HL_FRAME_SHARP_MAX 4u
 #define HL_FRAME_SHARP_SCALE 4u
@@ -86,14 +96,16 @@
 
 typedef struct hl_frame_settings {
     uint32_t R;           /* shadow map size; 0: HL_SHADOW_DEFAULT_R (128) */
-    uint32_t R_sharp;     /* the sharp lights' map size, R..HL_CSM_R_MAX; 0: the
-                             default above; R: no finer maps */
+    uint32_t R_sharp;     /* the sharp lights' map size with HL_SHARP_MAPS,
+                             R..HL_CSM_R_MAX; 0: the default above */
     uint32_t M;           /* CSM order, 4..16; 0: HL_CSM_M_DEFAULT (16) */
     uint32_t Mb;          /* blocker-search order, 4..M; 0: M */
     uint64_t budget;      /* bytes for one batch's CSM; 0: HL_FRAME_DEFAULT_BUDGET */
     float min_share;      /* < 0: HL_FRAME_MIN_SHARE; 0: shadow every light */
     hl_shadow_method method; /* HL_SHADOW_RASTER by default */
     hl_shadow_rep shadow;    /* the filterable representation; 0: HL_FRAME_DEFAULT_SHADOW */
+    hl_sharp_mode sharp;     /* 0: maps where R_sharp > R is given, else rays
+                                with moments and off with CSM */
 } hl_frame_settings;
 
 /* Seconds per stage of the last frame (lights are given: the split is
@@ -106,17 +118,22 @@ typedef struct hl_frame_stats {
     uint32_t skipped_negligible;/* below min_share: shaded with V = 1 */
     uint32_t batches, batch_lights; /* batches run, lights a batch holds (tier 0) */
     uint32_t R, R_sharp;        /* the map sizes (R_sharp 0: one size) */
-    uint32_t sharp;             /* shadowed lights with maps of R_sharp */
+    hl_sharp_mode sharp_mode;   /* rays, maps or off (never the default) */
+    uint32_t sharp;             /* shadowed lights taken by rays or maps of R_sharp */
+    uint64_t sharp_rays;        /* rays cast for them (0 when kept) */
     uint32_t covered;           /* receivers of a flat body under another
                                    body's contact faces: dark */
     uint32_t enclosed;          /* receivers inside their body's own closed
                                    parts (enclosed.h): dark */
-    uint32_t maps_kept;         /* shadowed lights whose maps and tables were
-                                   the last frame's, not made again (per
-                                   size, 0 or all its lights: hl_frame_render) */
+    uint32_t maps_kept;         /* shadowed lights whose shadows were the last
+                                   frame's, not made again: maps and tables
+                                   (per size, 0 or all its lights:
+                                   hl_frame_render), or the sharp lights'
+                                   traced visibility (all or none) */
     double t_irradiance;        /* E_k and ambient at every receiver */
     double t_shadow_maps;       /* set_transform and rendering */
     double t_csm_build, t_csm_eval, t_shading;
+    double t_sharp_rays;        /* the sharp lights' rays and their sums */
     double t_total;
 } hl_frame_stats;
 
@@ -139,7 +156,9 @@ void hl_frame_state_destroy(hl_frame_state *st);
  * linear, >= 0. stats may be NULL. The last frame's shadow maps and
  * their tables are used again where they still hold: one batch, the
  * same split, lights and directions, and no body they draw moved (a
- * flat body left out of them may have: stats->maps_kept). */
+ * flat body left out of them may have: stats->maps_kept); the sharp
+ * lights' traced visibility where the split, lights and directions are
+ * the same and no body at all moved. */
 hl_result hl_frame_render(hl_frame_state *st, const hl_dyn_object *objects, uint32_t nobj, const float *const *albedo,
                           const hl_light_split *split, float *const *rgb, hl_frame_stats *stats);
 

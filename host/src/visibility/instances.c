@@ -234,3 +234,74 @@ hl_result hl_inst_depth_maps(hl_inst_scene *s, const hl_inst_ortho *frames, uint
     if (hl_context_cancelled(s->ctx)) return hl_fail(s->ctx, HL_ERR_INTERRUPTED, "interrupted");
     return HL_OK;
 }
+
+typedef struct occ_job {
+    hl_inst_scene *s;
+    uint32_t count;
+    const float *org, *dir, *tnear;
+    uint8_t *occ;
+    atomic_uint next; /* the next ray */
+    atomic_int no_memory;
+} occ_job;
+
+/* Rays a thread takes at a time: 64 packets. */
+#define HL_INST_OCC_TAKE 1024u
+
+static void *occ_worker(void *arg)
+{
+    occ_job *job = arg;
+    struct RTCRay16 *ray = aligned_alloc(64, sizeof *ray);
+    int *valid = aligned_alloc(64, 64);
+    if (!ray || !valid) atomic_store(&job->no_memory, 1);
+    struct RTCIntersectContext ic;
+    rtcInitIntersectContext(&ic);
+    while (ray && valid) {
+        const uint32_t r0 = atomic_fetch_add(&job->next, HL_INST_OCC_TAKE);
+        if (r0 >= job->count || hl_context_cancelled(job->s->ctx)) break;
+        const uint32_t r1 = job->count - r0 < HL_INST_OCC_TAKE ? job->count : r0 + HL_INST_OCC_TAKE;
+        for (uint32_t i0 = r0; i0 < r1; i0 += 16) {
+            const uint32_t n = r1 - i0 < 16 ? r1 - i0 : 16;
+            for (uint32_t l = 0; l < 16; l++) {
+                const uint32_t i = i0 + (l < n ? l : 0);
+                valid[l] = l < n ? -1 : 0;
+                ray->org_x[l] = job->org[3 * (size_t)i], ray->org_y[l] = job->org[3 * (size_t)i + 1];
+                ray->org_z[l] = job->org[3 * (size_t)i + 2];
+                ray->dir_x[l] = job->dir[3 * (size_t)i], ray->dir_y[l] = job->dir[3 * (size_t)i + 1];
+                ray->dir_z[l] = job->dir[3 * (size_t)i + 2];
+                ray->tnear[l] = job->tnear ? job->tnear[i] : 0.0f;
+                ray->tfar[l] = INFINITY;
+                ray->mask[l] = 0xffffffffu;
+                ray->flags[l] = 0;
+                ray->time[l] = 0.0f;
+                ray->id[l] = l;
+            }
+            rtcOccluded16(valid, job->s->top, &ic, ray);
+            /* Embree sets tfar to -inf where something blocks */
+            for (uint32_t l = 0; l < n; l++) job->occ[i0 + l] = ray->tfar[l] < 0.0f;
+        }
+    }
+    free(ray);
+    free(valid);
+    return NULL;
+}
+
+hl_result hl_inst_occluded(hl_inst_scene *s, uint32_t count, const float *org, const float *dir, const float *tnear,
+                           uint8_t *occ)
+{
+    if (!count) return HL_OK;
+    if (count > UINT32_MAX - HL_INST_OCC_TAKE)
+        return hl_fail(s->ctx, HL_ERR_INVALID_ARGUMENT, "%u occlusion rays in one call: too many", count);
+    if (s->dirty) {
+        rtcCommitScene(s->top);
+        s->commits++;
+        s->dirty = 0;
+    }
+    occ_job job = {.s = s, .count = count, .org = org, .dir = dir, .tnear = tnear, .occ = occ};
+    atomic_init(&job.next, 0u);
+    atomic_init(&job.no_memory, 0);
+    hl_run_threads(s->ctx->threads, occ_worker, &job);
+    if (atomic_load(&job.no_memory)) return hl_fail(s->ctx, HL_ERR_OUT_OF_MEMORY, "out of memory for ray packets");
+    if (s->err[0]) return hl_fail(s->ctx, HL_ERR_EMBREE, "Embree: %s", s->err);
+    if (hl_context_cancelled(s->ctx)) return hl_fail(s->ctx, HL_ERR_INTERRUPTED, "interrupted");
+    return HL_OK;
+}

@@ -45,6 +45,13 @@ hl_result hl_inst_set_transform(hl_inst_scene *s, uint32_t i, const float *xf);
 /* K maps of R R floats each, map k at depth + k R R (row j at j R). */
 hl_result hl_inst_depth_maps(hl_inst_scene *s, const hl_inst_ortho *frames, uint32_t K, float *depth);
 
+/* Occlusion of `count` rays (origins and directions, 3 floats each):
+ * occ[i] = 1 when anything of the scene lies along ray i from tnear[i]
+ * on (in units of the direction's length; tnear NULL: 0), in 16-ray
+ * packets of consecutive rays on ctx's threads. */
+hl_result hl_inst_occluded(hl_inst_scene *s, uint32_t count, const float *org, const float *dir, const float *tnear,
+                           uint8_t *occ);
+
 /* Counts for the tests: object BVH builds (one per object, at creation)
  * and top-level commits. */
 void hl_inst_counts(const hl_inst_scene *s, uint64_t *object_builds, uint64_t *scene_commits);

@@ -60,24 +60,33 @@ struct hl_rt {
     char err[512];
 };
 
+void hl_rt_longest_edges(const float *P, uint32_t nverts, const uint32_t *tri, uint32_t ntris, float *e)
+{
+    memset(e, 0, (size_t)nverts * sizeof *e);
+    for (uint32_t t = 0; t < ntris; t++) {
+        const uint32_t *f = tri + 3 * (size_t)t;
+        for (int k = 0; k < 3; k++) {
+            const float *a = P + 3 * (size_t)f[k], *b = P + 3 * (size_t)f[(k + 1) % 3];
+            float d = fmaxf(fabsf(a[0] - b[0]), fmaxf(fabsf(a[1] - b[1]), fabsf(a[2] - b[2])));
+            e[f[k]] = fmaxf(e[f[k]], d);
+            e[f[(k + 1) % 3]] = fmaxf(e[f[(k + 1) % 3]], d);
+        }
+    }
+}
+
+float hl_rt_offset_size(const float p[3], float edge)
+{
+    float m = fmaxf(edge, fmaxf(fabsf(p[0]), fmaxf(fabsf(p[1]), fabsf(p[2]))));
+    return ldexpf(m, -HL_ROBUST_SHIFT);
+}
+
 /* Per vertex: 2^-HL_ROBUST_SHIFT max(|p|_inf, longest edge). */
 static float *robust_offsets(const hl_mesh *mesh)
 {
     float *s = calloc(mesh->vertex_count ? mesh->vertex_count : 1, sizeof(float));
     if (!s) return NULL;
-    const float *P = mesh->positions;
-    for (uint32_t v = 0; v < mesh->vertex_count; v++)
-        for (int c = 0; c < 3; c++) s[v] = fmaxf(s[v], fabsf(P[3 * (size_t)v + c]));
-    for (uint32_t t = 0; t < mesh->triangle_count; t++) {
-        const uint32_t *f = mesh->indices + 3 * (size_t)t;
-        for (int k = 0; k < 3; k++) {
-            const float *a = P + 3 * (size_t)f[k], *b = P + 3 * (size_t)f[(k + 1) % 3];
-            float e = fmaxf(fabsf(a[0] - b[0]), fmaxf(fabsf(a[1] - b[1]), fabsf(a[2] - b[2])));
-            s[f[k]] = fmaxf(s[f[k]], e);
-            s[f[(k + 1) % 3]] = fmaxf(s[f[(k + 1) % 3]], e);
-        }
-    }
-    for (uint32_t v = 0; v < mesh->vertex_count; v++) s[v] = ldexpf(s[v], -HL_ROBUST_SHIFT);
+    hl_rt_longest_edges(mesh->positions, mesh->vertex_count, mesh->indices, mesh->triangle_count, s);
+    for (uint32_t v = 0; v < mesh->vertex_count; v++) s[v] = hl_rt_offset_size(mesh->positions + 3 * (size_t)v, s[v]);
     return s;
 }
 

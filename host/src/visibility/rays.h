@@ -42,6 +42,12 @@ float hl_rt_robust_offset(const hl_rt *rt, uint32_t v);
 hl_result hl_rt_raw_rate(hl_rt *rt, const hl_geom *g, const hl_mesh *mesh, const uint32_t *verts,
                          uint32_t nverts, uint32_t S, float offset, double *rays_per_s);
 
+/* The robust offset's parts, for rays cast outside an hl_rt (the
+ * dynamic frame's sharp lights): e[v] = vertex v's longest edge (largest
+ * coordinate difference), and the offset of a vertex at p with longest
+ * edge `edge`. */
+void hl_rt_longest_edges(const float *P, uint32_t nverts, const uint32_t *tri, uint32_t ntris, float *e);
+float hl_rt_offset_size(const float p[3], float edge);
 /* One coordinate of a ray origin offset from a surface point p along its
  * normal n: p + n offset, rounded away from the surface, so that far from
  * the origin (where the offset is below the coordinates' spacing) it never
