@@ -1201,7 +1201,8 @@ static void case_cli(void)
     static const char *const bad[] = {"--lights 0", "--order 3", "--order 17", "--shadow-res 100", "--time -1",
                                       "--time nan", "--split-threshold 1", "--move nobody:1,0,0", "--terms 5",
                                       "--move object:1,0", "--reference truth", "--reference exact --rotate 10",
-                                      "--diff d.ply", "--reference exact --diff d.txt", NULL};
+                                      "--diff d.ply", "--reference exact --diff d.txt", "--sharp sun",
+                                      "--sharp-res 100", "--sharp rays --sharp-res 512", NULL};
     for (int i = 0; bad[i]; i++) {
         snprintf(cmd, sizeof cmd, "'%s' relight-dynamic '%s' --ground --device ref %s -o '%s' >/dev/null 2>&1", bin,
                  mesh, bad[i], out);

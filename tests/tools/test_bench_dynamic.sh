@@ -78,6 +78,7 @@ bad_options)
   bad settings_order "--settings" "$s" --settings 32:20
   bad settings_zero "--settings" "$s" --settings 0:16
   bad shadow_res "--shadow-res" "$s" --shadow-res 40
+  bad sharp "--sharp" "$s" --sharp sun
   bad reps "--reps" "$s" --reps 0
   bad terms "--terms" "$s" --terms 0
   bad unknown "unknown option" "$s" --frobnicate
