@@ -33,7 +33,7 @@ case "${1:-}" in
 run)
   scene
   out="$tmp/it's out"
-  "$bin" bench-dynamic "$tmp/s.hlt" --sky --terms 50,all --settings 4:8 --samples 1,4 --shadow-res 32 \
+  "$bin" bench-dynamic "$tmp/s.hlt" --sky --terms 50,all --settings 4:8,4:moments --samples 1,4 --shadow-res 32 \
     --reps 2 --traced-reps 1 -o "$out" >"$tmp/stdout.txt" 2>"$tmp/stderr.txt" ||
     { cat "$tmp/stderr.txt"; fail "bench-dynamic exited $?"; }
   for f in bench.md bench.csv bench.gp; do [ -s "$out/$f" ] || fail "no $f"; done
@@ -42,11 +42,11 @@ run)
   csv="$out/bench.csv"
   count() { awk -F, -v f="$1" -v m="$2" 'NR > 1 && $2 == f && $3 == m' "$csv" | wc -l; }
   [ "$(count rest PRT)" -eq 2 ] || fail "expected 2 PRT rows"
-  [ "$(count rest dynamic)" -eq 1 ] || fail "expected 1 dynamic row at rest"
-  [ "$(count moved dynamic)" -eq 1 ] || fail "expected 1 moved dynamic row"
+  [ "$(count rest dynamic)" -eq 2 ] || fail "expected 2 dynamic rows at rest (CSM and moments)"
+  [ "$(count moved dynamic)" -eq 2 ] || fail "expected 2 moved dynamic rows"
   [ "$(count moved 'K-lights ref')" -eq 1 ] || fail "expected 1 K-lights reference row"
   [ "$(count moved traced)" -eq 2 ] || fail "expected 2 traced rows"
-  [ "$(wc -l <"$csv")" -eq 8 ] || fail "bench.csv: expected a header and 7 rows"
+  [ "$(wc -l <"$csv")" -eq 10 ] || fail "bench.csv: expected a header and 9 rows"
   # columns: 7 l2_exact, 8 max_exact, 9 l2_klights, 10 ms
   awk -F, -v lim="$max_err" 'NR > 1 {
       worst = $7 > $8 ? $7 : $8
@@ -58,6 +58,8 @@ run)
     } END { printf "worst error %.4g, bound %g\n", w, lim; exit bad }' "$csv" || fail "a row's error or time is out of range"
   grep -q "goal: .* frames/s at rest (K 4, R 32, M 8: " "$out/bench.md" || fail "bench.md lacks the goal verdict"
   grep -q "moved, " "$out/bench.md" || fail "bench.md lacks the moved verdict"
+  grep -q "CSM at M 8 against moments (K 4): at rest .* nearer by .* times faster; moved " "$out/bench.md" ||
+    fail "bench.md lacks the representations' verdict"
   grep -q "goal: " "$tmp/stdout.txt" || fail "the verdicts are not printed"
   ;;
 bad_options)
