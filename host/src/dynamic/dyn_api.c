@@ -139,6 +139,9 @@ static hl_result dynamic_init(hl_context *ctx, hl_dyn_scene *scene, const hl_dyn
     d->set.min_share = -1.0f;
     d->set.R = R, d->set.M = M, d->set.R_sharp = Rs;
     /* the public values are the frame's (hl_sharp_mode) */
+    _Static_assert(HL_DYNAMIC_SHARP_RAYS == HL_SHARP_RAYS && HL_DYNAMIC_SHARP_MAPS == HL_SHARP_MAPS &&
+                       HL_DYNAMIC_SHARP_OFF == HL_SHARP_OFF && HL_DYNAMIC_SHARP_DEFAULT == HL_SHARP_DEFAULT,
+                   "hl_dynamic_desc.sharp is cast to hl_sharp_mode");
     d->set.sharp = (hl_sharp_mode)sharp;
     /* an order given with the default asks for the CSM it is the order of
        (the viewer's and older callers' --order) */
